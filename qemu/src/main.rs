@@ -1,0 +1,2 @@
+//! millac host tool entry point (host).
+fn main() {}

@@ -1,0 +1,1 @@
+//! G-code lines -> validated blocks (loader task).

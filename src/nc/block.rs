@@ -1,0 +1,97 @@
+//! Validated NC blocks: what the G-code parser (task context) queues and the Initiator (frame ISR)
+//! loads. Everything in a `Block` has been checked; the frame trusts it and does no checks.
+
+/// Axis indices into `[_; 3]` arrays and bit positions in step/sign masks.
+pub const X: usize = 0;
+pub const Y: usize = 1;
+pub const Z: usize = 2;
+
+/// The plane of a circular block, as grbl names its axes: (a, b) = (X, Y) for G17, (Z, X) for G18,
+/// (Y, Z) for G19. Counter-clockwise is from +a towards +b, seen from the positive third axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Plane {
+    XY,
+    ZX,
+    YZ,
+}
+
+impl Plane {
+    /// Machine axis indices of (a, b).
+    pub const fn axes(self) -> (usize, usize) {
+        match self {
+            Plane::XY => (X, Y),
+            Plane::ZX => (Z, X),
+            Plane::YZ => (Y, Z),
+        }
+    }
+}
+
+/// PTP (G0): every axis moves independently at the rapid rate with three-step deceleration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Rapid {
+    /// Pulses per axis (position counters).
+    pub steps: [u32; 3],
+    /// Sign bits: bit k set = axis k moves in the positive direction.
+    pub signs: u8,
+}
+
+/// Linear interpolation (G1): q = L = isqrt(x^2 + y^2 + z^2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Linear {
+    /// Incremental distances |x|, |y|, |z| in BLU: the DDA registers y1..y3 and the counters.
+    pub steps: [u32; 3],
+    pub signs: u8,
+    /// q = L, at least 1.
+    pub q: u32,
+    /// Feed number f (1..=q0).
+    pub f: u32,
+    /// Decelerate exponentially to 20 % of f near the end of the block.
+    pub decel: bool,
+}
+
+/// Most quadrant segments an arc can have (a full circle from a point off the axes).
+pub const MAX_SEGMENTS: usize = 5;
+
+/// Circular interpolation (G2/G3) as a full DDA: registers i = a - a_c, j = b - b_c, q = R.
+/// The arc is cut at axis crossings into segments; inside a segment both axes move
+/// monotonically, so the position counters of a segment are |delta a| and |delta b| and its signs
+/// are constant. The last target is the programmed end point (relative to the centre).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Arc {
+    pub plane: Plane,
+    /// G3 (counter-clockwise) when true, G2 when false.
+    pub ccw: bool,
+    /// Start point relative to the centre (i, j) in BLU.
+    pub start: [i32; 2],
+    /// q = R = round(sqrt(i^2 + j^2)) of the start point, at least 1.
+    pub r: u32,
+    /// Segment end points relative to the centre; the first `n_targets` are used.
+    pub targets: [[i32; 2]; MAX_SEGMENTS],
+    pub n_targets: u8,
+    pub f: u32,
+    pub decel: bool,
+    /// Path length in BLU (number of interpolation commands the arc takes), for deceleration.
+    pub length: u32,
+}
+
+/// G4: wait a number of frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Dwell {
+    pub frames: u32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Motion {
+    Rapid(Rapid),
+    Linear(Linear),
+    Arc(Arc),
+    Dwell(Dwell),
+}
+
+/// One block of the program, as the Initiator loads it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Block {
+    /// Source line number (1-based) of the G-code line that produced it.
+    pub line: u32,
+    pub motion: Motion,
+}

@@ -1,0 +1,37 @@
+//! The NC program of the paper: blocks, the Initiator, feed DDA, linear and circular DDA
+//! interpolators, PTP, output and position counters. Integer only; `Frame::tick` runs in the frame ISR.
+
+pub mod block;
+
+pub use block::*;
+
+/// Integer square root: the largest r with r * r <= n. Used by the parser (task) to compute q = L.
+pub const fn isqrt(n: u64) -> u64 {
+    if n < 2 {
+        return n;
+    }
+    // Newton's iteration from an over-estimate; monotonically decreasing to floor(sqrt(n)).
+    let mut x = 1u64 << ((64 - n.leading_zeros()).div_ceil(2));
+    loop {
+        let y = (x + n / x) / 2;
+        if y >= x {
+            return x;
+        }
+        x = y;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::isqrt;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn isqrt_is_floor_sqrt(n in any::<u64>()) {
+            let r = isqrt(n) as u128;
+            prop_assert!(r * r <= n as u128);
+            prop_assert!((r + 1) * (r + 1) > n as u128);
+        }
+    }
+}
