@@ -2,8 +2,10 @@
 //! interpolators, PTP, output and position counters. Integer only; `Frame::tick` runs in the frame ISR.
 
 pub mod block;
+pub mod frame;
 
 pub use block::*;
+pub use frame::{Frame, FrameConfig, Pulses, Rate};
 
 /// Integer square root: the largest r with r * r <= n. Used by the parser (task) to compute q = L.
 pub const fn isqrt(n: u64) -> u64 {
