@@ -1,0 +1,329 @@
+//! millac firmware for the lm3s6965evb (QEMU): the RTIC 2 app. `init` validates the settings and
+//! starts the board; the frame ISR (TIMER_0A) and the pulse-end ISR (TIMER_1A) drive the pins; the
+//! idle loop is the loader: it reads `program.nc` through semihosting, parses it and queues the
+//! blocks, then reports the final position and exits QEMU.
+//!
+//! # Timing rule (why pulses and signs are correct by construction)
+//!
+//! Frame ISR and pulse-end ISR run at the same, highest priority, so neither preempts the other:
+//! the pulse end waits (tail-chains) until the frame is done. Each frame first outputs the pulses
+//! computed in the PREVIOUS frame (`pending`): one store sets the PULSE lines high, then the
+//! one-shot pulse timer starts for `pulse_width_ns`. Only then does the frame compute the next
+//! pulses `p` (whose time varies with the block); their SIGN lines are written
+//! - at once, if this frame emitted no pulse (the PULSE lines are low), or
+//! - by the pulse-end ISR, right after it sets the PULSE lines low again.
+//!
+//! So a PULSE line is high for at least `pulse_width_ns` (the timer runs that long, and the falling
+//! edge waits for the frame's work if that is longer), a SIGN line changes only while every PULSE
+//! line is low, and the next rising edge comes one frame period after this frame's rising edge.
+//! The SIGN-to-rising-edge gap is therefore at least the period minus max(pulse width, frame work);
+//! `Settings::validate` guarantees pulse width + sign setup <= 75 % of the shortest (rapid) period,
+//! which leaves the sign setup time as long as the frame's work stays within the remaining 25 %.
+//! Rising edges keep the timer's period exactly: the pulse store is the frame's first work after
+//! the acknowledge, at a fixed number of instructions from the interrupt.
+//!
+//! The frame timer runs at W0 (`frame_hz`) while contouring, dwelling or idle, and is retimed to
+//! `rapid_hz` while the frame asks for `Rate::Rapid` (PTP), so the 5 kHz contouring frame and the
+//! 26.3 kHz rapid pulse rate come from one timer.
+//!
+//! No monotonic/SysTick: any that is added must have a priority below the frame's.
+#![no_std]
+#![no_main]
+
+use core::fmt::{self, Write as _};
+use core::panic::PanicInfo;
+
+use cortex_m_semihosting::{debug, hio};
+
+/// Semihosting stdout without the critical section `hprintln!` takes (it would delay the frame ISR
+/// while the loader prints an error); output errors are ignored, nothing here panics.
+struct Out(Option<hio::HostStream>);
+
+impl Out {
+    fn open() -> Self {
+        Out(hio::hstdout().ok())
+    }
+    fn line(&mut self, args: fmt::Arguments) {
+        if let Some(s) = self.0.as_mut() {
+            let _ = s.write_fmt(args);
+            let _ = s.write_str("\n");
+        }
+    }
+}
+
+/// Prints `error: <what>` and leaves QEMU with a failure status. Init and idle.
+fn fail(what: fmt::Arguments) -> ! {
+    Out::open().line(format_args!("error: {}", what));
+    exit(false)
+}
+
+/// Leaves QEMU through semihosting (success or failure status). Never returns on QEMU; on a
+/// debugger that continues, parks the core.
+fn exit(ok: bool) -> ! {
+    debug::exit(if ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
+/// Any context: prints the panic through semihosting and exits with failure.
+#[panic_handler]
+fn panic(info: &PanicInfo) -> ! {
+    cortex_m::interrupt::disable();
+    Out::open().line(format_args!("panic: {}", info));
+    exit(false)
+}
+
+#[rtic::app(device = lm3s6965, peripherals = false)]
+mod app {
+    use core::sync::atomic::Ordering::Relaxed;
+
+    use cortex_m_semihosting::{nr, syscall};
+    use heapless::spsc::{Consumer, Producer, Queue};
+    use millac::gcode::{Lookahead, Parsed, Parser};
+    use millac::nc::{Block, Frame, FrameConfig, Pulses, Rate};
+    use millac::Settings;
+    use millac_hal::lines::Lines;
+    use millac_hal::lm3s6965::Lm3s6965;
+    use millac_hal::status::{BLOCKS_DONE, FEED_CAP, IDLE, POSITION};
+    use millac_hal::{clocks_for_hz, clocks_for_ns, Board};
+
+    use super::{exit, fail, Out};
+
+    /// The board this binary drives.
+    type B = Lm3s6965;
+
+    /// Queue slots (a heapless spsc queue holds one less: 15 blocks).
+    const QUEUE: usize = 16;
+    /// Semihosting read size.
+    const CHUNK: usize = 256;
+
+    #[shared]
+    struct Shared {
+        /// Signs of the next pulses, for the pulse-end ISR to write after the current pulse.
+        /// Both users run at the same priority: no lock.
+        #[lock_free]
+        next_signs: u8,
+    }
+
+    /// Frame timer reload values for the two rates.
+    pub struct Reloads {
+        feed: u32,
+        rapid: u32,
+    }
+
+    #[local]
+    struct Local {
+        frame: Frame,
+        consumer: Consumer<'static, Block, QUEUE>,
+        pending: Pulses,
+        rate: Rate,
+        reloads: Reloads,
+        producer: Producer<'static, Block, QUEUE>,
+        parser: Parser,
+    }
+
+    #[init(local = [queue: Queue<Block, QUEUE> = Queue::new()])]
+    fn init(cx: init::Context) -> (Shared, Local) {
+        let settings = Settings::default();
+        if let Err(e) = settings.validate() {
+            fail(format_args!("settings: {}", e.message()));
+        }
+        let (producer, consumer) = cx.local.queue.split();
+
+        let reloads = Reloads {
+            feed: B::reload(clocks_for_hz(B::TIMER_HZ, settings.frame_hz)),
+            rapid: B::reload(clocks_for_hz(B::TIMER_HZ, settings.rapid_hz)),
+        };
+        let pulse = B::reload(clocks_for_ns(B::TIMER_HZ, settings.pulse_width_ns));
+        B::init(reloads.feed, pulse);
+
+        (
+            Shared { next_signs: 0 },
+            Local {
+                frame: Frame::new(FrameConfig::from_settings(&settings)),
+                consumer,
+                pending: Pulses::default(),
+                rate: Rate::Feed,
+                reloads,
+                producer,
+                parser: Parser::new(settings),
+            },
+        )
+    }
+
+    /// The frame ISR: highest priority (3). No locks, logging, allocation or panics.
+    #[task(binds = TIMER_0A, priority = 3,
+           local = [frame, consumer, pending, rate, reloads], shared = [next_signs])]
+    fn frame(cx: frame::Context) {
+        B::frame_ack();
+        let pending = *cx.local.pending;
+        if pending.steps != 0 {
+            B::write_steps(pending.steps);
+            B::pulse_start();
+        }
+
+        let consumer = cx.local.consumer;
+        let frame = cx.local.frame;
+        let p = frame.tick(|| consumer.dequeue(), FEED_CAP.load(Relaxed));
+
+        let rate = frame.rate();
+        if rate != *cx.local.rate {
+            *cx.local.rate = rate;
+            B::frame_set_reload(match rate {
+                Rate::Feed => cx.local.reloads.feed,
+                Rate::Rapid => cx.local.reloads.rapid,
+            });
+        }
+
+        if pending.steps == 0 {
+            B::write_signs(p.signs);
+        } else {
+            *cx.shared.next_signs = p.signs;
+        }
+        *cx.local.pending = p;
+
+        let [x, y, z] = frame.position();
+        POSITION[0].store(x, Relaxed);
+        POSITION[1].store(y, Relaxed);
+        POSITION[2].store(z, Relaxed);
+        BLOCKS_DONE.store(frame.blocks_done(), Relaxed);
+        IDLE.store(frame.idle() && p.steps == 0 && pending.steps == 0, Relaxed);
+    }
+
+    /// The pulse-end ISR: same priority as the frame, so it runs after the frame has finished.
+    #[task(binds = TIMER_1A, priority = 3, shared = [next_signs])]
+    fn pulse_end(cx: pulse_end::Context) {
+        B::pulse_ack();
+        B::write_steps(0);
+        B::write_signs(*cx.shared.next_signs);
+    }
+
+    /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
+    #[idle(local = [producer, parser])]
+    fn idle(cx: idle::Context) -> ! {
+        let producer = cx.local.producer;
+        let mut out = Out::open();
+        let ok = match load(producer, cx.local.parser, &mut out) {
+            Loaded::All => true,
+            Loaded::Error => false,
+            Loaded::NoFile => exit(false),
+        };
+
+        // Every accepted block runs to completion, also after an error.
+        while producer.len() != 0 || !IDLE.load(Relaxed) {
+            cortex_m::asm::nop();
+        }
+        let [x, y, z] = [
+            POSITION[0].load(Relaxed),
+            POSITION[1].load(Relaxed),
+            POSITION[2].load(Relaxed),
+        ];
+        out.line(format_args!(
+            "millac: blocks={} position={},{},{}",
+            BLOCKS_DONE.load(Relaxed),
+            x,
+            y,
+            z
+        ));
+        exit(ok)
+    }
+
+    /// How loading ended.
+    enum Loaded {
+        /// Program end (M2/M30) or end of file.
+        All,
+        /// A line was refused or the file could not be read (printed); the blocks before it run.
+        Error,
+        /// No `program.nc` (printed): nothing to run, nothing to report.
+        NoFile,
+    }
+
+    /// Reads, parses and queues the program. Errors are printed here.
+    fn load(
+        producer: &mut Producer<'static, Block, QUEUE>,
+        parser: &mut Parser,
+        out: &mut Out,
+    ) -> Loaded {
+        let path = b"program.nc\0";
+        // SAFETY: SYS_OPEN with a NUL-terminated name, its length without the NUL, mode "r".
+        let fd = unsafe { syscall!(OPEN, path.as_ptr(), nr::open::R, path.len() - 1) } as isize;
+        if fd == -1 {
+            out.line(format_args!("error: cannot open program.nc"));
+            return Loaded::NoFile;
+        }
+
+        let mut lines = Lines::new();
+        let mut lookahead = Lookahead::new();
+        let mut chunk = [0u8; CHUNK];
+        let mut ok = true;
+        let mut read_failed = false;
+        let mut sink = |n: u32, text: Result<&str, millac_hal::lines::LineError>| -> bool {
+            let text = match text {
+                Ok(t) => t,
+                Err(e) => {
+                    out.line(format_args!("error: line {}: {}", n, e.message()));
+                    ok = false;
+                    return false;
+                }
+            };
+            match parser.line(n, text) {
+                Ok(Parsed::Nothing) => true,
+                Ok(Parsed::Block(b)) => {
+                    if let Some(prev) = lookahead.push(b) {
+                        enqueue(producer, prev);
+                    }
+                    true
+                }
+                Ok(Parsed::End) => false,
+                Err(e) => {
+                    out.line(format_args!("error: {}", e));
+                    ok = false;
+                    false
+                }
+            }
+        };
+        loop {
+            // SAFETY: SYS_READ into a buffer we own, at most its length; returns the bytes NOT read.
+            let left = unsafe { syscall!(READ, fd, chunk.as_mut_ptr(), chunk.len()) };
+            let Some(n) = chunk.len().checked_sub(left) else {
+                read_failed = true;
+                break;
+            };
+            let bytes = chunk.get(..n).unwrap_or(&[]);
+            if bytes.is_empty() {
+                lines.finish(&mut sink);
+                break;
+            }
+            if !lines.feed(bytes, &mut sink) {
+                break;
+            }
+        }
+        // SAFETY: SYS_CLOSE of the handle opened above.
+        unsafe { syscall!(CLOSE, fd) };
+        if read_failed {
+            out.line(format_args!("error: cannot read program.nc"));
+            ok = false;
+        }
+        // End of program, end of file or error: the held block was accepted, so it runs too.
+        if let Some(b) = lookahead.flush() {
+            enqueue(producer, b);
+        }
+        if ok {
+            Loaded::All
+        } else {
+            Loaded::Error
+        }
+    }
+
+    /// Queues a block, waiting while the queue is full (the frame drains it).
+    fn enqueue(producer: &mut Producer<'static, Block, QUEUE>, b: Block) {
+        while producer.enqueue(b).is_err() {
+            cortex_m::asm::nop();
+        }
+    }
+}

@@ -1,0 +1,112 @@
+//! Splits the program "tape" (bytes in chunks of any size) into numbered lines for the G-code
+//! parser: `\n` ends a line, a `\r` before it is dropped, lines count from 1, the last line needs no
+//! newline. Idle (loader) context.
+
+/// Longest accepted line in bytes, without its line end.
+pub const LINE_MAX: usize = 256;
+
+/// Why a line was refused before it reached the parser.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LineError {
+    /// More than [`LINE_MAX`] bytes before the line end.
+    TooLong,
+    /// Not valid UTF-8.
+    NotUtf8,
+}
+
+impl LineError {
+    /// The reason, worded like the parser's errors ("line N: <reason>").
+    pub const fn message(self) -> &'static str {
+        match self {
+            LineError::TooLong => "line too long",
+            LineError::NotUtf8 => "not UTF-8",
+        }
+    }
+}
+
+/// Line assembler. `feed` and `finish` call the sink once per line with its number and its text
+/// (or why it was refused); the sink returns `false` to stop, and then they return `false` too.
+pub struct Lines {
+    /// One byte more than `LINE_MAX` so that a `\r` before the `\n` fits.
+    buf: [u8; LINE_MAX + 1],
+    len: usize,
+    line_no: u32,
+    /// The current line overflowed and was already reported; skip to its end.
+    skipping: bool,
+}
+
+impl Default for Lines {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Lines {
+    pub const fn new() -> Self {
+        Lines {
+            buf: [0; LINE_MAX + 1],
+            len: 0,
+            line_no: 0,
+            skipping: false,
+        }
+    }
+
+    /// Number of the last line handed to the sink.
+    pub const fn line_no(&self) -> u32 {
+        self.line_no
+    }
+
+    /// Takes the next bytes of the tape.
+    pub fn feed(
+        &mut self,
+        bytes: &[u8],
+        mut sink: impl FnMut(u32, Result<&str, LineError>) -> bool,
+    ) -> bool {
+        for &b in bytes {
+            if b == b'\n' {
+                if self.skipping {
+                    self.skipping = false;
+                    self.len = 0;
+                } else if !self.emit(&mut sink) {
+                    return false;
+                }
+            } else if self.skipping {
+                // Rest of an over-long line: already reported.
+            } else if let Some(slot) = self.buf.get_mut(self.len) {
+                *slot = b;
+                self.len += 1;
+            } else {
+                // Report at once: no need to read the rest of a runaway line first.
+                self.skipping = true;
+                self.len = 0;
+                self.line_no = self.line_no.saturating_add(1);
+                if !sink(self.line_no, Err(LineError::TooLong)) {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    /// End of the tape: hands over a last line that had no newline.
+    pub fn finish(&mut self, mut sink: impl FnMut(u32, Result<&str, LineError>) -> bool) -> bool {
+        if self.len == 0 || self.skipping {
+            return true;
+        }
+        self.emit(&mut sink)
+    }
+
+    fn emit(&mut self, sink: &mut impl FnMut(u32, Result<&str, LineError>) -> bool) -> bool {
+        self.line_no = self.line_no.saturating_add(1);
+        let mut n = self.len;
+        self.len = 0;
+        if n > 0 && self.buf.get(n - 1) == Some(&b'\r') {
+            n -= 1;
+        }
+        let text = match self.buf.get(..n) {
+            Some(t) if n <= LINE_MAX => core::str::from_utf8(t).map_err(|_| LineError::NotUtf8),
+            _ => Err(LineError::TooLong),
+        };
+        sink(self.line_no, text)
+    }
+}

@@ -1,0 +1,162 @@
+//! The LM3S6965 board (the lm3s6965evb that QEMU emulates): pins on GPIO port B, the frame on
+//! general-purpose Timer 0 (TIMER_0A, periodic) and the step pulse end on Timer 1 (TIMER_1A,
+//! one-shot). Raw volatile register access: the `lm3s6965` device crate has interrupt names only.
+//! `init` runs in `#[init]`; everything else in the frame and pulse-end ISRs.
+//!
+//! Pins (port B): PB0 X_STEP, PB1 Y_STEP, PB2 Z_STEP, PB3 X_SIGN, PB4 Y_SIGN, PB5 Z_SIGN.
+//! Registers (LM3S6965 datasheet): SYSCTL RCGC1/RCGC2 clock gates; GPIO DIR, DEN and the masked
+//! data window (address bits [9:2] select the pins a store changes); GPTM CFG, TAMR, CTL, IMR, ICR,
+//! TAILR.
+use crate::Board;
+
+/// The board. Zero-sized: all state is in the peripherals.
+pub struct Lm3s6965;
+
+/// Clock the timers see: QEMU's lm3s6965evb runs the timers at 12.5 MHz after reset.
+pub const TIMER_HZ: u32 = 12_500_000;
+
+/// Clocks per period minus the reload value. QEMU 7.2 counts a period of TAILR clocks; real
+/// silicon counts TAILR + 1 (from TAILR down to 0 inclusive), so a real-board build sets 1.
+pub const RELOAD_OFFSET: u32 = 0;
+
+// System control: run-mode clock gating.
+const SYSCTL_RCGC1: usize = 0x400F_E104;
+const RCGC1_TIMER0: u32 = 1 << 16;
+const RCGC1_TIMER1: u32 = 1 << 17;
+const SYSCTL_RCGC2: usize = 0x400F_E108;
+const RCGC2_GPIOB: u32 = 1 << 1;
+
+// GPIO port B (APB aperture).
+const GPIOB: usize = 0x4000_5000;
+const GPIO_DIR: usize = 0x400;
+const GPIO_DEN: usize = 0x51C;
+/// The six pins we drive: PB0..PB5.
+const PINS: u32 = 0b11_1111;
+/// PULSE lines PB0..PB2: `steps` bit k is pin k.
+const STEP_MASK: usize = 0b00_0111;
+/// SIGN lines PB3..PB5: `signs` bit k is pin k + 3.
+const SIGN_MASK: usize = 0b11_1000;
+const SIGN_SHIFT: u32 = 3;
+
+/// Masked data address: a store there changes only the pins whose bit is set in `mask`.
+const fn gpio_data(base: usize, mask: usize) -> usize {
+    base + (mask << 2)
+}
+const STEP_DATA: usize = gpio_data(GPIOB, STEP_MASK);
+const SIGN_DATA: usize = gpio_data(GPIOB, SIGN_MASK);
+const ALL_DATA: usize = gpio_data(GPIOB, PINS as usize);
+
+// General-purpose timers.
+const TIMER0: usize = 0x4003_0000;
+const TIMER1: usize = 0x4003_1000;
+const GPTM_CFG: usize = 0x000; // 0 = one 32-bit timer
+const GPTM_TAMR: usize = 0x004; // Timer A mode: 1 = one-shot, 2 = periodic
+const GPTM_CTL: usize = 0x00C; // bit 0 TAEN: Timer A enable
+const GPTM_IMR: usize = 0x018; // bit 0 TATOIM: Timer A time-out interrupt mask
+const GPTM_ICR: usize = 0x024; // bit 0 TATOCINT: write 1 to clear the time-out interrupt
+const GPTM_TAILR: usize = 0x028; // Timer A interval load
+const CFG_32BIT: u32 = 0;
+const TAMR_ONE_SHOT: u32 = 1;
+const TAMR_PERIODIC: u32 = 2;
+const CTL_TAEN: u32 = 1;
+const TATO: u32 = 1;
+
+/// One 32-bit volatile store to a peripheral register.
+#[inline(always)]
+fn write(addr: usize, value: u32) {
+    // SAFETY: only called with the register addresses above, all valid, aligned 32-bit device
+    // registers of the LM3S6965; stores to them have no effect on Rust-visible memory.
+    unsafe { core::ptr::write_volatile(addr as *mut u32, value) }
+}
+
+/// One 32-bit volatile load from a peripheral register.
+#[inline(always)]
+fn read(addr: usize) -> u32 {
+    // SAFETY: as for `write`.
+    unsafe { core::ptr::read_volatile(addr as *const u32) }
+}
+
+/// Sets `bits` in a register (read-modify-write). Init only: not atomic against ISRs.
+fn set_bits(addr: usize, bits: u32) {
+    write(addr, read(addr) | bits);
+}
+
+impl Board for Lm3s6965 {
+    const TIMER_HZ: u32 = TIMER_HZ;
+
+    fn reload(clocks: u32) -> u32 {
+        let r = clocks.saturating_sub(RELOAD_OFFSET);
+        if r == 0 {
+            1
+        } else {
+            r
+        }
+    }
+
+    fn init(frame_reload: u32, pulse_reload: u32) {
+        set_bits(SYSCTL_RCGC1, RCGC1_TIMER0 | RCGC1_TIMER1);
+        set_bits(SYSCTL_RCGC2, RCGC2_GPIOB);
+        // Silicon needs a few clocks after ungating before the peripheral answers: the read-backs
+        // take them.
+        let _ = read(SYSCTL_RCGC1);
+        let _ = read(SYSCTL_RCGC2);
+
+        // All six lines low, then outputs, digital enable.
+        write(ALL_DATA, 0);
+        set_bits(GPIOB + GPIO_DIR, PINS);
+        set_bits(GPIOB + GPIO_DEN, PINS);
+
+        // Pulse timer: 32-bit one-shot, interrupt on time-out, not started.
+        write(TIMER1 + GPTM_CTL, 0);
+        write(TIMER1 + GPTM_CFG, CFG_32BIT);
+        write(TIMER1 + GPTM_TAMR, TAMR_ONE_SHOT);
+        write(TIMER1 + GPTM_TAILR, pulse_reload);
+        write(TIMER1 + GPTM_ICR, TATO);
+        write(TIMER1 + GPTM_IMR, TATO);
+
+        // Frame timer: 32-bit periodic, interrupt on time-out, started (the interrupt is taken
+        // once init returns and RTIC unmasks it).
+        write(TIMER0 + GPTM_CTL, 0);
+        write(TIMER0 + GPTM_CFG, CFG_32BIT);
+        write(TIMER0 + GPTM_TAMR, TAMR_PERIODIC);
+        write(TIMER0 + GPTM_TAILR, frame_reload);
+        write(TIMER0 + GPTM_ICR, TATO);
+        write(TIMER0 + GPTM_IMR, TATO);
+        write(TIMER0 + GPTM_CTL, CTL_TAEN);
+    }
+
+    #[inline(always)]
+    fn frame_ack() {
+        write(TIMER0 + GPTM_ICR, TATO);
+    }
+
+    /// LM3S silicon loads a new TAILR into the running counter at once; QEMU 7.2 keeps the
+    /// time-out already scheduled and uses the new value from the following period on.
+    #[inline(always)]
+    fn frame_set_reload(reload: u32) {
+        write(TIMER0 + GPTM_TAILR, reload);
+    }
+
+    /// A one-shot timer clears TAEN at its time-out, so setting TAEN restarts it from TAILR.
+    #[inline(always)]
+    fn pulse_start() {
+        write(TIMER1 + GPTM_CTL, CTL_TAEN);
+    }
+
+    #[inline(always)]
+    fn pulse_ack() {
+        write(TIMER1 + GPTM_ICR, TATO);
+    }
+
+    /// The masked address ignores value bits outside PB0..PB2: no masking needed here.
+    #[inline(always)]
+    fn write_steps(steps: u8) {
+        write(STEP_DATA, u32::from(steps));
+    }
+
+    /// The masked address ignores value bits outside PB3..PB5.
+    #[inline(always)]
+    fn write_signs(signs: u8) {
+        write(SIGN_DATA, u32::from(signs) << SIGN_SHIFT);
+    }
+}
