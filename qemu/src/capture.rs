@@ -1,0 +1,458 @@
+//! Virtual logic analyser capture (host): runs the firmware under QEMU (lm3s6965evb, icount) with the
+//! millac TCG plugin and the `pl061_write` trace event, and turns the GPIO port B writes into timed
+//! pin events plus per-interrupt-handler instruction counts.
+//!
+//! Measured on Debian's QEMU 7.2:
+//! - plugin arguments are given as `-plugin lib.so,key=value,key=value` (the older
+//!   `arg=key=value` form also works but prints a deprecation warning);
+//! - `-trace pl061_write -D FILE` writes one line per PL061 register write, in execution order:
+//!   `pl061_write /machine/unattached/device[9] offset 0x4 value 0x1` (no timestamp; with
+//!   `-msg timestamp=on` a `PID@SECS:` prefix is added, which the parser tolerates);
+//! - on a semihosting SYS_EXIT QEMU calls exit(), and the plugin's atexit callback runs (its final
+//!   `e COUNT` line is present), for exit status 0 and 1 alike.
+//!
+//! The plugin sees store addresses but not values (plugin API v1); the trace sees offsets and values
+//! but not the time. Both list the same writes in the same order, so they are zipped one to one (the
+//! offsets must agree, else the capture fails) and the port B writes are replayed like QEMU's PL061
+//! (data writes are masked by address bits [9:2] and by the direction register). Pin levels reported
+//! are `data & dir` (input pins read 0). Time of a write = (instructions executed up to and including
+//! the store) << shift, in ns; exact under `-icount shift=N,sleep=off` with a busy idle loop.
+use anyhow::{bail, ensure, Context, Result};
+use std::collections::HashMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// GPIO port bases of the lm3s6965 (ports A-G): all are watched so that trace and plugin records
+/// can be zipped even when the firmware writes other ports.
+pub const LM3S6965_GPIO_BASES: [u32; 7] = [
+    0x4000_4000,
+    0x4000_5000,
+    0x4000_6000,
+    0x4000_7000,
+    0x4002_4000,
+    0x4002_5000,
+    0x4002_6000,
+];
+/// GPIO port B, the step/sign pins.
+pub const PORT_B: u32 = 0x4000_5000;
+/// Sub-directory of the run directory that receives the plugin, its log and the trace.
+pub const CAPTURE_DIR: &str = ".millac-capture";
+
+/// An interrupt handler to time: entry PC and return-instruction PCs (Thumb bit cleared).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct HandlerSpec {
+    pub name: String,
+    pub entry: u32,
+    pub exits: Vec<u32>,
+}
+
+impl HandlerSpec {
+    /// Looks the function `name` up in the ELF (see [`crate::elf::find_function`]).
+    pub fn from_elf(elf: &Path, name: &str) -> Result<HandlerSpec> {
+        let f = crate::elf::find_function(elf, name)?;
+        ensure!(
+            !f.returns.is_empty(),
+            "no return instruction found in `{name}`"
+        );
+        Ok(HandlerSpec {
+            name: f.name,
+            entry: f.addr,
+            exits: f.returns,
+        })
+    }
+}
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct CaptureSpec {
+    /// Firmware ELF.
+    pub elf: PathBuf,
+    /// Working directory of QEMU (the firmware reads `program.nc` there through semihosting).
+    pub run_dir: PathBuf,
+    /// `-icount shift=N`: one instruction = 2^N ns.
+    pub icount_shift: u32,
+    /// Extra QEMU arguments, appended last.
+    pub extra_args: Vec<String>,
+    /// Handlers to time (at most 16).
+    pub handlers: Vec<HandlerSpec>,
+    /// Wall-clock limit; QEMU is killed and the capture fails past it.
+    pub timeout: Duration,
+    /// GPIO blocks watched by the plugin (must cover every PL061 the firmware writes).
+    pub gpio_ports: Vec<u32>,
+    /// The port whose pins are reported.
+    pub pin_port: u32,
+}
+
+impl CaptureSpec {
+    /// Defaults: shift 4 (16 ns per instruction), no handlers, 120 s timeout, lm3s6965 ports, port B.
+    pub fn new(elf: impl Into<PathBuf>, run_dir: impl Into<PathBuf>) -> CaptureSpec {
+        CaptureSpec {
+            elf: elf.into(),
+            run_dir: run_dir.into(),
+            icount_shift: 4,
+            extra_args: Vec::new(),
+            handlers: Vec::new(),
+            timeout: Duration::from_secs(120),
+            gpio_ports: LM3S6965_GPIO_BASES.to_vec(),
+            pin_port: PORT_B,
+        }
+    }
+}
+
+/// Result of a run.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Capture {
+    /// (time ns, PB0..PB7 levels after the write) for each write that changed a pin; initial 0.
+    pub pins: Vec<(u64, u8)>,
+    /// Per handler (same order as the spec): instructions from entry to return, inclusive, per call.
+    pub handlers: Vec<(String, Vec<u64>)>,
+    /// Total instructions executed.
+    pub total_instructions: u64,
+    /// Virtual time at exit, ns.
+    pub end_ns: u64,
+    /// QEMU's stdout (the firmware's semihosting output).
+    pub stdout: String,
+    /// QEMU's stderr.
+    pub stderr: String,
+    /// QEMU's exit status (the firmware's semihosting exit code), None if killed by a signal.
+    pub status: Option<i32>,
+}
+
+/// Parsed plugin output.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct PluginLog {
+    /// (instruction count, address) of each store to a watched GPIO block.
+    pub stores: Vec<(u64, u32)>,
+    /// (handler index, instructions) per completed handler invocation.
+    pub handlers: Vec<(usize, u64)>,
+    /// Total instruction count, from the final line written at exit.
+    pub total: Option<u64>,
+}
+
+/// One `pl061_write` trace event.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TraceWrite {
+    /// Device path (may be empty if the QEMU build does not print one).
+    pub device: String,
+    pub offset: u32,
+    pub value: u32,
+}
+
+/// A GPIO write with its time and value: a plugin store zipped with its trace event.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GpioWrite {
+    pub count: u64,
+    pub addr: u32,
+    pub value: u32,
+}
+
+fn hex(s: &str) -> Result<u64> {
+    let s = s.trim_start_matches("0x");
+    u64::from_str_radix(s, 16).with_context(|| format!("bad hex number `{s}`"))
+}
+
+/// Parses the plugin's text output (`s COUNT ADDR`, `h K INSNS`, `e COUNT`, all hex).
+pub fn parse_plugin_log(text: &str) -> Result<PluginLog> {
+    let mut log = PluginLog::default();
+    for (n, line) in text.lines().enumerate() {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        let parsed: Result<()> = (|| {
+            match f.as_slice() {
+                ["s", c, a] => log.stores.push((hex(c)?, hex(a)? as u32)),
+                ["h", k, i] => log.handlers.push((hex(k)? as usize, hex(i)?)),
+                ["e", c] => log.total = Some(hex(c)?),
+                _ => bail!("unexpected line"),
+            }
+            Ok(())
+        })();
+        parsed.with_context(|| format!("plugin log line {}: `{line}`", n + 1))?;
+    }
+    Ok(log)
+}
+
+/// Parses the `pl061_write` lines of a QEMU trace log (other lines are ignored).
+pub fn parse_trace(text: &str) -> Result<Vec<TraceWrite>> {
+    let mut out = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let Some(pos) = line.find("pl061_write ") else {
+            continue;
+        };
+        let f: Vec<&str> = line[pos + "pl061_write ".len()..]
+            .split_whitespace()
+            .collect();
+        let w = (|| {
+            let o = f
+                .iter()
+                .position(|t| *t == "offset")
+                .context("no `offset`")?;
+            let v = f.iter().position(|t| *t == "value").context("no `value`")?;
+            Ok::<_, anyhow::Error>(TraceWrite {
+                device: f[..o].join(" "),
+                offset: hex(f.get(o + 1).context("no offset value")?)? as u32,
+                value: hex(f.get(v + 1).context("no value")?)? as u32,
+            })
+        })()
+        .with_context(|| format!("trace line {}: `{line}`", n + 1))?;
+        out.push(w);
+    }
+    Ok(out)
+}
+
+/// Zips plugin store records with trace events, one to one in order. Fails if the counts differ or a
+/// pair's offsets disagree, or if one trace device maps to two GPIO blocks.
+pub fn zip_writes(stores: &[(u64, u32)], writes: &[TraceWrite]) -> Result<Vec<GpioWrite>> {
+    ensure!(
+        stores.len() == writes.len(),
+        "plugin saw {} GPIO stores but the trace has {} pl061_write events \
+         (is every written PL061 block watched?)",
+        stores.len(),
+        writes.len()
+    );
+    let mut devices: HashMap<&str, u32> = HashMap::new();
+    let mut out = Vec::with_capacity(stores.len());
+    for (i, (&(count, addr), w)) in stores.iter().zip(writes).enumerate() {
+        ensure!(
+            addr & 0xfff == w.offset,
+            "write #{i}: plugin store at {addr:#x} (count {count}) but trace offset {:#x}",
+            w.offset
+        );
+        let block = addr & !0xfff;
+        if !w.device.is_empty() {
+            let b = *devices.entry(&w.device).or_insert(block);
+            ensure!(
+                b == block,
+                "write #{i}: trace device {} seen at {b:#x} and {block:#x}",
+                w.device
+            );
+        }
+        out.push(GpioWrite {
+            count,
+            addr,
+            value: w.value,
+        });
+    }
+    Ok(out)
+}
+
+/// Replays the writes to the PL061 at `port` like QEMU does and returns (time ns, data & dir) after
+/// each write that changed the pins; time = count << shift.
+pub fn replay_port(writes: &[GpioWrite], port: u32, shift: u32) -> Vec<(u64, u8)> {
+    let (mut data, mut dir, mut pins) = (0u8, 0u8, 0u8);
+    let mut out = Vec::new();
+    for w in writes.iter().filter(|w| w.addr & !0xfff == port) {
+        let off = w.addr & 0xfff;
+        if off < 0x400 {
+            let mask = (off >> 2) as u8 & dir;
+            data = (data & !mask) | (w.value as u8 & mask);
+        } else if off == 0x400 {
+            dir = w.value as u8;
+        }
+        if data & dir != pins {
+            pins = data & dir;
+            out.push((w.count << shift, pins));
+        }
+    }
+    out
+}
+
+/// The QEMU command line of a capture (without working directory or stdio settings).
+pub fn qemu_command(
+    spec: &CaptureSpec,
+    elf: &Path,
+    plugin: &Path,
+    log: &Path,
+    trace: &Path,
+) -> Command {
+    let mut plugin_arg = format!("{},out={}", plugin.display(), log.display());
+    for p in &spec.gpio_ports {
+        plugin_arg += &format!(",gpio={p:#x}");
+    }
+    for (k, h) in spec.handlers.iter().enumerate() {
+        plugin_arg += &format!(",h{k}_entry={:#x}", h.entry);
+        for e in &h.exits {
+            plugin_arg += &format!(",h{k}_exit={e:#x}");
+        }
+    }
+    let mut cmd = Command::new("qemu-system-arm");
+    cmd.args(["-cpu", "cortex-m3", "-machine", "lm3s6965evb", "-nographic"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .arg("-icount")
+        .arg(format!("shift={},sleep=off", spec.icount_shift))
+        .arg("-kernel")
+        .arg(elf)
+        .args(["-trace", "pl061_write", "-D"])
+        .arg(trace)
+        .arg("-plugin")
+        .arg(plugin_arg)
+        .args(&spec.extra_args);
+    cmd
+}
+
+fn reader(mut r: impl Read + Send + 'static) -> std::thread::JoinHandle<Vec<u8>> {
+    std::thread::spawn(move || {
+        let mut buf = Vec::new();
+        let _ = r.read_to_end(&mut buf);
+        buf
+    })
+}
+
+/// Runs the firmware under QEMU and returns the capture. The firmware's own exit status is returned
+/// in [`Capture::status`]; errors are for QEMU failing to run, the timeout, or inconsistent logs.
+pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
+    ensure!(spec.handlers.len() <= 16, "at most 16 handlers");
+    crate::tools::ensure_tool("qemu-system-arm")?;
+    let elf = std::fs::canonicalize(&spec.elf)
+        .with_context(|| format!("firmware ELF {}", spec.elf.display()))?;
+    let run_dir = std::fs::canonicalize(&spec.run_dir)
+        .with_context(|| format!("run directory {}", spec.run_dir.display()))?;
+    let dir = run_dir.join(CAPTURE_DIR);
+    let plugin = crate::plugin::write_plugin(&dir)?;
+    let log = dir.join("plugin.log");
+    let trace = dir.join("trace.log");
+    for f in [&log, &trace] {
+        if f.exists() {
+            std::fs::remove_file(f).with_context(|| format!("removing {}", f.display()))?;
+        }
+    }
+    let mut child = qemu_command(spec, &elf, &plugin, &log, &trace)
+        .current_dir(&run_dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .context("starting qemu-system-arm")?;
+    let out = reader(child.stdout.take().context("stdout")?);
+    let err = reader(child.stderr.take().context("stderr")?);
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait()? {
+            break s;
+        }
+        if start.elapsed() > spec.timeout {
+            let _ = child.kill();
+            let _ = child.wait();
+            let stdout = String::from_utf8_lossy(&out.join().unwrap_or_default()).into_owned();
+            bail!(
+                "QEMU timed out after {:?} (killed); firmware output so far:\n{stdout}",
+                spec.timeout
+            );
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    let stdout = String::from_utf8_lossy(&out.join().unwrap_or_default()).into_owned();
+    let stderr = String::from_utf8_lossy(&err.join().unwrap_or_default()).into_owned();
+    let fail = |what: String| anyhow::anyhow!("{what}; QEMU {status}, stderr:\n{stderr}");
+    let log_text = std::fs::read_to_string(&log)
+        .map_err(|e| fail(format!("no plugin log {}: {e}", log.display())))?;
+    let plog = parse_plugin_log(&log_text)?;
+    let total = plog
+        .total
+        .ok_or_else(|| fail("plugin log has no final line (atexit did not run)".into()))?;
+    let trace_text = std::fs::read_to_string(&trace).unwrap_or_default();
+    let writes = zip_writes(&plog.stores, &parse_trace(&trace_text)?)?;
+    let mut handlers: Vec<(String, Vec<u64>)> = spec
+        .handlers
+        .iter()
+        .map(|h| (h.name.clone(), Vec::new()))
+        .collect();
+    for &(k, n) in &plog.handlers {
+        handlers
+            .get_mut(k)
+            .with_context(|| format!("plugin reported unknown handler {k}"))?
+            .1
+            .push(n);
+    }
+    Ok(Capture {
+        pins: replay_port(&writes, spec.pin_port, spec.icount_shift),
+        handlers,
+        total_instructions: total,
+        end_ns: total << spec.icount_shift,
+        stdout,
+        stderr,
+        status: status.code(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_trace_lines() {
+        let t = "pl061_write /machine/unattached/device[9] offset 0x400 value 0x3f\n\
+                 other line\n\
+                 1234@1700000000.000001:pl061_write offset 0x4 value 0x1\n";
+        let w = parse_trace(t).unwrap();
+        assert_eq!(
+            w,
+            vec![
+                TraceWrite {
+                    device: "/machine/unattached/device[9]".into(),
+                    offset: 0x400,
+                    value: 0x3f
+                },
+                TraceWrite {
+                    device: String::new(),
+                    offset: 4,
+                    value: 1
+                },
+            ]
+        );
+        assert!(parse_trace("pl061_write offset zz value 0x1").is_err());
+    }
+
+    #[test]
+    fn parses_plugin_log() {
+        let l = parse_plugin_log("s 36 40005400\nh 0 13\ne 1e9c9\n").unwrap();
+        assert_eq!(l.stores, vec![(0x36, 0x4000_5400)]);
+        assert_eq!(l.handlers, vec![(0, 0x13)]);
+        assert_eq!(l.total, Some(0x1e9c9));
+        assert!(parse_plugin_log("x 1\n").is_err());
+    }
+
+    fn tw(dev: &str, offset: u32, value: u32) -> TraceWrite {
+        TraceWrite {
+            device: dev.into(),
+            offset,
+            value,
+        }
+    }
+
+    #[test]
+    fn zip_and_replay() {
+        let stores = [
+            (10, 0x4000_5400), // DIR = 0x3f
+            (20, 0x4000_4400), // port A DIR (ignored for port B)
+            (30, 0x4000_5004), // PB0 := 1
+            (40, 0x4000_5020), // PB3 := 1
+            (50, 0x4000_53fc), // all := 0x09 (no change)
+            (60, 0x4000_5004), // PB0 := 0
+            (70, 0x4000_5200), // PB7 (input, dir 0): ignored
+        ];
+        let writes = [
+            tw("b", 0x400, 0x3f),
+            tw("a", 0x400, 0xff),
+            tw("b", 0x004, 0x01),
+            tw("b", 0x020, 0xff),
+            tw("b", 0x3fc, 0x09),
+            tw("b", 0x004, 0x00),
+            tw("b", 0x200, 0x80),
+        ];
+        let z = zip_writes(&stores, &writes).unwrap();
+        assert_eq!(
+            replay_port(&z, PORT_B, 4),
+            vec![(480, 0x01), (640, 0x09), (960, 0x08)]
+        );
+    }
+
+    #[test]
+    fn zip_fails_loudly() {
+        let stores = [(1, 0x4000_5004)];
+        assert!(zip_writes(&stores, &[]).is_err());
+        assert!(zip_writes(&stores, &[tw("b", 0x8, 1)]).is_err());
+        let two = [(1, 0x4000_5004), (2, 0x4000_4004)];
+        assert!(zip_writes(&two, &[tw("b", 4, 1), tw("b", 4, 1)]).is_err());
+    }
+}
