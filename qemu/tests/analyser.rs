@@ -1,0 +1,180 @@
+//! Integration tests of the virtual logic analyser (host): the embedded QEMU plugin, a capture of a
+//! hand-assembled Cortex-M3 image under QEMU, ELF symbol lookup, and sigrok's stepper_motor decode.
+//! They need qemu-system-arm and sigrok-cli: installed as root, else the tests fail saying what to
+//! install (never skipped).
+use millac_qemu::capture::{run_capture, CaptureSpec, HandlerSpec};
+use millac_qemu::{elf, plugin, sigrok, vcd};
+use object::{Object, ObjectSymbol};
+use std::path::PathBuf;
+
+fn scratch(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn plugin_is_a_v1_qemu_plugin() {
+    // include_bytes! data is only byte-aligned; the ELF parser wants an aligned copy.
+    let data = plugin::PLUGIN_SO.to_vec();
+    let f = object::File::parse(&*data).unwrap();
+    let names: Vec<String> = f
+        .dynamic_symbols()
+        .filter(|s| !s.is_undefined())
+        .filter_map(|s| s.name().ok().map(str::to_string))
+        .collect();
+    assert!(
+        names.iter().any(|n| n == "qemu_plugin_install"),
+        "{names:?}"
+    );
+    assert!(
+        names.iter().any(|n| n == "qemu_plugin_version"),
+        "{names:?}"
+    );
+}
+
+/// A raw Cortex-M3 image: vector table, then GPIOB DIR/DEN = 0x3f, masked data writes, and a
+/// semihosting SYS_EXIT (status 0). Instruction k (1-based) executes at count k.
+fn test_image() -> Vec<u8> {
+    let mut img = Vec::new();
+    img.extend_from_slice(&0x2000_1000u32.to_le_bytes()); // initial SP
+    img.extend_from_slice(&0x41u32.to_le_bytes()); // reset vector -> 0x40 (Thumb)
+    img.resize(0x40, 0);
+    let code: [u16; 20] = [
+        0x4809, // 0x40 ldr r0, [pc, #36] ; =0x40005000
+        0x213F, // 0x42 movs r1, #0x3f
+        0xF8C0, 0x1400, // 0x44 str.w r1, [r0, #0x400]  DIR
+        0xF8C0, 0x151C, // 0x48 str.w r1, [r0, #0x51c]  DEN
+        0x2101, // 0x4c movs r1, #1          <- "handler" entry
+        0x6041, // 0x4e str r1, [r0, #4]     PB0 := 1
+        0x2108, // 0x50 movs r1, #8
+        0x6201, // 0x52 str r1, [r0, #0x20]  PB3 := 1
+        0x2100, // 0x54 movs r1, #0
+        0x6041, // 0x56 str r1, [r0, #4]     PB0 := 0
+        0x213F, // 0x58 movs r1, #0x3f
+        0xF8C0, 0x13FC, // 0x5a str.w r1, [r0, #0x3fc]  all := 0x3f
+        0x2018, // 0x5e movs r0, #0x18 (SYS_EXIT)  <- "handler" exit
+        0x4902, // 0x60 ldr r1, [pc, #8] ; =0x20026 (ADP_Stopped_ApplicationExit)
+        0xBEAB, // 0x62 bkpt 0xab
+        0xE7FE, // 0x64 b .
+        0xBF00, // 0x66 nop
+    ];
+    for h in code {
+        img.extend_from_slice(&h.to_le_bytes());
+    }
+    img.extend_from_slice(&0x4000_5000u32.to_le_bytes()); // 0x68
+    img.extend_from_slice(&0x0002_0026u32.to_le_bytes()); // 0x6c
+    img
+}
+
+#[test]
+fn capture_of_a_hand_assembled_image() {
+    let dir = scratch("capture");
+    let image = dir.join("image.bin");
+    std::fs::write(&image, test_image()).unwrap();
+    let mut spec = CaptureSpec::new(&image, &dir);
+    spec.icount_shift = 3;
+    spec.timeout = std::time::Duration::from_secs(60);
+    spec.handlers.push(HandlerSpec {
+        name: "block".into(),
+        entry: 0x4c,
+        exits: vec![0x5e],
+    });
+    let c = run_capture(&spec).unwrap();
+    assert_eq!(c.status, Some(0), "stderr: {}", c.stderr);
+    assert_eq!(
+        c.pins,
+        vec![
+            (6 << 3, 0x01),
+            (8 << 3, 0x09),
+            (10 << 3, 0x08),
+            (12 << 3, 0x3f)
+        ]
+    );
+    assert_eq!(c.handlers, vec![("block".to_string(), vec![9])]);
+    assert_eq!(c.total_instructions, 15);
+    assert_eq!(c.end_ns, 15 << 3);
+    // Deterministic: a second run gives the same capture.
+    assert_eq!(run_capture(&spec).unwrap(), c);
+}
+
+#[test]
+fn finds_function_and_returns_in_an_elf() {
+    use object::write::{Object as WObject, Symbol, SymbolSection};
+    use object::{Architecture, BinaryFormat, Endianness, SymbolFlags, SymbolKind, SymbolScope};
+    let mut obj = WObject::new(BinaryFormat::Elf, Architecture::Arm, Endianness::Little);
+    let text = obj.add_section(Vec::new(), b".text".to_vec(), object::SectionKind::Text);
+    // padding, then push {r7, lr}; bx lr; pop.w {r4-r11, pc}; pop {r7, pc}
+    let code: Vec<u8> = [0xBF00u16, 0xBF00, 0xB580, 0x4770, 0xE8BD, 0x8FF0, 0xBD80]
+        .iter()
+        .flat_map(|h| h.to_le_bytes())
+        .collect();
+    obj.append_section_data(text, &code, 4);
+    obj.add_symbol(Symbol {
+        name: b"TIMER_0A".to_vec(),
+        value: 4 | 1, // Thumb bit set, as in firmware ELF files
+        size: 10,
+        kind: SymbolKind::Text,
+        scope: SymbolScope::Linkage,
+        weak: false,
+        section: SymbolSection::Section(text),
+        flags: SymbolFlags::None,
+    });
+    let bytes = obj.write().unwrap();
+    let f = elf::find_function_in(&bytes, "TIMER_0A").unwrap();
+    assert_eq!((f.addr, f.size), (4, 10));
+    assert_eq!(f.returns, vec![6, 8, 12]);
+    assert!(elf::find_function_in(&bytes, "TIMER_1A").is_err());
+}
+
+#[test]
+fn sigrok_decodes_known_positions() {
+    // X: 3 steps +, then 1 step -  => +2. Y: 2 steps -  => -2. Z: none => 0.
+    let mut ev = Vec::new();
+    let mut t = 1_000;
+    let mut pins = 0x08u8; // X_SIGN high
+    let mut push = |pins: u8, t: &mut u64| {
+        ev.push((*t, pins));
+        *t += 1_000;
+    };
+    for _ in 0..3 {
+        pins |= 0x01 | 0x02;
+        push(pins, &mut t);
+        pins &= !0x03;
+        push(pins, &mut t);
+    }
+    pins &= !0x08; // X_SIGN low
+    push(pins, &mut t);
+    pins |= 0x01;
+    push(pins, &mut t);
+    pins &= !0x01;
+    push(pins, &mut t);
+    assert_eq!(vcd::positions(0x08, &ev), [2, -3, 0]);
+    let dir = scratch("sigrok");
+    let path = dir.join("known.vcd");
+    vcd::write_vcd(&path, 0x08, &ev, Some(t)).unwrap();
+    assert_eq!(sigrok::decode_positions(&path).unwrap(), [2, -3, 0]);
+    // A foreign-looking VCD (other timescale and scope, extra wire) decodes the same.
+    let foreign = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("$timescale 1 ns $end", "$timescale 100 ps $end")
+        .replace("module millac", "module libsigrok")
+        .replace("$upscope", "$var wire 1 ( CLK $end\n$upscope")
+        .lines()
+        .map(|l| match l.strip_prefix('#') {
+            Some(n) => format!("#{}", n.parse::<u64>().unwrap() * 10),
+            None => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let fpath = dir.join("foreign.vcd");
+    std::fs::write(&fpath, foreign).unwrap();
+    assert_eq!(
+        vcd::read_vcd(&std::fs::read_to_string(&fpath).unwrap())
+            .unwrap()
+            .events,
+        ev
+    );
+    assert_eq!(sigrok::decode_positions(&fpath).unwrap(), [2, -3, 0]);
+}
