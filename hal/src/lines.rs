@@ -110,3 +110,57 @@ impl Lines {
         sink(self.line_no, text)
     }
 }
+
+// Host check (hal is not a host-test crate; run by hand):
+// rustc --edition 2021 --test hal/src/lines.rs -o /tmp/lines-test && /tmp/lines-test
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::string::{String, ToString};
+    use std::vec::Vec;
+
+    fn split(chunks: &[&[u8]]) -> Vec<(u32, Result<String, LineError>)> {
+        let mut v = Vec::new();
+        let mut l = Lines::new();
+        let mut sink = |n: u32, t: Result<&str, LineError>| {
+            v.push((n, t.map(|s| s.to_string())));
+            true
+        };
+        for c in chunks {
+            l.feed(c, &mut sink);
+        }
+        l.finish(&mut sink);
+        v
+    }
+
+    #[test]
+    fn crlf_chunks_and_last_line() {
+        let v = split(&[b"G21\r", b"\nG1 X1\n\nM", b"2"]);
+        let t: Vec<_> = v.iter().map(|(n, t)| (*n, t.clone().unwrap())).collect();
+        assert_eq!(
+            t,
+            [
+                (1, "G21".into()),
+                (2, "G1 X1".into()),
+                (3, String::new()),
+                (4, "M2".into())
+            ]
+        );
+    }
+
+    #[test]
+    fn limits() {
+        let ok = [b'X'; LINE_MAX];
+        let long = [b'Y'; LINE_MAX + 1];
+        let v = split(&[&ok, b"\r\n", &long, b"\r\n", b"\xff\n"]);
+        assert_eq!(v[0].0, 1);
+        assert!(v[0].1.is_ok());
+        assert_eq!(v[1], (2, Err(LineError::TooLong)));
+        assert_eq!(v[2], (3, Err(LineError::NotUtf8)));
+        // A runaway line is reported once, as soon as it overflows.
+        let runaway = [b'Z'; 3 * LINE_MAX];
+        let v = split(&[&runaway, b"\nG0\n"]);
+        assert_eq!(v, [(1, Err(LineError::TooLong)), (2, Ok("G0".into()))]);
+    }
+}
