@@ -44,18 +44,27 @@ pub fn ensure_tool(program: &str) -> Result<PathBuf> {
     let package = debian_package(program).with_context(|| {
         format!("`{program}` not found on PATH and no known package provides it")
     })?;
+    // One install at a time within this process (tests run in parallel); across processes apt
+    // waits for the dpkg lock.
+    static INSTALL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = INSTALL.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(p) = find_on_path(program) {
+        return Ok(p);
+    }
     if !is_root() {
         bail!("`{program}` not found on PATH: install it with `sudo apt-get install -y {package}`");
     }
     let apt_install = || {
         Command::new("apt-get")
-            .args(["install", "-y", package])
+            .args(["-o", "DPkg::Lock::Timeout=300", "install", "-y", package])
             .env("DEBIAN_FRONTEND", "noninteractive")
             .status()
     };
     let ok = apt_install().map(|s| s.success()).unwrap_or(false);
     if !ok {
-        let updated = Command::new("apt-get").arg("update").status();
+        let updated = Command::new("apt-get")
+            .args(["-o", "DPkg::Lock::Timeout=300", "update"])
+            .status();
         let ok = matches!(updated, Ok(s) if s.success())
             && apt_install().map(|s| s.success()).unwrap_or(false);
         if !ok {
@@ -75,4 +84,19 @@ pub fn ensure_c_compiler() -> Result<PathBuf> {
         }
     }
     find_on_path("cc").map_or_else(|| ensure_tool("gcc"), Ok)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packages_and_unknown_tools() {
+        assert_eq!(debian_package("qemu-system-arm"), Some("qemu-system-arm"));
+        assert_eq!(debian_package("sigrok-cli"), Some("sigrok-cli"));
+        assert_eq!(debian_package("gcc"), Some("gcc"));
+        let e = ensure_tool("millac-no-such-tool").unwrap_err().to_string();
+        assert!(e.contains("millac-no-such-tool"), "{e}");
+        assert!(ensure_tool("sh").is_ok() || find_on_path("sh").is_none());
+    }
 }
