@@ -22,7 +22,7 @@ impl Blu {
     /// BLU per millimetre as a rational number (numerator, denominator).
     pub const fn per_mm(self) -> (i64, i64) {
         match self {
-            Blu::TenthMil => (10_000, 254),
+            Blu::TenthMil => (100_000, 254),
             Blu::Micron => (1_000, 1),
         }
     }
