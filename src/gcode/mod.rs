@@ -1,6 +1,33 @@
-//! G-code lines -> validated blocks (loader task). STUB: the API is fixed, the body is being written.
-use crate::nc::Block;
+//! G-code lines -> validated blocks (loader task). This is the only place where the program is
+//! validated: the frame interrupt trusts every [`Block`] it gets.
+//!
+//! Supported words: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 G90 G91 G94, M2 M30 (end), M3 M4 M5 M8 M9
+//! (accepted, no NC effect), N (ignored), F S X Y Z I J K R P. Comments `( )` and `;`, any case,
+//! whitespace anywhere. Power-up modes as grbl: G0, G17, G90, G94, but G20 (inch) and no feed.
+//!
+//! Files: [`number`] exact decimals, [`words`] the lexer, [`exec`](self) the line semantics,
+//! [`arc`] arc planning, [`lookahead`] the deceleration rule, [`error`] the reasons.
+
+pub mod arc;
+pub mod error;
+mod exec;
+pub mod lookahead;
+pub mod number;
+pub mod words;
+
+#[cfg(test)]
+mod tests;
+#[cfg(test)]
+mod tests_arc;
+#[cfg(test)]
+mod tests_prop;
+
+use crate::nc::{Block, Plane};
 use crate::settings::Settings;
+
+pub use error::ErrorKind;
+pub use lookahead::Lookahead;
+pub use number::Decimal;
 
 /// What one accepted line produced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -17,56 +44,142 @@ pub enum Parsed {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GcodeError {
     pub line: u32,
+    pub kind: ErrorKind,
 }
 
 impl core::fmt::Display for GcodeError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "line {}: error", self.line)
+        write!(f, "line {}: {}", self.line, self.kind)
     }
 }
 
+/// The modal motion (group 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MotionMode {
+    /// G0
+    Rapid,
+    /// G1
+    Linear,
+    /// G2
+    ArcCw,
+    /// G3
+    ArcCcw,
+}
+
+/// Units of lengths and feeds in the program (G20 / G21).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Units {
+    Inch,
+    Mm,
+}
+
+/// G90 absolute / G91 incremental (X, Y, Z only; I, J, K are always incremental).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Distance {
+    Absolute,
+    Incremental,
+}
+
+/// The modal state of the parser.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Modes {
+    pub motion: MotionMode,
+    pub plane: Plane,
+    pub units: Units,
+    pub distance: Distance,
+    /// Feed number f of the last F word (0 = none yet, or F0), see [`feed_number`].
+    pub feed: u32,
+    /// Spindle speed of the last S word (rpm, rounded). Stored only.
+    pub spindle_rpm: u32,
+}
+
+impl Modes {
+    /// grbl's power-up modes, but inch units: G0 G17 G20 G90 G94, no feed, S0.
+    pub const POWER_UP: Modes = Modes {
+        motion: MotionMode::Rapid,
+        plane: Plane::XY,
+        units: Units::Inch,
+        distance: Distance::Absolute,
+        feed: 0,
+        spindle_rpm: 0,
+    };
+}
+
+/// The feed number f for a feed `value` in the given units per minute, where `per_unit` is BLU per
+/// unit as a rational (`Blu::per_inch()` / `per_mm()`):
+/// f = round(F_BLU_per_min * q0 / (frame_hz * 60)), i.e. f = q0 * FR / FRM (f = 100 * FR in ipm at
+/// the paper's W0 = 5 kHz, q0 = 3000, BLU = 0.0001 in).
+///
+/// Clamp: f is at most q0, i.e. feeds above FRM = W0 * 60 BLU/min (the highest contouring feed,
+/// 30 ipm at the defaults) run at FRM. A nonzero F that rounds to 0 gives f = 1. F0 gives 0
+/// (which G1/G2/G3 refuse). `None` if the value is negative or absurdly large (overflow).
+pub fn feed_number(st: &Settings, value: Decimal, per_unit: (i64, i64)) -> Option<u32> {
+    if value.is_negative() {
+        return None;
+    }
+    let num = (per_unit.0 as i128).checked_mul(st.q0 as i128)?;
+    let den = (per_unit.1 as i128)
+        .checked_mul(st.frame_hz as i128)?
+        .checked_mul(60)?;
+    let f = value.mul_ratio_round(num, den)?;
+    if f == 0 && !value.is_zero() {
+        return Some(1);
+    }
+    Some(f.min(st.q0 as i128) as u32)
+}
+
 /// Modal G-code state and the programmed position.
+#[derive(Clone, Debug)]
 pub struct Parser {
     settings: Settings,
     position: [i32; 3],
+    modes: Modes,
 }
 
 impl Parser {
     pub fn new(settings: Settings) -> Self {
-        Parser { settings, position: [0; 3] }
+        Parser {
+            settings,
+            position: [0; 3],
+            modes: Modes::POWER_UP,
+        }
     }
-    /// Parses one line. On `Err` no state changed.
+
+    /// Parses one line. On `Err` no state changed (the line runs on a copy of the state that is
+    /// committed only on success).
     pub fn line(&mut self, line_no: u32, text: &str) -> Result<Parsed, GcodeError> {
-        let _ = (line_no, text, &self.settings);
-        Ok(Parsed::Nothing)
+        let mut modes = self.modes;
+        let mut position = self.position;
+        match exec::execute(&self.settings, &mut modes, &mut position, line_no, text) {
+            Ok(p) => {
+                self.modes = modes;
+                self.position = position;
+                Ok(p)
+            }
+            Err(kind) => Err(GcodeError {
+                line: line_no,
+                kind,
+            }),
+        }
     }
+
     /// Programmed position after the last accepted block, machine BLU.
     pub fn position(&self) -> [i32; 3] {
         self.position
     }
-}
 
-/// One-block look-ahead that decides the `decel` flag of feed blocks.
-pub struct Lookahead {
-    pending: Option<Block>,
-}
+    /// The current modal state.
+    pub fn modes(&self) -> Modes {
+        self.modes
+    }
 
-impl Default for Lookahead {
-    fn default() -> Self {
-        Self::new()
+    /// Spindle speed of the last S word in rpm (0 before any S).
+    pub fn spindle_rpm(&self) -> u32 {
+        self.modes.spindle_rpm
     }
-}
 
-impl Lookahead {
-    pub const fn new() -> Self {
-        Lookahead { pending: None }
-    }
-    /// Takes the newest block; returns the previous one with its `decel` flag decided.
-    pub fn push(&mut self, b: Block) -> Option<Block> {
-        self.pending.replace(b)
-    }
-    /// End of program: the held block (a feed block always decelerates at the end).
-    pub fn flush(&mut self) -> Option<Block> {
-        self.pending.take()
+    /// The settings the parser validates against.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
     }
 }

@@ -1,0 +1,271 @@
+//! Arc planning for G2/G3 (loader task; host tests): centre (I/J/K or R form), radius check,
+//! quadrant segmentation into the targets the frame's circular DDA runs, arc length, soft limits
+//! of the arc's extent. Integers wherever the result reaches the frame; f64 (libm, identical on
+//! host and target) only for the R-form centre before rounding, the radius tolerance and the sweep.
+
+use super::error::{axis_name, ErrorKind};
+use super::number::round_sqrt;
+use crate::nc::{Arc, Plane, MAX_SEGMENTS};
+use crate::settings::Settings;
+
+/// How the centre was programmed, in BLU in the plane's (a, b) axes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Centre {
+    /// Offsets of the centre from the start point (I/J/K, always incremental).
+    Offsets([i64; 2]),
+    /// Signed radius: positive = the arc of at most 180 degrees, negative = the larger one.
+    Radius(i64),
+}
+
+/// The axis-crossing points (relative to the centre) in counter-clockwise order from +a.
+const fn crossing(k: usize, r: i64) -> [i64; 2] {
+    match k % 4 {
+        0 => [r, 0],
+        1 => [0, r],
+        2 => [-r, 0],
+        _ => [0, -r],
+    }
+}
+
+/// Quadrant of a non-zero point, half-open counter-clockwise: 0 = [0, 90) degrees, 1 = [90, 180),
+/// 2 = [180, 270), 3 = [270, 360).
+pub(crate) const fn quadrant(p: [i64; 2]) -> usize {
+    let [a, b] = p;
+    if a > 0 && b >= 0 {
+        0
+    } else if a <= 0 && b > 0 {
+        1
+    } else if a < 0 && b <= 0 {
+        2
+    } else {
+        3
+    }
+}
+
+/// Counter-clockwise direction signs (a, b) of motion on the circle inside quadrant q.
+const fn ccw_dirs(q: usize) -> [i64; 2] {
+    match q % 4 {
+        0 => [-1, 1],
+        1 => [-1, -1],
+        2 => [1, -1],
+        _ => [1, 1],
+    }
+}
+
+const fn cross(p: [i64; 2], q: [i64; 2]) -> i128 {
+    p[0] as i128 * q[1] as i128 - p[1] as i128 * q[0] as i128
+}
+
+const fn dot(p: [i64; 2], q: [i64; 2]) -> i128 {
+    p[0] as i128 * q[0] as i128 + p[1] as i128 * q[1] as i128
+}
+
+/// Mirror b: turns clockwise travel into counter-clockwise travel (and back).
+const fn mirror(p: [i64; 2], cw: bool) -> [i64; 2] {
+    if cw {
+        [p[0], -p[1]]
+    } else {
+        p
+    }
+}
+
+/// The grbl radius tolerance in BLU for a circle of radius `r` BLU:
+/// min(max(0.005 mm, 0.001 r), 0.5 mm).
+fn tolerance(st: &Settings, r: f64) -> f64 {
+    let (num, den) = st.blu.per_mm();
+    let mm = num as f64 / den as f64;
+    let t = (0.005 * mm).max(0.001 * r);
+    t.min(0.5 * mm)
+}
+
+fn check_soft(st: &Settings, axis: usize, value: i64) -> Result<(), ErrorKind> {
+    let (min, max) = match (st.soft_min.get(axis), st.soft_max.get(axis)) {
+        (Some(&a), Some(&b)) => (a, b),
+        _ => return Err(ErrorKind::ArcTooLarge),
+    };
+    if value < min as i64 || value > max as i64 {
+        return Err(ErrorKind::SoftLimit {
+            axis: axis_name(axis),
+            value,
+            min,
+            max,
+        });
+    }
+    Ok(())
+}
+
+/// R form: the centre relative to the start, as grbl computes it, rounded to BLU.
+fn centre_from_radius(
+    st: &Settings,
+    ccw: bool,
+    d: [i64; 2],
+    radius: i64,
+) -> Result<[i64; 2], ErrorKind> {
+    let [x, y] = d;
+    if x == 0 && y == 0 {
+        return Err(ErrorKind::ArcFullCircleRadius);
+    }
+    let r = radius.unsigned_abs() as f64;
+    if radius == 0 {
+        return Err(ErrorKind::ArcZeroRadius);
+    }
+    let d2 = x as i128 * x as i128 + y as i128 * y as i128;
+    let r2 = radius as i128 * radius as i128;
+    let chord = libm::sqrt(d2 as f64);
+    let mut disc = 4 * r2 - d2;
+    if disc < 0 {
+        if chord / 2.0 - r > tolerance(st, r) {
+            return Err(ErrorKind::ArcRadiusTooSmall {
+                radius: radius.unsigned_abs() as i64,
+                half_chord: libm::round(chord / 2.0) as i64,
+            });
+        }
+        disc = 0;
+    }
+    // grbl: h_x2_div_d = -sqrt(4 r^2 - d^2) / d, negated for CCW and for negative R.
+    let mut k = -libm::sqrt(disc as f64) / chord;
+    if ccw {
+        k = -k;
+    }
+    if radius < 0 {
+        k = -k;
+    }
+    let (xf, yf) = (x as f64, y as f64);
+    let i = libm::round(0.5 * (xf - yf * k));
+    let j = libm::round(0.5 * (yf + xf * k));
+    if !(i.abs() < 1e15 && j.abs() < 1e15) {
+        return Err(ErrorKind::ArcTooLarge);
+    }
+    Ok([i as i64, j as i64])
+}
+
+/// Plans one arc from `start` to `end` (machine BLU) and returns the block (decel false).
+pub fn plan(
+    st: &Settings,
+    plane: Plane,
+    ccw: bool,
+    start: [i32; 3],
+    end: [i32; 3],
+    centre: Centre,
+    f: u32,
+) -> Result<Arc, ErrorKind> {
+    let (ia, ib) = plane.axes();
+    let third = 3 - ia - ib;
+    let get = |p: [i32; 3], k: usize| p.get(k).copied().unwrap_or(0) as i64;
+    if get(start, third) != get(end, third) {
+        return Err(ErrorKind::HelicalArc);
+    }
+    let s = [get(start, ia), get(start, ib)];
+    let e = [get(end, ia), get(end, ib)];
+    let off = match centre {
+        Centre::Offsets(o) => o,
+        Centre::Radius(r) => centre_from_radius(st, ccw, [e[0] - s[0], e[1] - s[1]], r)?,
+    };
+    let c = [s[0] + off[0], s[1] + off[1]];
+    let p0 = [s[0] - c[0], s[1] - c[1]];
+    let p1 = [e[0] - c[0], e[1] - c[1]];
+    let fits = |v: i64| i32::try_from(v).is_ok();
+    if !(fits(p0[0]) && fits(p0[1]) && fits(p1[0]) && fits(p1[1])) {
+        return Err(ErrorKind::ArcTooLarge);
+    }
+    // |p| < 2^31 per coordinate: squares sum below 2^63.
+    let sq = |v: i64| v.unsigned_abs() * v.unsigned_abs();
+    let n0 = sq(p0[0]) + sq(p0[1]);
+    let n1 = sq(p1[0]) + sq(p1[1]);
+    let r = round_sqrt(n0) as i64;
+    let r_end = round_sqrt(n1) as i64;
+    if r == 0 {
+        return Err(ErrorKind::ArcZeroRadius);
+    }
+    if r > i32::MAX as i64 {
+        return Err(ErrorKind::ArcTooLarge);
+    }
+    let rs = libm::sqrt(n0 as f64);
+    let re = libm::sqrt(n1 as f64);
+    if (re - rs).abs() > tolerance(st, rs) {
+        return Err(ErrorKind::ArcEndNotOnCircle {
+            start: r,
+            end: r_end,
+        });
+    }
+
+    // Segmentation in counter-clockwise space (clockwise arcs are mirrored in b).
+    let cw = !ccw;
+    let m0 = mirror(p0, cw);
+    let m1 = mirror(p1, cw);
+    let q0 = quadrant(m0);
+    let q1 = quadrant(m1);
+    let same_angle = q0 == q1 && cross(m0, m1) == 0;
+    let after = q0 == q1 && cross(m0, m1) > 0;
+    let quarter_steps = if after { 0 } else { (q1 + 4 - q0) % 4 };
+    let quarter_steps = if quarter_steps == 0 && !after {
+        4
+    } else {
+        quarter_steps
+    };
+    let end_on_axis = m1[0] == 0 || m1[1] == 0;
+    let n_cross = if end_on_axis && quarter_steps > 0 {
+        quarter_steps - 1
+    } else {
+        quarter_steps
+    };
+
+    let mut targets = [[0i32; 2]; MAX_SEGMENTS];
+    let mut prev = m0;
+    for t in 0..=n_cross {
+        let (point, quad) = if t < n_cross {
+            (crossing(q0 + t + 1, r), q0 + t)
+        } else {
+            (m1, q0 + n_cross)
+        };
+        let dirs = ccw_dirs(quad);
+        let da = (point[0] - prev[0]).signum();
+        let db = (point[1] - prev[1]).signum();
+        if da * dirs[0] < 0 || db * dirs[1] < 0 {
+            return Err(ErrorKind::ArcEndUnreachable {
+                start: r,
+                end: r_end,
+            });
+        }
+        let real = mirror(point, cw);
+        if t < n_cross {
+            check_soft(st, ia, c[0] + real[0])?;
+            check_soft(st, ib, c[1] + real[1])?;
+        }
+        match (
+            targets.get_mut(t),
+            i32::try_from(real[0]),
+            i32::try_from(real[1]),
+        ) {
+            (Some(slot), Ok(a), Ok(b)) => *slot = [a, b],
+            _ => return Err(ErrorKind::ArcTooLarge),
+        }
+        prev = point;
+    }
+
+    let sweep = if same_angle {
+        2.0 * core::f64::consts::PI
+    } else {
+        let a = libm::atan2(cross(m0, m1) as f64, dot(m0, m1) as f64);
+        if a <= 0.0 {
+            a + 2.0 * core::f64::consts::PI
+        } else {
+            a
+        }
+    };
+    let length = libm::round(r as f64 * sweep).max(1.0);
+    if length > u32::MAX as f64 {
+        return Err(ErrorKind::ArcTooLarge);
+    }
+    Ok(Arc {
+        plane,
+        ccw,
+        start: [p0[0] as i32, p0[1] as i32],
+        r: r as u32,
+        targets,
+        n_targets: (n_cross + 1) as u8,
+        f,
+        decel: false,
+        length: length as u32,
+    })
+}

@@ -1,0 +1,255 @@
+//! The semantics of one G-code line (loader task; host tests): modal words, unit conversion,
+//! targets, soft limits and the block it produces. Runs on copies of the parser state.
+
+use super::arc::{self, Centre};
+use super::error::{axis_name, ErrorKind};
+use super::words::{
+    self, Words, AXES, F, G_DISTANCE, G_DWELL, G_MOTION, G_PLANE, G_UNITS, M_STOP, OFFSETS, P, R, S,
+};
+use super::{feed_number, Distance, Modes, MotionMode, Parsed, Units};
+use crate::nc::{isqrt, Block, Dwell, Linear, Motion, Plane, Rapid};
+use crate::settings::Settings;
+
+/// A length word in BLU (rounded half away from zero); it must fit i32.
+fn length(w: &Words, i: usize, per: (i64, i64)) -> Result<Option<i64>, ErrorKind> {
+    let letter = words::LETTERS.get(i).copied().unwrap_or('?');
+    match w.value(i) {
+        None => Ok(None),
+        Some(d) => match d
+            .mul_ratio_round(per.0 as i128, per.1 as i128)
+            .map(i32::try_from)
+        {
+            Some(Ok(v)) => Ok(Some(v as i64)),
+            _ => Err(ErrorKind::NumberTooLarge(letter)),
+        },
+    }
+}
+
+fn check_soft(st: &Settings, target: [i32; 3]) -> Result<(), ErrorKind> {
+    for (k, ((&t, &min), &max)) in target
+        .iter()
+        .zip(st.soft_min.iter())
+        .zip(st.soft_max.iter())
+        .enumerate()
+    {
+        if t < min || t > max {
+            return Err(ErrorKind::SoftLimit {
+                axis: axis_name(k),
+                value: t as i64,
+                min,
+                max,
+            });
+        }
+    }
+    Ok(())
+}
+
+fn reject_words(w: &Words, list: &[usize]) -> Result<(), ErrorKind> {
+    for &i in list {
+        if w.value(i).is_some() {
+            return Err(ErrorKind::UnusedWord(
+                words::LETTERS.get(i).copied().unwrap_or('?'),
+            ));
+        }
+    }
+    Ok(())
+}
+
+const ARC_WORDS: [usize; 4] = [R, OFFSETS, OFFSETS + 1, OFFSETS + 2];
+
+pub fn execute(
+    st: &Settings,
+    m: &mut Modes,
+    pos: &mut [i32; 3],
+    line_no: u32,
+    text: &str,
+) -> Result<Parsed, ErrorKind> {
+    let w = words::lex(text)?;
+
+    // Modal words first: they apply to the whole line, wherever they stand.
+    match w.g[G_UNITS] {
+        Some(20) => m.units = Units::Inch,
+        Some(21) => m.units = Units::Mm,
+        _ => {}
+    }
+    match w.g[G_PLANE] {
+        Some(17) => m.plane = Plane::XY,
+        Some(18) => m.plane = Plane::ZX,
+        Some(19) => m.plane = Plane::YZ,
+        _ => {}
+    }
+    match w.g[G_DISTANCE] {
+        Some(90) => m.distance = Distance::Absolute,
+        Some(91) => m.distance = Distance::Incremental,
+        _ => {}
+    }
+    // G94 (feed per minute) is the only feed mode: nothing to do.
+    let per = match m.units {
+        Units::Inch => st.blu.per_inch(),
+        Units::Mm => st.blu.per_mm(),
+    };
+    if let Some(fv) = w.value(F) {
+        if fv.is_negative() {
+            return Err(ErrorKind::NegativeValue('F'));
+        }
+        m.feed = feed_number(st, fv, per).ok_or(ErrorKind::NumberTooLarge('F'))?;
+    }
+    if let Some(sv) = w.value(S) {
+        if sv.is_negative() {
+            return Err(ErrorKind::NegativeValue('S'));
+        }
+        m.spindle_rpm = match sv.mul_ratio_round(1, 1).map(u32::try_from) {
+            Some(Ok(v)) => v,
+            _ => return Err(ErrorKind::NumberTooLarge('S')),
+        };
+    }
+    let motion_word = w.g[G_MOTION];
+    match motion_word {
+        Some(0) => m.motion = MotionMode::Rapid,
+        Some(1) => m.motion = MotionMode::Linear,
+        Some(2) => m.motion = MotionMode::ArcCw,
+        Some(3) => m.motion = MotionMode::ArcCcw,
+        _ => {}
+    }
+
+    let mut axis = [None; 3];
+    for (k, a) in axis.iter_mut().enumerate() {
+        *a = length(&w, AXES + k, per)?;
+    }
+    let has_axes = axis.iter().any(Option::is_some);
+    let dwell = w.g[G_DWELL].is_some();
+
+    if w.m[M_STOP].is_some() {
+        if has_axes || dwell {
+            return Err(ErrorKind::EndWithMotion);
+        }
+        reject_words(&w, &[P, R, OFFSETS, OFFSETS + 1, OFFSETS + 2])?;
+        return Ok(Parsed::End);
+    }
+
+    if dwell {
+        if has_axes {
+            return Err(ErrorKind::DwellWithAxes);
+        }
+        reject_words(&w, &ARC_WORDS)?;
+        let pv = w.value(P).ok_or(ErrorKind::DwellNeedsP)?;
+        if pv.is_negative() {
+            return Err(ErrorKind::NegativeValue('P'));
+        }
+        let frames = match pv
+            .mul_ratio_round(st.frame_hz as i128, 1)
+            .map(u32::try_from)
+        {
+            Some(Ok(v)) => v,
+            _ => return Err(ErrorKind::NumberTooLarge('P')),
+        };
+        // A dwell of zero frames is no block (the frame never sees an empty dwell).
+        if frames == 0 {
+            return Ok(Parsed::Nothing);
+        }
+        return Ok(Parsed::Block(Block {
+            line: line_no,
+            motion: Motion::Dwell(Dwell { frames }),
+        }));
+    }
+    reject_words(&w, &[P])?;
+
+    // A motion runs when the line has axis words or names a motion mode (grbl).
+    if !has_axes && motion_word.is_none() {
+        reject_words(&w, &ARC_WORDS)?;
+        return Ok(Parsed::Nothing);
+    }
+    let code = match m.motion {
+        MotionMode::Rapid => 0,
+        MotionMode::Linear => 1,
+        MotionMode::ArcCw => 2,
+        MotionMode::ArcCcw => 3,
+    };
+    if code != 0 && m.feed == 0 {
+        return Err(ErrorKind::NoFeed { code });
+    }
+
+    let mut target = *pos;
+    for (k, (t, a)) in target.iter_mut().zip(axis.iter()).enumerate() {
+        let v = match (*a, m.distance) {
+            (None, _) => continue,
+            (Some(v), Distance::Absolute) => v,
+            (Some(v), Distance::Incremental) => *t as i64 + v,
+        };
+        *t = i32::try_from(v).map_err(|_| ErrorKind::TargetOverflow { axis: axis_name(k) })?;
+    }
+
+    let motion = match m.motion {
+        MotionMode::Rapid | MotionMode::Linear => {
+            reject_words(&w, &ARC_WORDS)?;
+            check_soft(st, target)?;
+            let mut steps = [0u32; 3];
+            let mut signs = 0u8;
+            let mut sum: u128 = 0;
+            for (k, ((s, &t), &p)) in steps
+                .iter_mut()
+                .zip(target.iter())
+                .zip(pos.iter())
+                .enumerate()
+            {
+                let d = t as i64 - p as i64;
+                // |d| < 2^32: fits u32.
+                *s = d.unsigned_abs() as u32;
+                if d > 0 {
+                    signs |= 1 << k;
+                }
+                sum += d.unsigned_abs() as u128 * d.unsigned_abs() as u128;
+            }
+            if sum == 0 {
+                return Ok(Parsed::Nothing);
+            }
+            if m.motion == MotionMode::Rapid {
+                Motion::Rapid(Rapid { steps, signs })
+            } else {
+                let q = u64::try_from(sum).map(isqrt).map(u32::try_from);
+                let q = match q {
+                    Ok(Ok(q)) => q.max(1),
+                    _ => return Err(ErrorKind::MoveTooLong),
+                };
+                Motion::Linear(Linear {
+                    steps,
+                    signs,
+                    q,
+                    f: m.feed,
+                    decel: false,
+                })
+            }
+        }
+        MotionMode::ArcCw | MotionMode::ArcCcw => {
+            let (ia, ib) = m.plane.axes();
+            let third = 3 - ia - ib;
+            reject_words(&w, &[OFFSETS + third])?;
+            let has_offsets = w.value(OFFSETS + ia).is_some() || w.value(OFFSETS + ib).is_some();
+            let centre = match (w.value(R).is_some(), has_offsets) {
+                (true, true) => return Err(ErrorKind::ArcRadiusAndOffsets),
+                (true, false) => Centre::Radius(length(&w, R, per)?.unwrap_or(0)),
+                (false, true) => Centre::Offsets([
+                    length(&w, OFFSETS + ia, per)?.unwrap_or(0),
+                    length(&w, OFFSETS + ib, per)?.unwrap_or(0),
+                ]),
+                (false, false) => return Err(ErrorKind::ArcNeedsCentre { code }),
+            };
+            let a = arc::plan(
+                st,
+                m.plane,
+                m.motion == MotionMode::ArcCcw,
+                *pos,
+                target,
+                centre,
+                m.feed,
+            )?;
+            check_soft(st, target)?;
+            Motion::Arc(a)
+        }
+    };
+    *pos = target;
+    Ok(Parsed::Block(Block {
+        line: line_no,
+        motion,
+    }))
+}
