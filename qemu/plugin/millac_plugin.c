@@ -52,6 +52,7 @@ void qemu_plugin_register_atexit_cb(qemu_plugin_id_t id, qemu_plugin_udata_cb_t 
 size_t qemu_plugin_tb_n_insns(const struct qemu_plugin_tb *tb);
 struct qemu_plugin_insn *qemu_plugin_tb_get_insn(const struct qemu_plugin_tb *tb, size_t idx);
 uint64_t qemu_plugin_insn_vaddr(const struct qemu_plugin_insn *insn);
+bool qemu_plugin_mem_is_store(qemu_plugin_meminfo_t info);
 
 QEMU_PLUGIN_EXPORT int qemu_plugin_version = 1;
 
@@ -73,7 +74,10 @@ static struct handler {
 
 static void on_store(unsigned int vcpu, qemu_plugin_meminfo_t info, uint64_t vaddr, void *ud)
 {
-    (void)vcpu; (void)info; (void)ud;
+    (void)vcpu; (void)ud;
+    /* QEMU 7.2 also calls QEMU_PLUGIN_MEM_W callbacks for loads (measured): filter here. */
+    if (!qemu_plugin_mem_is_store(info))
+        return;
     for (int i = 0; i < n_ports; i++) {
         if (vaddr >= ports[i] && vaddr < ports[i] + 0x1000) {
             fprintf(out, "s %llx %llx\n", (unsigned long long)count, (unsigned long long)vaddr);

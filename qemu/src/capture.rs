@@ -10,6 +10,9 @@
 //!   `-msg timestamp=on` a `PID@SECS:` prefix is added, which the parser tolerates);
 //! - on a semihosting SYS_EXIT QEMU calls exit(), and the plugin's atexit callback runs (its final
 //!   `e COUNT` line is present), for exit status 0 and 1 alike.
+//! - QEMU 7.2 calls memory callbacks registered for `QEMU_PLUGIN_MEM_W` on loads too: the plugin
+//!   filters with `qemu_plugin_mem_is_store` (without it the zip fails on the firmware's
+//!   read-modify-write of GPIODIR).
 //!
 //! The plugin sees store addresses but not values (plugin API v1); the trace sees offsets and values
 //! but not the time. Both list the same writes in the same order, so they are zipped one to one (the

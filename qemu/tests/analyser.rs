@@ -54,11 +54,11 @@ fn test_image() -> Vec<u8> {
         0x6041, // 0x56 str r1, [r0, #4]     PB0 := 0
         0x213F, // 0x58 movs r1, #0x3f
         0xF8C0, 0x13FC, // 0x5a str.w r1, [r0, #0x3fc]  all := 0x3f
-        0x2018, // 0x5e movs r0, #0x18 (SYS_EXIT)  <- "handler" exit
-        0x4902, // 0x60 ldr r1, [pc, #8] ; =0x20026 (ADP_Stopped_ApplicationExit)
-        0xBEAB, // 0x62 bkpt 0xab
-        0xE7FE, // 0x64 b .
-        0xBF00, // 0x66 nop
+        0x6842, // 0x5e ldr r2, [r0, #4]     a GPIO load: not a write  <- "handler" exit
+        0x2018, // 0x60 movs r0, #0x18 (SYS_EXIT)
+        0x4902, // 0x62 ldr r1, [pc, #8] ; =0x20026 (ADP_Stopped_ApplicationExit)
+        0xBEAB, // 0x64 bkpt 0xab
+        0xE7FE, // 0x66 b .
     ];
     for h in code {
         img.extend_from_slice(&h.to_le_bytes());
@@ -93,8 +93,8 @@ fn capture_of_a_hand_assembled_image() {
         ]
     );
     assert_eq!(c.handlers, vec![("block".to_string(), vec![9])]);
-    assert_eq!(c.total_instructions, 15);
-    assert_eq!(c.end_ns, 15 << 3);
+    assert_eq!(c.total_instructions, 16);
+    assert_eq!(c.end_ns, 16 << 3);
     // Deterministic: a second run gives the same capture.
     assert_eq!(run_capture(&spec).unwrap(), c);
 }
