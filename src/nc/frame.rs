@@ -1,6 +1,25 @@
-//! The frame: Initiator, PTP, feed DDA, interpolators, output and position. `Frame::tick` is called
-//! once per frame interrupt (ISR): integers only, no panics, no allocation. STUB: API fixed, body WIP.
-use super::block::Block;
+//! The frame: Initiator, PTP, feed DDA, linear and circular DDA interpolators, output and position
+//! counters (Fig. 4 and Fig. 5 of the paper). `Frame::tick` runs once per frame interrupt (ISR):
+//! integers only, no panics, no allocation, no loops over data-dependent lengths.
+//!
+//! Per tick (the paper's "major part"):
+//! - Initiator: with no block loaded, pop the next validated block and load the registers.
+//! - PTP: each axis pulses independently at the rapid rate (the frame timer is retimed to
+//!   `rapid_hz` while a PTP block runs, see [`Rate`]); within `ptp_steps[k]` pulses of either end
+//!   of its move an axis pulses only every 2nd, 4th, 8th rapid frame: the paper's three-step
+//!   deceleration, mirrored as a three-step acceleration at the start (beyond the paper, so that
+//!   stepper drives do not stall).
+//! - Feed: r0 += f; an overflow of q0 is one interpolation command, so commands come at W0 f / q0.
+//!   A block flagged for deceleration runs at f_eff = max(f / 5, min(f, K * remaining / 256)):
+//!   velocity proportional to the remaining path, i.e. an exponential approach to 20 % of f.
+//! - Interpolator: per command one DDA cycle. Linear: r_k += |d_k|, overflow past q = L -> pulse.
+//!   Circular: r_a += |j|, r_b += |i|, overflow past q = R -> pulse, and the pulse moves i or j
+//!   (the registers are incremented as the other axis steps). The arc runs segment by segment
+//!   (axis crossings, see [`super::block::Arc`]); an axis whose segment counter is zero gets no
+//!   more pulses, and when one axis of a segment is done the other pulses once per command.
+//! - Output and Position: the pulses with the current signs; counters decremented per pulse,
+//!   absolute position updated; all counters zero -> block done, the Initiator runs next tick.
+use super::block::{Block, Motion, MAX_SEGMENTS};
 use crate::settings::Settings;
 
 /// The frame's share of the settings, precomputed in task context.
@@ -13,7 +32,11 @@ pub struct FrameConfig {
 
 impl FrameConfig {
     pub const fn from_settings(s: &Settings) -> Self {
-        FrameConfig { q0: s.q0, decel_gain_q8: s.decel_gain_q8(), ptp_steps: s.ptp_steps }
+        FrameConfig {
+            q0: s.q0,
+            decel_gain_q8: s.decel_gain_q8(),
+            ptp_steps: s.ptp_steps,
+        }
     }
 }
 
@@ -32,36 +55,415 @@ pub struct Pulses {
     pub signs: u8,
 }
 
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    Idle,
+    Rapid,
+    Linear,
+    Arc,
+    Dwell,
+}
+
+/// The NC state: DDA registers, counters, position. One instance lives in the frame ISR's locals.
 pub struct Frame {
     cfg: FrameConfig,
+    mode: Mode,
     position: [i32; 3],
+    signs: u8,
+    blocks_done: u32,
+    /// Position counters: pulses left per axis in the block (arc: in the segment).
+    count: [u32; 3],
+    /// Linear: DDA y registers |d_k|. PTP: pulses done per axis (for the acceleration steps).
+    reg: [u32; 3],
+    /// DDA r registers (accumulators). Arc: [r_a, r_b, _].
+    acc: [u32; 3],
+    /// Interpolator capacity q (L or R).
+    q: u32,
+    /// Feed DDA: programmed feed number, accumulator, commands left (for deceleration).
+    f: u32,
+    r0: u32,
+    remaining: u32,
+    decel: bool,
+    /// PTP frame counter; dwell frames left.
+    ticks: u32,
+    /// Arc state: axes, register values i, j (position relative to the centre), segments.
+    a: u8,
+    b: u8,
+    i: i32,
+    j: i32,
+    seg: u8,
+    n_seg: u8,
+    targets: [[i32; 2]; MAX_SEGMENTS],
 }
 
 impl Frame {
     pub const fn new(cfg: FrameConfig) -> Self {
-        Frame { cfg, position: [0; 3] }
+        Frame {
+            cfg,
+            mode: Mode::Idle,
+            position: [0; 3],
+            signs: 0,
+            blocks_done: 0,
+            count: [0; 3],
+            reg: [0; 3],
+            acc: [0; 3],
+            q: 1,
+            f: 0,
+            r0: 0,
+            remaining: 0,
+            decel: false,
+            ticks: 0,
+            a: 0,
+            b: 1,
+            i: 0,
+            j: 0,
+            seg: 0,
+            n_seg: 0,
+            targets: [[0; 2]; MAX_SEGMENTS],
+        }
     }
+
     /// One frame. `next` is the Initiator's block source; it is called only when no block is loaded.
-    /// `feed_cap` is the adaptive controller's feed number (u32::MAX = no cap).
+    /// `feed_cap` is the adaptive controller's feed number (u32::MAX = no cap, 0 = feed hold).
     #[inline]
-    pub fn tick(&mut self, next: impl FnMut() -> Option<Block>, feed_cap: u32) -> Pulses {
-        let _ = (next, feed_cap, self.cfg);
-        Pulses::default()
+    pub fn tick(&mut self, mut next: impl FnMut() -> Option<Block>, feed_cap: u32) -> Pulses {
+        if self.mode == Mode::Idle {
+            match next() {
+                Some(b) => self.initiate(b),
+                None => {
+                    return Pulses {
+                        steps: 0,
+                        signs: self.signs,
+                    }
+                }
+            }
+        }
+        let steps = match self.mode {
+            Mode::Idle => 0,
+            Mode::Rapid => self.ptp(),
+            Mode::Linear => {
+                if self.feed(feed_cap) {
+                    self.linear()
+                } else {
+                    0
+                }
+            }
+            Mode::Arc => {
+                if self.feed(feed_cap) {
+                    self.circular()
+                } else {
+                    0
+                }
+            }
+            Mode::Dwell => {
+                self.ticks = self.ticks.saturating_sub(1);
+                0
+            }
+        };
+        self.position_update(steps);
+        if self.count[0] == 0 && self.count[1] == 0 && self.count[2] == 0 {
+            self.segment_end();
+        }
+        Pulses {
+            steps,
+            signs: self.signs,
+        }
     }
+
     /// Timer rate the next frame needs.
+    #[inline]
     pub fn rate(&self) -> Rate {
-        Rate::Feed
+        if self.mode == Mode::Rapid {
+            Rate::Rapid
+        } else {
+            Rate::Feed
+        }
     }
+
     /// Absolute position in BLU, updated per pulse.
+    #[inline]
     pub fn position(&self) -> [i32; 3] {
         self.position
     }
+
     /// True when no block is loaded.
+    #[inline]
     pub fn idle(&self) -> bool {
-        true
+        self.mode == Mode::Idle
     }
+
     /// Blocks completed since power-up.
+    #[inline]
     pub fn blocks_done(&self) -> u32 {
-        0
+        self.blocks_done
+    }
+
+    /// The Initiator: load a validated block into the registers.
+    #[inline]
+    fn initiate(&mut self, block: Block) {
+        match block.motion {
+            Motion::Rapid(r) => {
+                self.mode = Mode::Rapid;
+                self.count = r.steps;
+                self.reg = [0; 3];
+                self.ticks = 0;
+                self.set_signs(0b111, r.signs);
+            }
+            Motion::Linear(l) => {
+                self.mode = Mode::Linear;
+                self.count = l.steps;
+                self.reg = l.steps;
+                self.q = if l.q == 0 { 1 } else { l.q };
+                let half = self.q / 2;
+                self.acc = [half; 3];
+                self.f = l.f;
+                self.remaining = self.q;
+                self.decel = l.decel;
+                self.set_signs(0b111, l.signs);
+            }
+            Motion::Arc(c) => {
+                self.mode = Mode::Arc;
+                let (a, b) = c.plane.axes();
+                self.a = a as u8;
+                self.b = b as u8;
+                self.i = c.start[0];
+                self.j = c.start[1];
+                self.q = if c.r == 0 { 1 } else { c.r };
+                self.f = c.f;
+                self.remaining = c.length;
+                self.decel = c.decel;
+                self.targets = c.targets;
+                self.n_seg = c.n_targets;
+                self.seg = 0;
+                self.count = [0; 3];
+                self.load_segment();
+            }
+            Motion::Dwell(d) => {
+                self.mode = Mode::Dwell;
+                self.ticks = d.frames;
+                // The dwell's "counter" keeps the block alive until the frames have passed.
+                self.count = [0; 3];
+            }
+        }
+    }
+
+    /// All counters are zero: next arc segment, or the block is done (dwell: when its frames ran out).
+    #[inline]
+    fn segment_end(&mut self) {
+        match self.mode {
+            Mode::Idle => return,
+            Mode::Dwell if self.ticks > 0 => return,
+            Mode::Arc if self.seg.saturating_add(1) < self.n_seg => {
+                self.seg += 1;
+                self.load_segment();
+                // A degenerate (empty) segment is finished on the next tick.
+                return;
+            }
+            _ => {}
+        }
+        self.mode = Mode::Idle;
+        self.blocks_done = self.blocks_done.wrapping_add(1);
+    }
+
+    /// Counters and signs of the current arc segment: |target - (i, j)| per axis.
+    #[inline]
+    fn load_segment(&mut self) {
+        let t = match self.targets.get(self.seg as usize) {
+            Some(t) => *t,
+            None => [self.i, self.j],
+        };
+        let da = t[0].wrapping_sub(self.i);
+        let db = t[1].wrapping_sub(self.j);
+        let (a, b) = (self.a as usize & 3, self.b as usize & 3);
+        let mut signs = 0u8;
+        if da > 0 {
+            signs |= 1 << a;
+        }
+        if db > 0 {
+            signs |= 1 << b;
+        }
+        let mut count = [0u32; 3];
+        if let Some(c) = count.get_mut(a) {
+            *c = da.unsigned_abs();
+        }
+        if let Some(c) = count.get_mut(b) {
+            *c = db.unsigned_abs();
+        }
+        self.count = count;
+        // Each segment starts on an axis crossing (or the block start): the DDA remainders restart
+        // at one half, which rounds each axis to the nearest BLU (measured: smaller deviation than
+        // carrying the remainders over the crossing).
+        let half = self.q / 2;
+        self.acc = [half; 3];
+        // Only the axes that move in this segment change their sign line.
+        let mut mask = 0u8;
+        if da != 0 {
+            mask |= 1 << a;
+        }
+        if db != 0 {
+            mask |= 1 << b;
+        }
+        self.set_signs(mask, signs);
+    }
+
+    #[inline]
+    fn set_signs(&mut self, mask: u8, signs: u8) {
+        // Axes that do not move keep their sign line as it is.
+        let moving = mask
+            & ((self.count[0] != 0) as u8
+                | ((self.count[1] != 0) as u8) << 1
+                | ((self.count[2] != 0) as u8) << 2);
+        self.signs = (self.signs & !moving) | (signs & moving);
+    }
+
+    /// Feed-rate DDA: true when this frame produces an interpolation command.
+    #[inline]
+    fn feed(&mut self, feed_cap: u32) -> bool {
+        let mut f = self.f;
+        if self.decel {
+            let v = (self.cfg.decel_gain_q8 as u64 * self.remaining as u64) >> 8;
+            let floor = if self.f / 5 == 0 { 1 } else { self.f / 5 };
+            if v < f as u64 {
+                f = if (v as u32) < floor { floor } else { v as u32 };
+            }
+        }
+        if feed_cap < f {
+            f = feed_cap;
+        }
+        self.r0 = self.r0.wrapping_add(f);
+        if self.r0 >= self.cfg.q0 {
+            self.r0 -= self.cfg.q0;
+            self.remaining = self.remaining.saturating_sub(1);
+            true
+        } else {
+            false
+        }
+    }
+
+    /// Linear DDA cycle: r_k += |d_k|; overflow past q gives a pulse while the counter is non-zero.
+    #[inline]
+    fn linear(&mut self) -> u8 {
+        let mut steps = 0u8;
+        let q = self.q;
+        for k in 0..3 {
+            if self.count[k] != 0 {
+                let r = self.acc[k].wrapping_add(self.reg[k]);
+                if r >= q {
+                    self.acc[k] = r - q;
+                    self.count[k] -= 1;
+                    steps |= 1 << k;
+                } else {
+                    self.acc[k] = r;
+                }
+            }
+        }
+        steps
+    }
+
+    /// Circular DDA cycle in the plane (a, b); i, j follow every pulse.
+    #[inline]
+    fn circular(&mut self) -> u8 {
+        let (a, b) = (self.a as usize & 3, self.b as usize & 3);
+        let ca = self.count.get(a).copied().unwrap_or(0);
+        let cb = self.count.get(b).copied().unwrap_or(0);
+        let up_a = self.signs & (1 << a) != 0;
+        let up_b = self.signs & (1 << b) != 0;
+        let (mut step_a, mut step_b) = (false, false);
+        if ca != 0 && cb != 0 {
+            let r = self.acc[0].wrapping_add(self.j.unsigned_abs());
+            if r >= self.q {
+                self.acc[0] = r - self.q;
+                step_a = true;
+                self.i = if up_a {
+                    self.i.wrapping_add(1)
+                } else {
+                    self.i.wrapping_sub(1)
+                };
+            } else {
+                self.acc[0] = r;
+            }
+            let r = self.acc[1].wrapping_add(self.i.unsigned_abs());
+            if r >= self.q {
+                self.acc[1] = r - self.q;
+                step_b = true;
+            } else {
+                self.acc[1] = r;
+            }
+        } else if ca != 0 {
+            step_a = true;
+            self.i = if up_a {
+                self.i.wrapping_add(1)
+            } else {
+                self.i.wrapping_sub(1)
+            };
+        } else if cb != 0 {
+            step_b = true;
+        }
+        if step_b {
+            self.j = if up_b {
+                self.j.wrapping_add(1)
+            } else {
+                self.j.wrapping_sub(1)
+            };
+        }
+        let mut steps = 0u8;
+        if step_a {
+            if let Some(c) = self.count.get_mut(a) {
+                *c -= 1;
+            }
+            steps |= 1 << a;
+        }
+        if step_b {
+            if let Some(c) = self.count.get_mut(b) {
+                *c -= 1;
+            }
+            steps |= 1 << b;
+        }
+        steps
+    }
+
+    /// PTP: independent axes at the rapid rate, three steps of deceleration (and acceleration).
+    #[inline]
+    fn ptp(&mut self) -> u8 {
+        self.ticks = self.ticks.wrapping_add(1);
+        let [s1, s2, s3] = self.cfg.ptp_steps;
+        let mut steps = 0u8;
+        for k in 0..3 {
+            let left = self.count[k];
+            if left != 0 {
+                let done = self.reg[k].saturating_add(1);
+                let m = if done < left { done } else { left };
+                let mask = if m > s1 {
+                    0
+                } else if m > s2 {
+                    1
+                } else if m > s3 {
+                    3
+                } else {
+                    7
+                };
+                if self.ticks & mask == 0 {
+                    self.count[k] = left - 1;
+                    self.reg[k] = self.reg[k].wrapping_add(1);
+                    steps |= 1 << k;
+                }
+            }
+        }
+        steps
+    }
+
+    /// Position: absolute counters follow every pulse with its sign.
+    #[inline]
+    fn position_update(&mut self, steps: u8) {
+        for k in 0..3 {
+            if steps & (1 << k) != 0 {
+                let p = &mut self.position[k];
+                *p = if self.signs & (1 << k) != 0 {
+                    p.wrapping_add(1)
+                } else {
+                    p.wrapping_sub(1)
+                };
+            }
+        }
     }
 }

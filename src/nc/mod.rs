@@ -3,6 +3,9 @@
 
 pub mod block;
 pub mod frame;
+pub mod sim;
+#[cfg(test)]
+mod tests;
 
 pub use block::*;
 pub use frame::{Frame, FrameConfig, Pulses, Rate};
@@ -20,20 +23,5 @@ pub const fn isqrt(n: u64) -> u64 {
             return x;
         }
         x = y;
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::isqrt;
-    use proptest::prelude::*;
-
-    proptest! {
-        #[test]
-        fn isqrt_is_floor_sqrt(n in any::<u64>()) {
-            let r = isqrt(n) as u128;
-            prop_assert!(r * r <= n as u128);
-            prop_assert!((r + 1) * (r + 1) > n as u128);
-        }
     }
 }

@@ -1,0 +1,71 @@
+//! A frame driven without hardware: feeds blocks to [`Frame::tick`] and yields every frame's output
+//! with the rate it ran at. Used by host tests and the host tool (host); never by the firmware.
+use super::block::Block;
+use super::frame::{Frame, Pulses, Rate};
+
+/// One simulated frame: its index, the rate the frame timer ran at for it, and its output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SimFrame {
+    pub tick: u64,
+    pub rate: Rate,
+    pub pulses: Pulses,
+    /// Position after the frame.
+    pub position: [i32; 3],
+}
+
+/// Runs `frame` over `blocks` until the last block is done (or `max_ticks` frames have run),
+/// with `feed_cap` as the adaptive feed cap of every frame.
+pub struct Sim<'f, I: Iterator<Item = Block>> {
+    frame: &'f mut Frame,
+    blocks: I,
+    tick: u64,
+    max_ticks: u64,
+    feed_cap: u32,
+    rate: Rate,
+}
+
+impl<'f, I: Iterator<Item = Block>> Sim<'f, I> {
+    pub fn new(frame: &'f mut Frame, blocks: I, feed_cap: u32, max_ticks: u64) -> Self {
+        let rate = frame.rate();
+        Sim {
+            frame,
+            blocks,
+            tick: 0,
+            max_ticks,
+            feed_cap,
+            rate,
+        }
+    }
+}
+
+impl<I: Iterator<Item = Block>> Iterator for Sim<'_, I> {
+    type Item = SimFrame;
+
+    fn next(&mut self) -> Option<SimFrame> {
+        if self.tick >= self.max_ticks {
+            return None;
+        }
+        let mut exhausted = false;
+        let blocks = &mut self.blocks;
+        let pulses = self.frame.tick(
+            || {
+                let b = blocks.next();
+                exhausted = b.is_none();
+                b
+            },
+            self.feed_cap,
+        );
+        if exhausted && self.frame.idle() {
+            return None;
+        }
+        let out = SimFrame {
+            tick: self.tick,
+            rate: self.rate,
+            pulses,
+            position: self.frame.position(),
+        };
+        self.tick += 1;
+        self.rate = self.frame.rate();
+        Some(out)
+    }
+}

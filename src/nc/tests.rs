@@ -1,0 +1,385 @@
+//! Host tests of the frame (host): exact end points, path deviation, pulse rate, PTP steps and
+//! deceleration, against blocks built here from geometry (the parser has its own tests).
+use super::block::*;
+use super::frame::{Frame, FrameConfig, Rate};
+use super::isqrt;
+use super::sim::Sim;
+use crate::settings::Settings;
+use proptest::prelude::*;
+
+fn cfg() -> FrameConfig {
+    FrameConfig::from_settings(&Settings::default())
+}
+
+fn signs_of(d: [i64; 3]) -> u8 {
+    (0..3).filter(|&k| d[k] > 0).fold(0u8, |s, k| s | 1 << k)
+}
+
+fn line(d: [i64; 3], f: u32, decel: bool) -> Block {
+    let steps = d.map(|v| v.unsigned_abs() as u32);
+    let q = isqrt(d.iter().map(|v| (v * v) as u64).sum()).max(1) as u32;
+    Block {
+        line: 1,
+        motion: Motion::Linear(Linear {
+            steps,
+            signs: signs_of(d),
+            q,
+            f,
+            decel,
+        }),
+    }
+}
+
+/// An arc in the XY plane with centre offset `c` from the start, `sweep` radians (sign = direction).
+/// Segment targets follow the rule in block.rs: axis crossings at the rounded start radius, then the end.
+fn arc(start: [i32; 2], r: f64, a0: f64, sweep: f64, f: u32) -> (Block, [i32; 2]) {
+    let ccw = sweep > 0.0;
+    let s = [(r * a0.cos()).round() as i32, (r * a0.sin()).round() as i32];
+    let e = [
+        (r * (a0 + sweep).cos()).round() as i32,
+        (r * (a0 + sweep).sin()).round() as i32,
+    ];
+    let rr = {
+        // round(sqrt(n)) with integers
+        let n = s[0] as i64 * s[0] as i64 + s[1] as i64 * s[1] as i64;
+        let fl = isqrt(n as u64) as i64;
+        (if n - fl * fl > fl { fl + 1 } else { fl }) as i32
+    };
+    let mut targets = [[0; 2]; MAX_SEGMENTS];
+    let mut n = 0usize;
+    // Crossings strictly inside the sweep, in travel order.
+    let quarter = std::f64::consts::FRAC_PI_2;
+    let eps = 1e-9;
+    let (lo, hi) = if ccw {
+        (a0, a0 + sweep)
+    } else {
+        (a0 + sweep, a0)
+    };
+    let mut ks: Vec<i64> = (((lo / quarter).floor() as i64)..=((hi / quarter).ceil() as i64))
+        .filter(|&k| {
+            let ang = k as f64 * quarter;
+            ang > lo + eps && ang < hi - eps
+        })
+        .collect();
+    if !ccw {
+        ks.reverse();
+    }
+    for k in ks {
+        let p = match k.rem_euclid(4) {
+            0 => [rr, 0],
+            1 => [0, rr],
+            2 => [-rr, 0],
+            _ => [0, -rr],
+        };
+        if p != e {
+            targets[n] = p;
+            n += 1;
+        }
+    }
+    targets[n] = e;
+    n += 1;
+    let length = (rr as f64 * sweep.abs()).round().max(1.0) as u32;
+    let b = Block {
+        line: 1,
+        motion: Motion::Arc(Arc {
+            plane: Plane::XY,
+            ccw,
+            start: s,
+            r: rr.max(1) as u32,
+            targets,
+            n_targets: n as u8,
+            f,
+            decel: false,
+            length,
+        }),
+    };
+    let _ = start;
+    (b, [e[0] - s[0], e[1] - s[1]])
+}
+
+/// Perpendicular distance of point p from the line through 0 and d.
+fn line_dist(p: [i32; 3], d: [i64; 3]) -> f64 {
+    let (px, py, pz) = (p[0] as f64, p[1] as f64, p[2] as f64);
+    let (dx, dy, dz) = (d[0] as f64, d[1] as f64, d[2] as f64);
+    let l2 = dx * dx + dy * dy + dz * dz;
+    let t = ((px * dx + py * dy + pz * dz) / l2).clamp(0.0, 1.0);
+    let (ex, ey, ez) = (px - t * dx, py - t * dy, pz - t * dz);
+    (ex * ex + ey * ey + ez * ez).sqrt()
+}
+
+/// Measured bound of the circular DDA's radial deviation (BLU); see `deviation_figures`.
+const ARC_DEVIATION_BOUND: f64 = 1.5;
+
+/// Runs one line; returns the end position, the largest distance from the ideal line and the frames.
+fn run_line(d: [i64; 3], f: u32) -> ([i32; 3], f64, u64) {
+    let mut frame = Frame::new(cfg());
+    let (mut dev, mut frames, mut pos) = (0.0f64, 0u64, [0; 3]);
+    for s in Sim::new(
+        &mut frame,
+        [line(d, f, false)].into_iter(),
+        u32::MAX,
+        100_000_000,
+    ) {
+        dev = dev.max(line_dist(s.position, d));
+        frames = s.tick + 1;
+        pos = s.position;
+    }
+    (pos, dev, frames)
+}
+
+/// Runs one arc; returns the end position, the programmed end offset and the largest radial distance
+/// from the ideal path: the band between the start and the end radius (integer end points are never
+/// exactly on the circle; the parser bounds the difference like grbl's error 33).
+fn run_arc(r: f64, a0: f64, sweep: f64) -> ([i32; 3], [i32; 2], f64) {
+    let (b, d) = arc([0, 0], r, a0, sweep, 3000);
+    let Motion::Arc(c) = b.motion else {
+        unreachable!()
+    };
+    let s = c.start;
+    let e = c.targets[c.n_targets as usize - 1];
+    let r0 = ((s[0] as f64).powi(2) + (s[1] as f64).powi(2)).sqrt();
+    let r1 = ((e[0] as f64).powi(2) + (e[1] as f64).powi(2)).sqrt();
+    let mut frame = Frame::new(cfg());
+    let (mut dev, mut pos) = (0.0f64, [0; 3]);
+    for f in Sim::new(&mut frame, [b].into_iter(), u32::MAX, 100_000_000) {
+        pos = f.position;
+        let (x, y) = ((s[0] + f.position[0]) as f64, (s[1] + f.position[1]) as f64);
+        let rr = (x * x + y * y).sqrt();
+        dev = dev.max(r0.min(r1) - rr).max(rr - r0.max(r1));
+    }
+    (pos, d, dev)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// Lines: the end point is exact, every pulse stays within 1 BLU of the ideal line, and the
+    /// block takes q * q0 / f frames (V = W0 f / q0 along the path).
+    #[test]
+    fn lines_end_exact_and_stay_on_the_line(
+        dx in -3000i64..3000, dy in -3000i64..3000, dz in -300i64..300, f in 1u32..=3000,
+    ) {
+        prop_assume!(dx != 0 || dy != 0 || dz != 0);
+        let d = [dx, dy, dz];
+        let q = isqrt(d.iter().map(|v| (v * v) as u64).sum()).max(1);
+        let (pos, dev, frames) = run_line(d, f);
+        prop_assert_eq!(pos, [dx as i32, dy as i32, dz as i32]);
+        prop_assert!(dev <= 1.0, "deviation {}", dev);
+        // q commands at one command per q0/f frames (the feed DDA carries its remainder).
+        let expect = q as f64 * 3000.0 / f as f64;
+        prop_assert!((frames as f64 - expect).abs() <= 3000.0 / f as f64 + 1.0,
+            "frames {} expected {}", frames, expect);
+    }
+
+    /// Arcs of any sweep and direction, crossing quadrants: exact end, deviation within the bound.
+    #[test]
+    fn arcs_end_exact_and_stay_on_the_circle(
+        r in 5.0f64..4000.0, a0 in -7.0f64..7.0, sweep in 0.05f64..6.28, ccw in any::<bool>(),
+    ) {
+        let (pos, d, dev) = run_arc(r, a0, if ccw { sweep } else { -sweep });
+        prop_assert_eq!([pos[0], pos[1]], d);
+        prop_assert_eq!(pos[2], 0);
+        prop_assert!(dev <= ARC_DEVIATION_BOUND, "deviation {}", dev);
+    }
+}
+
+/// The figures quoted in the README: largest deviation over 2000 seeded random lines and arcs.
+/// `cargo test -p millac --lib deviation_figures -- --nocapture` prints them.
+#[test]
+fn deviation_figures() {
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut line_max, mut arc_max) = (0.0f64, 0.0f64);
+    for _ in 0..2000 {
+        let d = [
+            (rnd() * 8000.0 - 4000.0) as i64,
+            (rnd() * 8000.0 - 4000.0) as i64,
+            (rnd() * 800.0 - 400.0) as i64,
+        ];
+        if d == [0; 3] {
+            continue;
+        }
+        let (pos, dev, _) = run_line(d, 3000);
+        assert_eq!(pos, d.map(|v| v as i32));
+        line_max = line_max.max(dev);
+        let sweep = (0.05 + rnd() * 6.23) * if rnd() < 0.5 { 1.0 } else { -1.0 };
+        let (pos, e, dev) = run_arc(5.0 + rnd() * 5000.0, rnd() * 14.0 - 7.0, sweep);
+        assert_eq!([pos[0], pos[1]], e);
+        arc_max = arc_max.max(dev);
+    }
+    println!("max deviation over 2000 lines: {line_max:.3} BLU; over 2000 arcs: {arc_max:.3} BLU");
+    assert!(line_max <= 1.0);
+    assert!(arc_max <= ARC_DEVIATION_BOUND);
+}
+
+#[test]
+fn pulse_rate_matches_w0_f_over_q0() {
+    // FR = 30 ipm (f = 3000) gives one pulse per frame on a pure X move: 5000 pulses/s at W0 = 5 kHz.
+    for (f, per_pulse) in [(3000u32, 1.0f64), (1500, 2.0), (300, 10.0), (100, 30.0)] {
+        let mut frame = Frame::new(cfg());
+        let ticks: Vec<u64> = Sim::new(
+            &mut frame,
+            [line([1000, 0, 0], f, false)].into_iter(),
+            u32::MAX,
+            1 << 30,
+        )
+        .filter(|s| s.pulses.steps != 0)
+        .map(|s| s.tick)
+        .collect();
+        assert_eq!(ticks.len(), 1000);
+        let mean = (ticks[999] - ticks[0]) as f64 / 999.0;
+        assert!(
+            (mean - per_pulse).abs() < 0.01,
+            "f {f}: {mean} frames per pulse"
+        );
+    }
+}
+
+#[test]
+fn feed_cap_limits_and_holds() {
+    let mut frame = Frame::new(cfg());
+    let n = Sim::new(
+        &mut frame,
+        [line([0, 600, 0], 3000, false)].into_iter(),
+        0,
+        10_000,
+    )
+    .filter(|s| s.pulses.steps != 0)
+    .count();
+    assert_eq!(n, 0, "feed cap 0 is a feed hold");
+    let mut frame = Frame::new(cfg());
+    let last = Sim::new(
+        &mut frame,
+        [line([0, 600, 0], 3000, false)].into_iter(),
+        1500,
+        1 << 20,
+    )
+    .last()
+    .unwrap();
+    assert!(
+        (last.tick as i64 - 1200).abs() <= 2,
+        "capped at half feed: {}",
+        last.tick
+    );
+}
+
+#[test]
+fn decel_block_slows_exponentially_to_a_fifth() {
+    let f = 3000;
+    let mut frame = Frame::new(cfg());
+    let ticks: Vec<u64> = Sim::new(
+        &mut frame,
+        [line([5000, 0, 0], f, true)].into_iter(),
+        u32::MAX,
+        1 << 30,
+    )
+    .filter(|s| s.pulses.steps != 0)
+    .map(|s| s.tick)
+    .collect();
+    assert_eq!(ticks.len(), 5000);
+    // Steady part: one pulse per frame.
+    assert_eq!(ticks[1000] - ticks[999], 1);
+    // Last pulses: 20 % of the feed, 5 frames per pulse.
+    assert_eq!(ticks[4999] - ticks[4998], 5);
+    // In between the interval grows smoothly (exponential decay of speed with distance):
+    // speed is proportional to the distance left while above the floor.
+    let k = Settings::default().decel_gain_q8() as f64 / 256.0; // f per BLU left
+    for left in [90usize, 60, 40] {
+        let idx = 5000 - left;
+        let gap = (ticks[idx + 5] - ticks[idx]) as f64 / 5.0;
+        let expect = 3000.0 / (k * left as f64).min(3000.0);
+        assert!(
+            (gap - expect).abs() / expect < 0.25,
+            "left {left}: {gap} vs {expect}"
+        );
+    }
+}
+
+#[test]
+fn ptp_runs_at_rapid_rate_with_three_deceleration_steps() {
+    let s = Settings::default();
+    let block = Block {
+        line: 1,
+        motion: Motion::Rapid(Rapid {
+            steps: [5000, 300, 0],
+            signs: 0b001,
+        }),
+    };
+    let mut frame = Frame::new(cfg());
+    let frames: Vec<_> = Sim::new(&mut frame, [block].into_iter(), u32::MAX, 1 << 30).collect();
+    assert!(frames.iter().skip(1).all(|f| f.rate == Rate::Rapid));
+    let last = frames.last().unwrap();
+    assert_eq!(last.position, [5000, -300, 0]);
+    let x: Vec<u64> = frames
+        .iter()
+        .filter(|f| f.pulses.steps & 1 != 0)
+        .map(|f| f.tick)
+        .collect();
+    // In the middle of the move X pulses every rapid frame: 26 333 pulses/s = 158 ipm.
+    assert_eq!(x[2500] - x[2499], 1);
+    // Approaching the end the interval is 2, 4, then 8 rapid frames: three steps.
+    let gap = |i: usize| x[i + 1] - x[i];
+    let [s1, s2, s3] = s.ptp_steps.map(|v| v as usize);
+    assert_eq!(gap(5000 - s1 + 10), 2);
+    assert_eq!(gap(5000 - s2 + 5), 4);
+    assert_eq!(gap(5000 - s3 + 2), 8);
+    // Axes are independent: Y (300 pulses) finishes long before X.
+    let y_last = frames
+        .iter()
+        .filter(|f| f.pulses.steps & 2 != 0)
+        .map(|f| f.tick)
+        .last()
+        .unwrap();
+    assert!(y_last < x[2000]);
+    // Sign lines: X positive, Y negative throughout.
+    assert!(frames.iter().all(|f| f.pulses.signs & 0b011 == 0b001));
+}
+
+#[test]
+fn dwell_waits_its_frames() {
+    let blocks = [
+        Block {
+            line: 1,
+            motion: Motion::Dwell(Dwell { frames: 500 }),
+        },
+        line([10, 0, 0], 3000, false),
+    ];
+    let mut frame = Frame::new(cfg());
+    let first = Sim::new(&mut frame, blocks.into_iter(), u32::MAX, 1 << 20)
+        .find(|s| s.pulses.steps != 0)
+        .unwrap();
+    assert!(
+        (500..=502).contains(&first.tick),
+        "first pulse at {}",
+        first.tick
+    );
+}
+
+#[test]
+fn full_circle_returns_to_start_and_counts_blocks() {
+    let (b, d) = arc([0, 0], 1000.0, 0.3, std::f64::consts::TAU - 1e-7, 3000);
+    let Motion::Arc(c) = b.motion else {
+        unreachable!()
+    };
+    assert_eq!(c.n_targets, 5);
+    assert_eq!(d, [0, 0]);
+    let mut frame = Frame::new(cfg());
+    let n = Sim::new(&mut frame, [b, b].into_iter(), u32::MAX, 1 << 30).count();
+    assert_eq!(frame.position(), [0, 0, 0]);
+    assert_eq!(frame.blocks_done(), 2);
+    assert!(n > 2 * 6000);
+}
+
+proptest! {
+    #[test]
+    fn isqrt_is_floor_sqrt(n in any::<u64>()) {
+        let r = isqrt(n) as u128;
+        prop_assert!(r * r <= n as u128);
+        prop_assert!((r + 1) * (r + 1) > n as u128);
+    }
+}
