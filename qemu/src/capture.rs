@@ -293,6 +293,19 @@ pub fn qemu_command(
     cmd
 }
 
+/// First line of `qemu-system-arm --version`, e.g. `QEMU emulator version 7.2.x (Debian ...)`.
+pub fn qemu_version() -> Result<String> {
+    let out = Command::new("qemu-system-arm")
+        .arg("--version")
+        .output()
+        .context("running qemu-system-arm --version")?;
+    Ok(String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .next()
+        .unwrap_or("")
+        .to_string())
+}
+
 fn reader(mut r: impl Read + Send + 'static) -> std::thread::JoinHandle<Vec<u8>> {
     std::thread::spawn(move || {
         let mut buf = Vec::new();
@@ -346,7 +359,12 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
     };
     let stdout = String::from_utf8_lossy(&out.join().unwrap_or_default()).into_owned();
     let stderr = String::from_utf8_lossy(&err.join().unwrap_or_default()).into_owned();
-    let fail = |what: String| anyhow::anyhow!("{what}; QEMU {status}, stderr:\n{stderr}");
+    let fail = |what: String| {
+        anyhow::anyhow!(
+            "{what}; QEMU {status} (the millac plugin supports QEMU 7.x, found {}), stderr:\n{stderr}",
+            qemu_version().unwrap_or_else(|e| e.to_string())
+        )
+    };
     let log_text = std::fs::read_to_string(&log)
         .map_err(|e| fail(format!("no plugin log {}: {e}", log.display())))?;
     let plog = parse_plugin_log(&log_text)?;

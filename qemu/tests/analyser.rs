@@ -97,6 +97,10 @@ fn capture_of_a_hand_assembled_image() {
     assert_eq!(c.end_ns, 16 << 3);
     // Deterministic: a second run gives the same capture.
     assert_eq!(run_capture(&spec).unwrap(), c);
+    // QEMU failing to start is an error that carries QEMU's stderr.
+    spec.extra_args.push("-no-such-option".into());
+    let e = format!("{:#}", run_capture(&spec).unwrap_err());
+    assert!(e.contains("no-such-option"), "{e}");
 }
 
 #[test]
