@@ -20,6 +20,8 @@ mod tests;
 #[cfg(test)]
 mod tests_arc;
 #[cfg(test)]
+mod tests_err;
+#[cfg(test)]
 mod tests_prop;
 
 use crate::nc::{Block, Plane};

@@ -1,1 +1,252 @@
+//! Host tests of G2/G3: quarter, half and full circles, quadrant crossings CW and CCW in all three
+//! planes, R form, soft limits of the arc's extent. Helpers shared with the property tests.
+extern crate std;
+use std::format;
+use std::string::String;
 
+use super::tests::{assert_rejected, block, parser};
+use super::*;
+use crate::nc::{Arc, Motion, Plane};
+
+pub(super) const PLANES: [Plane; 3] = [Plane::XY, Plane::ZX, Plane::YZ];
+
+pub(super) fn arc_of(p: &mut Parser, s: &str) -> Arc {
+    match block(p, s).motion {
+        Motion::Arc(a) => a,
+        m => panic!("{s:?} gave {m:?}"),
+    }
+}
+
+/// Letters of the (a, b) axes, of their centre offsets, and the plane's G code.
+pub(super) fn letters(plane: Plane) -> ([char; 2], [char; 2], &'static str) {
+    match plane {
+        Plane::XY => (['X', 'Y'], ['I', 'J'], "G17"),
+        Plane::ZX => (['Z', 'X'], ['K', 'I'], "G18"),
+        Plane::YZ => (['Y', 'Z'], ['J', 'K'], "G19"),
+    }
+}
+
+/// BLU (0.0001 in) as an inch number with four decimals.
+pub(super) fn inch(v: i64) -> String {
+    let a = v.unsigned_abs();
+    format!(
+        "{}{}.{:04}",
+        if v < 0 { "-" } else { "" },
+        a / 10_000,
+        a % 10_000
+    )
+}
+
+/// Rapid to c + p0 in the plane (a, b), then the arc to c + p1 with I/J/K = -p0. Returns the
+/// parser and the arc line's result.
+pub(super) fn run_arc(
+    plane: Plane,
+    ccw: bool,
+    c: [i64; 2],
+    p0: [i64; 2],
+    p1: [i64; 2],
+) -> (Parser, Result<Parsed, GcodeError>) {
+    let mut p = parser();
+    let (ax, off, g) = letters(plane);
+    let go = format!(
+        "G0 {}{} {}{}",
+        ax[0],
+        inch(c[0] + p0[0]),
+        ax[1],
+        inch(c[1] + p0[1])
+    );
+    p.line(1, &go).unwrap();
+    let text = format!(
+        "{g} G{} F10 {}{} {}{} {}{} {}{}",
+        if ccw { 3 } else { 2 },
+        ax[0],
+        inch(c[0] + p1[0]),
+        ax[1],
+        inch(c[1] + p1[1]),
+        off[0],
+        inch(-p0[0]),
+        off[1],
+        inch(-p0[1]),
+    );
+    let r = p.line(2, &text);
+    (p, r)
+}
+
+fn ok_arc(plane: Plane, ccw: bool, c: [i64; 2], p0: [i64; 2], p1: [i64; 2]) -> Arc {
+    match run_arc(plane, ccw, c, p0, p1) {
+        (
+            _,
+            Ok(Parsed::Block(Block {
+                motion: Motion::Arc(a),
+                ..
+            })),
+        ) => a,
+        (_, other) => panic!("{plane:?} ccw={ccw} {p0:?}->{p1:?}: {other:?}"),
+    }
+}
+
+fn targets(a: &Arc) -> &[[i32; 2]] {
+    &a.targets[..a.n_targets as usize]
+}
+
+#[test]
+fn quarter_circle() {
+    let mut p = parser();
+    block(&mut p, "X1");
+    let a = arc_of(&mut p, "G3 F10 X0 Y1 I-1");
+    assert_eq!(
+        (a.plane, a.ccw, a.start, a.r),
+        (Plane::XY, true, [10_000, 0], 10_000)
+    );
+    assert_eq!(targets(&a), &[[0, 10_000]]);
+    assert_eq!(a.length, 15_708);
+    assert_eq!((a.f, a.decel), (1000, false));
+    assert_eq!(p.position(), [0, 10_000, 0]);
+}
+
+#[test]
+fn half_circle_cw() {
+    let mut p = parser();
+    block(&mut p, "X1");
+    let a = arc_of(&mut p, "G2 F10 X-1 I-1");
+    assert!(!a.ccw);
+    assert_eq!(targets(&a), &[[0, -10_000], [-10_000, 0]]);
+    assert_eq!(a.length, 31_416);
+}
+
+#[test]
+fn full_circles() {
+    let r = 10_000;
+    let a = ok_arc(Plane::XY, true, [0, 0], [r, 0], [r, 0]);
+    assert_eq!(
+        targets(&a),
+        &[[0, 10_000], [-10_000, 0], [0, -10_000], [10_000, 0]]
+    );
+    assert_eq!(a.length, 62_832);
+    let a = ok_arc(Plane::XY, true, [0, 0], [6000, 8000], [6000, 8000]);
+    assert_eq!(
+        targets(&a),
+        &[
+            [0, 10_000],
+            [-10_000, 0],
+            [0, -10_000],
+            [10_000, 0],
+            [6000, 8000]
+        ]
+    );
+    let a = ok_arc(Plane::XY, false, [0, 0], [6000, 8000], [6000, 8000]);
+    assert_eq!(
+        targets(&a),
+        &[
+            [10_000, 0],
+            [0, -10_000],
+            [-10_000, 0],
+            [0, 10_000],
+            [6000, 8000]
+        ]
+    );
+    assert_eq!(a.length, 62_832);
+    // Without axis words (G3 and the offset only) it is a full circle too.
+    let mut p = parser();
+    block(&mut p, "X1");
+    let b = arc_of(&mut p, "G3 F1 I-1");
+    assert_eq!(b.n_targets, 4);
+    assert_eq!(p.position(), [10_000, 0, 0]);
+}
+
+#[test]
+fn quadrant_crossings_all_planes_both_directions() {
+    let c = [2000, -1000];
+    let (p0, p1) = ([4000, 3000], [-3000, -4000]);
+    for plane in PLANES {
+        let a = ok_arc(plane, true, c, p0, p1);
+        assert_eq!(a.plane, plane);
+        assert_eq!(
+            targets(&a),
+            &[[0, 5000], [-5000, 0], [-3000, -4000]],
+            "{plane:?} CCW"
+        );
+        // 36.87 -> 233.13 degrees: 196.26 degrees.
+        assert_eq!(a.length, 17_127, "{plane:?}");
+        let a = ok_arc(plane, false, c, p0, p1);
+        assert_eq!(
+            targets(&a),
+            &[[5000, 0], [0, -5000], [-3000, -4000]],
+            "{plane:?} CW"
+        );
+        assert_eq!(a.length, 14_289, "{plane:?}"); // 163.74 degrees
+                                                   // The position moves in the plane's axes.
+        let (mut p, r) = run_arc(plane, false, c, p0, p1);
+        assert!(r.is_ok());
+        let (ia, ib) = plane.axes();
+        let mut want = [0; 3];
+        want[ia] = (c[0] + p1[0]) as i32;
+        want[ib] = (c[1] + p1[1]) as i32;
+        assert_eq!(p.position(), want);
+        assert!(p.line(3, "G0 X0 Y0 Z0").is_ok());
+    }
+}
+
+#[test]
+fn start_on_axis_is_not_a_target_and_end_on_axis_appears_once() {
+    let a = ok_arc(Plane::XY, true, [0, 0], [0, 5000], [-4000, -3000]);
+    assert_eq!(targets(&a), &[[-5000, 0], [-4000, -3000]]);
+    let a = ok_arc(Plane::XY, true, [0, 0], [4000, 3000], [-5000, 0]);
+    assert_eq!(targets(&a), &[[0, 5000], [-5000, 0]]);
+    let a = ok_arc(Plane::ZX, false, [0, 0], [0, -5000], [5000, 0]);
+    assert_eq!(targets(&a), &[[-5000, 0], [0, 5000], [5000, 0]]);
+}
+
+#[test]
+fn tiny_arc() {
+    let a = ok_arc(Plane::XY, true, [0, 0], [1, 0], [0, 1]);
+    assert_eq!((a.r, a.length, targets(&a)), (1, 2, &[[0, 1]][..]));
+}
+
+#[test]
+fn r_form_positive_and_negative() {
+    // Chord 10000 along X, R = 10000: 60 degree arc (positive) or 300 degree arc (negative).
+    let mut p = parser();
+    let a = arc_of(&mut p, "G2 F10 X1 R1");
+    assert_eq!(a.start, [-5000, 8660]); // centre (5000, -8660)
+    assert_eq!(a.r, 10_000);
+    assert_eq!(targets(&a), &[[0, 10_000], [5000, 8660]]);
+    assert_eq!(a.length, 10_472);
+    let mut p = parser();
+    let a = arc_of(&mut p, "G2 F10 X1 R-1");
+    assert_eq!(a.start, [-5000, -8660]); // centre (5000, 8660)
+    assert_eq!(
+        targets(&a),
+        &[[-10_000, 0], [0, 10_000], [10_000, 0], [5000, -8660]]
+    );
+    assert_eq!(a.length, 52_360);
+    // CCW mirrors the centres.
+    let mut p = parser();
+    let a = arc_of(&mut p, "G3 F10 X1 R1");
+    assert_eq!(a.start, [-5000, -8660]);
+    assert_eq!(targets(&a), &[[0, -10_000], [5000, -8660]]);
+    // R exactly half the chord: a half circle.
+    let mut p = parser();
+    let a = arc_of(&mut p, "G2 F10 X1 R0.5");
+    assert_eq!(a.start, [-5000, 0]);
+    assert_eq!(targets(&a), &[[0, 5000], [5000, 0]]);
+    assert_eq!(p.position(), [10_000, 0, 0]);
+}
+
+#[test]
+fn arc_extent_soft_limits() {
+    // Centre (9.6, 0) in, start (9.6, -0.5): the CCW half circle bulges to X = 10.1 in.
+    let mut p = parser();
+    block(&mut p, "X9.6 Y-0.5 F10");
+    let kind = ErrorKind::SoftLimit {
+        axis: 'X',
+        value: 101_000,
+        min: -100_000,
+        max: 100_000,
+    };
+    assert_rejected(&mut p, "G3 X9.6 Y0.5 J0.5", kind);
+    // The CW half circle stays inside.
+    let mut p = parser();
+    block(&mut p, "X9.6 Y-0.5 F10");
+    assert!(p.line(2, "G2 X9.6 Y0.5 J0.5").is_ok());
+}
