@@ -3,7 +3,6 @@
 //! for the idle loop, and the loader's line splitter (idle). Board bindings live in their own modules.
 #![no_std]
 
-pub mod lines;
 pub mod lm3s6965;
 pub mod status;
 

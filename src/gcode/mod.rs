@@ -10,9 +10,11 @@
 
 pub mod arc;
 pub mod error;
+pub mod lines;
 mod exec;
 pub mod lookahead;
 pub mod number;
+pub mod tape;
 pub mod words;
 
 #[cfg(test)]

@@ -11,6 +11,8 @@ pub struct SimFrame {
     pub pulses: Pulses,
     /// Position after the frame.
     pub position: [i32; 3],
+    /// Index of the block this frame worked on (blocks completed before the frame).
+    pub block: u32,
 }
 
 /// Runs `frame` over `blocks` until the last block is done (or `max_ticks` frames have run),
@@ -45,6 +47,7 @@ impl<I: Iterator<Item = Block>> Iterator for Sim<'_, I> {
         if self.tick >= self.max_ticks {
             return None;
         }
+        let block = self.frame.blocks_done();
         let mut exhausted = false;
         let blocks = &mut self.blocks;
         let pulses = self.frame.tick(
@@ -63,6 +66,7 @@ impl<I: Iterator<Item = Block>> Iterator for Sim<'_, I> {
             rate: self.rate,
             pulses,
             position: self.frame.position(),
+            block,
         };
         self.tick += 1;
         self.rate = self.frame.rate();

@@ -84,10 +84,9 @@ mod app {
 
     use cortex_m_semihosting::{nr, syscall};
     use heapless::spsc::{Consumer, Producer, Queue};
-    use millac::gcode::{Lookahead, Parsed, Parser};
+    use millac::gcode::tape::Tape;
     use millac::nc::{Block, Frame, FrameConfig, Pulses, Rate};
     use millac::Settings;
-    use millac_hal::lines::Lines;
     use millac_hal::lm3s6965::Lm3s6965;
     use millac_hal::status::{BLOCKS_DONE, FEED_CAP, IDLE, POSITION};
     use millac_hal::{clocks_for_hz, clocks_for_ns, Board};
@@ -124,7 +123,7 @@ mod app {
         rate: Rate,
         reloads: Reloads,
         producer: Producer<'static, Block, QUEUE>,
-        parser: Parser,
+        settings: Settings,
     }
 
     #[init(local = [queue: Queue<Block, QUEUE> = Queue::new()])]
@@ -151,7 +150,7 @@ mod app {
                 rate: Rate::Feed,
                 reloads,
                 producer,
-                parser: Parser::new(settings),
+                settings,
             },
         )
     }
@@ -204,11 +203,11 @@ mod app {
     }
 
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
-    #[idle(local = [producer, parser])]
+    #[idle(local = [producer, settings])]
     fn idle(cx: idle::Context) -> ! {
         let producer = cx.local.producer;
         let mut out = Out::open();
-        let ok = match load(producer, cx.local.parser, &mut out) {
+        let ok = match load(producer, cx.local.settings, &mut out) {
             Loaded::All => true,
             Loaded::Error => false,
             Loaded::NoFile => exit(false),
@@ -246,7 +245,7 @@ mod app {
     /// Reads, parses and queues the program. Errors are printed here.
     fn load(
         producer: &mut Producer<'static, Block, QUEUE>,
-        parser: &mut Parser,
+        settings: &Settings,
         out: &mut Out,
     ) -> Loaded {
         let path = b"program.nc\0";
@@ -257,62 +256,35 @@ mod app {
             return Loaded::NoFile;
         }
 
-        let mut lines = Lines::new();
-        let mut lookahead = Lookahead::new();
+        let mut tape = Tape::new(*settings);
         let mut chunk = [0u8; CHUNK];
         let mut ok = true;
-        let mut read_failed = false;
-        let mut sink = |n: u32, text: Result<&str, millac_hal::lines::LineError>| -> bool {
-            let text = match text {
-                Ok(t) => t,
-                Err(e) => {
-                    out.line(format_args!("error: line {}: {}", n, e.message()));
-                    ok = false;
-                    return false;
-                }
-            };
-            match parser.line(n, text) {
-                Ok(Parsed::Nothing) => true,
-                Ok(Parsed::Block(b)) => {
-                    if let Some(prev) = lookahead.push(b) {
-                        enqueue(producer, prev);
-                    }
-                    true
-                }
-                Ok(Parsed::End) => false,
-                Err(e) => {
-                    out.line(format_args!("error: {}", e));
-                    ok = false;
-                    false
-                }
-            }
-        };
         loop {
             // SAFETY: SYS_READ into a buffer we own, at most its length; returns the bytes NOT read.
             let left = unsafe { syscall!(READ, fd, chunk.as_mut_ptr(), chunk.len()) };
             let Some(n) = chunk.len().checked_sub(left) else {
-                read_failed = true;
+                out.line(format_args!("error: cannot read program.nc"));
+                ok = false;
+                // What was accepted still runs.
+                let _ = tape.finish(|b| enqueue(producer, b));
                 break;
             };
             let bytes = chunk.get(..n).unwrap_or(&[]);
-            if bytes.is_empty() {
-                lines.finish(&mut sink);
-                break;
+            let result = if bytes.is_empty() {
+                tape.finish(|b| enqueue(producer, b))
+            } else {
+                tape.feed(bytes, |b| enqueue(producer, b))
+            };
+            if let Err(e) = result {
+                out.line(format_args!("error: {}", e));
+                ok = false;
             }
-            if !lines.feed(bytes, &mut sink) {
+            if tape.done() {
                 break;
             }
         }
         // SAFETY: SYS_CLOSE of the handle opened above.
         unsafe { syscall!(CLOSE, fd) };
-        if read_failed {
-            out.line(format_args!("error: cannot read program.nc"));
-            ok = false;
-        }
-        // End of program, end of file or error: the held block was accepted, so it runs too.
-        if let Some(b) = lookahead.flush() {
-            enqueue(producer, b);
-        }
         if ok {
             Loaded::All
         } else {

@@ -1,6 +1,6 @@
 //! Splits the program "tape" (bytes in chunks of any size) into numbered lines for the G-code
 //! parser: `\n` ends a line, a `\r` before it is dropped, lines count from 1, the last line needs no
-//! newline. Idle (loader) context.
+//! newline. Loader task (firmware idle) and host precheck.
 
 /// Longest accepted line in bytes, without its line end.
 pub const LINE_MAX: usize = 256;
@@ -111,8 +111,7 @@ impl Lines {
     }
 }
 
-// Host check (hal is not a host-test crate; run by hand):
-// rustc --edition 2021 --test hal/src/lines.rs -o /tmp/lines-test && /tmp/lines-test
+// Host tests run with `cargo test -p millac`.
 #[cfg(test)]
 mod tests {
     extern crate std;

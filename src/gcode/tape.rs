@@ -1,0 +1,123 @@
+//! The program "tape" (the paper's tape reader): bytes in chunks -> numbered lines -> parser ->
+//! look-ahead -> validated blocks. One piece of code for the firmware loader (idle task) and the
+//! host tool's pre-check, so both accept and reject exactly the same programs.
+use super::lines::{LineError, Lines};
+use super::{GcodeError, Lookahead, Parsed, Parser};
+use crate::nc::Block;
+use crate::settings::Settings;
+
+/// Why the tape stopped: a line refused before parsing, or by the parser.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TapeError {
+    Line { line: u32, error: LineError },
+    Gcode(GcodeError),
+}
+
+impl TapeError {
+    /// The line number of the refused line.
+    pub const fn line(&self) -> u32 {
+        match self {
+            TapeError::Line { line, .. } => *line,
+            TapeError::Gcode(e) => e.line,
+        }
+    }
+}
+
+impl core::fmt::Display for TapeError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            TapeError::Line { line, error } => write!(f, "line {}: {}", line, error.message()),
+            TapeError::Gcode(e) => write!(f, "{}", e),
+        }
+    }
+}
+
+/// Tape reader state. `feed` and `finish` hand each block to `emit` in program order, with its
+/// deceleration flag decided; after an error or M2/M30 the tape ignores the rest.
+pub struct Tape {
+    lines: Lines,
+    parser: Parser,
+    lookahead: Lookahead,
+    done: bool,
+}
+
+impl Tape {
+    pub fn new(settings: Settings) -> Self {
+        Tape { lines: Lines::new(), parser: Parser::new(settings), lookahead: Lookahead::new(), done: false }
+    }
+
+    /// The parser (modes, programmed position after the last accepted block).
+    pub fn parser(&self) -> &Parser {
+        &self.parser
+    }
+
+    /// True after M2/M30 or an error: nothing more is read.
+    pub fn done(&self) -> bool {
+        self.done
+    }
+
+    /// Takes the next bytes. On an error the blocks accepted before it have all been emitted
+    /// (none is held back), then the error is returned.
+    pub fn feed(&mut self, bytes: &[u8], mut emit: impl FnMut(Block)) -> Result<(), TapeError> {
+        if self.done {
+            return Ok(());
+        }
+        let mut result = Ok(());
+        let (parser, lookahead, done) = (&mut self.parser, &mut self.lookahead, &mut self.done);
+        self.lines.feed(bytes, |n, text| step(parser, lookahead, done, &mut result, &mut emit, n, text));
+        self.settle(result, emit)
+    }
+
+    /// End of the tape: a last line without a newline, then the held block.
+    pub fn finish(&mut self, mut emit: impl FnMut(Block)) -> Result<(), TapeError> {
+        let mut result = Ok(());
+        if !self.done {
+            let (parser, lookahead, done) = (&mut self.parser, &mut self.lookahead, &mut self.done);
+            self.lines.finish(|n, text| step(parser, lookahead, done, &mut result, &mut emit, n, text));
+        }
+        self.done = true;
+        self.settle(result, emit)
+    }
+
+    fn settle(&mut self, result: Result<(), TapeError>, mut emit: impl FnMut(Block)) -> Result<(), TapeError> {
+        if self.done {
+            if let Some(b) = self.lookahead.flush() {
+                emit(b);
+            }
+        }
+        result
+    }
+}
+
+fn step(
+    parser: &mut Parser,
+    lookahead: &mut Lookahead,
+    done: &mut bool,
+    result: &mut Result<(), TapeError>,
+    emit: &mut impl FnMut(Block),
+    n: u32,
+    text: Result<&str, LineError>,
+) -> bool {
+    let parsed = match text {
+        Ok(t) => parser.line(n, t).map_err(TapeError::Gcode),
+        Err(error) => Err(TapeError::Line { line: n, error }),
+    };
+    match parsed {
+        Ok(Parsed::Nothing) => true,
+        Ok(Parsed::Block(b)) => {
+            if let Some(prev) = lookahead.push(b) {
+                emit(prev);
+            }
+            true
+        }
+        Ok(Parsed::End) => {
+            *done = true;
+            false
+        }
+        Err(e) => {
+            *result = Err(e);
+            *done = true;
+            false
+        }
+    }
+}
