@@ -10,8 +10,8 @@
 
 pub mod arc;
 pub mod error;
-pub mod lines;
 mod exec;
+pub mod lines;
 pub mod lookahead;
 pub mod number;
 pub mod tape;

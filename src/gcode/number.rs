@@ -145,10 +145,10 @@ impl DecimalReader {
                     }
                     self.mantissa = self.mantissa * 10 + d;
                 } else if d == 0 {
-                    self.pending_zeros += 1;
+                    self.pending_zeros = self.pending_zeros.saturating_add(1);
                 } else {
-                    let add = self.pending_zeros + 1;
-                    if self.scale + add > MAX_DECIMALS {
+                    let add = self.pending_zeros.saturating_add(1);
+                    if self.scale.saturating_add(add) > MAX_DECIMALS {
                         return Err(NumError::TooManyDecimals);
                     }
                     let p = pow10(add).ok_or(NumError::TooManyDecimals)?;

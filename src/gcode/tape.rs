@@ -43,7 +43,12 @@ pub struct Tape {
 
 impl Tape {
     pub fn new(settings: Settings) -> Self {
-        Tape { lines: Lines::new(), parser: Parser::new(settings), lookahead: Lookahead::new(), done: false }
+        Tape {
+            lines: Lines::new(),
+            parser: Parser::new(settings),
+            lookahead: Lookahead::new(),
+            done: false,
+        }
     }
 
     /// The parser (modes, programmed position after the last accepted block).
@@ -64,7 +69,9 @@ impl Tape {
         }
         let mut result = Ok(());
         let (parser, lookahead, done) = (&mut self.parser, &mut self.lookahead, &mut self.done);
-        self.lines.feed(bytes, |n, text| step(parser, lookahead, done, &mut result, &mut emit, n, text));
+        self.lines.feed(bytes, |n, text| {
+            step(parser, lookahead, done, &mut result, &mut emit, n, text)
+        });
         self.settle(result, emit)
     }
 
@@ -73,13 +80,18 @@ impl Tape {
         let mut result = Ok(());
         if !self.done {
             let (parser, lookahead, done) = (&mut self.parser, &mut self.lookahead, &mut self.done);
-            self.lines.finish(|n, text| step(parser, lookahead, done, &mut result, &mut emit, n, text));
+            self.lines
+                .finish(|n, text| step(parser, lookahead, done, &mut result, &mut emit, n, text));
         }
         self.done = true;
         self.settle(result, emit)
     }
 
-    fn settle(&mut self, result: Result<(), TapeError>, mut emit: impl FnMut(Block)) -> Result<(), TapeError> {
+    fn settle(
+        &mut self,
+        result: Result<(), TapeError>,
+        mut emit: impl FnMut(Block),
+    ) -> Result<(), TapeError> {
         if self.done {
             if let Some(b) = self.lookahead.flush() {
                 emit(b);
