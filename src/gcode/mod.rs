@@ -5,7 +5,7 @@
 //! (accepted, no NC effect), N (ignored), F S X Y Z I J K R P. Comments `( )` and `;`, any case,
 //! whitespace anywhere. Power-up modes as grbl: G0, G17, G90, G94, but G20 (inch) and no feed.
 //!
-//! Files: [`number`] exact decimals, [`words`] the lexer, [`exec`](self) the line semantics,
+//! Files: [`number`] exact decimals, [`words`] the lexer, `exec` the line semantics,
 //! [`arc`] arc planning, [`lookahead`] the deceleration rule, [`error`] the reasons.
 
 pub mod arc;
