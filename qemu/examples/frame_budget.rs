@@ -1,0 +1,119 @@
+//! Frame ISR budget benchmark: runs the firmware under QEMU on one small program per block type and
+//! prints min / median / max instructions (entry to return, inclusive) of the frame ISR (TIMER_0A)
+//! and of the pulse-end ISR (TIMER_1A). Budget: the frame ISR takes at most 150 instructions.
+//!
+//! It builds nothing: build the firmware first, then pass the ELF:
+//!
+//! ```text
+//! cargo build -p millac-hal --release --target thumbv7m-none-eabi
+//! cargo run -p millac-qemu --release --example frame_budget -- \
+//!     target/thumbv7m-none-eabi/release/millac-lm3s6965
+//! ```
+//!
+//! (with `CARGO_TARGET_DIR` set, the ELF is under that directory). Exits with status 1 when a
+//! program fails or the frame ISR exceeds the budget.
+use anyhow::{bail, ensure, Context, Result};
+use millac_qemu::capture::{run_capture, CaptureSpec, HandlerSpec};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Frame ISR budget in instructions.
+const BUDGET: u64 = 150;
+
+/// (name, program). Each runs for well under a second of virtual time.
+const PROGRAMS: &[(&str, &str)] = &[
+    ("G0 rapid", "G20 G90\nG0 X0.3 Y0.2\nG0 X0.1 Y0.25 Z-0.05\nG0 X0 Y0 Z0\nM2\n"),
+    (
+        "G1 lines",
+        "G20 G90\nG1 X0.05 Y0.02 F30\nG1 X0.06 Y0.05 Z-0.01 F20\nG1 X0 Y0 Z0 F30\nM2\n",
+    ),
+    ("G1 short blocks", ""),
+    (
+        "G2/G3 arcs",
+        "G20 G90\nG0 X0.02 Y0\nG2 X0 Y-0.02 I-0.02 J0 F30\nG3 X0.02 Y0 I0 J0.02 F30\n\
+         G3 X0.02 Y0 I-0.02 J0 F30\nG2 X0.01 Y0.01 I-0.01 J0 F30\nG17 G2 X0.01 Y0.01 I0.003 J-0.004 F30\n\
+         G18 G3 X0.01 Z0.01 I0.005 K0.005 F30\nM2\n",
+    ),
+    ("G4 dwell", "G20 G90\nG4 P0.05\nG1 X0.001 F30\nG4 P0.02\nG4 P0.02\nM2\n"),
+];
+
+/// Many one- and two-BLU blocks back to back: the Initiator loads a block every few frames.
+fn short_blocks() -> String {
+    let mut s = String::from("G20 G91\n");
+    for k in 0..200 {
+        let (x, y) = match k % 4 {
+            0 => ("0.0001", "0"),
+            1 => ("0", "0.0002"),
+            2 => ("-0.0001", "0.0001"),
+            _ => ("0.0002", "-0.0001"),
+        };
+        s += &format!("G1 X{x} Y{y} F30\n");
+    }
+    s += "M2\n";
+    s
+}
+
+fn stats(v: &[u64]) -> (u64, u64, u64) {
+    if v.is_empty() {
+        return (0, 0, 0);
+    }
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    (s[0], s[s.len() / 2], s[s.len() - 1])
+}
+
+fn run(elf: &Path, dir: &Path, program: &str, handlers: &[HandlerSpec]) -> Result<Vec<Vec<u64>>> {
+    std::fs::create_dir_all(dir)?;
+    std::fs::write(dir.join("program.nc"), program)?;
+    let mut spec = CaptureSpec::new(elf, dir);
+    spec.handlers = handlers.to_vec();
+    spec.timeout = Duration::from_secs(300);
+    let cap = run_capture(&spec)?;
+    ensure!(
+        cap.status == Some(0),
+        "firmware exit status {:?}, output:\n{}",
+        cap.status,
+        cap.stdout
+    );
+    Ok(cap.handlers.into_iter().map(|(_, v)| v).collect())
+}
+
+fn main() -> Result<()> {
+    let Some(elf) = std::env::args_os().nth(1).map(PathBuf::from) else {
+        bail!("usage: frame_budget FIRMWARE_ELF (build it with `cargo build -p millac-hal --release --target thumbv7m-none-eabi`)");
+    };
+    let handlers = vec![
+        HandlerSpec::from_elf(&elf, "TIMER_0A")?,
+        HandlerSpec::from_elf(&elf, "TIMER_1A")?,
+    ];
+    let root = std::env::temp_dir().join(format!("millac-frame-budget-{}", std::process::id()));
+    let mut worst = 0;
+    println!(
+        "{:<16} {:>7} {:>5} {:>5} {:>5}   {:>7} {:>5} {:>5} {:>5}",
+        "program", "frames", "min", "med", "max", "pulses", "min", "med", "max"
+    );
+    for (k, (name, program)) in PROGRAMS.iter().enumerate() {
+        let program = if program.is_empty() {
+            short_blocks()
+        } else {
+            program.to_string()
+        };
+        let dir = root.join(format!("p{k}"));
+        let counts = run(&elf, &dir, &program, &handlers).with_context(|| format!("program `{name}`"))?;
+        let (f, p) = (&counts[0], &counts[1]);
+        let (fmin, fmed, fmax) = stats(f);
+        let (pmin, pmed, pmax) = stats(p);
+        println!(
+            "{name:<16} {:>7} {fmin:>5} {fmed:>5} {fmax:>5}   {:>7} {pmin:>5} {pmed:>5} {pmax:>5}",
+            f.len(),
+            p.len()
+        );
+        worst = worst.max(fmax);
+    }
+    let _ = std::fs::remove_dir_all(&root);
+    println!("frame ISR worst case: {worst} instructions (budget {BUDGET})");
+    if worst > BUDGET {
+        std::process::exit(1);
+    }
+    Ok(())
+}
