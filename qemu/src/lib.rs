@@ -4,9 +4,12 @@
 //!
 //! Pins (GPIO port B, PL061 at 0x4000_5000): PB0 X_STEP, PB1 Y_STEP, PB2 Z_STEP, PB3 X_SIGN,
 //! PB4 Y_SIGN, PB5 Z_SIGN. Sign high = positive direction; a rising step edge = one BLU.
+pub mod analysis;
 pub mod capture;
+pub mod firmware;
 pub mod elf;
 pub mod plugin;
+pub mod runner;
 pub mod sigrok;
 pub mod tools;
 pub mod vcd;

@@ -1,0 +1,319 @@
+//! The capture analyser (host): reads the pin events of any capture (ours from QEMU, or a VCD exported
+//! from PulseView after a real logic-analyser capture) and checks them against the program: end point
+//! of every block, deviation from the ideal line or arc, feed per block against the programmed feed,
+//! minimum pulse width and sign setup time, and pulse-for-pulse equality with the host core.
+use crate::vcd::AXES;
+use anyhow::Result;
+use millac::gcode::tape::{Tape, TapeError};
+use millac::nc::{sim::Sim, Block, Frame, FrameConfig, Motion};
+use std::collections::VecDeque;
+use millac::Settings;
+
+/// A block of the program with its programmed start and end (machine BLU).
+#[derive(Clone, Copy, Debug)]
+pub struct ProgBlock {
+    pub block: Block,
+    pub start: [i32; 3],
+    pub end: [i32; 3],
+    /// Pulses per axis the block takes (position counters, summed over arc segments).
+    pub pulses: [u64; 3],
+}
+
+/// Parses a whole program with the same tape reader as the firmware.
+pub fn load_program(text: &str, settings: &Settings) -> Result<Vec<ProgBlock>, TapeError> {
+    let mut blocks = Vec::new();
+    let mut tape = Tape::new(*settings);
+    let mut push = |b: Block| blocks.push(b);
+    tape.feed(text.as_bytes(), &mut push)?;
+    tape.finish(&mut push)?;
+    let mut pos = [0i32; 3];
+    Ok(blocks
+        .into_iter()
+        .map(|block| {
+            let start = pos;
+            let mut pulses = [0u64; 3];
+            match block.motion {
+                Motion::Rapid(m) => {
+                    for k in 0..3 {
+                        let d = m.steps[k] as i32;
+                        pos[k] += if m.signs & (1 << k) != 0 { d } else { -d };
+                        pulses[k] = m.steps[k] as u64;
+                    }
+                }
+                Motion::Linear(m) => {
+                    for k in 0..3 {
+                        let d = m.steps[k] as i32;
+                        pos[k] += if m.signs & (1 << k) != 0 { d } else { -d };
+                        pulses[k] = m.steps[k] as u64;
+                    }
+                }
+                Motion::Arc(c) => {
+                    let (a, b) = c.plane.axes();
+                    let mut p = c.start;
+                    for t in c.targets.iter().take(c.n_targets as usize) {
+                        pulses[a] += (t[0] - p[0]).unsigned_abs() as u64;
+                        pulses[b] += (t[1] - p[1]).unsigned_abs() as u64;
+                        p = *t;
+                    }
+                    pos[a] += p[0] - c.start[0];
+                    pos[b] += p[1] - c.start[1];
+                }
+                Motion::Dwell(_) => {}
+            }
+            ProgBlock { block, start, end: pos, pulses }
+        })
+        .collect())
+}
+
+/// One rising PULSE edge: time, axis, direction (+1/-1 from the SIGN line at the edge).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Edge {
+    pub t_ns: u64,
+    pub axis: usize,
+    pub dir: i8,
+}
+
+/// Rising edges in time order (axes in X, Y, Z order at equal times), plus pulse timing minima.
+pub struct Edges {
+    pub edges: Vec<Edge>,
+    /// (time, step mask, sign bits) of every pin write that raised at least one PULSE line.
+    pub groups: Vec<(u64, u8, u8)>,
+    pub min_pulse_width_ns: Option<u64>,
+    pub min_sign_setup_ns: Option<u64>,
+}
+
+/// Extracts edges and timing from pin events (port B byte layout, see [`crate::vcd::WIRES`]).
+pub fn edges(initial: u8, events: &[(u64, u8)]) -> Edges {
+    let mut prev = initial;
+    let mut rise: [Option<u64>; 3] = [None; 3];
+    let mut sign_change: [Option<u64>; 3] = [None; 3];
+    let (mut width, mut setup): (Option<u64>, Option<u64>) = (None, None);
+    let mut out = Vec::new();
+    let mut groups = Vec::new();
+    for &(t, pins) in events {
+        let mut mask = 0u8;
+        for (k, &(step, sign)) in AXES.iter().enumerate() {
+            let (s0, s1) = (prev >> step & 1, pins >> step & 1);
+            if (prev ^ pins) >> sign & 1 != 0 {
+                sign_change[k] = Some(t);
+            }
+            if s0 == 0 && s1 == 1 {
+                mask |= 1 << k;
+                rise[k] = Some(t);
+                if let Some(c) = sign_change[k] {
+                    setup = Some(setup.map_or(t - c, |m: u64| m.min(t - c)));
+                }
+                let dir = if pins >> sign & 1 != 0 { 1 } else { -1 };
+                out.push(Edge { t_ns: t, axis: k, dir });
+            } else if s0 == 1 && s1 == 0 {
+                if let Some(r) = rise[k].take() {
+                    width = Some(width.map_or(t - r, |m: u64| m.min(t - r)));
+                }
+            }
+        }
+        if mask != 0 {
+            let signs = (pins >> 3) & 0b111;
+            groups.push((t, mask, signs));
+        }
+        prev = pins;
+    }
+    Edges { edges: out, groups, min_pulse_width_ns: width, min_sign_setup_ns: setup }
+}
+
+/// Per-block result.
+#[derive(Clone, Debug)]
+pub struct BlockReport {
+    pub line: u32,
+    pub kind: &'static str,
+    pub end_exact: bool,
+    pub max_deviation_blu: f64,
+    /// Programmed and measured feed (ipm or mm/min, the program's BLU unit per minute scaled), if
+    /// the block is long enough to measure.
+    pub feed: Option<(f64, f64)>,
+    pub t_start_ns: u64,
+    pub t_end_ns: u64,
+}
+
+/// The whole analysis.
+#[derive(Clone, Debug)]
+pub struct Report {
+    pub blocks: Vec<BlockReport>,
+    pub final_position: [i64; 3],
+    pub programmed_end: [i32; 3],
+    pub machining_time_s: f64,
+    pub max_deviation_blu: f64,
+    pub max_feed_error_pct: f64,
+    pub min_pulse_width_ns: Option<u64>,
+    pub min_sign_setup_ns: Option<u64>,
+    /// The capture's pulses equal the host core's, frame by frame (None: not compared).
+    pub pulses_match_host: Option<bool>,
+    /// Every edge was assigned to a block and every block got exactly its pulses.
+    pub counts_match: bool,
+}
+
+/// Shortest block path (BLU) on which a feed is measured: shorter blocks are dominated by the
+/// quantisation of the first and last pulse time.
+pub const FEED_MIN_PATH_BLU: f64 = 200.0;
+
+/// Analyses the pin events against the program.
+pub fn analyse(prog: &[ProgBlock], settings: &Settings, initial: u8, events: &[(u64, u8)]) -> Report {
+    let e = edges(initial, events);
+    let mut pos = [0i64; 3];
+    let mut reports = Vec::new();
+    let mut it = e.edges.iter().peekable();
+    let mut counts_match = true;
+    let blu_per_unit = settings.blu.per_inch().0 as f64 / settings.blu.per_inch().1 as f64;
+    let frm_ipm = settings.frame_hz as f64 * 60.0 / blu_per_unit;
+    let k_decel = settings.decel_gain_q8() as f64 / 256.0;
+    for pb in prog {
+        let mut left = pb.pulses;
+        let mut pts: Vec<(u64, [i64; 3])> = Vec::new();
+        while left.iter().any(|&n| n > 0) {
+            let Some(edge) = it.next_if(|ed| left[ed.axis] > 0) else {
+                counts_match = false;
+                break;
+            };
+            left[edge.axis] -= 1;
+            pos[edge.axis] += edge.dir as i64;
+            pts.push((edge.t_ns, pos));
+        }
+        let end_exact = pos == pb.end.map(|v| v as i64);
+        let (kind, dev, feed) = measure(pb, &pts, blu_per_unit, frm_ipm, k_decel, settings.q0);
+        reports.push(BlockReport {
+            line: pb.block.line,
+            kind,
+            end_exact,
+            max_deviation_blu: dev,
+            feed,
+            t_start_ns: pts.first().map_or(0, |p| p.0),
+            t_end_ns: pts.last().map_or(0, |p| p.0),
+        });
+    }
+    if it.next().is_some() {
+        counts_match = false;
+    }
+    let first = e.edges.first().map_or(0, |x| x.t_ns);
+    let last = e.edges.last().map_or(0, |x| x.t_ns);
+    let max_feed_error_pct = reports
+        .iter()
+        .filter_map(|r| r.feed)
+        .map(|(p, m)| ((m - p) / p * 100.0).abs())
+        .fold(0.0, f64::max);
+    Report {
+        max_deviation_blu: reports.iter().map(|r| r.max_deviation_blu).fold(0.0, f64::max),
+        blocks: reports,
+        final_position: pos,
+        programmed_end: prog.last().map_or([0; 3], |b| b.end),
+        machining_time_s: (last - first) as f64 * 1e-9,
+        max_feed_error_pct,
+        min_pulse_width_ns: e.min_pulse_width_ns,
+        min_sign_setup_ns: e.min_sign_setup_ns,
+        pulses_match_host: None,
+        counts_match,
+    }
+}
+
+/// Deviation and feed of one block from its pulse positions.
+fn measure(
+    pb: &ProgBlock,
+    pts: &[(u64, [i64; 3])],
+    blu_per_unit: f64,
+    frm_ipm: f64,
+    k_decel: f64,
+    q0: u32,
+) -> (&'static str, f64, Option<(f64, f64)>) {
+    let s = pb.start.map(|v| v as f64);
+    let e = pb.end.map(|v| v as f64);
+    let f_of = |f: u32| f as f64 * frm_ipm / q0 as f64;
+    // BLU over ns -> units per minute (FRM = W0 * 60 / BLU-per-unit at one BLU per frame).
+    let per_min = |path_blu: f64, dt_ns: u64| path_blu / (dt_ns as f64 * 1e-9) * 60.0 / blu_per_unit;
+    match pb.block.motion {
+        Motion::Rapid(_) => ("rapid", 0.0, None),
+        Motion::Dwell(_) => ("dwell", 0.0, None),
+        Motion::Linear(l) => {
+            let d = [e[0] - s[0], e[1] - s[1], e[2] - s[2]];
+            let l2 = d.iter().map(|v| v * v).sum::<f64>();
+            let len = l2.sqrt();
+            let mut dev: f64 = 0.0;
+            for (_, p) in pts {
+                let v = [p[0] as f64 - s[0], p[1] as f64 - s[1], p[2] as f64 - s[2]];
+                let t = (v.iter().zip(&d).map(|(a, b)| a * b).sum::<f64>() / l2).clamp(0.0, 1.0);
+                let r2: f64 = v.iter().zip(&d).map(|(a, b)| (a - t * b).powi(2)).sum();
+                dev = dev.max(r2.sqrt());
+            }
+            // Feed window: leave out the deceleration tail of a flagged block.
+            let tail = if l.decel { l.f as f64 / k_decel + 2.0 } else { 0.0 };
+            let dist_left = |p: &[i64; 3]| ((0..3).map(|k| (e[k] - p[k] as f64).powi(2)).sum::<f64>()).sqrt();
+            let win: Vec<_> = pts.iter().filter(|(_, p)| dist_left(p) >= tail).collect();
+            let feed = match (win.first(), win.last()) {
+                (Some(a), Some(b)) if len >= FEED_MIN_PATH_BLU && b.0 > a.0 => {
+                    let path = ((0..3).map(|k| ((b.1[k] - a.1[k]) as f64).powi(2)).sum::<f64>()).sqrt();
+                    (path >= FEED_MIN_PATH_BLU).then(|| (f_of(l.f), per_min(path, b.0 - a.0)))
+                }
+                _ => None,
+            };
+            ("line", dev, feed)
+        }
+        Motion::Arc(c) => {
+            let (a, b) = c.plane.axes();
+            let centre = [s[a] - c.start[0] as f64, s[b] - c.start[1] as f64];
+            let last = c.targets[(c.n_targets as usize).saturating_sub(1)];
+            let r0 = (c.start[0] as f64).hypot(c.start[1] as f64);
+            let r1 = (last[0] as f64).hypot(last[1] as f64);
+            let (lo, hi) = (r0.min(r1), r0.max(r1));
+            let mut dev: f64 = 0.0;
+            let mut arc_len = Vec::with_capacity(pts.len());
+            let mut acc = 0.0;
+            let mut prev_ang: Option<f64> = None;
+            for (_, p) in pts {
+                let (x, y) = (p[a] as f64 - centre[0], p[b] as f64 - centre[1]);
+                let r = x.hypot(y);
+                dev = dev.max(lo - r).max(r - hi);
+                let ang = y.atan2(x);
+                if let Some(pa) = prev_ang {
+                    let mut d = ang - pa;
+                    if d > std::f64::consts::PI {
+                        d -= std::f64::consts::TAU;
+                    } else if d < -std::f64::consts::PI {
+                        d += std::f64::consts::TAU;
+                    }
+                    acc += d.abs() * r0;
+                }
+                prev_ang = Some(ang);
+                arc_len.push(acc);
+            }
+            let total = acc;
+            let tail = if c.decel { c.f as f64 / k_decel + 2.0 } else { 0.0 };
+            let idx: Vec<usize> = (0..pts.len()).filter(|&i| total - arc_len[i] >= tail).collect();
+            let feed = match (idx.first(), idx.last()) {
+                (Some(&i), Some(&j)) if pts[j].0 > pts[i].0 => {
+                    let path = arc_len[j] - arc_len[i];
+                    (path >= FEED_MIN_PATH_BLU).then(|| (f_of(c.f), per_min(path, pts[j].0 - pts[i].0)))
+                }
+                _ => None,
+            };
+            ("arc", dev, feed)
+        }
+    }
+}
+
+/// Compares the capture's pulse groups with the host core's frames: same order, same axes, same
+/// directions. Returns the index of the first difference, or None when they are equal.
+pub fn compare_with_host(prog: &[ProgBlock], settings: &Settings, groups: &[(u64, u8, u8)]) -> Option<usize> {
+    let mut frame = Frame::new(FrameConfig::from_settings(settings));
+    let mut host: VecDeque<(u8, u8)> = Sim::new(&mut frame, prog.iter().map(|b| b.block), u32::MAX, u64::MAX)
+        .filter(|f| f.pulses.steps != 0)
+        .map(|f| (f.pulses.steps, f.pulses.signs & f.pulses.steps))
+        .collect();
+    for (i, &(_, mask, signs)) in groups.iter().enumerate() {
+        match host.pop_front() {
+            Some(h) if h == (mask, signs & mask) => {}
+            _ => return Some(i),
+        }
+    }
+    if host.is_empty() {
+        None
+    } else {
+        Some(groups.len())
+    }
+}

@@ -1,0 +1,123 @@
+//! Runs a program through the firmware under QEMU and analyses the capture (host): the machinery
+//! behind `millac run` and the QEMU tests.
+use crate::analysis::{self, ProgBlock, Report};
+use crate::capture::{run_capture, Capture, CaptureSpec, HandlerSpec};
+use crate::{firmware, vcd};
+use anyhow::{Context, Result};
+use millac::Settings;
+use serde_json::{json, Value};
+use std::path::Path;
+use std::time::Duration;
+
+/// What a run produced.
+pub struct Outcome {
+    /// summary.json as written.
+    pub summary: Value,
+    /// None when the program was rejected before running.
+    pub report: Option<Report>,
+    pub capture: Option<Capture>,
+    /// All checks passed (program accepted, end points exact, pulses equal the host core's,
+    /// firmware and capture agree on the final position).
+    pub ok: bool,
+}
+
+/// Runs the firmware on `text` as program.nc in `out` with no pre-check, and returns the capture
+/// (handlers: TIMER_0A frame, TIMER_1A pulse end). The firmware's exit status is in the capture.
+pub fn execute(text: &str, out: &Path, shift: u32) -> Result<Capture> {
+    let elf = firmware::build()?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    std::fs::write(out.join("program.nc"), text)?;
+    let mut spec = CaptureSpec::new(&elf, out);
+    spec.icount_shift = shift;
+    spec.timeout = Duration::from_secs(1800);
+    spec.handlers = vec![HandlerSpec::from_elf(&elf, "TIMER_0A")?, HandlerSpec::from_elf(&elf, "TIMER_1A")?];
+    run_capture(&spec)
+}
+
+pub fn stats(v: &[u64]) -> Value {
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    match (s.first(), s.last()) {
+        (Some(&min), Some(&max)) => json!({"min": min, "median": s[s.len() / 2], "max": max}),
+        _ => Value::Null,
+    }
+}
+
+/// Pre-checks, runs and analyses a program; writes out/capture.vcd and out/summary.json.
+pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
+    let settings = Settings::default();
+    settings.validate().map_err(|e| anyhow::anyhow!("settings: {}", e.message()))?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let prog = match analysis::load_program(text, &settings) {
+        Ok(p) => p,
+        Err(e) => {
+            let summary = json!({"error": {"line": e.line(), "message": e.to_string()}});
+            write_json(&out.join("summary.json"), &summary)?;
+            eprintln!("millac: program rejected, nothing was run: {e}");
+            return Ok(Outcome { summary, report: None, capture: None, ok: false });
+        }
+    };
+    let cap = execute(text, out, shift)?;
+    if cap.status != Some(0) {
+        anyhow::bail!("firmware exited with {:?}:\n{}{}", cap.status, cap.stdout, cap.stderr);
+    }
+    vcd::write_vcd(&out.join("capture.vcd"), 0, &cap.pins, Some(cap.end_ns))?;
+    let mut report = analysis::analyse(&prog, &settings, 0, &cap.pins);
+    let e = analysis::edges(0, &cap.pins);
+    report.pulses_match_host = Some(analysis::compare_with_host(&prog, &settings, &e.groups).is_none());
+    let fw = firmware_position(&cap.stdout);
+    let mut summary = summary_json(&prog, &report);
+    summary["frame_instructions"] = stats(&cap.handlers[0].1);
+    summary["pulse_end_instructions"] = stats(&cap.handlers[1].1);
+    summary["frames"] = json!(cap.handlers[0].1.len());
+    summary["firmware_position_blu"] = json!(fw.map(|p| json!({"x": p[0], "y": p[1], "z": p[2]})));
+    summary["icount_shift"] = json!(shift);
+    write_json(&out.join("summary.json"), &summary)?;
+    let ok = checks_pass(&report) && fw == Some(report.final_position);
+    Ok(Outcome { summary, report: Some(report), capture: Some(cap), ok })
+}
+
+pub fn checks_pass(r: &Report) -> bool {
+    r.counts_match && r.blocks.iter().all(|b| b.end_exact) && r.pulses_match_host != Some(false)
+}
+
+pub fn firmware_position(stdout: &str) -> Option<[i64; 3]> {
+    let line = stdout.lines().find_map(|l| l.strip_prefix("millac: "))?;
+    let pos = line.split_whitespace().find_map(|w| w.strip_prefix("position="))?;
+    let v: Vec<i64> = pos.split(',').filter_map(|s| s.parse().ok()).collect();
+    (v.len() == 3).then(|| [v[0], v[1], v[2]])
+}
+
+pub fn summary_json(prog: &[ProgBlock], r: &Report) -> Value {
+    let [x, y, z] = r.final_position;
+    json!({
+        "blocks": prog.len(),
+        "machining_time_s": (r.machining_time_s * 1e6).round() / 1e6,
+        "final_position_blu": {"x": x, "y": y, "z": z},
+        "max_deviation_blu": (r.max_deviation_blu * 1000.0).round() / 1000.0,
+        "max_feed_error_pct": (r.max_feed_error_pct * 1000.0).round() / 1000.0,
+        "min_pulse_width_ns": r.min_pulse_width_ns,
+        "min_sign_setup_ns": r.min_sign_setup_ns,
+        "end_points_exact": r.blocks.iter().all(|b| b.end_exact) && r.counts_match,
+        "pulses_match_host": r.pulses_match_host,
+    })
+}
+
+pub fn write_json(path: &Path, v: &Value) -> Result<()> {
+    let mut s = serde_json::to_string_pretty(v)?;
+    s.push('\n');
+    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+}
+
+pub fn print_summary(s: &Value, out: &Path) {
+    println!("  blocks              {}", s["blocks"]);
+    println!("  machining time      {} s", s["machining_time_s"]);
+    println!("  final position BLU  {}", s["final_position_blu"]);
+    println!("  end points exact    {}   pulses equal host core: {}", s["end_points_exact"], s["pulses_match_host"]);
+    println!("  max deviation       {} BLU", s["max_deviation_blu"]);
+    println!("  max feed error      {} %", s["max_feed_error_pct"]);
+    println!("  min pulse width     {} ns   min sign setup {} ns", s["min_pulse_width_ns"], s["min_sign_setup_ns"]);
+    println!("  frame ISR instr.    {}   pulse-end ISR {}", s["frame_instructions"], s["pulse_end_instructions"]);
+    println!("  wrote {}/capture.vcd and {}/summary.json", out.display(), out.display());
+}
+
