@@ -19,7 +19,7 @@
 //!   more pulses, and when one axis of a segment is done the other pulses once per command.
 //! - Output and Position: the pulses with the current signs; counters decremented per pulse,
 //!   absolute position updated; all counters zero -> block done, the Initiator runs next tick.
-use super::block::{Block, Motion, MAX_SEGMENTS};
+use super::block::{Block, Motion};
 use crate::settings::Settings;
 
 /// The frame's share of the settings, precomputed in task context.
@@ -38,6 +38,15 @@ impl FrameConfig {
             ptp_steps: s.ptp_steps,
         }
     }
+}
+
+/// The Initiator's block queue as the frame sees it: the running block stays at the front until
+/// it is done. Implemented by the firmware's queue consumer and by the host simulation.
+pub trait BlockSource {
+    /// The front block, by reference (no copy in the ISR), or None when the queue is empty.
+    fn front(&mut self) -> Option<&Block>;
+    /// Removes the front block (called once, when it is done).
+    fn pop(&mut self);
 }
 
 /// Which timer period the next frame wants: W0 (contouring, dwell, idle) or the rapid rate (PTP).
@@ -93,7 +102,6 @@ pub struct Frame {
     j: i32,
     seg: u8,
     n_seg: u8,
-    targets: [[i32; 2]; MAX_SEGMENTS],
 }
 
 impl Frame {
@@ -119,24 +127,25 @@ impl Frame {
             j: 0,
             seg: 0,
             n_seg: 0,
-            targets: [[0; 2]; MAX_SEGMENTS],
         }
     }
 
-    /// One frame. `next` is the Initiator's block source; it is called only when no block is loaded.
+    /// One frame. `src` is the Initiator's block source: the running block stays at its front until
+    /// it is done (the arc reads its segment targets there), then it is popped.
     /// `feed_cap` is the adaptive controller's feed number (u32::MAX = no cap, 0 = feed hold).
+    ///
+    /// Bounded work per frame: a frame that loads registers (a new block, or the next arc
+    /// segment) runs no DDA cycle and emits no pulse; only the loaded block's sign lines change.
     #[inline]
-    pub fn tick(&mut self, mut next: impl FnMut() -> Option<Block>, feed_cap: u32) -> Pulses {
+    pub fn tick(&mut self, src: &mut impl BlockSource, feed_cap: u32) -> Pulses {
         if self.mode == Mode::Idle {
-            match next() {
-                Some(b) => self.initiate(b),
-                None => {
-                    return Pulses {
-                        steps: 0,
-                        signs: self.signs,
-                    }
-                }
+            if let Some(b) = src.front() {
+                self.initiate(b);
             }
+            return Pulses {
+                steps: 0,
+                signs: self.signs,
+            };
         }
         let steps = match self.mode {
             Mode::Idle => 0,
@@ -149,7 +158,12 @@ impl Frame {
                 }
             }
             Mode::Arc => {
-                if self.feed(feed_cap) {
+                if self.count[0] | self.count[1] | self.count[2] == 0 {
+                    // The previous frame finished a segment: load the next one.
+                    self.seg = self.seg.wrapping_add(1);
+                    self.load_segment(src);
+                    0
+                } else if self.feed(feed_cap) {
                     self.circular()
                 } else {
                     0
@@ -160,9 +174,11 @@ impl Frame {
                 0
             }
         };
-        self.position_update(steps);
-        if self.count[0] == 0 && self.count[1] == 0 && self.count[2] == 0 {
-            self.segment_end();
+        if steps != 0 {
+            self.position_update(steps);
+        }
+        if self.count[0] | self.count[1] | self.count[2] == 0 {
+            self.segment_end(src);
         }
         Pulses {
             steps,
@@ -198,10 +214,10 @@ impl Frame {
         self.blocks_done
     }
 
-    /// The Initiator: load a validated block into the registers.
+    /// The Initiator: load a validated block into the registers (read in place, not copied).
     #[inline]
-    fn initiate(&mut self, block: Block) {
-        match block.motion {
+    fn initiate(&mut self, block: &Block) {
+        match &block.motion {
             Motion::Rapid(r) => {
                 self.mode = Mode::Rapid;
                 self.count = r.steps;
@@ -232,11 +248,9 @@ impl Frame {
                 self.f = c.f;
                 self.remaining = c.length;
                 self.decel = c.decel;
-                self.targets = c.targets;
                 self.n_seg = c.n_targets;
                 self.seg = 0;
-                self.count = [0; 3];
-                self.load_segment();
+                self.load_arc_segment(c);
             }
             Motion::Dwell(d) => {
                 self.mode = Mode::Dwell;
@@ -247,28 +261,38 @@ impl Frame {
         }
     }
 
-    /// All counters are zero: next arc segment, or the block is done (dwell: when its frames ran out).
+    /// All counters are zero: the block is done (dwell: when its frames ran out; arc: after its
+    /// last segment, else the next frame loads the next segment) and leaves the source.
     #[inline]
-    fn segment_end(&mut self) {
+    fn segment_end(&mut self, src: &mut impl BlockSource) {
         match self.mode {
             Mode::Idle => return,
             Mode::Dwell if self.ticks > 0 => return,
-            Mode::Arc if self.seg.saturating_add(1) < self.n_seg => {
-                self.seg += 1;
-                self.load_segment();
-                // A degenerate (empty) segment is finished on the next tick.
-                return;
-            }
+            Mode::Arc if self.seg.wrapping_add(1) < self.n_seg => return,
             _ => {}
         }
         self.mode = Mode::Idle;
         self.blocks_done = self.blocks_done.wrapping_add(1);
+        src.pop();
     }
 
-    /// Counters and signs of the current arc segment: |target - (i, j)| per axis.
+    /// Loads segment `self.seg` of the running arc (the source's front block).
     #[inline]
-    fn load_segment(&mut self) {
-        let t = match self.targets.get(self.seg as usize) {
+    fn load_segment(&mut self, src: &mut impl BlockSource) {
+        match src.front() {
+            Some(Block {
+                motion: Motion::Arc(c),
+                ..
+            }) => self.load_arc_segment(c),
+            // Not reached: the running arc is the front block. Finish it.
+            _ => self.count = [0; 3],
+        }
+    }
+
+    /// Counters and signs of segment `self.seg` of `c`: |target - (i, j)| per axis.
+    #[inline]
+    fn load_arc_segment(&mut self, c: &super::block::Arc) {
+        let t = match c.targets.get(self.seg as usize) {
             Some(t) => *t,
             None => [self.i, self.j],
         };

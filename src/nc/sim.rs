@@ -1,7 +1,7 @@
 //! A frame driven without hardware: feeds blocks to [`Frame::tick`] and yields every frame's output
 //! with the rate it ran at. Used by host tests and the host tool (host); never by the firmware.
 use super::block::Block;
-use super::frame::{Frame, Pulses, Rate};
+use super::frame::{BlockSource, Frame, Pulses, Rate};
 
 /// One simulated frame: its index, the rate the frame timer ran at for it, and its output.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -15,11 +15,32 @@ pub struct SimFrame {
     pub block: u32,
 }
 
+/// An iterator as the frame's block queue: the front block is held until the frame pops it.
+struct IterSource<I> {
+    it: I,
+    head: Option<Block>,
+    /// The frame asked for a block and there was none.
+    exhausted: bool,
+}
+
+impl<I: Iterator<Item = Block>> BlockSource for IterSource<I> {
+    fn front(&mut self) -> Option<&Block> {
+        if self.head.is_none() {
+            self.head = self.it.next();
+            self.exhausted = self.head.is_none();
+        }
+        self.head.as_ref()
+    }
+    fn pop(&mut self) {
+        self.head = None;
+    }
+}
+
 /// Runs `frame` over `blocks` until the last block is done (or `max_ticks` frames have run),
 /// with `feed_cap` as the adaptive feed cap of every frame.
 pub struct Sim<'f, I: Iterator<Item = Block>> {
     frame: &'f mut Frame,
-    blocks: I,
+    blocks: IterSource<I>,
     tick: u64,
     max_ticks: u64,
     feed_cap: u32,
@@ -31,7 +52,11 @@ impl<'f, I: Iterator<Item = Block>> Sim<'f, I> {
         let rate = frame.rate();
         Sim {
             frame,
-            blocks,
+            blocks: IterSource {
+                it: blocks,
+                head: None,
+                exhausted: false,
+            },
             tick: 0,
             max_ticks,
             feed_cap,
@@ -48,17 +73,9 @@ impl<I: Iterator<Item = Block>> Iterator for Sim<'_, I> {
             return None;
         }
         let block = self.frame.blocks_done();
-        let mut exhausted = false;
-        let blocks = &mut self.blocks;
-        let pulses = self.frame.tick(
-            || {
-                let b = blocks.next();
-                exhausted = b.is_none();
-                b
-            },
-            self.feed_cap,
-        );
-        if exhausted && self.frame.idle() {
+        self.blocks.exhausted = false;
+        let pulses = self.frame.tick(&mut self.blocks, self.feed_cap);
+        if self.blocks.exhausted && self.frame.idle() {
             return None;
         }
         let out = SimFrame {

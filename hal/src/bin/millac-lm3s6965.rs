@@ -85,7 +85,7 @@ mod app {
     use cortex_m_semihosting::{nr, syscall};
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::gcode::tape::Tape;
-    use millac::nc::{Block, Frame, FrameConfig, Pulses, Rate};
+    use millac::nc::{Block, BlockSource, Frame, FrameConfig, Pulses, Rate};
     use millac::Settings;
     use millac_hal::lm3s6965::Lm3s6965;
     use millac_hal::status::{BLOCKS_DONE, FEED_CAP, IDLE, POSITION};
@@ -166,9 +166,8 @@ mod app {
             B::pulse_start();
         }
 
-        let consumer = cx.local.consumer;
         let frame = cx.local.frame;
-        let p = frame.tick(|| consumer.dequeue(), FEED_CAP.load(Relaxed));
+        let p = frame.tick(&mut Source(cx.local.consumer), FEED_CAP.load(Relaxed));
 
         let rate = frame.rate();
         if rate != *cx.local.rate {
@@ -186,12 +185,30 @@ mod app {
         }
         *cx.local.pending = p;
 
-        let [x, y, z] = frame.position();
-        POSITION[0].store(x, Relaxed);
-        POSITION[1].store(y, Relaxed);
-        POSITION[2].store(z, Relaxed);
+        if p.steps != 0 {
+            let [x, y, z] = frame.position();
+            POSITION[0].store(x, Relaxed);
+            POSITION[1].store(y, Relaxed);
+            POSITION[2].store(z, Relaxed);
+        }
         BLOCKS_DONE.store(frame.blocks_done(), Relaxed);
         IDLE.store(frame.idle() && p.steps == 0 && pending.steps == 0, Relaxed);
+    }
+
+    /// The block queue as the frame's Initiator sees it: the running block stays at the front
+    /// (read in place, never copied) and is dequeued when it is done.
+    struct Source<'a>(&'a mut Consumer<'static, Block, QUEUE>);
+
+    impl BlockSource for Source<'_> {
+        #[inline(always)]
+        fn front(&mut self) -> Option<&Block> {
+            self.0.peek()
+        }
+        #[inline(always)]
+        fn pop(&mut self) {
+            // The value is dropped unread: only the head index moves.
+            let _ = self.0.dequeue();
+        }
     }
 
     /// The pulse-end ISR: same priority as the frame, so it runs after the frame has finished.
