@@ -95,11 +95,18 @@ pub struct Frame {
     decel: bool,
     /// PTP frame counter; dwell frames left.
     ticks: u32,
-    /// Arc state: axes, register values i, j (position relative to the centre), segments.
-    a: u8,
-    b: u8,
+    /// f / 5, at least 1: the deceleration floor.
+    f_floor: u32,
+    /// Arc state: axis bits of a and b, register values i, j (position relative to the centre),
+    /// segment counters of a and b, unit steps of i and j (+1 or -1), segments.
+    bit_a: u8,
+    bit_b: u8,
     i: i32,
     j: i32,
+    ca: u32,
+    cb: u32,
+    da: i32,
+    db: i32,
     seg: u8,
     n_seg: u8,
 }
@@ -121,10 +128,15 @@ impl Frame {
             remaining: 0,
             decel: false,
             ticks: 0,
-            a: 0,
-            b: 1,
+            f_floor: 1,
+            bit_a: 1,
+            bit_b: 2,
             i: 0,
             j: 0,
+            ca: 0,
+            cb: 0,
+            da: 1,
+            db: 1,
             seg: 0,
             n_seg: 0,
         }
@@ -149,36 +161,55 @@ impl Frame {
         }
         let steps = match self.mode {
             Mode::Idle => 0,
-            Mode::Rapid => self.ptp(),
+            Mode::Rapid => {
+                let steps = self.ptp();
+                if self.count[0] | self.count[1] | self.count[2] == 0 {
+                    self.done(src);
+                }
+                steps
+            }
             Mode::Linear => {
                 if self.feed(feed_cap) {
-                    self.linear()
+                    let steps = self.linear();
+                    if self.count[0] | self.count[1] | self.count[2] == 0 {
+                        self.done(src);
+                    }
+                    steps
                 } else {
                     0
                 }
             }
             Mode::Arc => {
-                if self.count[0] | self.count[1] | self.count[2] == 0 {
-                    // The previous frame finished a segment: load the next one.
-                    self.seg = self.seg.wrapping_add(1);
-                    self.load_segment(src);
+                if self.ca | self.cb == 0 {
+                    // The previous frame finished a segment (or the block started with an empty
+                    // one): load the next one.
+                    if self.seg.wrapping_add(1) < self.n_seg {
+                        self.seg += 1;
+                        self.load_segment(src);
+                    } else {
+                        self.done(src);
+                    }
                     0
                 } else if self.feed(feed_cap) {
-                    self.circular()
+                    let steps = self.circular();
+                    if self.ca | self.cb == 0 && self.seg.wrapping_add(1) >= self.n_seg {
+                        self.done(src);
+                    }
+                    steps
                 } else {
                     0
                 }
             }
             Mode::Dwell => {
                 self.ticks = self.ticks.saturating_sub(1);
+                if self.ticks == 0 {
+                    self.done(src);
+                }
                 0
             }
         };
         if steps != 0 {
             self.position_update(steps);
-        }
-        if self.count[0] | self.count[1] | self.count[2] == 0 {
-            self.segment_end(src);
         }
         Pulses {
             steps,
@@ -233,6 +264,7 @@ impl Frame {
                 let half = self.q / 2;
                 self.acc = [half; 3];
                 self.f = l.f;
+                self.f_floor = if l.f / 5 == 0 { 1 } else { l.f / 5 };
                 self.remaining = self.q;
                 self.decel = l.decel;
                 self.set_signs(0b111, l.signs);
@@ -240,16 +272,18 @@ impl Frame {
             Motion::Arc(c) => {
                 self.mode = Mode::Arc;
                 let (a, b) = c.plane.axes();
-                self.a = a as u8;
-                self.b = b as u8;
+                self.bit_a = 1 << a;
+                self.bit_b = 1 << b;
                 self.i = c.start[0];
                 self.j = c.start[1];
                 self.q = if c.r == 0 { 1 } else { c.r };
                 self.f = c.f;
+                self.f_floor = if c.f / 5 == 0 { 1 } else { c.f / 5 };
                 self.remaining = c.length;
                 self.decel = c.decel;
                 self.n_seg = c.n_targets;
                 self.seg = 0;
+                self.count = [0; 3];
                 self.load_arc_segment(c);
             }
             Motion::Dwell(d) => {
@@ -261,16 +295,9 @@ impl Frame {
         }
     }
 
-    /// All counters are zero: the block is done (dwell: when its frames ran out; arc: after its
-    /// last segment, else the next frame loads the next segment) and leaves the source.
+    /// The block is done and leaves the source; the Initiator runs next frame.
     #[inline]
-    fn segment_end(&mut self, src: &mut impl BlockSource) {
-        match self.mode {
-            Mode::Idle => return,
-            Mode::Dwell if self.ticks > 0 => return,
-            Mode::Arc if self.seg.wrapping_add(1) < self.n_seg => return,
-            _ => {}
-        }
+    fn done(&mut self, src: &mut impl BlockSource) {
         self.mode = Mode::Idle;
         self.blocks_done = self.blocks_done.wrapping_add(1);
         src.pop();
@@ -290,7 +317,7 @@ impl Frame {
     }
 
     /// Counters and signs of segment `self.seg` of `c`: |target - (i, j)| per axis.
-    #[inline]
+    #[inline(always)]
     fn load_arc_segment(&mut self, c: &super::block::Arc) {
         let t = match c.targets.get(self.seg as usize) {
             Some(t) => *t,
@@ -298,36 +325,32 @@ impl Frame {
         };
         let da = t[0].wrapping_sub(self.i);
         let db = t[1].wrapping_sub(self.j);
-        let (a, b) = (self.a as usize & 3, self.b as usize & 3);
-        let mut signs = 0u8;
-        if da > 0 {
-            signs |= 1 << a;
-        }
-        if db > 0 {
-            signs |= 1 << b;
-        }
-        let mut count = [0u32; 3];
-        if let Some(c) = count.get_mut(a) {
-            *c = da.unsigned_abs();
-        }
-        if let Some(c) = count.get_mut(b) {
-            *c = db.unsigned_abs();
-        }
-        self.count = count;
+        self.ca = da.unsigned_abs();
+        self.cb = db.unsigned_abs();
+        self.da = if da > 0 { 1 } else { -1 };
+        self.db = if db > 0 { 1 } else { -1 };
         // Each segment starts on an axis crossing (or the block start): the DDA remainders restart
         // at one half, which rounds each axis to the nearest BLU (measured: smaller deviation than
         // carrying the remainders over the crossing).
         let half = self.q / 2;
         self.acc = [half; 3];
         // Only the axes that move in this segment change their sign line.
+        let (bit_a, bit_b) = (self.bit_a, self.bit_b);
         let mut mask = 0u8;
+        let mut signs = 0u8;
         if da != 0 {
-            mask |= 1 << a;
+            mask |= bit_a;
         }
         if db != 0 {
-            mask |= 1 << b;
+            mask |= bit_b;
         }
-        self.set_signs(mask, signs);
+        if da > 0 {
+            signs |= bit_a;
+        }
+        if db > 0 {
+            signs |= bit_b;
+        }
+        self.signs = (self.signs & !mask) | signs;
     }
 
     #[inline]
@@ -346,7 +369,7 @@ impl Frame {
         let mut f = self.f;
         if self.decel {
             let v = (self.cfg.decel_gain_q8 as u64 * self.remaining as u64) >> 8;
-            let floor = if self.f / 5 == 0 { 1 } else { self.f / 5 };
+            let floor = self.f_floor;
             if v < f as u64 {
                 f = if (v as u32) < floor { floor } else { v as u32 };
             }
@@ -387,61 +410,38 @@ impl Frame {
     /// Circular DDA cycle in the plane (a, b); i, j follow every pulse.
     #[inline]
     fn circular(&mut self) -> u8 {
-        let (a, b) = (self.a as usize & 3, self.b as usize & 3);
-        let ca = self.count.get(a).copied().unwrap_or(0);
-        let cb = self.count.get(b).copied().unwrap_or(0);
-        let up_a = self.signs & (1 << a) != 0;
-        let up_b = self.signs & (1 << b) != 0;
-        let (mut step_a, mut step_b) = (false, false);
+        let (ca, cb) = (self.ca, self.cb);
+        let (step_a, step_b);
         if ca != 0 && cb != 0 {
+            let q = self.q;
             let r = self.acc[0].wrapping_add(self.j.unsigned_abs());
-            if r >= self.q {
-                self.acc[0] = r - self.q;
-                step_a = true;
-                self.i = if up_a {
-                    self.i.wrapping_add(1)
-                } else {
-                    self.i.wrapping_sub(1)
-                };
+            step_a = r >= q;
+            if step_a {
+                self.acc[0] = r - q;
+                self.i = self.i.wrapping_add(self.da);
             } else {
                 self.acc[0] = r;
             }
             let r = self.acc[1].wrapping_add(self.i.unsigned_abs());
-            if r >= self.q {
-                self.acc[1] = r - self.q;
-                step_b = true;
-            } else {
-                self.acc[1] = r;
+            step_b = r >= q;
+            self.acc[1] = if step_b { r - q } else { r };
+        } else {
+            // One axis of the segment is done: the other pulses once per command.
+            step_a = ca != 0;
+            step_b = cb != 0;
+            if step_a {
+                self.i = self.i.wrapping_add(self.da);
             }
-        } else if ca != 0 {
-            step_a = true;
-            self.i = if up_a {
-                self.i.wrapping_add(1)
-            } else {
-                self.i.wrapping_sub(1)
-            };
-        } else if cb != 0 {
-            step_b = true;
-        }
-        if step_b {
-            self.j = if up_b {
-                self.j.wrapping_add(1)
-            } else {
-                self.j.wrapping_sub(1)
-            };
         }
         let mut steps = 0u8;
         if step_a {
-            if let Some(c) = self.count.get_mut(a) {
-                *c -= 1;
-            }
-            steps |= 1 << a;
+            self.ca = ca - 1;
+            steps |= self.bit_a;
         }
         if step_b {
-            if let Some(c) = self.count.get_mut(b) {
-                *c -= 1;
-            }
-            steps |= 1 << b;
+            self.j = self.j.wrapping_add(self.db);
+            self.cb = cb - 1;
+            steps |= self.bit_b;
         }
         steps
     }
