@@ -149,7 +149,8 @@ impl Settings {
     /// which decays exponentially with time constant `decel_tau_us`:
     /// ds/dt = -W0 f/q0 = -W0 K s/(256 q0)  =>  tau = 256 q0 / (W0 K).
     pub const fn decel_gain_q8(&self) -> u32 {
-        let k = (256u64 * self.q0 as u64 * 1_000_000) / (self.frame_hz as u64 * self.decel_tau_us as u64);
+        let k = (256u64 * self.q0 as u64 * 1_000_000)
+            / (self.frame_hz as u64 * self.decel_tau_us as u64);
         if k == 0 {
             1
         } else if k > u16::MAX as u64 {

@@ -6,8 +6,8 @@ use crate::vcd::AXES;
 use anyhow::Result;
 use millac::gcode::tape::{Tape, TapeError};
 use millac::nc::{sim::Sim, Block, Frame, FrameConfig, Motion};
-use std::collections::VecDeque;
 use millac::Settings;
+use std::collections::VecDeque;
 
 /// A block of the program with its programmed start and end (machine BLU).
 #[derive(Clone, Copy, Debug)]
@@ -60,7 +60,12 @@ pub fn load_program(text: &str, settings: &Settings) -> Result<Vec<ProgBlock>, T
                 }
                 Motion::Dwell(_) => {}
             }
-            ProgBlock { block, start, end: pos, pulses }
+            ProgBlock {
+                block,
+                start,
+                end: pos,
+                pulses,
+            }
         })
         .collect())
 }
@@ -104,7 +109,11 @@ pub fn edges(initial: u8, events: &[(u64, u8)]) -> Edges {
                     setup = Some(setup.map_or(t - c, |m: u64| m.min(t - c)));
                 }
                 let dir = if pins >> sign & 1 != 0 { 1 } else { -1 };
-                out.push(Edge { t_ns: t, axis: k, dir });
+                out.push(Edge {
+                    t_ns: t,
+                    axis: k,
+                    dir,
+                });
             } else if s0 == 1 && s1 == 0 {
                 if let Some(r) = rise[k].take() {
                     width = Some(width.map_or(t - r, |m: u64| m.min(t - r)));
@@ -117,7 +126,12 @@ pub fn edges(initial: u8, events: &[(u64, u8)]) -> Edges {
         }
         prev = pins;
     }
-    Edges { edges: out, groups, min_pulse_width_ns: width, min_sign_setup_ns: setup }
+    Edges {
+        edges: out,
+        groups,
+        min_pulse_width_ns: width,
+        min_sign_setup_ns: setup,
+    }
 }
 
 /// Per-block result.
@@ -156,7 +170,12 @@ pub struct Report {
 pub const FEED_MIN_PATH_BLU: f64 = 200.0;
 
 /// Analyses the pin events against the program.
-pub fn analyse(prog: &[ProgBlock], settings: &Settings, initial: u8, events: &[(u64, u8)]) -> Report {
+pub fn analyse(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    initial: u8,
+    events: &[(u64, u8)],
+) -> Report {
     let e = edges(initial, events);
     let mut pos = [0i64; 3];
     let mut reports = Vec::new();
@@ -200,7 +219,10 @@ pub fn analyse(prog: &[ProgBlock], settings: &Settings, initial: u8, events: &[(
         .map(|(p, m)| ((m - p) / p * 100.0).abs())
         .fold(0.0, f64::max);
     Report {
-        max_deviation_blu: reports.iter().map(|r| r.max_deviation_blu).fold(0.0, f64::max),
+        max_deviation_blu: reports
+            .iter()
+            .map(|r| r.max_deviation_blu)
+            .fold(0.0, f64::max),
         blocks: reports,
         final_position: pos,
         programmed_end: prog.last().map_or([0; 3], |b| b.end),
@@ -226,7 +248,8 @@ fn measure(
     let e = pb.end.map(|v| v as f64);
     let f_of = |f: u32| f as f64 * frm_ipm / q0 as f64;
     // BLU over ns -> units per minute (FRM = W0 * 60 / BLU-per-unit at one BLU per frame).
-    let per_min = |path_blu: f64, dt_ns: u64| path_blu / (dt_ns as f64 * 1e-9) * 60.0 / blu_per_unit;
+    let per_min =
+        |path_blu: f64, dt_ns: u64| path_blu / (dt_ns as f64 * 1e-9) * 60.0 / blu_per_unit;
     match pb.block.motion {
         Motion::Rapid(_) => ("rapid", 0.0, None),
         Motion::Dwell(_) => ("dwell", 0.0, None),
@@ -242,12 +265,20 @@ fn measure(
                 dev = dev.max(r2.sqrt());
             }
             // Feed window: leave out the deceleration tail of a flagged block.
-            let tail = if l.decel { l.f as f64 / k_decel + 2.0 } else { 0.0 };
-            let dist_left = |p: &[i64; 3]| ((0..3).map(|k| (e[k] - p[k] as f64).powi(2)).sum::<f64>()).sqrt();
+            let tail = if l.decel {
+                l.f as f64 / k_decel + 2.0
+            } else {
+                0.0
+            };
+            let dist_left =
+                |p: &[i64; 3]| ((0..3).map(|k| (e[k] - p[k] as f64).powi(2)).sum::<f64>()).sqrt();
             let win: Vec<_> = pts.iter().filter(|(_, p)| dist_left(p) >= tail).collect();
             let feed = match (win.first(), win.last()) {
                 (Some(a), Some(b)) if len >= FEED_MIN_PATH_BLU && b.0 > a.0 => {
-                    let path = ((0..3).map(|k| ((b.1[k] - a.1[k]) as f64).powi(2)).sum::<f64>()).sqrt();
+                    let path = ((0..3)
+                        .map(|k| ((b.1[k] - a.1[k]) as f64).powi(2))
+                        .sum::<f64>())
+                    .sqrt();
                     (path >= FEED_MIN_PATH_BLU).then(|| (f_of(l.f), per_min(path, b.0 - a.0)))
                 }
                 _ => None,
@@ -283,12 +314,19 @@ fn measure(
                 arc_len.push(acc);
             }
             let total = acc;
-            let tail = if c.decel { c.f as f64 / k_decel + 2.0 } else { 0.0 };
-            let idx: Vec<usize> = (0..pts.len()).filter(|&i| total - arc_len[i] >= tail).collect();
+            let tail = if c.decel {
+                c.f as f64 / k_decel + 2.0
+            } else {
+                0.0
+            };
+            let idx: Vec<usize> = (0..pts.len())
+                .filter(|&i| total - arc_len[i] >= tail)
+                .collect();
             let feed = match (idx.first(), idx.last()) {
                 (Some(&i), Some(&j)) if pts[j].0 > pts[i].0 => {
                     let path = arc_len[j] - arc_len[i];
-                    (path >= FEED_MIN_PATH_BLU).then(|| (f_of(c.f), per_min(path, pts[j].0 - pts[i].0)))
+                    (path >= FEED_MIN_PATH_BLU)
+                        .then(|| (f_of(c.f), per_min(path, pts[j].0 - pts[i].0)))
                 }
                 _ => None,
             };
@@ -299,12 +337,17 @@ fn measure(
 
 /// Compares the capture's pulse groups with the host core's frames: same order, same axes, same
 /// directions. Returns the index of the first difference, or None when they are equal.
-pub fn compare_with_host(prog: &[ProgBlock], settings: &Settings, groups: &[(u64, u8, u8)]) -> Option<usize> {
+pub fn compare_with_host(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    groups: &[(u64, u8, u8)],
+) -> Option<usize> {
     let mut frame = Frame::new(FrameConfig::from_settings(settings));
-    let mut host: VecDeque<(u8, u8)> = Sim::new(&mut frame, prog.iter().map(|b| b.block), u32::MAX, u64::MAX)
-        .filter(|f| f.pulses.steps != 0)
-        .map(|f| (f.pulses.steps, f.pulses.signs & f.pulses.steps))
-        .collect();
+    let mut host: VecDeque<(u8, u8)> =
+        Sim::new(&mut frame, prog.iter().map(|b| b.block), u32::MAX, u64::MAX)
+            .filter(|f| f.pulses.steps != 0)
+            .map(|f| (f.pulses.steps, f.pulses.signs & f.pulses.steps))
+            .collect();
     for (i, &(_, mask, signs)) in groups.iter().enumerate() {
         match host.pop_front() {
             Some(h) if h == (mask, signs & mask) => {}

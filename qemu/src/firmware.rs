@@ -10,7 +10,10 @@ pub const BIN: &str = "millac-lm3s6965";
 
 /// The workspace root (where Cargo.toml of `millac` lives).
 pub fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().map(Path::to_path_buf).unwrap_or_default()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default()
 }
 
 /// Builds the firmware in release mode and returns the ELF path.
@@ -20,7 +23,17 @@ pub fn build() -> Result<PathBuf> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = Command::new(&cargo)
         .current_dir(&ws)
-        .args(["build", "--quiet", "--release", "-p", "millac-hal", "--target", TARGET, "--bin", BIN])
+        .args([
+            "build",
+            "--quiet",
+            "--release",
+            "-p",
+            "millac-hal",
+            "--target",
+            TARGET,
+            "--bin",
+            BIN,
+        ])
         .env("CARGO_TARGET_DIR", &target_dir)
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_BUILD_TARGET")
@@ -29,7 +42,9 @@ pub fn build() -> Result<PathBuf> {
         .with_context(|| format!("running {cargo} to build the firmware"))?;
     if !out.status.success() {
         let err = String::from_utf8_lossy(&out.stderr);
-        let hint = if err.contains("can't find crate for `core`") || err.contains("target may not be installed") {
+        let hint = if err.contains("can't find crate for `core`")
+            || err.contains("target may not be installed")
+        {
             format!("\nhint: install the target with `rustup target add {TARGET}`")
         } else {
             String::new()

@@ -11,7 +11,10 @@ use std::path::{Path, PathBuf};
 const DEMO: &str = include_str!("../programs/fig1-cavity.nc");
 
 #[derive(Parser)]
-#[command(name = "millac", about = "millac NC firmware under QEMU with a virtual logic analyser")]
+#[command(
+    name = "millac",
+    about = "millac NC firmware under QEMU with a virtual logic analyser"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Option<Cmd>,
@@ -42,7 +45,11 @@ fn main() {
     let result = match cli.cmd {
         None => demo(Path::new("out/demo")),
         Some(Cmd::Demo { out }) => demo(&out),
-        Some(Cmd::Run { program, out, shift }) => std::fs::read_to_string(&program)
+        Some(Cmd::Run {
+            program,
+            out,
+            shift,
+        }) => std::fs::read_to_string(&program)
             .with_context(|| format!("reading {}", program.display()))
             .and_then(|text| run(&text, &out, shift)),
         Some(Cmd::Analyse { capture, program }) => analyse_file(&capture, &program),
@@ -75,12 +82,15 @@ fn run(text: &str, out: &Path, shift: u32) -> Result<bool> {
 
 fn analyse_file(capture: &Path, program: &Path) -> Result<bool> {
     let settings = Settings::default();
-    let text = std::fs::read_to_string(program).with_context(|| format!("reading {}", program.display()))?;
-    let prog = analysis::load_program(&text, &settings).map_err(|e| anyhow::anyhow!("program rejected: {e}"))?;
+    let text = std::fs::read_to_string(program)
+        .with_context(|| format!("reading {}", program.display()))?;
+    let prog = analysis::load_program(&text, &settings)
+        .map_err(|e| anyhow::anyhow!("program rejected: {e}"))?;
     let trace = vcd::read_vcd(&std::fs::read_to_string(capture)?)?;
     let mut report = analysis::analyse(&prog, &settings, trace.initial, &trace.events);
     let e = analysis::edges(trace.initial, &trace.events);
-    report.pulses_match_host = Some(analysis::compare_with_host(&prog, &settings, &e.groups).is_none());
+    report.pulses_match_host =
+        Some(analysis::compare_with_host(&prog, &settings, &e.groups).is_none());
     let summary = runner::summary_json(&prog, &report);
     println!("{}", serde_json::to_string_pretty(&summary)?);
     Ok(runner::checks_pass(&report))

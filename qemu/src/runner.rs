@@ -30,7 +30,10 @@ pub fn execute(text: &str, out: &Path, shift: u32) -> Result<Capture> {
     let mut spec = CaptureSpec::new(&elf, out);
     spec.icount_shift = shift;
     spec.timeout = Duration::from_secs(1800);
-    spec.handlers = vec![HandlerSpec::from_elf(&elf, "TIMER_0A")?, HandlerSpec::from_elf(&elf, "TIMER_1A")?];
+    spec.handlers = vec![
+        HandlerSpec::from_elf(&elf, "TIMER_0A")?,
+        HandlerSpec::from_elf(&elf, "TIMER_1A")?,
+    ];
     run_capture(&spec)
 }
 
@@ -46,7 +49,9 @@ pub fn stats(v: &[u64]) -> Value {
 /// Pre-checks, runs and analyses a program; writes out/capture.vcd and out/summary.json.
 pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
     let settings = Settings::default();
-    settings.validate().map_err(|e| anyhow::anyhow!("settings: {}", e.message()))?;
+    settings
+        .validate()
+        .map_err(|e| anyhow::anyhow!("settings: {}", e.message()))?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let prog = match analysis::load_program(text, &settings) {
         Ok(p) => p,
@@ -54,17 +59,28 @@ pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
             let summary = json!({"error": {"line": e.line(), "message": e.to_string()}});
             write_json(&out.join("summary.json"), &summary)?;
             eprintln!("millac: program rejected, nothing was run: {e}");
-            return Ok(Outcome { summary, report: None, capture: None, ok: false });
+            return Ok(Outcome {
+                summary,
+                report: None,
+                capture: None,
+                ok: false,
+            });
         }
     };
     let cap = execute(text, out, shift)?;
     if cap.status != Some(0) {
-        anyhow::bail!("firmware exited with {:?}:\n{}{}", cap.status, cap.stdout, cap.stderr);
+        anyhow::bail!(
+            "firmware exited with {:?}:\n{}{}",
+            cap.status,
+            cap.stdout,
+            cap.stderr
+        );
     }
     vcd::write_vcd(&out.join("capture.vcd"), 0, &cap.pins, Some(cap.end_ns))?;
     let mut report = analysis::analyse(&prog, &settings, 0, &cap.pins);
     let e = analysis::edges(0, &cap.pins);
-    report.pulses_match_host = Some(analysis::compare_with_host(&prog, &settings, &e.groups).is_none());
+    report.pulses_match_host =
+        Some(analysis::compare_with_host(&prog, &settings, &e.groups).is_none());
     let fw = firmware_position(&cap.stdout);
     let mut summary = summary_json(&prog, &report);
     summary["frame_instructions"] = stats(&cap.handlers[0].1);
@@ -74,7 +90,12 @@ pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
     summary["icount_shift"] = json!(shift);
     write_json(&out.join("summary.json"), &summary)?;
     let ok = checks_pass(&report) && fw == Some(report.final_position);
-    Ok(Outcome { summary, report: Some(report), capture: Some(cap), ok })
+    Ok(Outcome {
+        summary,
+        report: Some(report),
+        capture: Some(cap),
+        ok,
+    })
 }
 
 pub fn checks_pass(r: &Report) -> bool {
@@ -83,7 +104,9 @@ pub fn checks_pass(r: &Report) -> bool {
 
 pub fn firmware_position(stdout: &str) -> Option<[i64; 3]> {
     let line = stdout.lines().find_map(|l| l.strip_prefix("millac: "))?;
-    let pos = line.split_whitespace().find_map(|w| w.strip_prefix("position="))?;
+    let pos = line
+        .split_whitespace()
+        .find_map(|w| w.strip_prefix("position="))?;
     let v: Vec<i64> = pos.split(',').filter_map(|s| s.parse().ok()).collect();
     (v.len() == 3).then(|| [v[0], v[1], v[2]])
 }
@@ -113,11 +136,23 @@ pub fn print_summary(s: &Value, out: &Path) {
     println!("  blocks              {}", s["blocks"]);
     println!("  machining time      {} s", s["machining_time_s"]);
     println!("  final position BLU  {}", s["final_position_blu"]);
-    println!("  end points exact    {}   pulses equal host core: {}", s["end_points_exact"], s["pulses_match_host"]);
+    println!(
+        "  end points exact    {}   pulses equal host core: {}",
+        s["end_points_exact"], s["pulses_match_host"]
+    );
     println!("  max deviation       {} BLU", s["max_deviation_blu"]);
     println!("  max feed error      {} %", s["max_feed_error_pct"]);
-    println!("  min pulse width     {} ns   min sign setup {} ns", s["min_pulse_width_ns"], s["min_sign_setup_ns"]);
-    println!("  frame ISR instr.    {}   pulse-end ISR {}", s["frame_instructions"], s["pulse_end_instructions"]);
-    println!("  wrote {}/capture.vcd and {}/summary.json", out.display(), out.display());
+    println!(
+        "  min pulse width     {} ns   min sign setup {} ns",
+        s["min_pulse_width_ns"], s["min_sign_setup_ns"]
+    );
+    println!(
+        "  frame ISR instr.    {}   pulse-end ISR {}",
+        s["frame_instructions"], s["pulse_end_instructions"]
+    );
+    println!(
+        "  wrote {}/capture.vcd and {}/summary.json",
+        out.display(),
+        out.display()
+    );
 }
-

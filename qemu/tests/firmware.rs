@@ -21,13 +21,26 @@ fn run_checked(name: &str, program: &str) -> runner::Outcome {
     assert_eq!(s["pulses_match_host"], true, "{name}");
     assert_eq!(s["end_points_exact"], true, "{name}");
     let settings = Settings::default();
-    assert!(s["min_pulse_width_ns"].as_u64().unwrap() >= settings.pulse_width_ns as u64, "{name}: {s:#}");
-    assert!(s["min_sign_setup_ns"].as_u64().unwrap_or(u64::MAX) >= settings.sign_setup_ns as u64, "{name}: {s:#}");
+    assert!(
+        s["min_pulse_width_ns"].as_u64().unwrap() >= settings.pulse_width_ns as u64,
+        "{name}: {s:#}"
+    );
+    assert!(
+        s["min_sign_setup_ns"].as_u64().unwrap_or(u64::MAX) >= settings.sign_setup_ns as u64,
+        "{name}: {s:#}"
+    );
     // The programmed end point, from the parser alone.
     let prog = analysis::load_program(program, &settings).unwrap();
     let end = prog.last().unwrap().end;
     let fp = &s["final_position_blu"];
-    assert_eq!([fp["x"].as_i64().unwrap(), fp["y"].as_i64().unwrap(), fp["z"].as_i64().unwrap()], end.map(i64::from));
+    assert_eq!(
+        [
+            fp["x"].as_i64().unwrap(),
+            fp["y"].as_i64().unwrap(),
+            fp["z"].as_i64().unwrap()
+        ],
+        end.map(i64::from)
+    );
     // An independent decoder reads the same positions from the same file.
     let decoded = sigrok::decode_positions(&out.join("capture.vcd")).expect("sigrok");
     assert_eq!(decoded, end.map(i64::from), "{name}: sigrok disagrees");
@@ -42,7 +55,11 @@ fn lines_in_two_and_three_axes_with_deceleration() {
          G1 Y-0.04 F6\nG0 X0.01\nG1 X-0.05 Y-0.05 F20\nM2\n",
     );
     assert!(o.summary["max_deviation_blu"].as_f64().unwrap() <= 1.0);
-    assert!(o.summary["max_feed_error_pct"].as_f64().unwrap() < 2.0, "{:#}", o.summary);
+    assert!(
+        o.summary["max_feed_error_pct"].as_f64().unwrap() < 2.0,
+        "{:#}",
+        o.summary
+    );
 }
 
 #[test]
@@ -52,12 +69,19 @@ fn arcs_in_all_planes_both_directions_and_full_circles() {
         "G20 G90 G17 F30\nG1 X0.06 Y0\nG3 X-0.06 Y0 I-0.06 J0\nG2 X0 Y0.06 I0.06 J0\n\
          G3 X0 Y0.06 I0 J-0.03\nG18 G2 X0.03 Z0.02 R0.05\nG19 G3 Y0.08 Z0 R-0.03\nG17 G2 X0.06 Y0 R0.07\nM30\n",
     );
-    assert!(o.summary["max_deviation_blu"].as_f64().unwrap() <= 1.5, "{:#}", o.summary);
+    assert!(
+        o.summary["max_deviation_blu"].as_f64().unwrap() <= 1.5,
+        "{:#}",
+        o.summary
+    );
 }
 
 #[test]
 fn rapids_and_dwell() {
-    let o = run_checked("rapid", "G20 G90\nG0 X0.2 Y-0.1 Z0.05\nG4 P0.05\nG0 X0 Y0 Z0\nM2\n");
+    let o = run_checked(
+        "rapid",
+        "G20 G90\nG0 X0.2 Y-0.1 Z0.05\nG4 P0.05\nG0 X0 Y0 Z0\nM2\n",
+    );
     assert_eq!(o.summary["blocks"], 3);
 }
 
@@ -70,7 +94,10 @@ fn runs_are_byte_identical() {
     let va = std::fs::read(a.join("capture.vcd")).unwrap();
     assert!(va.len() > 1000);
     assert_eq!(va, std::fs::read(b.join("capture.vcd")).unwrap());
-    assert_eq!(std::fs::read(a.join("summary.json")).unwrap(), std::fs::read(b.join("summary.json")).unwrap());
+    assert_eq!(
+        std::fs::read(a.join("summary.json")).unwrap(),
+        std::fs::read(b.join("summary.json")).unwrap()
+    );
 }
 
 #[test]
@@ -85,7 +112,12 @@ fn bad_line_stops_after_the_accepted_blocks_with_exact_position() {
     let settings = Settings::default();
     let accepted = analysis::load_program(good, &settings).unwrap();
     let end = accepted.last().unwrap().end;
-    assert_eq!(runner::firmware_position(&cap.stdout), Some(end.map(i64::from)), "{}", cap.stdout);
+    assert_eq!(
+        runner::firmware_position(&cap.stdout),
+        Some(end.map(i64::from)),
+        "{}",
+        cap.stdout
+    );
     // The pins agree: every accepted block ran, nothing after the error moved.
     let r = analysis::analyse(&accepted, &settings, 0, &cap.pins);
     assert!(r.counts_match && r.blocks.iter().all(|b| b.end_exact));
@@ -96,8 +128,12 @@ fn rejected_program_writes_the_error_and_runs_nothing() {
     let out = out_dir("rejected");
     let o = runner::run("G20\nG1 X1 F10\nG2 X1 Y1 I0.3 J0\nM2\n", &out, 4).unwrap();
     assert!(!o.ok && o.capture.is_none());
-    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["error"]["line"], 3);
-    assert!(s["error"]["message"].as_str().unwrap().contains("circle"), "{s}");
+    assert!(
+        s["error"]["message"].as_str().unwrap().contains("circle"),
+        "{s}"
+    );
     assert!(!out.join("capture.vcd").exists());
 }
