@@ -10,7 +10,8 @@
 //!     target/thumbv7m-none-eabi/release/millac-lm3s6965
 //! ```
 //!
-//! (with `CARGO_TARGET_DIR` set, the ELF is under that directory). Exits with status 1 when a
+//! (with `CARGO_TARGET_DIR` set, the ELF is under that directory). `FRAME_BUDGET_DETAIL=1` also
+//! lists the frames over budget and the counts around the worst one. Exits with status 1 when a
 //! program fails or the frame ISR exceeds the budget.
 use anyhow::{bail, ensure, Context, Result};
 use millac_qemu::capture::{run_capture, CaptureSpec, HandlerSpec};
@@ -99,7 +100,8 @@ fn main() -> Result<()> {
             program.to_string()
         };
         let dir = root.join(format!("p{k}"));
-        let counts = run(&elf, &dir, &program, &handlers).with_context(|| format!("program `{name}`"))?;
+        let counts =
+            run(&elf, &dir, &program, &handlers).with_context(|| format!("program `{name}`"))?;
         let (f, p) = (&counts[0], &counts[1]);
         let (fmin, fmed, fmax) = stats(f);
         let (pmin, pmed, pmax) = stats(p);
@@ -109,6 +111,21 @@ fn main() -> Result<()> {
             p.len()
         );
         worst = worst.max(fmax);
+        if std::env::var_os("FRAME_BUDGET_DETAIL").is_some() {
+            // The frames over budget: instruction count, how often, and the counts around the first.
+            let mut over: Vec<(u64, usize)> = Vec::new();
+            for &n in f.iter().filter(|&&n| n > BUDGET) {
+                match over.iter_mut().find(|(m, _)| *m == n) {
+                    Some(o) => o.1 += 1,
+                    None => over.push((n, 1)),
+                }
+            }
+            over.sort_unstable();
+            println!("  over budget (count x times): {over:?}");
+            if let Some(i) = f.iter().position(|&n| n == fmax) {
+                println!("  around the max: {:?}", &f[i.saturating_sub(4)..(i + 4).min(f.len())]);
+            }
+        }
     }
     let _ = std::fs::remove_dir_all(&root);
     println!("frame ISR worst case: {worst} instructions (budget {BUDGET})");

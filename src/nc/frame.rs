@@ -171,7 +171,8 @@ impl Frame {
             Mode::Linear => {
                 if self.feed(feed_cap) {
                     let steps = self.linear();
-                    if self.count[0] | self.count[1] | self.count[2] == 0 {
+                    // q commands give exactly |d_k| overflows per axis (see `linear`).
+                    if self.remaining == 0 {
                         self.done(src);
                     }
                     steps
@@ -387,21 +388,21 @@ impl Frame {
         }
     }
 
-    /// Linear DDA cycle: r_k += |d_k|; overflow past q gives a pulse while the counter is non-zero.
+    /// Linear DDA cycle: r_k += |d_k|; an overflow past q gives a pulse. With r_k starting at
+    /// floor(q / 2) and |d_k| <= q = L, after n commands axis k has had floor((q / 2 + n |d_k|) / q)
+    /// pulses: never more than |d_k| before the q-th command and exactly |d_k| after it, so the
+    /// block ends after q commands and needs no per-axis counters.
     #[inline]
     fn linear(&mut self) -> u8 {
         let mut steps = 0u8;
         let q = self.q;
         for k in 0..3 {
-            if self.count[k] != 0 {
-                let r = self.acc[k].wrapping_add(self.reg[k]);
-                if r >= q {
-                    self.acc[k] = r - q;
-                    self.count[k] -= 1;
-                    steps |= 1 << k;
-                } else {
-                    self.acc[k] = r;
-                }
+            let r = self.acc[k].wrapping_add(self.reg[k]);
+            if r >= q {
+                self.acc[k] = r - q;
+                steps |= 1 << k;
+            } else {
+                self.acc[k] = r;
             }
         }
         steps
