@@ -123,7 +123,10 @@ fn main() -> Result<()> {
             over.sort_unstable();
             println!("  over budget (count x times): {over:?}");
             if let Some(i) = f.iter().position(|&n| n == fmax) {
-                println!("  around the max: {:?}", &f[i.saturating_sub(4)..(i + 4).min(f.len())]);
+                println!(
+                    "  around the max: {:?}",
+                    &f[i.saturating_sub(4)..(i + 4).min(f.len())]
+                );
             }
         }
     }
