@@ -2,7 +2,7 @@
 //! frame (position, blocks done, idle) and reads the feed cap; the idle loop (loader) reads the
 //! status; the adaptive-control task (later) writes the feed cap. Relaxed atomics are enough: one
 //! core, and every word is meaningful on its own.
-use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32};
+use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicU8};
 
 /// Feed number cap from the adaptive controller; `u32::MAX` = no cap. Read by the frame ISR.
 pub static FEED_CAP: AtomicU32 = AtomicU32::new(u32::MAX);
@@ -17,3 +17,8 @@ pub static BLOCKS_DONE: AtomicU32 = AtomicU32::new(0);
 /// pins (the frame that published it emitted none, and an earlier pulse ended before it ran).
 /// Written by the frame ISR.
 pub static IDLE: AtomicBool = AtomicBool::new(true);
+
+/// Signs of the pulses computed by the last frame, for the pulse-end ISR to write once the current
+/// pulse has ended. Written by the frame ISR, read by the pulse-end ISR; both run at the same
+/// priority, so a plain atomic (no RTIC shared resource, no BASEPRI lock) is enough.
+pub static NEXT_SIGNS: AtomicU8 = AtomicU8::new(0);

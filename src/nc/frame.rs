@@ -161,13 +161,17 @@ impl Frame {
         }
         let steps = match self.mode {
             Mode::Idle => 0,
+            // A rapid (or arc) ends in the frame after its last pulses: that frame only pops it,
+            // so the frame with the last ladder (or DDA) cycle does no end-of-block work.
             Mode::Rapid => {
-                let steps = self.ptp();
                 if self.count[0] | self.count[1] | self.count[2] == 0 {
                     self.done(src);
+                    0
+                } else {
+                    self.ptp()
                 }
-                steps
             }
+            // A line ends in the frame of its last command (its duration is q commands).
             Mode::Linear => {
                 if self.feed(feed_cap) {
                     let steps = self.linear();
@@ -192,11 +196,7 @@ impl Frame {
                     }
                     0
                 } else if self.feed(feed_cap) {
-                    let steps = self.circular();
-                    if self.ca | self.cb == 0 && self.seg.wrapping_add(1) >= self.n_seg {
-                        self.done(src);
-                    }
-                    steps
+                    self.circular()
                 } else {
                     0
                 }

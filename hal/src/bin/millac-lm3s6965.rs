@@ -88,7 +88,7 @@ mod app {
     use millac::nc::{Block, BlockSource, Frame, FrameConfig, Pulses, Rate};
     use millac::Settings;
     use millac_hal::lm3s6965::Lm3s6965;
-    use millac_hal::status::{BLOCKS_DONE, FEED_CAP, IDLE, POSITION};
+    use millac_hal::status::{BLOCKS_DONE, FEED_CAP, IDLE, NEXT_SIGNS, POSITION};
     use millac_hal::{clocks_for_hz, clocks_for_ns, Board};
 
     use super::{exit, fail, Out};
@@ -101,13 +101,10 @@ mod app {
     /// Semihosting read size.
     const CHUNK: usize = 256;
 
+    /// Nothing shared through RTIC: a task with shared resources saves and restores BASEPRI on
+    /// every run. The frame and pulse-end ISRs share the next signs through `NEXT_SIGNS`.
     #[shared]
-    struct Shared {
-        /// Signs of the next pulses, for the pulse-end ISR to write after the current pulse.
-        /// Both users run at the same priority: no lock.
-        #[lock_free]
-        next_signs: u8,
-    }
+    struct Shared {}
 
     /// Frame timer reload values for the two rates.
     pub struct Reloads {
@@ -142,7 +139,7 @@ mod app {
         B::init(reloads.feed, pulse);
 
         (
-            Shared { next_signs: 0 },
+            Shared {},
             Local {
                 frame: Frame::new(FrameConfig::from_settings(&settings)),
                 consumer,
@@ -157,7 +154,7 @@ mod app {
 
     /// The frame ISR: highest priority (3). No locks, logging, allocation or panics.
     #[task(binds = TIMER_0A, priority = 3,
-           local = [frame, consumer, pending, rate, reloads], shared = [next_signs])]
+           local = [frame, consumer, pending, rate, reloads])]
     fn frame(cx: frame::Context) {
         B::frame_ack();
         let pending = *cx.local.pending;
@@ -167,21 +164,13 @@ mod app {
         }
 
         let frame = cx.local.frame;
+        let was_idle = frame.idle();
         let p = frame.tick(&mut Source(cx.local.consumer), FEED_CAP.load(Relaxed));
-
-        let rate = frame.rate();
-        if rate != *cx.local.rate {
-            *cx.local.rate = rate;
-            B::frame_set_reload(match rate {
-                Rate::Feed => cx.local.reloads.feed,
-                Rate::Rapid => cx.local.reloads.rapid,
-            });
-        }
 
         if pending.steps == 0 {
             B::write_signs(p.signs);
         } else {
-            *cx.shared.next_signs = p.signs;
+            NEXT_SIGNS.store(p.signs, Relaxed);
         }
         *cx.local.pending = p;
 
@@ -191,8 +180,24 @@ mod app {
             POSITION[1].store(y, Relaxed);
             POSITION[2].store(z, Relaxed);
         }
-        BLOCKS_DONE.store(frame.blocks_done(), Relaxed);
-        IDLE.store(frame.idle() && p.steps == 0 && pending.steps == 0, Relaxed);
+
+        // The rate, the blocks done and the idle flag change only when a block is loaded or done.
+        // They are published by the frames that start idle (the frame after a block's end runs
+        // idle and loads the next block): one frame late after a block's end, never in a frame
+        // that works on a block. IDLE is stored false by the frame that loads a block.
+        if was_idle {
+            let idle = frame.idle();
+            let rate = frame.rate();
+            if rate != *cx.local.rate {
+                *cx.local.rate = rate;
+                B::frame_set_reload(match rate {
+                    Rate::Feed => cx.local.reloads.feed,
+                    Rate::Rapid => cx.local.reloads.rapid,
+                });
+            }
+            BLOCKS_DONE.store(frame.blocks_done(), Relaxed);
+            IDLE.store(idle && p.steps == 0 && pending.steps == 0, Relaxed);
+        }
     }
 
     /// The block queue as the frame's Initiator sees it: the running block stays at the front
@@ -212,11 +217,11 @@ mod app {
     }
 
     /// The pulse-end ISR: same priority as the frame, so it runs after the frame has finished.
-    #[task(binds = TIMER_1A, priority = 3, shared = [next_signs])]
-    fn pulse_end(cx: pulse_end::Context) {
+    #[task(binds = TIMER_1A, priority = 3)]
+    fn pulse_end(_: pulse_end::Context) {
         B::pulse_ack();
         B::write_steps(0);
-        B::write_signs(*cx.shared.next_signs);
+        B::write_signs(NEXT_SIGNS.load(Relaxed));
     }
 
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
