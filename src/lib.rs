@@ -2,6 +2,7 @@
 //! Tlusty, Koren and McNeil's HP 2100A die-sinking system. no_std, no chip dependencies; host-tested.
 #![cfg_attr(not(test), no_std)]
 
+pub mod ac;
 pub mod gcode;
 pub mod nc;
 pub mod settings;

@@ -1,0 +1,166 @@
+//! DRR, the Data Reading Routine: raw 12-bit ADC codes [T, Fu, Fv] -> N*m and N, the window of one
+//! AC period (latest and peak sample) and the plausibility checks of every sample (code range,
+//! stuck at a rail, implausible jump). Called from the AC task: `sample` at the sample rate,
+//! `take` once per AC period.
+//!
+//! The paper's DRR overwrote its memory cells with every conversion, so the ECR saw the latest
+//! sample. The cutter breaks at the peak, so this DRR keeps both per window: the latest sample and
+//! the peaks (largest F = sqrt(Fu^2 + Fv^2) over the samples, computed per sample so that the peak
+//! is a force that really occurred; largest |T|). [`Pick`] chooses which one the ECR uses.
+//! T is taken as a magnitude (|T|): the spindle may turn either way; the paper's T is a magnitude.
+
+use super::ecr;
+use super::settings::{AcSettings, Calibration, Pick};
+
+/// Largest code of a 12-bit ADC (the upper rail).
+pub const CODE_MAX: u16 = 4095;
+
+/// One ADC channel, in the order of the codes handed to `sample`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sensor {
+    Torque,
+    ForceU,
+    ForceV,
+}
+
+impl Sensor {
+    pub const ALL: [Sensor; 3] = [Sensor::Torque, Sensor::ForceU, Sensor::ForceV];
+
+    pub const fn name(self) -> &'static str {
+        match self {
+            Sensor::Torque => "T",
+            Sensor::ForceU => "Fu",
+            Sensor::ForceV => "Fv",
+        }
+    }
+}
+
+/// A sample that cannot be a measurement.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SensorFault {
+    /// The code was at a rail (0 or 4095) for the settable number of consecutive samples.
+    Stuck { sensor: Sensor, code: u16 },
+    /// The code moved more than the settable plausible jump since the previous sample.
+    Jump { sensor: Sensor, from: u16, to: u16 },
+    /// A code above 4095: not a 12-bit conversion.
+    Range { sensor: Sensor, code: u16 },
+}
+
+/// What the ECR gets from one window: the resultant force F (N) and the torque magnitude (N*m).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measured {
+    pub f_n: f32,
+    pub t_nm: f32,
+}
+
+/// The DRR state: calibration, the running fault detectors and the current window.
+#[derive(Clone, Debug)]
+pub struct Drr {
+    cal: [Calibration; 3],
+    stuck_samples: u32,
+    jump_codes: u16,
+    /// Previous in-range codes (for the jump check); None before the first sample.
+    prev: Option<[u16; 3]>,
+    /// Consecutive samples at a rail, per channel.
+    at_rail: [u32; 3],
+    /// Samples accepted into the current window.
+    count: u32,
+    latest: Measured,
+    peak: Measured,
+}
+
+impl Drr {
+    pub fn new(s: &AcSettings) -> Self {
+        Drr {
+            cal: s.cal,
+            stuck_samples: s.stuck_samples,
+            jump_codes: s.jump_codes,
+            prev: None,
+            at_rail: [0; 3],
+            count: 0,
+            latest: Measured {
+                f_n: 0.0,
+                t_nm: 0.0,
+            },
+            peak: Measured {
+                f_n: 0.0,
+                t_nm: 0.0,
+            },
+        }
+    }
+
+    /// Engineering values of one set of codes: [T, Fu, Fv] -> (T in N*m, Fu in N, Fv in N).
+    pub fn convert(&self, codes: [u16; 3]) -> (f32, f32, f32) {
+        let [ct, cu, cv] = self.cal;
+        let [t, u, v] = codes;
+        (ct.value(t), cu.value(u), cv.value(v))
+    }
+
+    /// One conversion of the three ADCs. A faulty sample is reported and kept out of the window.
+    /// Checks, per channel in the order T, Fu, Fv: range, then stuck at a rail, then jump.
+    pub fn sample(&mut self, codes: [u16; 3]) -> Result<(), SensorFault> {
+        let mut fault = None;
+        for (k, (&code, &sensor)) in codes.iter().zip(Sensor::ALL.iter()).enumerate() {
+            if code > CODE_MAX {
+                fault = fault.or(Some(SensorFault::Range { sensor, code }));
+                continue;
+            }
+            if let Some(run) = self.at_rail.get_mut(k) {
+                *run = if code == 0 || code == CODE_MAX {
+                    run.saturating_add(1)
+                } else {
+                    0
+                };
+                if self.stuck_samples > 0 && *run >= self.stuck_samples {
+                    fault = fault.or(Some(SensorFault::Stuck { sensor, code }));
+                }
+            }
+            if let Some(prev) = self.prev.as_ref().and_then(|p| p.get(k)).copied() {
+                if prev.abs_diff(code) > self.jump_codes {
+                    fault = fault.or(Some(SensorFault::Jump {
+                        sensor,
+                        from: prev,
+                        to: code,
+                    }));
+                }
+            }
+        }
+        if codes.iter().all(|&c| c <= CODE_MAX) {
+            self.prev = Some(codes);
+        }
+        if let Some(f) = fault {
+            return Err(f);
+        }
+        let (t, fu, fv) = self.convert(codes);
+        let m = Measured {
+            f_n: ecr::force(fu, fv),
+            t_nm: t.abs(),
+        };
+        if self.count == 0 {
+            self.peak = m;
+        } else {
+            self.peak.f_n = self.peak.f_n.max(m.f_n);
+            self.peak.t_nm = self.peak.t_nm.max(m.t_nm);
+        }
+        self.latest = m;
+        self.count = self.count.saturating_add(1);
+        Ok(())
+    }
+
+    /// Samples accepted into the current window so far.
+    pub fn count(&self) -> u32 {
+        self.count
+    }
+
+    /// Ends the window: the picked measurement, or None when no sample arrived in it.
+    pub fn take(&mut self, pick: Pick) -> Option<Measured> {
+        if self.count == 0 {
+            return None;
+        }
+        self.count = 0;
+        Some(match pick {
+            Pick::Peak => self.peak,
+            Pick::Latest => self.latest,
+        })
+    }
+}

@@ -1,0 +1,232 @@
+//! The AC program of the paper (adaptive control by constraint): DRR (ADC codes -> N, N*m),
+//! ECR (errors), FRC (feed strategy), plus what the paper left out: overload hold and sensor-fault
+//! hold with alarms. [`AcController`] runs in the AC task: `sample` at the sample rate (1 kHz),
+//! `period` every AC period (10 ms), `resume` on the operator's command.
+//!
+//! The controller only writes a feed cap (a feed number) for the frame, which takes
+//! min(programmed, cap); 0 holds the feed. A hold never loses position: the frame keeps its
+//! counters and simply stops feeding.
+//!
+//! Arithmetic is f32 (IEEE basic operations and the correctly rounded `libm::sqrtf` only), the
+//! same code and types on the host and the target, so results are the same bits on both.
+
+pub mod drr;
+pub mod ecr;
+pub mod frc;
+pub mod settings;
+#[cfg(test)]
+mod tests;
+
+pub use drr::{Drr, Measured, Sensor, SensorFault, CODE_MAX};
+pub use ecr::Errors;
+pub use settings::{AcSettings, AcSettingsError, Calibration, Pick};
+
+/// Why the controller holds the feed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Alarm {
+    /// The critical error fell below the overload limit: the measured force and torque, the
+    /// optimal values F0, T0, the permissible limits and the critical error.
+    Overload {
+        f_n: f32,
+        t_nm: f32,
+        f0_n: f32,
+        t0_nm: f32,
+        force_limit_n: f32,
+        torque_limit_nm: f32,
+        e: f32,
+    },
+    /// A sensor sample failed a plausibility check.
+    Sensor(SensorFault),
+    /// No sample arrived (or none passed the checks) during an AC period.
+    NoSamples,
+}
+
+impl Alarm {
+    /// A short fixed text per kind of alarm.
+    pub const fn message(&self) -> &'static str {
+        match self {
+            Alarm::Overload { .. } => "overload: cutting force or torque above the overload limit",
+            Alarm::Sensor(SensorFault::Stuck { .. }) => "sensor stuck at an ADC rail",
+            Alarm::Sensor(SensorFault::Jump { .. }) => "sensor jump larger than plausible",
+            Alarm::Sensor(SensorFault::Range { .. }) => "sensor code outside 0..=4095",
+            Alarm::NoSamples => "no fresh sensor samples in an AC period",
+        }
+    }
+}
+
+impl core::fmt::Display for Alarm {
+    fn fmt(&self, w: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Alarm::Overload {
+                f_n,
+                t_nm,
+                f0_n,
+                t0_nm,
+                force_limit_n,
+                torque_limit_nm,
+                e,
+            } => write!(
+                w,
+                "overload hold: F = {f_n:.1} N (F0 {f0_n:.1} N, limit {force_limit_n:.1} N), \
+                 T = {t_nm:.2} N*m (T0 {t0_nm:.2} N*m, limit {torque_limit_nm:.2} N*m), E = {e:.4}"
+            ),
+            Alarm::Sensor(SensorFault::Stuck { sensor, code }) => {
+                write!(w, "sensor hold: {} stuck at code {code}", sensor.name())
+            }
+            Alarm::Sensor(SensorFault::Jump { sensor, from, to }) => {
+                write!(
+                    w,
+                    "sensor hold: {} jumped from code {from} to {to}",
+                    sensor.name()
+                )
+            }
+            Alarm::Sensor(SensorFault::Range { sensor, code }) => {
+                write!(
+                    w,
+                    "sensor hold: {} code {code} outside 0..=4095",
+                    sensor.name()
+                )
+            }
+            Alarm::NoSamples => w.write_str("sensor hold: no fresh samples in an AC period"),
+        }
+    }
+}
+
+/// The controller's state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AcState {
+    /// Adapting the feed (the paper's loop).
+    Run,
+    /// Feed held (cap 0) because of the alarm; leaves only through [`AcController::resume`].
+    Hold(Alarm),
+}
+
+/// What one AC period produces.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AcOutput {
+    /// Feed number for the frame: the FRC's f in Run, 0 in Hold.
+    pub feed_cap: u32,
+    pub state: AcState,
+    /// The critical error of this period (the last one computed if no sample arrived).
+    pub e: f32,
+    /// Measured resultant force in N (picked from the window).
+    pub f_n: f32,
+    /// Measured torque magnitude in N*m (picked from the window).
+    pub t_nm: f32,
+    /// The alarm raised in this period (Some only in the period that enters Hold).
+    pub alarm: Option<Alarm>,
+}
+
+/// The AC program: DRR, ECR, FRC and the holds.
+#[derive(Clone, Debug)]
+pub struct AcController {
+    s: AcSettings,
+    f0_n: f32,
+    t0_nm: f32,
+    step: f32,
+    drr: Drr,
+    /// The FRC's feed number, always in [f_min, f_max].
+    f: u32,
+    state: AcState,
+    /// First sensor fault seen since the last period.
+    pending: Option<SensorFault>,
+    e: f32,
+    f_n: f32,
+    t_nm: f32,
+}
+
+impl AcController {
+    /// A controller in Run at f = f_min, or the reason the settings are refused.
+    pub fn new(s: AcSettings) -> Result<Self, AcSettingsError> {
+        s.validate()?;
+        Ok(AcController {
+            f0_n: s.f0_n(),
+            t0_nm: s.t0_nm(),
+            step: s.step_per_period(),
+            drr: Drr::new(&s),
+            f: s.f_min,
+            state: AcState::Run,
+            pending: None,
+            e: 1.0,
+            f_n: 0.0,
+            t_nm: 0.0,
+            s,
+        })
+    }
+
+    pub fn settings(&self) -> &AcSettings {
+        &self.s
+    }
+
+    pub fn state(&self) -> AcState {
+        self.state
+    }
+
+    /// The feed cap the frame should read now: f in Run, 0 in Hold.
+    pub fn feed_cap(&self) -> u32 {
+        match self.state {
+            AcState::Run => self.f,
+            AcState::Hold(_) => 0,
+        }
+    }
+
+    /// One conversion [T, Fu, Fv] (12-bit codes), at the sample rate. A faulty sample is kept
+    /// out of the window and holds the feed at the next `period` (within one AC period).
+    pub fn sample(&mut self, codes: [u16; 3]) {
+        if let Err(fault) = self.drr.sample(codes) {
+            self.pending = self.pending.or(Some(fault));
+        }
+    }
+
+    /// One AC period: ends the DRR window, runs ECR and FRC (or holds), returns the feed cap.
+    pub fn period(&mut self) -> AcOutput {
+        let measured = self.drr.take(self.s.pick);
+        if let Some(m) = measured {
+            let err = ecr::errors(m.f_n, m.t_nm, self.f0_n, self.t0_nm);
+            self.e = err.e;
+            self.f_n = m.f_n;
+            self.t_nm = m.t_nm;
+        }
+        let pending = self.pending.take();
+        let mut alarm = None;
+        if self.state == AcState::Run {
+            alarm = match (pending, measured) {
+                (Some(fault), _) => Some(Alarm::Sensor(fault)),
+                (None, None) => Some(Alarm::NoSamples),
+                (None, Some(m)) if self.e < self.s.overload_e => Some(Alarm::Overload {
+                    f_n: m.f_n,
+                    t_nm: m.t_nm,
+                    f0_n: self.f0_n,
+                    t0_nm: self.t0_nm,
+                    force_limit_n: self.s.force_limit_n,
+                    torque_limit_nm: self.s.torque_limit_nm,
+                    e: self.e,
+                }),
+                (None, Some(_)) => {
+                    self.f = frc::next_feed(self.f, self.e, self.step, self.s.f_min, self.s.f_max);
+                    None
+                }
+            };
+            if let Some(a) = alarm {
+                self.state = AcState::Hold(a);
+            }
+        }
+        AcOutput {
+            feed_cap: self.feed_cap(),
+            state: self.state,
+            e: self.e,
+            f_n: self.f_n,
+            t_nm: self.t_nm,
+            alarm,
+        }
+    }
+
+    /// The operator's resume: leaves Hold and restarts the FRC from f_min. A fault or overload
+    /// that persists holds again at the next period. No effect in Run.
+    pub fn resume(&mut self) {
+        if let AcState::Hold(_) = self.state {
+            self.state = AcState::Run;
+            self.f = self.s.f_min;
+        }
+    }
+}

@@ -1,0 +1,219 @@
+//! Settings of the adaptive controller (ADC calibration, window pick, permissible limits and the
+//! optimal fraction, FRC limits, overload and sensor-fault thresholds) and their validation. Read by
+//! the host tool and, once validated by [`super::AcController::new`], by the AC task.
+//!
+//! Units: forces in N, torques in N*m, feeds in *feed numbers* (the frame's `f`; at the paper's
+//! defaults W0 = 5 kHz, q0 = 3000, BLU = 0.0001 in, one feed number is 0.01 ipm, f = 100 x FR).
+
+/// Calibration of one ADC channel: `value = gain * (code - offset)`.
+///
+/// `offset` is the code read at zero load (mid-scale 2048 for the bipolar amplifiers of the
+/// defaults, so that both rails 0 and 4095 are far from any normal reading), `gain` the
+/// engineering units per code (N/code or N*m/code; negative for an inverted sensor).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Calibration {
+    pub gain: f32,
+    pub offset: f32,
+}
+
+impl Calibration {
+    /// Engineering value of a code. Finite for every code once the settings are validated.
+    #[inline]
+    pub fn value(&self, code: u16) -> f32 {
+        self.gain * (code as f32 - self.offset)
+    }
+}
+
+/// Which sample of a window the ECR sees.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pick {
+    /// The largest F (F = sqrt(Fu^2 + Fv^2) per sample) and the largest |T| in the window: the
+    /// cutter breaks at the peak, not at the last sample. Default.
+    Peak,
+    /// The latest sample of the window, as the paper's DRR (which overwrote its memory cells).
+    Latest,
+}
+
+/// All settings of the AC program. `AcSettings::default()` gives the paper's numbers where the
+/// paper has them (10 ms period, fdot_m = 750 ipm/s, F0/T0 = 90 % of the permissible limits,
+/// feeds up to FRM = 30 ipm) and plausible values for the rest (calibration, limits).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AcSettings {
+    /// Rate at which `sample` is called, in Hz. Default 1000.
+    pub sample_hz: u32,
+    /// AC period (the paper's dt) in ms: `period` is called this often. Default 10.
+    pub period_ms: u32,
+    /// Calibration of the channels in the order of the codes: [T, Fu, Fv].
+    pub cal: [Calibration; 3],
+    /// Which sample of a window the ECR uses. Default [`Pick::Peak`].
+    pub pick: Pick,
+    /// Permissible cutting force in N (tool strength). F0 = `optimal_fraction` x this.
+    pub force_limit_n: f32,
+    /// Permissible spindle torque in N*m (drive). T0 = `optimal_fraction` x this.
+    pub torque_limit_nm: f32,
+    /// F0 / force limit and T0 / torque limit. Paper: "around 90 percent". Default 0.9.
+    pub optimal_fraction: f32,
+    /// fdot_m, the largest feed acceleration, in feed numbers per second.
+    /// Paper: 750 ipm/s = 75_000 at the default feed number scale.
+    pub fdot_m: u32,
+    /// Lowest feed the FRC commands (and the feed after `resume`), feed number. Default 100 = 1 ipm.
+    pub f_min: u32,
+    /// Highest feed the FRC commands, feed number. Default 3000 = 30 ipm = FRM.
+    /// May exceed the programmed feed: the frame takes min(programmed, cap).
+    pub f_max: u32,
+    /// Overload limit on the critical error: E below it holds the feed at once (feed cap 0).
+    /// The paper assumes E > -0.1; default -0.1, i.e. F > 1.1 F0 = 99 % of the permissible force.
+    pub overload_e: f32,
+    /// A code at a rail (0 or 4095) this many consecutive samples is a stuck sensor. 0 = off.
+    /// Default 20 (20 ms at 1 kHz).
+    pub stuck_samples: u32,
+    /// Largest plausible change of a code between consecutive samples. 4095 = off. Default 1500.
+    pub jump_codes: u16,
+}
+
+impl Default for AcSettings {
+    fn default() -> Self {
+        AcSettings {
+            sample_hz: 1000,
+            period_ms: 10,
+            cal: [
+                // T: +-102.4 N*m full scale.
+                Calibration {
+                    gain: 0.05,
+                    offset: 2048.0,
+                },
+                // Fu, Fv: +-5120 N full scale.
+                Calibration {
+                    gain: 2.5,
+                    offset: 2048.0,
+                },
+                Calibration {
+                    gain: 2.5,
+                    offset: 2048.0,
+                },
+            ],
+            pick: Pick::Peak,
+            force_limit_n: 4000.0,
+            torque_limit_nm: 80.0,
+            optimal_fraction: 0.9,
+            fdot_m: 75_000,
+            f_min: 100,
+            f_max: 3000,
+            overload_e: -0.1,
+            stuck_samples: 20,
+            jump_codes: 1500,
+        }
+    }
+}
+
+/// Why a set of AC settings was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AcSettingsError {
+    SampleRate,
+    Period,
+    SamplesPerPeriod,
+    Calibration,
+    Limits,
+    OptimalFraction,
+    FdotM,
+    FeedRange,
+    OverloadLimit,
+    StuckSamples,
+    JumpCodes,
+}
+
+impl AcSettingsError {
+    pub const fn message(self) -> &'static str {
+        match self {
+            AcSettingsError::SampleRate => "AC sample rate must be 100..=100000 Hz",
+            AcSettingsError::Period => "AC period must be 1..=1000 ms",
+            AcSettingsError::SamplesPerPeriod => "at least one sample must arrive per AC period",
+            AcSettingsError::Calibration => {
+                "calibration gains must be finite, non-zero and |gain| <= 1e4; offsets 0..=4095"
+            }
+            AcSettingsError::Limits => "force and torque limits must be finite, > 0 and <= 1e7",
+            AcSettingsError::OptimalFraction => "optimal fraction (F0/Fmax, T0/Tmax) must be in (0, 1]",
+            AcSettingsError::FdotM => {
+                "fdot_m must be 1..=10000000 feed numbers/s and give at least one feed number per period"
+            }
+            AcSettingsError::FeedRange => "feed limits must satisfy 1 <= f_min <= f_max <= 1000000",
+            AcSettingsError::OverloadLimit => "overload limit on E must be in [-1, 0)",
+            AcSettingsError::StuckSamples => "stuck-sensor count must be 0 (off) ..=1000000 samples",
+            AcSettingsError::JumpCodes => "plausible jump must be 1..=4095 codes",
+        }
+    }
+}
+
+impl core::fmt::Display for AcSettingsError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.message())
+    }
+}
+
+impl AcSettings {
+    /// Checks every setting. After this, every computation of the controller is finite (no NaN,
+    /// no infinity, no division by zero) for every input code, so the AC task does no checks of
+    /// its own.
+    pub fn validate(&self) -> Result<(), AcSettingsError> {
+        if !(100..=100_000).contains(&self.sample_hz) {
+            return Err(AcSettingsError::SampleRate);
+        }
+        if !(1..=1000).contains(&self.period_ms) {
+            return Err(AcSettingsError::Period);
+        }
+        if (self.sample_hz as u64) * (self.period_ms as u64) < 1000 {
+            return Err(AcSettingsError::SamplesPerPeriod);
+        }
+        for c in &self.cal {
+            let g_ok = c.gain.is_finite() && c.gain != 0.0 && c.gain.abs() <= 1e4;
+            let o_ok = c.offset.is_finite() && (0.0..=4095.0).contains(&c.offset);
+            if !(g_ok && o_ok) {
+                return Err(AcSettingsError::Calibration);
+            }
+        }
+        for l in [self.force_limit_n, self.torque_limit_nm] {
+            if !(l.is_finite() && l > 0.0 && l <= 1e7) {
+                return Err(AcSettingsError::Limits);
+            }
+        }
+        let r = self.optimal_fraction;
+        if !(r.is_finite() && r > 0.0 && r <= 1.0) {
+            return Err(AcSettingsError::OptimalFraction);
+        }
+        if !(1..=10_000_000).contains(&self.fdot_m)
+            || (self.fdot_m as u64) * (self.period_ms as u64) < 1000
+        {
+            return Err(AcSettingsError::FdotM);
+        }
+        if !(1 <= self.f_min && self.f_min <= self.f_max && self.f_max <= 1_000_000) {
+            return Err(AcSettingsError::FeedRange);
+        }
+        let o = self.overload_e;
+        if !(o.is_finite() && (-1.0..0.0).contains(&o)) {
+            return Err(AcSettingsError::OverloadLimit);
+        }
+        if self.stuck_samples > 1_000_000 {
+            return Err(AcSettingsError::StuckSamples);
+        }
+        if !(1..=4095).contains(&self.jump_codes) {
+            return Err(AcSettingsError::JumpCodes);
+        }
+        Ok(())
+    }
+
+    /// F0, the optimal force in N.
+    pub fn f0_n(&self) -> f32 {
+        self.optimal_fraction * self.force_limit_n
+    }
+
+    /// T0, the optimal torque in N*m.
+    pub fn t0_nm(&self) -> f32 {
+        self.optimal_fraction * self.torque_limit_nm
+    }
+
+    /// fdot_m x dt: the largest feed change of one AC period, in feed numbers (750 at defaults).
+    /// The product is formed in u64 and converted once, so host and target get the same f32.
+    pub fn step_per_period(&self) -> f32 {
+        ((self.fdot_m as u64 * self.period_ms as u64) as f32) / 1000.0
+    }
+}

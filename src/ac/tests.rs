@@ -1,0 +1,607 @@
+//! Host tests of the AC program (host tests): the FRC curve of Fig. 7 point by point, the feed
+//! update, clamps and dead zone, DRR calibration and window pick, ECR, overload and sensor holds
+//! with resume, settings validation, and the closed loop on a toy static process F = k * f.
+use super::frc::{dead_zone, fdot, next_feed};
+use super::*;
+use proptest::prelude::*;
+
+const MID: u16 = 2048;
+
+fn ctl(s: AcSettings) -> AcController {
+    AcController::new(s).expect("valid settings")
+}
+
+/// Codes for a torque (N*m) and force components (N) under the default calibration.
+fn codes(t_nm: f32, fu_n: f32, fv_n: f32) -> [u16; 3] {
+    let s = AcSettings::default();
+    let c = |v: f32, cal: Calibration| (cal.offset + v / cal.gain).round() as u16;
+    [c(t_nm, s.cal[0]), c(fu_n, s.cal[1]), c(fv_n, s.cal[2])]
+}
+
+/// Ten samples (one default window) of the same codes, then one period.
+fn window(c: &mut AcController, k: [u16; 3]) -> AcOutput {
+    for _ in 0..10 {
+        c.sample(k);
+    }
+    c.period()
+}
+
+// ---------------------------------------------------------------- FRC (Fig. 7, Eq. 6-8)
+
+#[test]
+fn fig7_named_points() {
+    assert_eq!(fdot(0.5, 750.0), 187.5);
+    assert_eq!(fdot(-0.05, 750.0), -187.5);
+    assert_eq!(fdot(1.0, 750.0), 750.0);
+    assert_eq!(fdot(-0.1, 750.0), -750.0);
+    assert_eq!(fdot(0.0, 750.0), 0.0);
+    assert_eq!(fdot(0.25, 750.0), 46.875);
+}
+
+#[test]
+fn fig7_curve_point_by_point() {
+    // E from -0.1 to 1 in steps of 0.001 against Eq. 6 and Eq. 7 evaluated in f64.
+    for i in -100..=1000 {
+        let e = i as f32 / 1000.0;
+        let ed = e as f64;
+        let want = if ed >= 0.0 {
+            750.0 * ed * ed
+        } else {
+            -750.0 * (10.0 * ed) * (10.0 * ed)
+        };
+        let got = fdot(e, 750.0) as f64;
+        assert!(
+            (got - want).abs() <= 1e-6 * want.abs().max(1.0),
+            "E = {e}: {got} vs {want}"
+        );
+        // The curve is monotonic in E and continuous at 0.
+        assert!(fdot(e, 750.0) <= fdot(e + 0.001, 750.0));
+    }
+}
+
+#[test]
+fn one_period_changes_f_by_fdot_dt() {
+    // fdot in ipm/s * 0.01 s * 100 feed numbers per ipm, truncated toward zero.
+    let s = AcSettings::default();
+    let step = s.step_per_period();
+    assert_eq!(step, 750.0);
+    for (e, d) in [
+        (0.5f32, 187i64),
+        (0.25, 46),
+        (0.75, 421),
+        (1.0, 750),
+        (-0.0625, -292),
+    ] {
+        assert_eq!(
+            next_feed(1500, e, step, 1, 1_000_000) as i64 - 1500,
+            d,
+            "E = {e}"
+        );
+    }
+    for i in -100..=1000 {
+        let e = i as f32 / 1000.0;
+        let d = next_feed(2000, e, step, 1, 1_000_000) as i64 - 2000;
+        let exact = fdot(e, 750.0) as f64 * 0.01 * 100.0;
+        assert!(
+            (d as f64 - exact).abs() < 1.0 && (d as f64).abs() <= exact.abs(),
+            "E = {e}"
+        );
+    }
+}
+
+#[test]
+fn clamps_at_f_min_and_f_max() {
+    assert_eq!(next_feed(2900, 1.0, 750.0, 100, 3000), 3000);
+    assert_eq!(next_feed(3000, 0.5, 750.0, 100, 3000), 3000);
+    assert_eq!(next_feed(300, -0.1, 750.0, 100, 3000), 100);
+    assert_eq!(next_feed(100, -0.09, 750.0, 100, 3000), 100);
+    // Far beyond the paper's range of E the change saturates instead of wrapping.
+    assert_eq!(next_feed(2000, -1.0e6, 750.0, 100, 3000), 100);
+    assert_eq!(next_feed(2000, f32::NAN, 750.0, 100, 3000), 2000);
+}
+
+#[test]
+fn dead_zone_leaves_f_unchanged() {
+    let (lo, hi) = dead_zone(750.0);
+    assert!((hi - 0.036_515).abs() < 1e-5 && (lo + 0.003_651_5).abs() < 1e-6);
+    for i in 1..=360 {
+        let e = i as f32 / 10_000.0; // 0.0001 ..= 0.036
+        assert_eq!(next_feed(1000, e, 750.0, 1, 3000), 1000, "E = {e}");
+        let e = -(i as f32) / 100_000.0; // -0.00001 ..= -0.0036
+        assert_eq!(next_feed(1000, e, 750.0, 1, 3000), 1000, "E = {e}");
+    }
+    assert_eq!(next_feed(1000, 0.037, 750.0, 1, 3000), 1001);
+    assert_eq!(next_feed(1000, -0.0037, 750.0, 1, 3000), 999);
+}
+
+// ---------------------------------------------------------------- DRR
+
+#[test]
+fn drr_calibration_to_engineering_units() {
+    let d = Drr::new(&AcSettings::default());
+    assert_eq!(d.convert([MID; 3]), (0.0, 0.0, 0.0));
+    assert_eq!(
+        d.convert([MID + 200, MID + 400, MID - 300]),
+        (10.0, 1000.0, -750.0)
+    );
+    assert_eq!(d.convert([4095, 0, 4095]), (102.35, -5120.0, 5117.5));
+    let mut s = AcSettings::default();
+    s.cal[1] = Calibration {
+        gain: -4.0,
+        offset: 100.0,
+    };
+    let d = Drr::new(&s);
+    assert_eq!(d.convert([MID, 350, MID]).1, -1000.0);
+}
+
+#[test]
+fn drr_latest_and_peak() {
+    let s = AcSettings::default();
+    let mut d = Drr::new(&s);
+    // F per sample: 1000, 1000 (components swapped), 2000, 500; |T|: 5, 20 (negative), 1, 2.
+    let samples = [
+        codes(5.0, 1000.0, 0.0),
+        codes(-20.0, 0.0, 1000.0),
+        codes(1.0, 1200.0, 1600.0),
+        codes(2.0, 300.0, -400.0),
+    ];
+    for k in samples {
+        d.sample(k).unwrap();
+    }
+    let mut d2 = d.clone();
+    let peak = d.take(Pick::Peak).unwrap();
+    assert_eq!(peak.f_n, 2000.0);
+    assert_eq!(peak.t_nm, 20.0);
+    let latest = d2.take(Pick::Latest).unwrap();
+    assert_eq!(latest.f_n, 500.0);
+    assert_eq!(latest.t_nm, 2.0);
+    // The peak is of F per sample, not of each component: the two quadrature samples of
+    // 1000 N give a peak of 1000 N, not sqrt(2) * 1000.
+    let mut d = Drr::new(&s);
+    d.sample(codes(0.0, 1000.0, 0.0)).unwrap();
+    d.sample(codes(0.0, 0.0, 1000.0)).unwrap();
+    assert_eq!(d.take(Pick::Peak).unwrap().f_n, 1000.0);
+    // The window restarts after take.
+    assert_eq!(d.take(Pick::Peak), None);
+    d.sample(codes(0.0, 400.0, 0.0)).unwrap();
+    assert_eq!(d.take(Pick::Peak).unwrap().f_n, 400.0);
+}
+
+#[test]
+fn pick_setting_reaches_the_ecr() {
+    let mut s = AcSettings::default();
+    let spike = codes(0.0, 3600.0, 0.0); // F0 exactly
+    let base = codes(0.0, 1800.0, 0.0);
+    for (pick, e) in [(Pick::Peak, 0.0f32), (Pick::Latest, 0.5)] {
+        s.pick = pick;
+        let mut c = ctl(s);
+        for k in [base, base, spike, base, base] {
+            c.sample(k);
+        }
+        let out = c.period();
+        assert_eq!(out.e, e, "{pick:?}");
+    }
+}
+
+// ---------------------------------------------------------------- ECR
+
+#[test]
+fn ecr_force_and_smaller_error() {
+    assert_eq!(ecr::force(3.0, -4.0), 5.0);
+    let e = ecr::errors(1800.0, 36.0, 3600.0, 72.0);
+    assert_eq!((e.ef, e.et, e.e), (0.5, 0.5, 0.5));
+    let e = ecr::errors(1800.0, 54.0, 3600.0, 72.0);
+    assert_eq!((e.ef, e.et, e.e), (0.5, 0.25, 0.25));
+    let e = ecr::errors(3780.0, 36.0, 3600.0, 72.0);
+    assert_eq!(e.e, e.ef);
+    assert!(e.e < 0.0);
+    // Through the controller: a torque-limited cut runs on Et.
+    let mut c = ctl(AcSettings::default());
+    let out = window(&mut c, codes(54.0, 1800.0, 0.0));
+    assert_eq!(out.e, 0.25);
+    assert_eq!(out.feed_cap, 100 + 46);
+}
+
+// ---------------------------------------------------------------- holds
+
+fn settle(c: &mut AcController, k: [u16; 3], n: usize) -> AcOutput {
+    let mut out = window(c, k);
+    for _ in 1..n {
+        out = window(c, k);
+    }
+    out
+}
+
+#[test]
+fn overload_holds_within_one_period_and_resume_restarts_at_f_min() {
+    let s = AcSettings::default();
+    let mut c = ctl(s);
+    let air = codes(1.0, 100.0, 0.0);
+    let out = settle(&mut c, air, 10);
+    assert_eq!((out.state, out.feed_cap), (AcState::Run, 3000));
+    // E = -0.05: the strategy decelerates, no hold.
+    let out = window(&mut c, codes(10.0, 3780.0, 0.0));
+    assert_eq!((out.state, out.feed_cap), (AcState::Run, 3000 - 187));
+    // F = 1.2 F0 in a single sample of the window (after a ramp the jump check accepts): held at
+    // the end of this period.
+    for _ in 0..8 {
+        c.sample(air);
+    }
+    c.sample(codes(10.0, 2500.0, 0.0));
+    c.sample(codes(10.0, 4320.0, 0.0));
+    let out = c.period();
+    assert_eq!(out.feed_cap, 0);
+    let Some(
+        a @ Alarm::Overload {
+            f_n,
+            t_nm,
+            f0_n,
+            force_limit_n,
+            ..
+        },
+    ) = out.alarm
+    else {
+        panic!("expected an overload alarm, got {out:?}");
+    };
+    assert_eq!(out.state, AcState::Hold(a));
+    assert_eq!(
+        (f_n, t_nm, f0_n, force_limit_n),
+        (4320.0, 10.0, 3600.0, 4000.0)
+    );
+    let text = format!("{a}");
+    assert!(
+        text.contains("F = 4320.0 N") && text.contains("limit 4000.0 N"),
+        "{text}"
+    );
+    assert!(
+        text.contains("T = 10.00 N*m") && text.contains("T0 72.00"),
+        "{text}"
+    );
+    // Stays held (alarm only reported once) even when the load is gone.
+    for _ in 0..5 {
+        let out = window(&mut c, air);
+        assert_eq!(
+            (out.feed_cap, out.alarm, out.state),
+            (0, None, AcState::Hold(a))
+        );
+    }
+    c.resume();
+    assert_eq!((c.state(), c.feed_cap()), (AcState::Run, 100));
+    let out = window(&mut c, air);
+    // E = 1 - 100/3600 = 0.9722: 750 * E^2 = 708.9 feed numbers.
+    assert_eq!(out.feed_cap, 100 + 708);
+    // Resume while the overload persists: held again at the next period.
+    window(&mut c, codes(0.0, 4320.0, 0.0));
+    c.resume();
+    let out = window(&mut c, codes(0.0, 4320.0, 0.0));
+    assert!(matches!(out.alarm, Some(Alarm::Overload { .. })));
+    assert_eq!(out.feed_cap, 0);
+}
+
+#[test]
+fn torque_overload_holds() {
+    let mut c = ctl(AcSettings::default());
+    let out = window(&mut c, codes(80.0, 0.0, 0.0)); // E = 1 - 80/72 = -0.11
+    assert!(matches!(out.state, AcState::Hold(Alarm::Overload { t_nm, .. }) if t_nm == 80.0));
+}
+
+fn assert_sensor_hold(out: AcOutput, want: SensorFault) {
+    assert_eq!(out.feed_cap, 0, "{out:?}");
+    assert_eq!(out.alarm, Some(Alarm::Sensor(want)));
+    assert_eq!(out.state, AcState::Hold(Alarm::Sensor(want)));
+}
+
+#[test]
+fn stuck_at_rail_holds() {
+    // Limits far above full scale, so that a rail reads as a load but not as an overload.
+    let s = AcSettings {
+        force_limit_n: 1.0e5,
+        torque_limit_nm: 1.0e4,
+        ..AcSettings::default()
+    };
+    for (ch, rail) in [(0usize, 4095u16), (1, 0), (2, 4095)] {
+        let mut c = ctl(s);
+        let ok = window(&mut c, [MID; 3]);
+        assert_eq!(ok.state, AcState::Run);
+        // Ramp to the rail within the plausible jump, then stay there.
+        let mut k = [MID; 3];
+        k[ch] = if rail == 0 { 1000 } else { 3000 };
+        c.sample(k);
+        k[ch] = rail;
+        for _ in 0..s.stuck_samples - 1 {
+            c.sample(k);
+        }
+        let out = c.period();
+        assert_eq!(
+            (out.state, out.alarm),
+            (AcState::Run, None),
+            "one short of the count"
+        );
+        c.sample(k);
+        let sensor = Sensor::ALL[ch];
+        assert_sensor_hold(c.period(), SensorFault::Stuck { sensor, code: rail });
+        // A resume with the sensor still stuck holds again.
+        c.resume();
+        c.sample(k);
+        assert_sensor_hold(c.period(), SensorFault::Stuck { sensor, code: rail });
+    }
+    // 0 switches the check off.
+    let mut c = ctl(AcSettings {
+        stuck_samples: 0,
+        ..s
+    });
+    for _ in 0..100 {
+        c.sample([MID, 1000, MID]);
+        c.sample([MID, 0, MID]);
+    }
+    assert_eq!(c.period().state, AcState::Run);
+}
+
+#[test]
+fn no_fresh_samples_holds() {
+    let mut c = ctl(AcSettings::default());
+    assert_eq!(window(&mut c, [MID; 3]).state, AcState::Run);
+    let out = c.period();
+    assert_eq!((out.feed_cap, out.alarm), (0, Some(Alarm::NoSamples)));
+    assert_eq!(out.state, AcState::Hold(Alarm::NoSamples));
+    // The last measurement is still reported.
+    assert_eq!(out.e, 1.0);
+    c.resume();
+    assert_eq!(window(&mut c, [MID; 3]).feed_cap, 850);
+}
+
+#[test]
+fn implausible_jump_holds() {
+    let s = AcSettings::default();
+    let mut c = ctl(s);
+    c.sample([MID; 3]);
+    c.sample([MID, MID, MID + 1500]); // exactly the limit: plausible
+    assert_eq!(c.period().state, AcState::Run);
+    c.sample([MID, MID, MID + 1500]);
+    c.sample([MID, MID, MID - 1]);
+    let want = SensorFault::Jump {
+        sensor: Sensor::ForceV,
+        from: MID + 1500,
+        to: MID - 1,
+    };
+    assert_sensor_hold(c.period(), want);
+    let text = format!("{}", Alarm::Sensor(want));
+    assert_eq!(text, "sensor hold: Fv jumped from code 3548 to 2047");
+}
+
+#[test]
+fn code_out_of_range_holds() {
+    let mut c = ctl(AcSettings::default());
+    c.sample([MID; 3]);
+    c.sample([4096, MID, MID]);
+    c.sample([MID; 3]);
+    let want = SensorFault::Range {
+        sensor: Sensor::Torque,
+        code: 4096,
+    };
+    assert_sensor_hold(c.period(), want);
+    assert_ne!(Alarm::Sensor(want).message(), Alarm::NoSamples.message());
+}
+
+#[test]
+fn hold_keeps_the_feed_cap_at_zero_until_resume() {
+    let mut c = ctl(AcSettings::default());
+    c.period(); // no samples: hold
+    for _ in 0..20 {
+        assert_eq!(window(&mut c, [MID; 3]).feed_cap, 0);
+        assert_eq!(c.feed_cap(), 0);
+    }
+    c.resume();
+    c.resume(); // idempotent
+    assert_eq!(c.feed_cap(), 100);
+}
+
+// ---------------------------------------------------------------- settings
+
+#[test]
+fn settings_validation() {
+    let d = AcSettings::default();
+    assert_eq!(d.validate(), Ok(()));
+    assert_eq!((d.f0_n(), d.t0_nm()), (3600.0, 72.0));
+    let bad: [(AcSettings, AcSettingsError); 14] = [
+        (
+            AcSettings { sample_hz: 50, ..d },
+            AcSettingsError::SampleRate,
+        ),
+        (AcSettings { period_ms: 0, ..d }, AcSettingsError::Period),
+        (
+            AcSettings {
+                sample_hz: 100,
+                period_ms: 5,
+                ..d
+            },
+            AcSettingsError::SamplesPerPeriod,
+        ),
+        (
+            AcSettings {
+                cal: [Calibration {
+                    gain: f32::NAN,
+                    offset: 2048.0,
+                }; 3],
+                ..d
+            },
+            AcSettingsError::Calibration,
+        ),
+        (
+            AcSettings {
+                cal: [Calibration {
+                    gain: 1.0,
+                    offset: 5000.0,
+                }; 3],
+                ..d
+            },
+            AcSettingsError::Calibration,
+        ),
+        (
+            AcSettings {
+                force_limit_n: 0.0,
+                ..d
+            },
+            AcSettingsError::Limits,
+        ),
+        (
+            AcSettings {
+                torque_limit_nm: f32::INFINITY,
+                ..d
+            },
+            AcSettingsError::Limits,
+        ),
+        (
+            AcSettings {
+                optimal_fraction: 1.1,
+                ..d
+            },
+            AcSettingsError::OptimalFraction,
+        ),
+        (AcSettings { fdot_m: 50, ..d }, AcSettingsError::FdotM),
+        (AcSettings { f_min: 0, ..d }, AcSettingsError::FeedRange),
+        (AcSettings { f_min: 3001, ..d }, AcSettingsError::FeedRange),
+        (
+            AcSettings {
+                overload_e: 0.0,
+                ..d
+            },
+            AcSettingsError::OverloadLimit,
+        ),
+        (
+            AcSettings {
+                stuck_samples: 2_000_000,
+                ..d
+            },
+            AcSettingsError::StuckSamples,
+        ),
+        (
+            AcSettings { jump_codes: 0, ..d },
+            AcSettingsError::JumpCodes,
+        ),
+    ];
+    for (s, e) in bad {
+        assert_eq!(s.validate(), Err(e));
+        assert_eq!(AcController::new(s).err(), Some(e));
+        assert!(!e.message().is_empty());
+        assert_eq!(format!("{e}"), e.message());
+    }
+}
+
+// ---------------------------------------------------------------- closed loop, F = k * f
+
+/// Runs the FRC and ECR on F = k * f (no torque) from `f_start`; returns the force per period.
+fn toy_loop(k: f32, f_start: u32, periods: usize) -> Vec<(u32, f32)> {
+    let s = AcSettings::default();
+    let mut f = f_start;
+    let mut trace = Vec::new();
+    for _ in 0..periods {
+        let force = k * f as f32;
+        let e = ecr::errors(force, 0.0, s.f0_n(), s.t0_nm()).e;
+        trace.push((f, e));
+        f = next_feed(f, e, s.step_per_period(), s.f_min, s.f_max);
+    }
+    trace
+}
+
+/// Settles from below to within 5 % of F0, never above F0, and stays put (no oscillation).
+fn check_settles_from_below(trace: &[(u32, f32)]) {
+    let (lo, hi) = dead_zone(750.0);
+    let first = trace
+        .iter()
+        .position(|&(_, e)| e < hi)
+        .expect("reaches the dead zone");
+    // The parabola approaches like 1/t: about (f*/750) / E_dz = 110 periods for f* = 3000.
+    assert!(first < 200, "settles within 2 s, took {first} periods");
+    let (f_end, e_end) = trace[first];
+    assert!(
+        (0.0..=0.05).contains(&e_end),
+        "within 5 % of F0 from below: E = {e_end}"
+    );
+    for w in trace[..first].windows(2) {
+        assert!(w[1].0 >= w[0].0, "monotonic approach from below");
+    }
+    for &(f, e) in &trace[first..] {
+        assert_eq!(f, f_end, "no motion inside the dead zone");
+        assert!(e > lo && e < hi);
+    }
+    assert!(trace.iter().all(|&(_, e)| e >= 0.0), "never above F0");
+}
+
+#[test]
+fn closed_loop_settles_for_a_few_k() {
+    let f0 = AcSettings::default().f0_n();
+    for f_star in [800.0f32, 1200.0, 2000.0, 2750.0, 2999.0] {
+        let k = f0 / f_star;
+        check_settles_from_below(&toy_loop(k, 100, 400));
+    }
+    // A light cut whose optimum lies above f_max runs at f_max.
+    let trace = toy_loop(f0 / 5000.0, 100, 50);
+    assert_eq!(trace.last().unwrap().0, 3000);
+    // Starting above the optimum (E = -0.05): one decelerating step, then from below.
+    let trace = toy_loop(f0 / 2000.0, 2100, 400);
+    assert!(trace[1].0 < 2000);
+    check_settles_from_below(&trace[1..]);
+}
+
+#[test]
+fn closed_loop_through_the_controller() {
+    // The same toy process through the ADC codes (quantised by 2.5 N) and the whole controller.
+    let s = AcSettings::default();
+    for f_star in [900.0f32, 1500.0, 2500.0] {
+        let k = s.f0_n() / f_star;
+        let mut c = ctl(s);
+        let mut cap = c.feed_cap();
+        let mut caps = Vec::new();
+        for _ in 0..300 {
+            let out = window(&mut c, codes(0.0, k * cap as f32, 0.0));
+            assert_eq!(out.state, AcState::Run);
+            assert!(
+                out.e > -0.001,
+                "measured F at most one code above F0: {out:?}"
+            );
+            cap = out.feed_cap;
+            caps.push(cap);
+        }
+        assert!(
+            caps.windows(2).all(|w| w[1] >= w[0]),
+            "monotonic, no oscillation"
+        );
+        let f_end = *caps.last().unwrap() as f32;
+        assert!(k * f_end >= 0.95 * s.f0_n() && k * f_end <= s.f0_n() + 1.25);
+        assert_eq!(caps[150], caps[299], "settled");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    #[test]
+    fn closed_loop_settles_for_any_k(f_star in 800.0f32..3000.0, f_start in 100u32..700) {
+        let k = AcSettings::default().f0_n() / f_star;
+        check_settles_from_below(&toy_loop(k, f_start, 300));
+    }
+
+    #[test]
+    fn feed_stays_in_limits_for_any_codes(
+        samples in proptest::collection::vec(
+            (0u16..=4095, 0u16..=4095, 0u16..=4095, 0u8..12), 1..60)
+    ) {
+        let s = AcSettings { stuck_samples: 0, jump_codes: 4095, ..AcSettings::default() };
+        let mut c = ctl(s);
+        for (t, u, v, n) in samples {
+            for _ in 0..n {
+                c.sample([t, u, v]);
+            }
+            let out = c.period();
+            prop_assert!(out.e.is_finite() && out.f_n.is_finite() && out.t_nm.is_finite());
+            match out.state {
+                AcState::Run => prop_assert!((s.f_min..=s.f_max).contains(&out.feed_cap)),
+                AcState::Hold(_) => {
+                    prop_assert_eq!(out.feed_cap, 0);
+                    c.resume();
+                }
+            }
+        }
+    }
+}
