@@ -403,84 +403,39 @@ fn settings_validation() {
     let d = AcSettings::default();
     assert_eq!(d.validate(), Ok(()));
     assert_eq!((d.f0_n(), d.t0_nm()), (3600.0, 72.0));
-    let bad: [(AcSettings, AcSettingsError); 14] = [
+    type Edit = fn(&mut AcSettings);
+    let nan_gain: Edit = |s| s.cal[2].gain = f32::NAN;
+    let bad: [(Edit, AcSettingsError); 14] = [
+        (|s| s.sample_hz = 50, AcSettingsError::SampleRate),
+        (|s| s.period_ms = 0, AcSettingsError::Period),
         (
-            AcSettings { sample_hz: 50, ..d },
-            AcSettingsError::SampleRate,
-        ),
-        (AcSettings { period_ms: 0, ..d }, AcSettingsError::Period),
-        (
-            AcSettings {
-                sample_hz: 100,
-                period_ms: 5,
-                ..d
-            },
+            |s| (s.sample_hz, s.period_ms) = (100, 5),
             AcSettingsError::SamplesPerPeriod,
         ),
+        (nan_gain, AcSettingsError::Calibration),
+        (|s| s.cal[0].offset = 5000.0, AcSettingsError::Calibration),
+        (|s| s.force_limit_n = 0.0, AcSettingsError::Limits),
         (
-            AcSettings {
-                cal: [Calibration {
-                    gain: f32::NAN,
-                    offset: 2048.0,
-                }; 3],
-                ..d
-            },
-            AcSettingsError::Calibration,
-        ),
-        (
-            AcSettings {
-                cal: [Calibration {
-                    gain: 1.0,
-                    offset: 5000.0,
-                }; 3],
-                ..d
-            },
-            AcSettingsError::Calibration,
-        ),
-        (
-            AcSettings {
-                force_limit_n: 0.0,
-                ..d
-            },
+            |s| s.torque_limit_nm = f32::INFINITY,
             AcSettingsError::Limits,
         ),
         (
-            AcSettings {
-                torque_limit_nm: f32::INFINITY,
-                ..d
-            },
-            AcSettingsError::Limits,
-        ),
-        (
-            AcSettings {
-                optimal_fraction: 1.1,
-                ..d
-            },
+            |s| s.optimal_fraction = 1.1,
             AcSettingsError::OptimalFraction,
         ),
-        (AcSettings { fdot_m: 50, ..d }, AcSettingsError::FdotM),
-        (AcSettings { f_min: 0, ..d }, AcSettingsError::FeedRange),
-        (AcSettings { f_min: 3001, ..d }, AcSettingsError::FeedRange),
+        (|s| s.fdot_m = 50, AcSettingsError::FdotM),
+        (|s| s.f_min = 0, AcSettingsError::FeedRange),
+        (|s| s.f_min = 3001, AcSettingsError::FeedRange),
+        (|s| s.overload_e = 0.0, AcSettingsError::OverloadLimit),
         (
-            AcSettings {
-                overload_e: 0.0,
-                ..d
-            },
-            AcSettingsError::OverloadLimit,
-        ),
-        (
-            AcSettings {
-                stuck_samples: 2_000_000,
-                ..d
-            },
+            |s| s.stuck_samples = 2_000_000,
             AcSettingsError::StuckSamples,
         ),
-        (
-            AcSettings { jump_codes: 0, ..d },
-            AcSettingsError::JumpCodes,
-        ),
+        (|s| s.jump_codes = 0, AcSettingsError::JumpCodes),
     ];
-    for (s, e) in bad {
+    for (edit, e) in bad {
+        let mut s = d;
+        edit(&mut s);
         assert_eq!(s.validate(), Err(e));
         assert_eq!(AcController::new(s).err(), Some(e));
         assert!(!e.message().is_empty());
