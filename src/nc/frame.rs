@@ -82,8 +82,11 @@ pub struct Frame {
     blocks_done: u32,
     /// Position counters: pulses left per axis in the block (arc: in the segment).
     count: [u32; 3],
-    /// Linear: DDA y registers |d_k|. PTP: pulses done per axis (for the acceleration steps).
+    /// Linear: DDA y registers |d_k|. PTP: pulses per axis + 1, n_k + 1 (n_k + 1 - count[k] is
+    /// the pulses done + 1, for the acceleration steps).
     reg: [u32; 3],
+    /// PTP: position step per pulse and axis, +1 or -1 (the axis' sign).
+    dir: [i32; 3],
     /// DDA r registers (accumulators). Arc: [r_a, r_b, _].
     acc: [u32; 3],
     /// Interpolator capacity q (L or R).
@@ -121,6 +124,7 @@ impl Frame {
             blocks_done: 0,
             count: [0; 3],
             reg: [0; 3],
+            dir: [1; 3],
             acc: [0; 3],
             q: 1,
             f: 0,
@@ -159,16 +163,20 @@ impl Frame {
                 signs: self.signs,
             };
         }
-        let steps = match self.mode {
-            Mode::Idle => 0,
+        match self.mode {
+            Mode::Idle => {}
             // A rapid (or arc) ends in the frame after its last pulses: that frame only pops it,
             // so the frame with the last ladder (or DDA) cycle does no end-of-block work.
             Mode::Rapid => {
                 if self.count[0] | self.count[1] | self.count[2] == 0 {
                     self.done(src);
-                    0
                 } else {
-                    self.ptp()
+                    // The ladder moves the position counters itself.
+                    let steps = self.ptp();
+                    return Pulses {
+                        steps,
+                        signs: self.signs,
+                    };
                 }
             }
             // A line ends in the frame of its last command (its duration is q commands).
@@ -179,9 +187,11 @@ impl Frame {
                     if self.remaining == 0 {
                         self.done(src);
                     }
-                    steps
-                } else {
-                    0
+                    self.position_update(steps);
+                    return Pulses {
+                        steps,
+                        signs: self.signs,
+                    };
                 }
             }
             Mode::Arc => {
@@ -189,16 +199,18 @@ impl Frame {
                     // The previous frame finished a segment (or the block started with an empty
                     // one): load the next one.
                     if self.seg.wrapping_add(1) < self.n_seg {
-                        self.seg += 1;
+                        self.seg = self.seg.wrapping_add(1);
                         self.load_segment(src);
                     } else {
                         self.done(src);
                     }
-                    0
                 } else if self.feed(feed_cap) {
-                    self.circular()
-                } else {
-                    0
+                    let steps = self.circular();
+                    self.position_update(steps);
+                    return Pulses {
+                        steps,
+                        signs: self.signs,
+                    };
                 }
             }
             Mode::Dwell => {
@@ -206,14 +218,10 @@ impl Frame {
                 if self.ticks == 0 {
                     self.done(src);
                 }
-                0
             }
-        };
-        if steps != 0 {
-            self.position_update(steps);
         }
         Pulses {
-            steps,
+            steps: 0,
             signs: self.signs,
         }
     }
@@ -253,7 +261,16 @@ impl Frame {
             Motion::Rapid(r) => {
                 self.mode = Mode::Rapid;
                 self.count = r.steps;
-                self.reg = [0; 3];
+                self.reg = [
+                    r.steps[0].wrapping_add(1),
+                    r.steps[1].wrapping_add(1),
+                    r.steps[2].wrapping_add(1),
+                ];
+                self.dir = [
+                    if r.signs & 1 != 0 { 1 } else { -1 },
+                    if r.signs & 2 != 0 { 1 } else { -1 },
+                    if r.signs & 4 != 0 { 1 } else { -1 },
+                ];
                 self.ticks = 0;
                 self.set_signs(0b111, r.signs);
             }
@@ -450,13 +467,15 @@ impl Frame {
     /// PTP: independent axes at the rapid rate, three steps of deceleration (and acceleration).
     #[inline]
     fn ptp(&mut self) -> u8 {
-        self.ticks = self.ticks.wrapping_add(1);
+        let ticks = self.ticks.wrapping_add(1);
+        self.ticks = ticks;
         let [s1, s2, s3] = self.cfg.ptp_steps;
         let mut steps = 0u8;
         for k in 0..3 {
             let left = self.count[k];
             if left != 0 {
-                let done = self.reg[k].saturating_add(1);
+                // Pulses done + 1 (exact in wrapping arithmetic: it is at most n_k).
+                let done = self.reg[k].wrapping_sub(left);
                 let m = if done < left { done } else { left };
                 let mask = if m > s1 {
                     0
@@ -467,9 +486,9 @@ impl Frame {
                 } else {
                     7
                 };
-                if self.ticks & mask == 0 {
+                if ticks & mask == 0 {
                     self.count[k] = left - 1;
-                    self.reg[k] = self.reg[k].wrapping_add(1);
+                    self.position[k] = self.position[k].wrapping_add(self.dir[k]);
                     steps |= 1 << k;
                 }
             }
