@@ -85,7 +85,8 @@ pub struct Frame {
     /// Linear: DDA y registers |d_k|. PTP: pulses per axis + 1, n_k + 1 (n_k + 1 - count[k] is
     /// the pulses done + 1, for the acceleration steps).
     reg: [u32; 3],
-    /// PTP: position step per pulse and axis, +1 or -1 (the axis' sign).
+    /// Position step per pulse and axis, +1 or -1 (the axis' sign; set with the signs of the
+    /// block or arc segment, meaningful for the axes that move).
     dir: [i32; 3],
     /// DDA r registers (accumulators). Arc: [r_a, r_b, _].
     acc: [u32; 3],
@@ -266,11 +267,7 @@ impl Frame {
                     r.steps[1].wrapping_add(1),
                     r.steps[2].wrapping_add(1),
                 ];
-                self.dir = [
-                    if r.signs & 1 != 0 { 1 } else { -1 },
-                    if r.signs & 2 != 0 { 1 } else { -1 },
-                    if r.signs & 4 != 0 { 1 } else { -1 },
-                ];
+                self.dir = dirs(r.signs);
                 self.ticks = 0;
                 self.set_signs(0b111, r.signs);
             }
@@ -285,6 +282,7 @@ impl Frame {
                 self.f_floor = if l.f / 5 == 0 { 1 } else { l.f / 5 };
                 self.remaining = self.q;
                 self.decel = l.decel;
+                self.dir = dirs(l.signs);
                 self.set_signs(0b111, l.signs);
             }
             Motion::Arc(c) => {
@@ -300,9 +298,11 @@ impl Frame {
                 self.remaining = c.length;
                 self.decel = c.decel;
                 self.n_seg = c.n_targets;
-                self.seg = 0;
-                self.count = [0; 3];
-                self.load_arc_segment(c);
+                // No segment yet: the next frame loads segment 0 (seg wraps to 0), so loading the
+                // block and its first segment are two frames of bounded work.
+                self.seg = u8::MAX;
+                self.ca = 0;
+                self.cb = 0;
             }
             Motion::Dwell(d) => {
                 self.mode = Mode::Dwell;
@@ -369,6 +369,7 @@ impl Frame {
             signs |= bit_b;
         }
         self.signs = (self.signs & !mask) | signs;
+        self.dir = dirs(self.signs);
     }
 
     #[inline]
@@ -501,13 +502,18 @@ impl Frame {
     fn position_update(&mut self, steps: u8) {
         for k in 0..3 {
             if steps & (1 << k) != 0 {
-                let p = &mut self.position[k];
-                *p = if self.signs & (1 << k) != 0 {
-                    p.wrapping_add(1)
-                } else {
-                    p.wrapping_sub(1)
-                };
+                self.position[k] = self.position[k].wrapping_add(self.dir[k]);
             }
         }
     }
+}
+
+/// Position step per pulse of each axis for the sign bits `signs`: +1 (bit set) or -1.
+#[inline(always)]
+fn dirs(signs: u8) -> [i32; 3] {
+    [
+        if signs & 1 != 0 { 1 } else { -1 },
+        if signs & 2 != 0 { 1 } else { -1 },
+        if signs & 4 != 0 { 1 } else { -1 },
+    ]
 }
