@@ -18,7 +18,10 @@
 //!   (axis crossings, see [`super::block::Arc`]); an axis whose segment counter is zero gets no
 //!   more pulses, and when one axis of a segment is done the other pulses once per command.
 //! - Output and Position: the pulses with the current signs; counters decremented per pulse,
-//!   absolute position updated; all counters zero -> block done, the Initiator runs next tick.
+//!   absolute position updated. A line is done in the frame of its q-th command, a dwell in its
+//!   last frame, a PTP block or an arc in the frame after its last pulse (which does nothing
+//!   else); the Initiator runs the tick after that. An arc loads its first segment in the frame after the
+//!   block (each frame loads one set of registers at most).
 use super::block::{Block, Motion};
 use crate::settings::Settings;
 
@@ -85,8 +88,8 @@ pub struct Frame {
     /// Linear: DDA y registers |d_k|. PTP: pulses per axis + 1, n_k + 1 (n_k + 1 - count[k] is
     /// the pulses done + 1, for the acceleration steps).
     reg: [u32; 3],
-    /// Position step per pulse and axis, +1 or -1 (the axis' sign; set with the signs of the
-    /// block or arc segment, meaningful for the axes that move).
+    /// Negated position step per pulse and axis, -1 or +1 (from the axis' sign, see [`dirs`]; set
+    /// with the signs of the block or arc segment, meaningful for the axes that move).
     dir: [i32; 3],
     /// DDA r registers (accumulators). Arc: [r_a, r_b, _].
     acc: [u32; 3],
@@ -96,7 +99,9 @@ pub struct Frame {
     f: u32,
     r0: u32,
     remaining: u32,
-    decel: bool,
+    /// Deceleration: K * remaining / 256 < f only below this many commands left (0: no
+    /// deceleration), so the frames before it skip the multiply.
+    decel_below: u32,
     /// PTP frame counter; dwell frames left.
     ticks: u32,
     /// f / 5, at least 1: the deceleration floor.
@@ -131,7 +136,7 @@ impl Frame {
             f: 0,
             r0: 0,
             remaining: 0,
-            decel: false,
+            decel_below: 0,
             ticks: 0,
             f_floor: 1,
             bit_a: 1,
@@ -281,7 +286,7 @@ impl Frame {
                 self.f = l.f;
                 self.f_floor = if l.f / 5 == 0 { 1 } else { l.f / 5 };
                 self.remaining = self.q;
-                self.decel = l.decel;
+                self.decel_below = self.decel_below(l.decel, l.f);
                 self.dir = dirs(l.signs);
                 self.set_signs(0b111, l.signs);
             }
@@ -296,7 +301,7 @@ impl Frame {
                 self.f = c.f;
                 self.f_floor = if c.f / 5 == 0 { 1 } else { c.f / 5 };
                 self.remaining = c.length;
-                self.decel = c.decel;
+                self.decel_below = self.decel_below(c.decel, c.f);
                 self.n_seg = c.n_targets;
                 // No segment yet: the next frame loads segment 0 (seg wraps to 0), so loading the
                 // block and its first segment are two frames of bounded work.
@@ -372,6 +377,19 @@ impl Frame {
         self.dir = dirs(self.signs);
     }
 
+    /// The smallest number of commands left from which K * remaining / 256 >= f, so that the
+    /// deceleration leaves f as it is: floor(256 f / K) + 1 (u32::MAX when K is 0 or 256 f
+    /// overflows: then every frame computes the product). 0 when the block does not decelerate.
+    #[inline]
+    fn decel_below(&self, decel: bool, f: u32) -> u32 {
+        if !decel {
+            return 0;
+        }
+        f.checked_mul(256)
+            .and_then(|x| x.checked_div(self.cfg.decel_gain_q8))
+            .map_or(u32::MAX, |d| d.saturating_add(1))
+    }
+
     #[inline]
     fn set_signs(&mut self, mask: u8, signs: u8) {
         // Axes that do not move keep their sign line as it is.
@@ -386,7 +404,7 @@ impl Frame {
     #[inline]
     fn feed(&mut self, feed_cap: u32) -> bool {
         let mut f = self.f;
-        if self.decel {
+        if self.remaining < self.decel_below {
             let v = (self.cfg.decel_gain_q8 as u64 * self.remaining as u64) >> 8;
             let floor = self.f_floor;
             if v < f as u64 {
@@ -489,7 +507,7 @@ impl Frame {
                 };
                 if ticks & mask == 0 {
                     self.count[k] = left - 1;
-                    self.position[k] = self.position[k].wrapping_add(self.dir[k]);
+                    self.position[k] = self.position[k].wrapping_sub(self.dir[k]);
                     steps |= 1 << k;
                 }
             }
@@ -502,18 +520,21 @@ impl Frame {
     fn position_update(&mut self, steps: u8) {
         for k in 0..3 {
             if steps & (1 << k) != 0 {
-                self.position[k] = self.position[k].wrapping_add(self.dir[k]);
+                self.position[k] = self.position[k].wrapping_sub(self.dir[k]);
             }
         }
     }
 }
 
-/// Position step per pulse of each axis for the sign bits `signs`: +1 (bit set) or -1.
+/// Position step per pulse of each axis for the sign bits `signs`, negated: -1 (bit set, the
+/// axis moves positive) or +1; the position counter subtracts it. (Sign-extending bit k gives 0 or
+/// -1, and `| 1` makes that +1 or -1: two instructions per axis.)
 #[inline(always)]
 fn dirs(signs: u8) -> [i32; 3] {
+    let s = signs as i32;
     [
-        if signs & 1 != 0 { 1 } else { -1 },
-        if signs & 2 != 0 { 1 } else { -1 },
-        if signs & 4 != 0 { 1 } else { -1 },
+        (s << 31 >> 31) | 1,
+        (s << 30 >> 31) | 1,
+        (s << 29 >> 31) | 1,
     ]
 }

@@ -101,8 +101,8 @@ mod app {
     /// Semihosting read size.
     const CHUNK: usize = 256;
 
-    /// Nothing shared through RTIC: a task with shared resources saves and restores BASEPRI on
-    /// every run. The frame and pulse-end ISRs share the next signs through `NEXT_SIGNS`.
+    /// Nothing shared through RTIC: the frame and pulse-end ISRs share the next signs through
+    /// the atomic `NEXT_SIGNS` (same priority, so no lock and no resource proxy is needed).
     #[shared]
     struct Shared {}
 
