@@ -35,6 +35,11 @@ const PROGRAMS: &[(&str, &str)] = &[
          G3 X0.02 Y0 I-0.02 J0 F30\nG2 X0.01 Y0.01 I-0.01 J0 F30\nG17 G2 X0.01 Y0.01 I0.003 J-0.004 F30\n\
          G18 G3 X0.01 Z0.01 I0.005 K0.005 F30\nM2\n",
     ),
+    (
+        "G0 then G1",
+        "G20 G90\nG0 X0.02 Y0.01\nG1 Z-0.01 F10\nG1 X0.05 F12\nG0 Z0.01\nG1 X0.03 Y0.02 Z0 F20\n\
+         G0 X0 Y0\nG2 X0.01 Y0.01 I0.01 J0 F30\nM2\n",
+    ),
     ("G4 dwell", "G20 G90\nG4 P0.05\nG1 X0.001 F30\nG4 P0.02\nG4 P0.02\nM2\n"),
 ];
 

@@ -138,6 +138,8 @@ pub struct Parser {
     settings: Settings,
     position: [i32; 3],
     modes: Modes,
+    /// The SIGN lines as they stand after the last accepted block (bit k set = axis k positive).
+    signs: u8,
 }
 
 impl Parser {
@@ -146,6 +148,7 @@ impl Parser {
             settings,
             position: [0; 3],
             modes: Modes::POWER_UP,
+            signs: 0,
         }
     }
 
@@ -155,9 +158,12 @@ impl Parser {
         let mut modes = self.modes;
         let mut position = self.position;
         match exec::execute(&self.settings, &mut modes, &mut position, line_no, text) {
-            Ok(p) => {
+            Ok(mut p) => {
                 self.modes = modes;
                 self.position = position;
+                if let Parsed::Block(b) = &mut p {
+                    self.signs = carry_signs(&mut b.motion, self.signs);
+                }
                 Ok(p)
             }
             Err(kind) => Err(GcodeError {
@@ -165,6 +171,11 @@ impl Parser {
                 kind,
             }),
         }
+    }
+
+    /// SIGN lines after the last accepted block (bit k set = axis k positive).
+    pub fn signs(&self) -> u8 {
+        self.signs
     }
 
     /// Programmed position after the last accepted block, machine BLU.
@@ -185,5 +196,39 @@ impl Parser {
     /// The settings the parser validates against.
     pub fn settings(&self) -> &Settings {
         &self.settings
+    }
+}
+
+/// Completes the sign byte of a G0/G1 block: an axis that does not move keeps its SIGN line as it
+/// stands (`current`), so the frame writes the block's byte as it is (no per-axis masking in the
+/// interrupt). Returns the SIGN lines after the block; for an arc that is the direction of each plane
+/// axis in the last segment that moves it, exactly as the frame sets them segment by segment.
+pub fn carry_signs(motion: &mut crate::nc::Motion, current: u8) -> u8 {
+    use crate::nc::Motion;
+    let keep = |steps: &[u32; 3], signs: &mut u8| {
+        let moving = (0..3).filter(|&k| steps[k] != 0).fold(0u8, |m, k| m | 1 << k);
+        *signs = (*signs & moving) | (current & !moving);
+        *signs
+    };
+    match motion {
+        Motion::Rapid(r) => keep(&r.steps, &mut r.signs),
+        Motion::Linear(l) => keep(&l.steps, &mut l.signs),
+        Motion::Arc(c) => {
+            let (a, b) = c.plane.axes();
+            let mut s = current;
+            let mut p = c.start;
+            for t in c.targets.iter().take(c.n_targets as usize) {
+                for (bit, d) in [(1u8 << a, t[0] - p[0]), (1u8 << b, t[1] - p[1])] {
+                    if d > 0 {
+                        s |= bit;
+                    } else if d < 0 {
+                        s &= !bit;
+                    }
+                }
+                p = *t;
+            }
+            s
+        }
+        Motion::Dwell(_) => current,
     }
 }

@@ -171,8 +171,10 @@ fn linear_block_fields() {
     assert_eq!(l.signs, 0b001);
     assert_eq!(l.q, 5);
     assert!(!l.decel);
+    // X and Y do not move: their sign bits repeat the lines as they stand (X+, Y-).
     let l = linear(&mut p, "G91 Z0.0001");
-    assert_eq!((l.steps, l.signs, l.q), ([0, 0, 1], 0b100, 1));
+    assert_eq!((l.steps, l.signs, l.q), ([0, 0, 1], 0b101, 1));
+    assert_eq!(p.signs(), 0b101);
     let l = linear(&mut p, "X1 Y1 Z1");
     assert_eq!(l.q, 17_320); // isqrt(3e8)
 }

@@ -274,7 +274,8 @@ impl Frame {
                 ];
                 self.dir = dirs(r.signs);
                 self.ticks = 0;
-                self.set_signs(0b111, r.signs);
+                // The parser completed the byte (non-moving axes keep their line): write it as it is.
+                self.signs = r.signs;
             }
             Motion::Linear(l) => {
                 self.mode = Mode::Linear;
@@ -288,7 +289,7 @@ impl Frame {
                 self.remaining = self.q;
                 self.decel_below = self.decel_below(l.decel, l.f);
                 self.dir = dirs(l.signs);
-                self.set_signs(0b111, l.signs);
+                self.signs = l.signs;
             }
             Motion::Arc(c) => {
                 self.mode = Mode::Arc;
@@ -388,16 +389,6 @@ impl Frame {
         f.checked_mul(256)
             .and_then(|x| x.checked_div(self.cfg.decel_gain_q8))
             .map_or(u32::MAX, |d| d.saturating_add(1))
-    }
-
-    #[inline]
-    fn set_signs(&mut self, mask: u8, signs: u8) {
-        // Axes that do not move keep their sign line as it is.
-        let moving = mask
-            & ((self.count[0] != 0) as u8
-                | ((self.count[1] != 0) as u8) << 1
-                | ((self.count[2] != 0) as u8) << 2);
-        self.signs = (self.signs & !moving) | (signs & moving);
     }
 
     /// Feed-rate DDA: true when this frame produces an interpolation command.
