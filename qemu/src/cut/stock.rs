@@ -1,0 +1,342 @@
+//! The stock as a height map over XY (host): square cells (0.25 mm by default, never coarser), each
+//! holding the Z of the material top in mm; below the top is material down to the floor (the
+//! lowest blank bottom, unbounded unless given). Air is `f64::NEG_INFINITY`. Material removal
+//! lowers the tops under the swept tool disc. Built from a small text description.
+//!
+//! Stock description (inches, like the G20 programs; one statement per line; `#` starts a comment;
+//! keywords and word letters are case-insensitive; words in any order, each once):
+//!
+//! ```text
+//! cell 0.25                     # optional: cell size in mm, 0 < size <= 0.25 (default 0.25)
+//! blank X0 Y0 W5 H3 Z0 [B-2]    # material: X..X+W, Y..Y+H, top face Z, optional bottom B
+//! hole X1.25 Y1.5 D0.5 Z-0.6    # flat-bottomed drilled hole: removed down to Z within D/2
+//! pocket X1 Y0.8 W3 H1.4 Z-0.3  # rectangular pocket: removed down to Z
+//! ```
+//!
+//! The grid spans the union of the blanks' rectangles; outside it is air. Statements apply in
+//! file order (a blank after a hole fills it again). A cell belongs to a shape when its centre
+//! does.
+
+/// The default stock: the die blank of Fig. 1 (Tlusty, Koren and McNeil) with the drilled start
+/// hole at Pt 1, as in `qemu/programs/fig1-cavity.nc`.
+pub const FIG1_STOCK: &str = "\
+# die blank of Fig. 1: top face Z0, X 0..5 in, Y 0..3 in
+blank X0 Y0 W5 H3 Z0
+# flat-bottomed start hole at Pt 1, drilled before the program
+hole X1.25 Y1.5 D0.5 Z-0.6
+";
+
+/// Largest grid, cells (guards against a typo asking for gigabytes).
+const MAX_CELLS: usize = 40_000_000;
+
+/// A stock description error: 1-based line number and what is wrong.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StockError {
+    pub line: usize,
+    pub msg: String,
+}
+
+impl core::fmt::Display for StockError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if self.line == 0 {
+            write!(f, "stock: {}", self.msg)
+        } else {
+            write!(f, "stock line {}: {}", self.line, self.msg)
+        }
+    }
+}
+
+impl std::error::Error for StockError {}
+
+/// The height map.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stock {
+    x0_mm: f64,
+    y0_mm: f64,
+    cell_mm: f64,
+    nx: usize,
+    ny: usize,
+    top: Vec<f64>,
+    floor_mm: f64,
+}
+
+enum Shape {
+    Blank { r: [f64; 4], z: f64, b: Option<f64> },
+    Hole { x: f64, y: f64, d: f64, z: f64 },
+    Pocket { r: [f64; 4], z: f64 },
+}
+
+/// Reads `letter -> value` words of one statement: each allowed letter once, all numbers finite.
+fn words(
+    line: usize,
+    kw: &str,
+    toks: &[&str],
+    allowed: &str,
+    required: &str,
+) -> Result<[Option<f64>; 26], StockError> {
+    let err = |msg: String| StockError { line, msg };
+    let mut v = [None; 26];
+    for t in toks {
+        let mut ch = t.chars();
+        let letter = ch.next().unwrap_or(' ').to_ascii_uppercase();
+        if !allowed.contains(letter) {
+            return Err(err(format!(
+                "{kw}: unexpected word '{t}' (allowed words: {})",
+                allowed
+                    .chars()
+                    .map(|c| c.to_string())
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            )));
+        }
+        let num: f64 = ch
+            .as_str()
+            .parse()
+            .ok()
+            .filter(|n: &f64| n.is_finite())
+            .ok_or_else(|| err(format!("{kw}: '{t}' is not {letter} followed by a number")))?;
+        let slot = &mut v[(letter as u8 - b'A') as usize];
+        if slot.is_some() {
+            return Err(err(format!("{kw}: word {letter} given twice")));
+        }
+        *slot = Some(num);
+    }
+    for l in required.chars() {
+        if v[(l as u8 - b'A') as usize].is_none() {
+            return Err(err(format!("{kw}: missing word {l}")));
+        }
+    }
+    Ok(v)
+}
+
+impl Default for Stock {
+    fn default() -> Self {
+        Stock::parse(FIG1_STOCK).expect("FIG1_STOCK parses")
+    }
+}
+
+impl Stock {
+    /// Parses a stock description (see the module docs).
+    pub fn parse(src: &str) -> Result<Stock, StockError> {
+        let mut cell_mm = 0.25;
+        let mut shapes = Vec::new();
+        for (i, raw) in src.lines().enumerate() {
+            let line = i + 1;
+            let text = raw.split('#').next().unwrap_or("");
+            let toks: Vec<&str> = text.split_whitespace().collect();
+            let Some((kw, rest)) = toks.split_first() else {
+                continue;
+            };
+            let g = |w: &[Option<f64>; 26], l: char| w[(l as u8 - b'A') as usize].unwrap_or(0.0);
+            let to_mm = |v: f64| v * super::MM_PER_IN;
+            let err = |msg: &str| StockError {
+                line,
+                msg: msg.into(),
+            };
+            match kw.to_ascii_lowercase().as_str() {
+                "cell" => {
+                    let v: Option<f64> = match rest {
+                        [one] => one.parse().ok(),
+                        _ => None,
+                    };
+                    match v {
+                        Some(c) if c > 0.0 && c <= 0.25 => cell_mm = c,
+                        _ => return Err(err("cell: expected one size in mm, 0 < size <= 0.25")),
+                    }
+                }
+                "blank" | "pocket" => {
+                    let blank = kw.eq_ignore_ascii_case("blank");
+                    let w = if blank {
+                        words(line, "blank", rest, "XYWHZB", "XYWHZ")?
+                    } else {
+                        words(line, "pocket", rest, "XYWHZ", "XYWHZ")?
+                    };
+                    if g(&w, 'W') <= 0.0 || g(&w, 'H') <= 0.0 {
+                        return Err(err("width W and height H must be > 0 (inches)"));
+                    }
+                    let (x, y) = (to_mm(g(&w, 'X')), to_mm(g(&w, 'Y')));
+                    let r = [x, y, x + to_mm(g(&w, 'W')), y + to_mm(g(&w, 'H'))];
+                    let z = to_mm(g(&w, 'Z'));
+                    if blank {
+                        let b = w[1].map(to_mm);
+                        if b.is_some_and(|b| b >= z) {
+                            return Err(err("blank: bottom B must be below the top Z"));
+                        }
+                        shapes.push((line, Shape::Blank { r, z, b }));
+                    } else {
+                        shapes.push((line, Shape::Pocket { r, z }));
+                    }
+                }
+                "hole" => {
+                    let w = words(line, "hole", rest, "XYDZ", "XYDZ")?;
+                    if g(&w, 'D') <= 0.0 {
+                        return Err(err("hole: diameter D must be > 0 (inches)"));
+                    }
+                    shapes.push((
+                        line,
+                        Shape::Hole {
+                            x: to_mm(g(&w, 'X')),
+                            y: to_mm(g(&w, 'Y')),
+                            d: to_mm(g(&w, 'D')),
+                            z: to_mm(g(&w, 'Z')),
+                        },
+                    ));
+                }
+                other => {
+                    return Err(err(&format!(
+                        "unknown statement '{other}' (expected blank, hole, pocket or cell)"
+                    )))
+                }
+            }
+        }
+        let mut bb = [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let mut floor_mm = f64::INFINITY;
+        let mut unbounded = false;
+        for (_, s) in &shapes {
+            if let Shape::Blank { r, b, .. } = s {
+                bb = [
+                    bb[0].min(r[0]),
+                    bb[1].min(r[1]),
+                    bb[2].max(r[2]),
+                    bb[3].max(r[3]),
+                ];
+                match b {
+                    Some(b) => floor_mm = floor_mm.min(*b),
+                    None => unbounded = true,
+                }
+            }
+        }
+        if !bb[0].is_finite() {
+            return Err(StockError {
+                line: 0,
+                msg: "no blank: at least one 'blank X.. Y.. W.. H.. Z..' line is needed".into(),
+            });
+        }
+        if unbounded {
+            floor_mm = f64::NEG_INFINITY;
+        }
+        let nx = ((bb[2] - bb[0]) / cell_mm).ceil() as usize;
+        let ny = ((bb[3] - bb[1]) / cell_mm).ceil() as usize;
+        if nx.saturating_mul(ny) > MAX_CELLS {
+            return Err(StockError {
+                line: 0,
+                msg: format!("grid of {nx} x {ny} cells is larger than {MAX_CELLS} cells"),
+            });
+        }
+        let mut st = Stock {
+            x0_mm: bb[0],
+            y0_mm: bb[1],
+            cell_mm,
+            nx,
+            ny,
+            top: vec![f64::NEG_INFINITY; nx * ny],
+            floor_mm,
+        };
+        for (_, s) in &shapes {
+            match *s {
+                Shape::Blank { r, z, .. } => st.apply(|x, y| in_rect(r, x, y), |t| t.max(z)),
+                Shape::Pocket { r, z } => st.apply(|x, y| in_rect(r, x, y), |t| t.min(z)),
+                Shape::Hole { x, y, d, z } => st.apply(
+                    |cx, cy| (cx - x).powi(2) + (cy - y).powi(2) <= d * d / 4.0,
+                    |t| t.min(z),
+                ),
+            }
+        }
+        Ok(st)
+    }
+
+    fn apply(&mut self, inside: impl Fn(f64, f64) -> bool, f: impl Fn(f64) -> f64) {
+        for j in 0..self.ny {
+            for i in 0..self.nx {
+                let (x, y) = self.center(i, j);
+                if inside(x, y) {
+                    let k = j * self.nx + i;
+                    self.top[k] = f(self.top[k]);
+                }
+            }
+        }
+    }
+
+    fn center(&self, i: usize, j: usize) -> (f64, f64) {
+        (
+            self.x0_mm + (i as f64 + 0.5) * self.cell_mm,
+            self.y0_mm + (j as f64 + 0.5) * self.cell_mm,
+        )
+    }
+
+    /// Cell size, mm.
+    pub fn cell_mm(&self) -> f64 {
+        self.cell_mm
+    }
+
+    /// Grid size in cells (X, Y).
+    pub fn dims(&self) -> (usize, usize) {
+        (self.nx, self.ny)
+    }
+
+    /// Lowest material Z (mm), `NEG_INFINITY` when no blank gives a bottom.
+    pub fn floor_mm(&self) -> f64 {
+        self.floor_mm
+    }
+
+    /// Material top (mm) of the cell containing (x, y) mm; `NEG_INFINITY` for air or outside.
+    #[inline]
+    pub fn top_at(&self, x_mm: f64, y_mm: f64) -> f64 {
+        let fx = (x_mm - self.x0_mm) / self.cell_mm;
+        let fy = (y_mm - self.y0_mm) / self.cell_mm;
+        if fx < 0.0 || fy < 0.0 || fx >= self.nx as f64 || fy >= self.ny as f64 {
+            return f64::NEG_INFINITY;
+        }
+        self.top[fy as usize * self.nx + fx as usize]
+    }
+
+    /// Volume of material above `z_ref_mm` (mm^3), for tests and reports.
+    pub fn volume_above_mm3(&self, z_ref_mm: f64) -> f64 {
+        let a = self.cell_mm * self.cell_mm;
+        self.top.iter().map(|&t| (t - z_ref_mm).max(0.0) * a).sum()
+    }
+
+    /// Removes the material swept by a disc of radius `r_mm` whose centre moves along the segment
+    /// from `a` to `b` (mm; the tool tip Z interpolated along it): every cell whose centre lies
+    /// within `r_mm` of the segment gets `top = min(top, tip Z at the nearest segment point)`.
+    pub fn cut_capsule(&mut self, a: [f64; 3], b: [f64; 3], r_mm: f64) {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let len2 = dx * dx + dy * dy;
+        let lo = |v: f64, o: f64| ((v - o) / self.cell_mm).floor();
+        let i0 = lo(a[0].min(b[0]) - r_mm, self.x0_mm).max(0.0);
+        let i1 = lo(a[0].max(b[0]) + r_mm, self.x0_mm).min(self.nx as f64 - 1.0);
+        let j0 = lo(a[1].min(b[1]) - r_mm, self.y0_mm).max(0.0);
+        let j1 = lo(a[1].max(b[1]) + r_mm, self.y0_mm).min(self.ny as f64 - 1.0);
+        if !(i0 <= i1 && j0 <= j1) {
+            return;
+        }
+        let r2 = r_mm * r_mm;
+        for j in j0 as usize..=j1 as usize {
+            for i in i0 as usize..=i1 as usize {
+                let (x, y) = self.center(i, j);
+                let s = if len2 > 0.0 {
+                    (((x - a[0]) * dx + (y - a[1]) * dy) / len2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let (px, py) = (a[0] + s * dx - x, a[1] + s * dy - y);
+                if px * px + py * py <= r2 {
+                    let z = a[2] + s * (b[2] - a[2]);
+                    let k = j * self.nx + i;
+                    if z < self.top[k] {
+                        self.top[k] = z;
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn in_rect(r: [f64; 4], x: f64, y: f64) -> bool {
+    x >= r[0] && x < r[2] && y >= r[1] && y < r[3]
+}
