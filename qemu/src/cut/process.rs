@@ -18,15 +18,14 @@
 //!   feed to one cell beyond the envelope of the discs already swept along a straight path
 //!   (`P = E + (x_env - (R - cell) cos(alpha) + m) u`, `x_env = sqrt(R^2 - y^2)`, the margin
 //!   `m = min(cell R / x_env, 8 cell)` puts P one cell beyond the envelope along its normal). So
-//!   the cells the last
-//!   samples cleared are not read as air on a first pass, and on a second pass along the same
-//!   straight path every probe falls inside the cleared slot (cell centres within R of the path)
-//!   and reads air. The probe runs up to about `sqrt(2 R cell) + cell R / sqrt(2 R cell)` ahead of the edge; when the
-//!   motion stops, `c` falls to zero over one tooth period while the probes still read the
-//!   material ahead, so a stop against a wall shows a decaying force for one tooth period even
-//!   where the material is already cut to the tool (a real tool also cuts its last chips in that
-//!   period, a little less of them). Chip `h = c cos(alpha)` (the paper's `c sin(phi)`, phi measured from the entry
-//!   side); `Ft = Ks a h`, `Fr = Kr Ft`.
+//!   the cells the last samples cleared are not read as air on a first pass, and on a second
+//!   pass along the same straight path every probe falls inside the cleared slot (cell centres
+//!   within R of the path) and reads air. Artefact: the probe runs up to `x_env + m` (about
+//!   2.7 mm for a 0.5 in tool) ahead of the edge, so within that distance of the end of a slot
+//!   already cut a second pass still reads the material beyond its end. When the motion stops,
+//!   `c` falls to zero over one tooth period (a real tool also cuts its last, thinning chips).
+//!   Chip `h = c cos(alpha)` (the paper's `c sin(phi)` with phi measured from the entry side);
+//!   `Ft = Ks a h`, `Fr = Kr Ft`.
 //! - Force on the tool: `Ft` against the cutting speed, `Fr` towards the axis; X/Y resultant
 //!   summed over the teeth; torque `T = R sum Ft`. `Fu`, `Fv`: the resultant in the holder frame
 //!   rotating with the spindle (`u` axis at world angle `-theta`, `v` 90 degrees

@@ -458,3 +458,30 @@ fn per_sample_cost() {
     println!("per sample: {us:.2} us over {} samples", s.len());
     assert!(s.iter().any(|(_, s)| s.f_true_n > 3000.0));
 }
+
+/// Oracle cost over Fig. 1 cut A at 10 BLU spacing (printed).
+#[test]
+fn oracle_cost() {
+    let tool = Tool::default();
+    let path = line([12500, 15000, -6000], [22500, 15000, -6000], 10, 12.0);
+    let t = std::time::Instant::now();
+    let lim = OracleLimits::for_tool(&tool);
+    let r = oracle_time(
+        Stock::default(),
+        &tool,
+        &Material::STEEL,
+        600.0,
+        &path,
+        &lim,
+    )
+    .unwrap();
+    let us = t.elapsed().as_secs_f64() * 1e6 / path.len() as f64;
+    println!(
+        "oracle: {us:.2} us per point, {} points, {:.2} s",
+        path.len(),
+        r.time_s
+    );
+    // 4041 N at 12 ipm in the full 0.6 in slot: the safe feed is 12 x 3600 / 4041 = 10.7 ipm.
+    let mid = r.feed_profile[path.len() / 2];
+    assert!((mid / (12.0 * 3600.0 / 4041.0) - 1.0).abs() < 0.02, "{mid}");
+}
