@@ -206,7 +206,9 @@ impl Parser {
 pub fn carry_signs(motion: &mut crate::nc::Motion, current: u8) -> u8 {
     use crate::nc::Motion;
     let keep = |steps: &[u32; 3], signs: &mut u8| {
-        let moving = (0..3).filter(|&k| steps[k] != 0).fold(0u8, |m, k| m | 1 << k);
+        let moving = (0..3)
+            .filter(|&k| steps[k] != 0)
+            .fold(0u8, |m, k| m | 1 << k);
         *signs = (*signs & moving) | (current & !moving);
         *signs
     };
