@@ -1,9 +1,12 @@
 //! millac boards: the board-independent interface of the firmware (the `Board` trait the RTIC app
 //! calls from init and from the frame and pulse-end ISRs), the status words the frame ISR publishes
-//! for the idle loop, and the loader's line splitter (idle). Board bindings live in their own modules.
+//! for the idle loop, and the loader's line splitter (idle). Board bindings live in their own modules;
+//! `simadc` is the QEMU board's lockstep simulated ADC (semihosting FIFOs to the host).
 #![no_std]
 
+pub mod actask;
 pub mod lm3s6965;
+pub mod simadc;
 pub mod status;
 
 /// What the RTIC app needs from a board: six pins and two timers. Static dispatch, no state: every
@@ -33,6 +36,9 @@ pub trait Board {
     fn write_steps(steps: u8);
     /// One store: SIGN line of axis k = bit k of `signs` (high = positive). Both ISRs.
     fn write_signs(signs: u8);
+    /// One load of the pin levels: bit k = PULSE line of axis k, bit k + 3 = its SIGN line.
+    /// Pulse-end ISR (the encoder count).
+    fn read_pins() -> u8;
 }
 
 /// Timer clocks in `ns` nanoseconds, rounded UP (a pulse is never shorter than asked), at least 1.

@@ -1,7 +1,8 @@
 //! The LM3S6965 board (the lm3s6965evb that QEMU emulates): pins on GPIO port B, the frame on
 //! general-purpose Timer 0 (TIMER_0A, periodic) and the step pulse end on Timer 1 (TIMER_1A,
-//! one-shot). Raw volatile register access: the `lm3s6965` device crate has interrupt names only.
-//! `init` runs in `#[init]`; everything else in the frame and pulse-end ISRs.
+//! one-shot); the simulated ADC's sample clock on Timer 2 (TIMER_2A, periodic, only when the host
+//! serves the ADC). Raw volatile register access: the `lm3s6965` device crate has interrupt names
+//! only. `init` runs in `#[init]`; everything else in the frame and pulse-end ISRs (and the sampler).
 //!
 //! Pins (port B): PB0 X_STEP, PB1 Y_STEP, PB2 Z_STEP, PB3 X_SIGN, PB4 Y_SIGN, PB5 Z_SIGN.
 //! Registers (LM3S6965 datasheet): SYSCTL RCGC1/RCGC2 clock gates; GPIO DIR, DEN and the masked
@@ -23,6 +24,7 @@ pub const RELOAD_OFFSET: u32 = 0;
 const SYSCTL_RCGC1: usize = 0x400F_E104;
 const RCGC1_TIMER0: u32 = 1 << 16;
 const RCGC1_TIMER1: u32 = 1 << 17;
+const RCGC1_TIMER2: u32 = 1 << 18;
 const SYSCTL_RCGC2: usize = 0x400F_E108;
 const RCGC2_GPIOB: u32 = 1 << 1;
 
@@ -49,6 +51,7 @@ const ALL_DATA: usize = gpio_data(GPIOB, PINS as usize);
 // General-purpose timers.
 const TIMER0: usize = 0x4003_0000;
 const TIMER1: usize = 0x4003_1000;
+const TIMER2: usize = 0x4003_2000;
 const GPTM_CFG: usize = 0x000; // 0 = one 32-bit timer
 const GPTM_TAMR: usize = 0x004; // Timer A mode: 1 = one-shot, 2 = periodic
 const GPTM_CTL: usize = 0x00C; // bit 0 TAEN: Timer A enable
@@ -159,4 +162,37 @@ impl Board for Lm3s6965 {
     fn write_signs(signs: u8) {
         write(SIGN_DATA, u32::from(signs) << SIGN_SHIFT);
     }
+
+    /// A masked read returns the levels of PB0..PB5 only (output pins read their data bits).
+    #[inline(always)]
+    fn read_pins() -> u8 {
+        read(ALL_DATA) as u8
+    }
+}
+
+/// Sample timer of the simulated ADC: Timer 2 (TIMER_2A), 32-bit periodic with `reload`, interrupt
+/// on time-out, started. Init context (only when the host serves the simulated ADC).
+pub fn sample_timer_start(reload: u32) {
+    set_bits(SYSCTL_RCGC1, RCGC1_TIMER2);
+    let _ = read(SYSCTL_RCGC1);
+    write(TIMER2 + GPTM_CTL, 0);
+    write(TIMER2 + GPTM_CFG, CFG_32BIT);
+    write(TIMER2 + GPTM_TAMR, TAMR_PERIODIC);
+    write(TIMER2 + GPTM_TAILR, reload);
+    write(TIMER2 + GPTM_ICR, TATO);
+    write(TIMER2 + GPTM_IMR, TATO);
+    write(TIMER2 + GPTM_CTL, CTL_TAEN);
+}
+
+/// Acknowledges the sample timer's interrupt. Sampler task.
+#[inline(always)]
+pub fn sample_timer_ack() {
+    write(TIMER2 + GPTM_ICR, TATO);
+}
+
+/// Stops the sample timer (the host has gone). Sampler task.
+pub fn sample_timer_stop() {
+    write(TIMER2 + GPTM_CTL, 0);
+    write(TIMER2 + GPTM_IMR, 0);
+    write(TIMER2 + GPTM_ICR, TATO);
 }

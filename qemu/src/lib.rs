@@ -6,6 +6,7 @@
 //! PB4 Y_SIGN, PB5 Z_SIGN. Sign high = positive direction; a rising step edge = one BLU.
 pub mod analysis;
 pub mod capture;
+pub mod cosim;
 pub mod cut;
 pub mod elf;
 pub mod firmware;

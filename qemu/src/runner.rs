@@ -2,7 +2,7 @@
 //! behind `millac run` and the QEMU tests.
 use crate::analysis::{self, ProgBlock, Report};
 use crate::capture::{run_capture, Capture, CaptureSpec, HandlerSpec};
-use crate::{firmware, vcd};
+use crate::{cosim, firmware, vcd};
 use anyhow::{Context, Result};
 use millac::Settings;
 use serde_json::{json, Value};
@@ -23,7 +23,21 @@ pub struct Outcome {
 
 /// Runs the firmware on `text` as program.nc in `out` with no pre-check, and returns the capture
 /// (handlers: TIMER_0A frame, TIMER_1A pulse end). The firmware's exit status is in the capture.
+/// The simulated ADC is absent (stale FIFOs of an earlier co-simulation in `out` are removed).
 pub fn execute(text: &str, out: &Path, shift: u32) -> Result<Capture> {
+    let spec = prepare(text, out, shift)?;
+    for f in [cosim::REQ, cosim::RESP] {
+        let p = out.join(f);
+        if std::fs::symlink_metadata(&p).is_ok() {
+            std::fs::remove_file(&p).with_context(|| format!("removing {}", p.display()))?;
+        }
+    }
+    run_capture(&spec)
+}
+
+/// Builds the firmware, writes program.nc and returns the capture spec (handlers: TIMER_0A frame,
+/// TIMER_1A pulse end, TIMER_2A sampler).
+fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
     let elf = firmware::build()?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     std::fs::write(out.join("program.nc"), text)?;
@@ -33,8 +47,30 @@ pub fn execute(text: &str, out: &Path, shift: u32) -> Result<Capture> {
     spec.handlers = vec![
         HandlerSpec::from_elf(&elf, "TIMER_0A")?,
         HandlerSpec::from_elf(&elf, "TIMER_1A")?,
+        HandlerSpec::from_elf(&elf, "TIMER_2A")?,
     ];
-    run_capture(&spec)
+    Ok(spec)
+}
+
+/// Runs the firmware on `text` like [`execute`], with the lockstep simulated ADC served by
+/// `plant` (see [`cosim`]): `ac_enabled` = the firmware applies the controller's feed cap (else it
+/// only measures and logs). Returns the capture and every ADC exchange; the firmware's AC log is
+/// `out/ac.log` (parse it with [`cosim::parse_ac_log`]).
+pub fn execute_with_plant(
+    text: &str,
+    out: &Path,
+    shift: u32,
+    plant: Box<dyn cosim::Plant + Send>,
+    ac_enabled: bool,
+) -> Result<(Capture, Vec<cosim::Exchange>)> {
+    let spec = prepare(text, out, shift)?;
+    let _ = std::fs::remove_file(out.join(cosim::AC_LOG));
+    let sample_hz = millac::ac::AcSettings::default().sample_hz;
+    let bridge = cosim::Bridge::start(out, plant, sample_hz, ac_enabled)?;
+    let cap = run_capture(&spec);
+    let exchanges = bridge.finish();
+    let cap = cap?;
+    Ok((cap, exchanges?))
 }
 
 pub fn stats(v: &[u64]) -> Value {

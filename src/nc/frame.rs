@@ -43,6 +43,21 @@ impl FrameConfig {
     }
 }
 
+/// Where a frame gets the adaptive controller's feed cap. A `u32` is a fixed cap; the firmware
+/// passes a type that loads its atomic, so that only the frames that run the feed DDA (linear or
+/// circular feeding) read it: block loads, rapids and dwells do not pay for the load.
+pub trait FeedCap {
+    /// Feed number cap: u32::MAX = no cap, 0 = feed hold.
+    fn feed_cap(&self) -> u32;
+}
+
+impl FeedCap for u32 {
+    #[inline(always)]
+    fn feed_cap(&self) -> u32 {
+        *self
+    }
+}
+
 /// The Initiator's block queue as the frame sees it: the running block stays at the front until
 /// it is done. Implemented by the firmware's queue consumer and by the host simulation.
 pub trait BlockSource {
@@ -154,12 +169,13 @@ impl Frame {
 
     /// One frame. `src` is the Initiator's block source: the running block stays at its front until
     /// it is done (the arc reads its segment targets there), then it is popped.
-    /// `feed_cap` is the adaptive controller's feed number (u32::MAX = no cap, 0 = feed hold).
+    /// `feed_cap` is the adaptive controller's feed number (u32::MAX = no cap, 0 = feed hold),
+    /// read only by the frames that run the feed DDA (see [`FeedCap`]).
     ///
     /// Bounded work per frame: a frame that loads registers (a new block, or the next arc
     /// segment) runs no DDA cycle and emits no pulse; only the loaded block's sign lines change.
     #[inline]
-    pub fn tick(&mut self, src: &mut impl BlockSource, feed_cap: u32) -> Pulses {
+    pub fn tick(&mut self, src: &mut impl BlockSource, feed_cap: impl FeedCap) -> Pulses {
         if self.mode == Mode::Idle {
             if let Some(b) = src.front() {
                 self.initiate(b);
@@ -187,7 +203,7 @@ impl Frame {
             }
             // A line ends in the frame of its last command (its duration is q commands).
             Mode::Linear => {
-                if self.feed(feed_cap) {
+                if self.feed(feed_cap.feed_cap()) {
                     let steps = self.linear();
                     // q commands give exactly |d_k| overflows per axis (see `linear`).
                     if self.remaining == 0 {
@@ -210,7 +226,7 @@ impl Frame {
                     } else {
                         self.done(src);
                     }
-                } else if self.feed(feed_cap) {
+                } else if self.feed(feed_cap.feed_cap()) {
                     let steps = self.circular();
                     self.position_update(steps);
                     return Pulses {
@@ -379,16 +395,21 @@ impl Frame {
     }
 
     /// The smallest number of commands left from which K * remaining / 256 >= f, so that the
-    /// deceleration leaves f as it is: floor(256 f / K) + 1 (u32::MAX when K is 0 or 256 f
-    /// overflows: then every frame computes the product). 0 when the block does not decelerate.
+    /// deceleration leaves f as it is: floor(256 f / K) + 1 (u32::MAX when K is 0; u32::MAX / K
+    /// when 256 f overflows, i.e. f >= 2^24, far above any feed the parser accepts). 0 when the
+    /// block does not decelerate. Below it, K * remaining <= max(256 f, u32::MAX): the frame's
+    /// product fits in 32 bits.
     #[inline]
     fn decel_below(&self, decel: bool, f: u32) -> u32 {
         if !decel {
             return 0;
         }
+        let k = self.cfg.decel_gain_q8;
+        if k == 0 {
+            return u32::MAX;
+        }
         f.checked_mul(256)
-            .and_then(|x| x.checked_div(self.cfg.decel_gain_q8))
-            .map_or(u32::MAX, |d| d.saturating_add(1))
+            .map_or(u32::MAX / k, |x| (x / k).saturating_add(1))
     }
 
     /// Feed-rate DDA: true when this frame produces an interpolation command.
@@ -396,10 +417,11 @@ impl Frame {
     fn feed(&mut self, feed_cap: u32) -> bool {
         let mut f = self.f;
         if self.remaining < self.decel_below {
-            let v = (self.cfg.decel_gain_q8 as u64 * self.remaining as u64) >> 8;
+            // No overflow: see `decel_below`.
+            let v = self.cfg.decel_gain_q8.wrapping_mul(self.remaining) >> 8;
             let floor = self.f_floor;
-            if v < f as u64 {
-                f = if (v as u32) < floor { floor } else { v as u32 };
+            if v < f {
+                f = if v < floor { floor } else { v };
             }
         }
         if feed_cap < f {

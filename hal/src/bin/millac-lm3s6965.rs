@@ -3,6 +3,17 @@
 //! idle loop is the loader: it reads `program.nc` through semihosting, parses it and queues the
 //! blocks, then reports the final position and exits QEMU.
 //!
+//! # Adaptive control (only when the host serves the simulated ADC, see `millac_hal::simadc`)
+//!
+//! Priorities: frame and pulse-end 3; the sampler (TIMER_2A, `sample_hz`) 2; the AC period
+//! (software task, dispatcher SSI0, spawned by the sampler every `period_ms`) 1; the idle loader
+//! 0. The pulse-end ISR counts the pulses on the pins into `ENCODER`; the sampler exchanges the
+//! encoder counts for ADC codes with the host in lockstep and queues them; the AC task runs the
+//! `AcController` on them, writes `FEED_CAP` (when enabled) and `ac.log`, prints `alarm: ..` on a
+//! hold and stops the run after a long hold with nothing moving (see `millac_hal::actask`).
+//! Without `adc.req` in the working directory none of this starts: no sample timer, no AC task,
+//! `FEED_CAP` stays `u32::MAX` and the firmware behaves as before.
+//!
 //! # Timing rule (why pulses and signs are correct by construction)
 //!
 //! Frame ISR and pulse-end ISR run at the same, highest priority, so neither preempts the other:
@@ -78,17 +89,20 @@ fn panic(info: &PanicInfo) -> ! {
     exit(false)
 }
 
-#[rtic::app(device = lm3s6965, peripherals = false)]
+#[rtic::app(device = lm3s6965, peripherals = false, dispatchers = [SSI0])]
 mod app {
     use core::sync::atomic::Ordering::Relaxed;
 
     use cortex_m_semihosting::{nr, syscall};
     use heapless::spsc::{Consumer, Producer, Queue};
+    use millac::ac::{AcController, AcSettings};
     use millac::gcode::tape::Tape;
-    use millac::nc::{Block, BlockSource, Frame, FrameConfig, Pulses, Rate};
+    use millac::nc::{Block, BlockSource, FeedCap, Frame, FrameConfig, Pulses, Rate};
     use millac::Settings;
-    use millac_hal::lm3s6965::Lm3s6965;
-    use millac_hal::status::{BLOCKS_DONE, FEED_CAP, IDLE, NEXT_SIGNS, POSITION};
+    use millac_hal::actask::{AcTask, Codes, Sampled, Sampler, SAMPLE_QUEUE};
+    use millac_hal::lm3s6965::{self as board, Lm3s6965};
+    use millac_hal::simadc::{LogFile, SimAdc, FLAG_AC_ENABLED};
+    use millac_hal::status::{BLOCKS_DONE, ENCODER, FEED_CAP, IDLE, NEXT_SIGNS, POSITION};
     use millac_hal::{clocks_for_hz, clocks_for_ns, Board};
 
     use super::{exit, fail, Out};
@@ -121,9 +135,14 @@ mod app {
         reloads: Reloads,
         producer: Producer<'static, Block, QUEUE>,
         settings: Settings,
+        sampler: Option<Sampler>,
+        ac: Option<AcTask>,
     }
 
-    #[init(local = [queue: Queue<Block, QUEUE> = Queue::new()])]
+    #[init(local = [
+        queue: Queue<Block, QUEUE> = Queue::new(),
+        samples: Queue<Codes, SAMPLE_QUEUE> = Queue::new(),
+    ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let settings = Settings::default();
         if let Err(e) = settings.validate() {
@@ -136,7 +155,27 @@ mod app {
             rapid: B::reload(clocks_for_hz(B::TIMER_HZ, settings.rapid_hz)),
         };
         let pulse = B::reload(clocks_for_ns(B::TIMER_HZ, settings.pulse_width_ns));
+        // No cap unless the AC says otherwise (before any interrupt is enabled).
+        FEED_CAP.store(u32::MAX, Relaxed);
         B::init(reloads.feed, pulse);
+
+        // The simulated ADC and the AC, if the host serves them (blocks until it is ready).
+        let (mut sampler, mut ac) = (None, None);
+        if let Some((adc, flags)) = SimAdc::open() {
+            let ac_settings = AcSettings::default();
+            let ctl = match AcController::new(ac_settings) {
+                Ok(c) => c,
+                Err(e) => fail(format_args!("AC settings: {}", e.message())),
+            };
+            let Some(log) = LogFile::create(b"ac.log\0") else {
+                fail(format_args!("cannot create ac.log"));
+            };
+            let (tx, rx) = cx.local.samples.split();
+            let task = AcTask::new(ctl, rx, log, flags & FLAG_AC_ENABLED != 0);
+            sampler = Some(Sampler::new(adc, tx, task.per_period()));
+            ac = Some(task);
+            board::sample_timer_start(B::reload(clocks_for_hz(B::TIMER_HZ, ac_settings.sample_hz)));
+        }
 
         (
             Shared {},
@@ -148,6 +187,8 @@ mod app {
                 reloads,
                 producer,
                 settings,
+                sampler,
+                ac,
             },
         )
     }
@@ -165,7 +206,7 @@ mod app {
 
         let frame = cx.local.frame;
         let was_idle = frame.idle();
-        let p = frame.tick(&mut Source(cx.local.consumer), FEED_CAP.load(Relaxed));
+        let p = frame.tick(&mut Source(cx.local.consumer), AcCap);
 
         if pending.steps == 0 {
             B::write_signs(p.signs);
@@ -216,12 +257,81 @@ mod app {
         }
     }
 
+    /// The AC's feed cap as the frame reads it: loaded only by the frames that feed.
+    struct AcCap;
+
+    impl FeedCap for AcCap {
+        #[inline(always)]
+        fn feed_cap(&self) -> u32 {
+            FEED_CAP.load(Relaxed)
+        }
+    }
+
     /// The pulse-end ISR: same priority as the frame, so it runs after the frame has finished.
+    /// Before lowering the PULSE lines it counts them, by their SIGN lines, into the encoder
+    /// (the only writer of `ENCODER`: plain load and store).
     #[task(binds = TIMER_1A, priority = 3)]
     fn pulse_end(_: pulse_end::Context) {
         B::pulse_ack();
+        let pins = B::read_pins();
+        for (k, e) in ENCODER.iter().enumerate() {
+            if pins & (1 << k) != 0 {
+                let d = if pins & (8 << k) != 0 { 1 } else { -1 };
+                e.store(e.load(Relaxed).wrapping_add(d), Relaxed);
+            }
+        }
         B::write_steps(0);
         B::write_signs(NEXT_SIGNS.load(Relaxed));
+    }
+
+    /// The sampler: one lockstep exchange with the host's simulated ADC per Timer 2 period,
+    /// priority 2 (below the frame). Spawns the AC period every N samples.
+    #[task(binds = TIMER_2A, priority = 2, local = [sampler])]
+    fn sample(cx: sample::Context) {
+        board::sample_timer_ack();
+        let Some(s) = cx.local.sampler.as_mut() else {
+            board::sample_timer_stop();
+            return;
+        };
+        match s.sample() {
+            Sampled::Stop => {
+                board::sample_timer_stop();
+                *cx.local.sampler = None;
+            }
+            Sampled::Ok(Some(due)) => {
+                if ac_period::spawn(due).is_err() {
+                    millac_hal::status::AC_MISSED.fetch_add(1, Relaxed);
+                }
+            }
+            Sampled::Ok(None) => {}
+        }
+    }
+
+    /// The AC period: priority 1 (above the idle loader, below the sampler).
+    #[task(priority = 1, local = [ac])]
+    async fn ac_period(cx: ac_period::Context, due: u32) {
+        let Some(task) = cx.local.ac.as_mut() else {
+            return;
+        };
+        let p = task.run(due);
+        if let Some(a) = p.alarm {
+            Out::open().line(format_args!("alarm: {}", a));
+        }
+        if p.halt {
+            let [x, y, z] = [
+                POSITION[0].load(Relaxed),
+                POSITION[1].load(Relaxed),
+                POSITION[2].load(Relaxed),
+            ];
+            Out::open().line(format_args!(
+                "millac: hold blocks={} position={},{},{}",
+                BLOCKS_DONE.load(Relaxed),
+                x,
+                y,
+                z
+            ));
+            exit(false);
+        }
     }
 
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).

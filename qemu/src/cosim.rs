@@ -1,0 +1,285 @@
+//! Co-simulation of the adaptive control (host): the lockstep simulated ADC the QEMU firmware
+//! samples (see `millac_hal::simadc` for the firmware side), a [`Plant`] that turns encoder
+//! positions into ADC codes, and the parser of the firmware's `ac.log`.
+//!
+//! # Protocol (all integers little endian)
+//!
+//! Two FIFOs in the run directory (QEMU's working directory), created here before QEMU starts:
+//! `adc.req` (firmware -> host) and `adc.resp` (host -> firmware). The firmware opens `adc.req`
+//! O_RDWR (no create, no block; absent = no AC), then `adc.resp` for reading (blocks until we open
+//! its write end). We write the header `b"MAC1"` + u32 flags (bit 0: AC enabled), then serve
+//! requests until EOF: 16 bytes in (u32 sample index, i32 encoder X, Y, Z in BLU), 6 bytes out
+//! (u16 codes T, Fu, Fv). Every request blocks the whole emulator until answered and under
+//! `-icount` virtual time stands still meanwhile, so runs are deterministic.
+//!
+//! Opening never deadlocks if QEMU dies early: `adc.req` is opened O_NONBLOCK for reading (always
+//! succeeds), `adc.resp` O_NONBLOCK for writing in a retry loop that gives up when the runner says
+//! QEMU has exited (or after a timeout); only once the firmware holds both ends is `adc.req`
+//! reopened blocking for the request reads. `libc` (already in the lock file through other
+//! crates) provides `mkfifo` and `O_NONBLOCK`.
+use anyhow::{bail, ensure, Context, Result};
+use std::ffi::CString;
+use std::fs::{File, OpenOptions};
+use std::io::{ErrorKind, Read, Write};
+use std::os::unix::ffi::OsStrExt;
+use std::os::unix::fs::OpenOptionsExt;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// Request FIFO (firmware -> host).
+pub const REQ: &str = "adc.req";
+/// Response FIFO (host -> firmware).
+pub const RESP: &str = "adc.resp";
+/// The AC log the firmware writes in the run directory.
+pub const AC_LOG: &str = "ac.log";
+/// Header magic.
+pub const MAGIC: [u8; 4] = *b"MAC1";
+/// Header flag: the firmware applies the controller's feed cap.
+pub const FLAG_AC_ENABLED: u32 = 1;
+
+/// The simulated machine and cutting process behind the ADC: one conversion per request.
+pub trait Plant {
+    /// Codes [T, Fu, Fv] for sample `index` at virtual time `t_s` = index / sample_hz, given the
+    /// encoder positions (BLU) the firmware counted.
+    fn sample(&mut self, index: u32, t_s: f64, pos_blu: [i64; 3]) -> [u16; 3];
+    /// True to end the exchange early (the host closes the FIFOs; the firmware's sampler then
+    /// stops). Default: never.
+    fn finished(&self) -> bool {
+        false
+    }
+}
+
+/// One request and its answer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Exchange {
+    pub index: u32,
+    pub pos_blu: [i64; 3],
+    pub codes: [u16; 3],
+}
+
+/// The bridge thread serving one run.
+pub struct Bridge {
+    stop: Arc<AtomicBool>,
+    thread: JoinHandle<Result<Vec<Exchange>>>,
+}
+
+/// Creates the FIFO `path` (removing whatever was there).
+fn mkfifo(path: &Path) -> Result<()> {
+    if std::fs::symlink_metadata(path).is_ok() {
+        std::fs::remove_file(path).with_context(|| format!("removing {}", path.display()))?;
+    }
+    let c = CString::new(path.as_os_str().as_bytes())?;
+    // SAFETY: a valid NUL-terminated path; mkfifo only reads it.
+    let r = unsafe { libc::mkfifo(c.as_ptr(), 0o600) };
+    if r != 0 {
+        bail!(
+            "mkfifo {}: {}",
+            path.display(),
+            std::io::Error::last_os_error()
+        );
+    }
+    Ok(())
+}
+
+impl Bridge {
+    /// Creates the FIFOs in `run_dir` and starts serving `plant` (before QEMU starts).
+    /// `sample_hz` gives the virtual time of a sample; `ac_enabled` goes into the header.
+    pub fn start(
+        run_dir: &Path,
+        mut plant: Box<dyn Plant + Send>,
+        sample_hz: u32,
+        ac_enabled: bool,
+    ) -> Result<Bridge> {
+        ensure!(sample_hz > 0, "sample rate must be > 0");
+        let (req, resp) = (run_dir.join(REQ), run_dir.join(RESP));
+        mkfifo(&req)?;
+        mkfifo(&resp)?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        let flags = if ac_enabled { FLAG_AC_ENABLED } else { 0 };
+        let thread =
+            std::thread::spawn(move || serve(&req, &resp, &flag, flags, sample_hz, plant.as_mut()));
+        Ok(Bridge { stop, thread })
+    }
+
+    /// Tells the thread QEMU has exited (so it stops waiting for the firmware to open the FIFOs)
+    /// and returns every exchange served.
+    pub fn finish(self) -> Result<Vec<Exchange>> {
+        self.stop.store(true, Ordering::SeqCst);
+        self.thread
+            .join()
+            .map_err(|_| anyhow::anyhow!("cosim bridge thread panicked"))?
+    }
+}
+
+/// How long the bridge waits for the firmware to open `adc.resp` when nobody says QEMU exited.
+const OPEN_TIMEOUT: Duration = Duration::from_secs(600);
+
+fn serve(
+    req: &PathBuf,
+    resp: &PathBuf,
+    stop: &AtomicBool,
+    flags: u32,
+    sample_hz: u32,
+    plant: &mut dyn Plant,
+) -> Result<Vec<Exchange>> {
+    // Non-blocking reader: exists at once, so the firmware's open of adc.req never waits on us.
+    let probe = OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(req)
+        .with_context(|| format!("opening {}", req.display()))?;
+    let start = Instant::now();
+    let mut out = loop {
+        match OpenOptions::new()
+            .write(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(resp)
+        {
+            Ok(f) => break f,
+            // ENXIO: no reader yet (the firmware has not reached its open).
+            Err(e) if e.raw_os_error() == Some(libc::ENXIO) => {
+                if stop.load(Ordering::SeqCst) || start.elapsed() > OPEN_TIMEOUT {
+                    // QEMU ended (or never ran the AC): nothing was exchanged.
+                    return Ok(Vec::new());
+                }
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            Err(e) => return Err(e).with_context(|| format!("opening {}", resp.display())),
+        }
+    };
+    // The firmware holds adc.req open (it opened it before adc.resp): a blocking open returns
+    // at once, and reads now block until a request or EOF.
+    let mut input = File::open(req).with_context(|| format!("reopening {}", req.display()))?;
+    drop(probe);
+    let mut header = [0u8; 8];
+    header[..4].copy_from_slice(&MAGIC);
+    header[4..].copy_from_slice(&flags.to_le_bytes());
+    let mut log = Vec::new();
+    if write_all(&mut out, &header).is_err() {
+        return Ok(log);
+    }
+    let mut q = [0u8; 16];
+    loop {
+        if plant.finished() {
+            break;
+        }
+        match input.read_exact(&mut q) {
+            Ok(()) => {}
+            Err(e) if e.kind() == ErrorKind::UnexpectedEof => break,
+            Err(e) => return Err(e).context("reading adc.req"),
+        }
+        let le = |i: usize| [q[i], q[i + 1], q[i + 2], q[i + 3]];
+        let index = u32::from_le_bytes(le(0));
+        let pos_blu = [4, 8, 12].map(|i| i64::from(i32::from_le_bytes(le(i))));
+        let codes = plant.sample(index, f64::from(index) / f64::from(sample_hz), pos_blu);
+        let mut r = [0u8; 6];
+        for (k, c) in codes.iter().enumerate() {
+            r[2 * k..2 * k + 2].copy_from_slice(&c.to_le_bytes());
+        }
+        log.push(Exchange {
+            index,
+            pos_blu,
+            codes,
+        });
+        if write_all(&mut out, &r).is_err() {
+            // QEMU went away (EPIPE).
+            break;
+        }
+    }
+    Ok(log)
+}
+
+/// Writes all bytes to the non-blocking response FIFO (a few bytes: never more than the pipe
+/// holds, but retried on EAGAIN all the same).
+fn write_all(f: &mut File, mut b: &[u8]) -> std::io::Result<()> {
+    while !b.is_empty() {
+        match f.write(b) {
+            Ok(0) => return Err(ErrorKind::WriteZero.into()),
+            Ok(n) => b = &b[n..],
+            Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                std::thread::sleep(Duration::from_micros(50))
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
+}
+
+/// One line of `ac.log` (one AC period).
+#[derive(Clone, Debug, PartialEq)]
+pub struct AcRecord {
+    /// The period's deadline: sample count * 1000 / sample_hz.
+    pub t_ms: u64,
+    /// Encoder counts X, Y, Z in BLU at the end of the period's work.
+    pub pos_blu: [i64; 3],
+    /// Feed number cap the controller computed (0 = hold).
+    pub feed_cap: u32,
+    pub e: f32,
+    pub f_n: f32,
+    pub t_nm: f32,
+    /// `None` in run, `Some(alarm message)` in hold.
+    pub hold: Option<String>,
+    /// Running overrun count.
+    pub overruns: u32,
+}
+
+/// Parses `ac.log` (header row + one line per period; see `millac_hal::actask`).
+pub fn parse_ac_log(text: &str) -> Result<Vec<AcRecord>> {
+    let mut lines = text.lines();
+    let header = lines.next().context("ac.log is empty")?;
+    ensure!(
+        header == "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns",
+        "unexpected ac.log header `{header}`"
+    );
+    lines
+        .enumerate()
+        .map(|(n, l)| parse_record(l).with_context(|| format!("ac.log line {}: `{l}`", n + 2)))
+        .collect()
+}
+
+fn parse_record(l: &str) -> Result<AcRecord> {
+    let f: Vec<&str> = l.split(',').collect();
+    ensure!(f.len() == 10, "{} fields, expected 10", f.len());
+    let hold = match f[8] {
+        "run" => None,
+        s => Some(
+            s.strip_prefix("hold:")
+                .context("state is neither `run` nor `hold:..`")?
+                .to_string(),
+        ),
+    };
+    Ok(AcRecord {
+        t_ms: f[0].parse()?,
+        pos_blu: [f[1].parse()?, f[2].parse()?, f[3].parse()?],
+        feed_cap: f[4].parse()?,
+        e: f[5].parse()?,
+        f_n: f[6].parse()?,
+        t_nm: f[7].parse()?,
+        hold,
+        overruns: f[9].parse()?,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_the_log() {
+        let t = "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns\n\
+                 10,1,-2,0,750,0.95,180.5,0,run,0\n\
+                 20,3,-2,0,0,-0.2,4320,1.5,hold:sensor stuck at an ADC rail,1\n";
+        let r = parse_ac_log(t).unwrap();
+        assert_eq!(r.len(), 2);
+        assert_eq!(r[0].pos_blu, [1, -2, 0]);
+        assert_eq!(r[0].hold, None);
+        assert_eq!(r[1].feed_cap, 0);
+        assert_eq!(r[1].hold.as_deref(), Some("sensor stuck at an ADC rail"));
+        assert!(parse_ac_log("bad\n").is_err());
+        assert!(parse_ac_log(&format!("{}\n1,2,3\n", t.lines().next().unwrap())).is_err());
+    }
+}

@@ -1,0 +1,244 @@
+//! QEMU co-simulation tests of the adaptive control (host): the firmware samples a toy plant
+//! through the lockstep simulated ADC, runs its AC task and writes `ac.log`. A toy plant is
+//! enough here: the force is proportional to the feed (the distance moved over the last 10
+//! samples); the real cutting model lives in `millac_qemu::cut`.
+use millac::ac::{AcController, AcSettings};
+use millac_qemu::analysis;
+use millac_qemu::cosim::{self, AcRecord, Exchange, Plant};
+use millac_qemu::runner;
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::time::Instant;
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("millac-cosim-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// Samples per force window of the toy plant (10 ms at 1 kHz).
+const WINDOW: usize = 10;
+/// Mid-scale code (zero load) of the default calibration.
+const MID: f64 = 2048.0;
+
+/// Force (N) = `n_per_blu_s` x path speed (BLU/s) over the last `WINDOW` samples, on Fu; Fv and
+/// T at zero load. From sample `stuck_from` on, T is stuck at the upper rail.
+struct Toy {
+    n_per_blu_s: f64,
+    hist: VecDeque<[i64; 3]>,
+    stuck_from: Option<u32>,
+}
+
+impl Toy {
+    /// A plant whose force reaches F0 at `feed_ipm` (BLU 0.0001 in).
+    fn new(feed_ipm: f64, stuck_from: Option<u32>) -> Toy {
+        let f0 = f64::from(AcSettings::default().f0_n());
+        let blu_s = feed_ipm * 10_000.0 / 60.0;
+        Toy {
+            n_per_blu_s: f0 / blu_s,
+            hist: VecDeque::new(),
+            stuck_from,
+        }
+    }
+}
+
+impl Plant for Toy {
+    fn sample(&mut self, index: u32, _t_s: f64, pos: [i64; 3]) -> [u16; 3] {
+        self.hist.push_back(pos);
+        if self.hist.len() > WINDOW + 1 {
+            self.hist.pop_front();
+        }
+        let first = self.hist[0];
+        let d2: f64 = (0..3).map(|k| ((pos[k] - first[k]) as f64).powi(2)).sum();
+        let n = (self.hist.len() - 1).max(1) as f64;
+        let force = self.n_per_blu_s * d2.sqrt() / n * 1000.0;
+        let gain = f64::from(AcSettings::default().cal[1].gain);
+        let fu = (MID + force / gain).round().clamp(0.0, 4095.0) as u16;
+        let t = match self.stuck_from {
+            Some(s) if index >= s => 4095,
+            _ => 2048,
+        };
+        [t, fu, 2048]
+    }
+}
+
+const PROGRAM: &str = "G20 G91\nG1 X0.7 F30\nM2\n";
+const END_X: i64 = 7000;
+
+struct Run {
+    cap: millac_qemu::capture::Capture,
+    exchanges: Vec<Exchange>,
+    log: String,
+    records: Vec<AcRecord>,
+}
+
+fn run(name: &str, program: &str, plant: Toy, enabled: bool) -> Run {
+    let out = out_dir(name);
+    let t0 = Instant::now();
+    let (cap, exchanges) =
+        runner::execute_with_plant(program, &out, 4, Box::new(plant), enabled).expect("run");
+    let wall = t0.elapsed().as_secs_f64();
+    let virt = cap.end_ns as f64 * 1e-9;
+    eprintln!(
+        "{name}: {virt:.3} s virtual in {wall:.2} s wall ({:.2} s per simulated s), {} samples; \
+         sampler {:?} instr., pulse end max {:?}",
+        wall / virt,
+        exchanges.len(),
+        runner::stats(&cap.handlers[2].1),
+        cap.handlers[1].1.iter().max()
+    );
+    let log = std::fs::read_to_string(out.join(cosim::AC_LOG)).expect("ac.log");
+    let records = cosim::parse_ac_log(&log).expect("parse ac.log");
+    Run {
+        cap,
+        exchanges,
+        log,
+        records,
+    }
+}
+
+/// Position after every rising edge in the capture: (time ns, position).
+fn vcd_path(pins: &[(u64, u8)]) -> Vec<(u64, [i64; 3])> {
+    let mut p = [0i64; 3];
+    let mut out = vec![(0, p)];
+    for e in analysis::edges(0, pins).edges {
+        p[e.axis] += i64::from(e.dir);
+        out.push((e.t_ns, p));
+    }
+    out
+}
+
+/// (b): every request's encoder counts are a position the pins showed within half a millisecond
+/// of the sample's nominal time (index + 1) ms (the sample timer starts in init, microseconds
+/// after reset).
+fn check_encoder_against_vcd(r: &Run) {
+    let path = vcd_path(&r.cap.pins);
+    for x in &r.exchanges {
+        let t = (u64::from(x.index) + 1) * 1_000_000;
+        let (lo, hi) = (t.saturating_sub(500_000), t + 500_000);
+        let before = path.iter().rev().find(|(tt, _)| *tt <= lo).map(|p| p.1);
+        let ok = before == Some(x.pos_blu)
+            || path
+                .iter()
+                .any(|(tt, p)| *tt > lo && *tt <= hi && *p == x.pos_blu);
+        assert!(
+            ok,
+            "sample {} at {:?} not on the VCD path",
+            x.index, x.pos_blu
+        );
+    }
+}
+
+/// (e): the same samples, grouped per period, give the same decisions on the host.
+fn check_host_replay(r: &Run) {
+    let s = AcSettings::default();
+    let n = (s.sample_hz * s.period_ms / 1000) as usize;
+    let mut ctl = AcController::new(s).unwrap();
+    assert!(!r.records.is_empty());
+    for (k, rec) in r.records.iter().enumerate() {
+        assert_eq!(rec.t_ms, (k as u64 + 1) * u64::from(s.period_ms));
+        for x in &r.exchanges[k * n..(k + 1) * n] {
+            assert_eq!(x.index as usize / n, k);
+            ctl.sample(x.codes);
+        }
+        let o = ctl.period();
+        assert_eq!(o.feed_cap, rec.feed_cap, "period {k}");
+        assert_eq!(o.e.to_bits(), rec.e.to_bits(), "period {k}");
+        assert_eq!(o.f_n.to_bits(), rec.f_n.to_bits(), "period {k}");
+        assert_eq!(o.t_nm.to_bits(), rec.t_nm.to_bits(), "period {k}");
+        assert_eq!(rec.overruns, 0, "period {k}");
+    }
+}
+
+#[test]
+fn ac_converges_to_f0_exact_end_deterministic_and_replayable() {
+    let a = run("enabled-a", PROGRAM, Toy::new(25.0, None), true);
+    assert_eq!(a.cap.status, Some(0), "{}", a.cap.stdout);
+    // (a) exact end point, firmware and pins.
+    assert_eq!(
+        runner::firmware_position(&a.cap.stdout),
+        Some([END_X, 0, 0]),
+        "{}",
+        a.cap.stdout
+    );
+    assert_eq!(vcd_path(&a.cap.pins).last().unwrap().1, [END_X, 0, 0]);
+    // (a) the measured force settles near F0, from below: the periods from 1 s on while cutting.
+    let f0 = AcSettings::default().f0_n();
+    let settled: Vec<&AcRecord> = a
+        .records
+        .iter()
+        .filter(|r| r.t_ms >= 1000 && r.pos_blu[0] < END_X - 200)
+        .collect();
+    assert!(settled.len() >= 20, "{} settled periods", settled.len());
+    for r in &settled {
+        assert!(
+            r.f_n >= 0.95 * f0 && r.f_n <= 1.03 * f0,
+            "t {} ms: F {} N, F0 {f0} N",
+            r.t_ms,
+            r.f_n
+        );
+        assert!(r.hold.is_none());
+    }
+    let mean = settled.iter().map(|r| r.f_n).sum::<f32>() / settled.len() as f32;
+    assert!(
+        mean <= f0 && mean >= 0.95 * f0,
+        "mean F {mean} N, F0 {f0} N"
+    );
+    // The feed was capped: slower than the programmed 30 ipm (feed number 3000).
+    assert!(settled.iter().all(|r| r.feed_cap < 3000));
+    check_encoder_against_vcd(&a);
+    check_host_replay(&a);
+    // (c) determinism.
+    let b = run("enabled-b", PROGRAM, Toy::new(25.0, None), true);
+    assert_eq!(a.exchanges, b.exchanges);
+    assert_eq!(a.log, b.log);
+    assert_eq!(a.cap.pins, b.cap.pins);
+}
+
+#[test]
+fn stuck_sensor_holds_without_losing_a_pulse_and_the_run_ends() {
+    let r = run("stuck", PROGRAM, Toy::new(25.0, Some(300)), true);
+    // (d) hold: alarm printed, cap 0, motion stops, the firmware reports and exits (failure).
+    assert_eq!(r.cap.status, Some(1), "{}", r.cap.stdout);
+    assert!(
+        r.cap.stdout.contains("alarm: sensor hold"),
+        "{}",
+        r.cap.stdout
+    );
+    assert!(r.cap.stdout.contains("millac: hold"), "{}", r.cap.stdout);
+    let first_hold = r
+        .records
+        .iter()
+        .position(|x| x.hold.is_some())
+        .expect("no hold in ac.log");
+    assert!(r.records[first_hold..].iter().all(|x| x.feed_cap == 0));
+    let fw = runner::firmware_position(&r.cap.stdout).expect("position line");
+    let vcd = vcd_path(&r.cap.pins).last().unwrap().1;
+    let enc = r.exchanges.last().unwrap().pos_blu;
+    assert_eq!(fw, vcd, "firmware counters vs pins");
+    assert_eq!(fw, enc, "firmware counters vs encoder");
+    assert_eq!(r.records.last().unwrap().pos_blu, enc);
+    assert!(fw[0] > 0 && fw[0] < END_X, "{fw:?}");
+    // Nothing moved for the last second of the hold.
+    let held = &r.records[r.records.len() - 100..];
+    assert!(held.iter().all(|x| x.pos_blu == enc));
+    check_encoder_against_vcd(&r);
+    check_host_replay(&r);
+}
+
+#[test]
+fn measure_only_leaves_the_pulses_equal_to_the_host_core() {
+    let program = "G20 G91\nG1 X0.05 Y0.02 F30\nG2 X0.02 Y0 I0.01 J0 F20\nM2\n";
+    let r = run("no-ac", program, Toy::new(25.0, None), false);
+    assert_eq!(r.cap.status, Some(0), "{}", r.cap.stdout);
+    let settings = millac::Settings::default();
+    let prog = analysis::load_program(program, &settings).unwrap();
+    let e = analysis::edges(0, &r.cap.pins);
+    assert_eq!(
+        analysis::compare_with_host(&prog, &settings, &e.groups),
+        None
+    );
+    assert!(!r.records.is_empty());
+    check_encoder_against_vcd(&r);
+    check_host_replay(&r);
+}
