@@ -70,6 +70,14 @@ pub fn load_program(text: &str, settings: &Settings) -> Result<Vec<ProgBlock>, T
         .collect())
 }
 
+/// The spindle speed the program sets (its last S word), 0 when it sets none.
+pub fn spindle_rpm(text: &str, settings: &Settings) -> u32 {
+    let mut tape = Tape::new(*settings);
+    let _ = tape.feed(text.as_bytes(), |_| {});
+    let _ = tape.finish(|_| {});
+    tape.parser().spindle_rpm()
+}
+
 /// One rising PULSE edge: time, axis, direction (+1/-1 from the SIGN line at the edge).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Edge {

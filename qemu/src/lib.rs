@@ -4,6 +4,8 @@
 //!
 //! Pins (GPIO port B, PL061 at 0x4000_5000): PB0 X_STEP, PB1 Y_STEP, PB2 Z_STEP, PB3 X_SIGN,
 //! PB4 Y_SIGN, PB5 Z_SIGN. Sign high = positive direction; a rising step edge = one BLU.
+pub mod acreport;
+pub mod acsim;
 pub mod analysis;
 pub mod capture;
 pub mod cosim;

@@ -36,8 +36,31 @@ enum Cmd {
         #[arg(long, default_value = "out/demo")]
         out: PathBuf,
     },
+    /// Run a program with adaptive control natively on the host (no QEMU) against the simulated cut:
+    /// DIR/ac.csv, DIR/ac.svg and the side-by-side table. Fast experiments and benchmarks.
+    Host {
+        program: Option<PathBuf>,
+        #[arg(long, default_value = "out/host")]
+        out: PathBuf,
+        #[command(flatten)]
+        cut: CutArgs,
+    },
     /// Check a VCD capture against a program (no QEMU); writes a summary to stdout.
     Analyse { capture: PathBuf, program: PathBuf },
+}
+
+/// The simulated cutting process.
+#[derive(clap::Args, Clone, Debug)]
+struct CutArgs {
+    /// Run without adaptive control (programmed feeds).
+    #[arg(long)]
+    no_ac: bool,
+    /// Seed of the transducer noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Stock description file (default: the Fig. 1 die blank with its drilled start hole).
+    #[arg(long)]
+    stock: Option<PathBuf>,
 }
 
 fn main() {
@@ -53,6 +76,12 @@ fn main() {
             .with_context(|| format!("reading {}", program.display()))
             .and_then(|text| run(&text, &out, shift)),
         Some(Cmd::Analyse { capture, program }) => analyse_file(&capture, &program),
+        Some(Cmd::Host { program, out, cut }) => match program {
+            Some(p) => std::fs::read_to_string(&p)
+                .with_context(|| format!("reading {}", p.display()))
+                .and_then(|text| host(&text, &out, &cut)),
+            None => host(DEMO, &out, &cut),
+        },
     };
     match result {
         Ok(true) => {}
@@ -94,4 +123,66 @@ fn analyse_file(capture: &Path, program: &Path) -> Result<bool> {
     let summary = runner::summary_json(&prog, &report);
     println!("{}", serde_json::to_string_pretty(&summary)?);
     Ok(runner::checks_pass(&report))
+}
+
+fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
+    use millac_qemu::cut::{Material, Stock, Tool, Transducer, DEFAULT_RPM};
+    let stock = match &args.stock {
+        Some(p) => Stock::parse(
+            &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
+        )
+        .map_err(|e| anyhow::anyhow!("{e}"))?,
+        None => Stock::default(),
+    };
+    let rpm = analysis::spindle_rpm(text, &Settings::default());
+    Ok(millac_qemu::acsim::Cut {
+        stock,
+        tool: Tool::default(),
+        material: Material::STEEL,
+        spindle_rpm: if rpm > 0 { rpm as f64 } else { DEFAULT_RPM },
+        seed: args.seed,
+        transducer: Transducer::default(),
+    })
+}
+
+fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
+    use millac_qemu::{acreport, acsim};
+    let settings = Settings::default();
+    let prog = analysis::load_program(text, &settings)
+        .map_err(|e| anyhow::anyhow!("program rejected: {e}"))?;
+    let cut = cut_setup(text, args)?;
+    let acs = millac::ac::AcSettings::default();
+    std::fs::create_dir_all(out)?;
+    let run = acsim::run(&prog, &settings, &cut, (!args.no_ac).then_some(acs))?;
+    std::fs::write(out.join("ac.csv"), acsim::csv(&run.rows))?;
+    let f0 = acs.f0_n() as f64;
+    let t0 = acs.t0_nm() as f64;
+    acreport::plot(
+        &out.join("ac.svg"),
+        &run.rows,
+        f0,
+        t0,
+        1.0 / acs.optimal_fraction as f64,
+        acsim::feed_ipm(&settings, settings.q0),
+    )?;
+    let load = acsim::load_figures(
+        &run.samples,
+        &cut.tool,
+        acs.optimal_fraction as f64,
+        acs.sample_hz,
+    );
+    let cmp = acreport::compare(&prog, &settings, &cut, &acs)?;
+    println!(
+        "millac host run ({}): final position {:?}",
+        if args.no_ac { "no AC" } else { "AC" },
+        run.final_position
+    );
+    acreport::print_table(run.machining_time_s, &load, &cmp);
+    println!(
+        "  wrote {}/ac.csv and {}/ac.svg",
+        out.display(),
+        out.display()
+    );
+    let end = prog.last().map_or([0; 3], |b| b.end).map(i64::from);
+    Ok(run.final_position == end)
 }

@@ -1,0 +1,283 @@
+//! Side-by-side machining figures of a program on the simulated process (host): with the paper's AC,
+//! at the programmed constant feeds, at the largest constant feed safe for the whole program, and the
+//! oracle (the fastest schedule within F0, T0 and fdot_m, computed with full knowledge of the stock).
+//! Also the ac.csv text and the plot. Used by the `run`/demo commands and the benchmark.
+use crate::acsim::{self, AcRow, Cut, HostRun, LoadFigures};
+use crate::analysis::ProgBlock;
+use crate::cut::oracle::{oracle_time, OracleLimits, OraclePoint};
+use anyhow::Result;
+use millac::ac::AcSettings;
+use millac::nc::Motion;
+use millac::Settings;
+use serde_json::{json, Value};
+
+/// The comparison runs (all on the host, same process model and seed).
+#[derive(Clone, Debug)]
+pub struct Comparison {
+    pub programmed: HostRun,
+    pub programmed_load: LoadFigures,
+    pub safe_feed_ipm: f64,
+    pub safe: HostRun,
+    pub safe_load: LoadFigures,
+    pub oracle_time_s: f64,
+}
+
+fn is_feed(b: &ProgBlock) -> bool {
+    matches!(b.block.motion, Motion::Linear(_) | Motion::Arc(_))
+}
+
+/// Runs the constant-feed references and the oracle.
+pub fn compare(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    acs: &AcSettings,
+) -> Result<Comparison> {
+    let fraction = acs.optimal_fraction as f64;
+    let programmed = acsim::run(prog, settings, cut, None)?;
+    let programmed_load =
+        acsim::load_figures(&programmed.samples, &cut.tool, fraction, acs.sample_hz);
+    // Oracle over the feed blocks: path points per pulse with the programmed feed as ceiling; each
+    // run of consecutive feed blocks starts from rest; rapids and dwells take their own time.
+    let limits = OracleLimits::for_tool(&cut.tool);
+    let mut stock = cut.stock.clone();
+    let mut oracle_s = 0.0;
+    let mut min_limit = f64::INFINITY;
+    let mut seg: Vec<OraclePoint> = Vec::new();
+    let mut pulse = 0usize;
+    let mut flush = |seg: &mut Vec<OraclePoint>,
+                     stock: &mut crate::cut::Stock,
+                     oracle_s: &mut f64|
+     -> Result<()> {
+        if seg.len() > 1 {
+            let r = oracle_time(
+                stock.clone(),
+                &cut.tool,
+                &cut.material,
+                cut.spindle_rpm,
+                seg,
+                &limits,
+            )
+            .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))?;
+            *oracle_s += r.time_s;
+            // Only where the force or torque binds (below the programmed ceiling) does a point limit
+            // the constant feed.
+            for (l, p) in r.limit_ipm.iter().zip(seg.iter()) {
+                if *l < p.feed_ipm - 1e-9 {
+                    min_limit = min_limit.min(*l);
+                }
+            }
+            // The stock after this segment, for the next one.
+            for w in seg.windows(2) {
+                let mm = |v: [i64; 3]| v.map(|c| c as f64 * crate::cut::MM_PER_BLU);
+                stock.cut_capsule(
+                    mm(w[0].pos_blu),
+                    mm(w[1].pos_blu),
+                    cut.tool.diameter_mm / 2.0,
+                );
+            }
+        }
+        seg.clear();
+        Ok(())
+    };
+    let mut pos = [0i64; 3];
+    for (i, b) in prog.iter().enumerate() {
+        let start = pulse;
+        while programmed.path.get(pulse).is_some_and(|p| p.2 == i) {
+            pulse += 1;
+        }
+        let pts = &programmed.path[start..pulse];
+        if is_feed(b) {
+            if seg.is_empty() {
+                seg.push(OraclePoint {
+                    pos_blu: pos,
+                    feed_ipm: pts.first().map_or(0.0, |p| p.1),
+                });
+            }
+            seg.extend(pts.iter().map(|p| OraclePoint {
+                pos_blu: p.0,
+                feed_ipm: p.1,
+            }));
+        } else {
+            flush(&mut seg, &mut stock, &mut oracle_s)?;
+            if let Some(&(_, t0, t1)) = programmed.spans.get(i) {
+                oracle_s += (t1 - t0) as f64 * 1e-9;
+            }
+            // Rapids cut nothing in a sane program; keep the stock in step anyway.
+            let mm = |v: [i64; 3]| v.map(|c| c as f64 * crate::cut::MM_PER_BLU);
+            if let Some(last) = pts.last() {
+                stock.cut_capsule(mm(pos), mm(last.0), cut.tool.diameter_mm / 2.0);
+            }
+        }
+        if let Some(last) = pts.last() {
+            pos = last.0;
+        }
+    }
+    flush(&mut seg, &mut stock, &mut oracle_s)?;
+    // The largest constant feed that is safe everywhere: the smallest point limit of the oracle.
+    let max_f = settings.q0;
+    let safe_f = if min_limit.is_finite() {
+        ((min_limit / acsim::feed_ipm(settings, 1)).floor() as u32).clamp(1, max_f)
+    } else {
+        max_f
+    };
+    let safe_prog = acsim::with_constant_feed(prog, safe_f);
+    let safe = acsim::run(&safe_prog, settings, cut, None)?;
+    let safe_load = acsim::load_figures(&safe.samples, &cut.tool, fraction, acs.sample_hz);
+    Ok(Comparison {
+        programmed,
+        programmed_load,
+        safe_feed_ipm: acsim::feed_ipm(settings, safe_f),
+        safe,
+        safe_load,
+        oracle_time_s: oracle_s,
+    })
+}
+
+fn r3(v: f64) -> f64 {
+    (v * 1000.0).round() / 1000.0
+}
+
+/// The `ac` object of summary.json (stable keys), from the AC run's time and samples.
+pub fn ac_json(time_s: f64, load: &LoadFigures, c: &Comparison) -> Value {
+    json!({
+        "time_s": r3(time_s),
+        "time_constant_programmed_s": r3(c.programmed.machining_time_s),
+        "time_constant_safe_s": r3(c.safe.machining_time_s),
+        "time_oracle_s": r3(c.oracle_time_s),
+        "peak_force_ratio": r3(load.peak_force_ratio),
+        "peak_torque_ratio": r3(load.peak_torque_ratio),
+        "time_above_f0_s": r3(load.time_above_f0_s),
+        "time_above_limit_s": r3(load.time_above_limit_s),
+        "safe_constant_feed_ipm": r3(c.safe_feed_ipm),
+        "programmed_peak_force_ratio": r3(c.programmed_load.peak_force_ratio),
+        "programmed_time_above_limit_s": r3(c.programmed_load.time_above_limit_s),
+    })
+}
+
+/// Prints the side-by-side table.
+pub fn print_table(time_s: f64, load: &LoadFigures, c: &Comparison) {
+    println!("  adaptive control on the simulated cut        time s   vs oracle  peak F/Fmax  peak T/Tmax  above F0 s  above limit s");
+    let row = |name: &str, t: f64, l: Option<&LoadFigures>| {
+        let (pf, pt, a0, al) = l.map_or(("-".into(), "-".into(), "-".into(), "-".into()), |l| {
+            (
+                format!("{:.3}", l.peak_force_ratio),
+                format!("{:.3}", l.peak_torque_ratio),
+                format!("{:.3}", l.time_above_f0_s),
+                format!("{:.3}", l.time_above_limit_s),
+            )
+        });
+        println!(
+            "  {name:<44} {t:>7.2}   {:>8.3}  {pf:>11}  {pt:>11}  {a0:>10}  {al:>13}",
+            t / c.oracle_time_s
+        );
+    };
+    row("AC (paper's strategy)", time_s, Some(load));
+    row(
+        "constant, programmed feeds",
+        c.programmed.machining_time_s,
+        Some(&c.programmed_load),
+    );
+    row(
+        &format!("constant, safe feed {:.2} ipm", c.safe_feed_ipm),
+        c.safe.machining_time_s,
+        Some(&c.safe_load),
+    );
+    row("oracle (bound)", c.oracle_time_s, None);
+}
+
+/// Writes the plot (SVG): feed, F/F0 and T/T0 against time with the limits, and the tool path in XY
+/// coloured by feed.
+pub fn plot(
+    path: &std::path::Path,
+    rows: &[AcRow],
+    f0: f64,
+    t0: f64,
+    f_max_ratio: f64,
+    feed_max: f64,
+) -> Result<()> {
+    use plotters::prelude::*;
+    let root = SVGBackend::new(path, (1200, 900)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (top, bottom) = root.split_vertically(520);
+    let t_end = rows
+        .last()
+        .map_or(1.0, |r| r.t_ms as f64 / 1000.0)
+        .max(0.01);
+    let (feed_area, load_area) = top.split_vertically(240);
+    let mut c = ChartBuilder::on(&feed_area)
+        .caption("feed (ipm)", ("sans-serif", 18))
+        .margin(8)
+        .x_label_area_size(24)
+        .y_label_area_size(48)
+        .build_cartesian_2d(0.0..t_end, 0.0..feed_max * 1.1)?;
+    c.configure_mesh().x_desc("t (s)").draw()?;
+    c.draw_series(LineSeries::new(
+        rows.iter().map(|r| (r.t_ms as f64 / 1000.0, r.feed_ipm)),
+        &BLUE,
+    ))?;
+    let mut c = ChartBuilder::on(&load_area)
+        .caption(
+            "F/F0 (red), T/T0 (green); limits: F0 = 1, permissible = dashed",
+            ("sans-serif", 18),
+        )
+        .margin(8)
+        .x_label_area_size(24)
+        .y_label_area_size(48)
+        .build_cartesian_2d(0.0..t_end, 0.0..1.4)?;
+    c.configure_mesh().x_desc("t (s)").draw()?;
+    c.draw_series(LineSeries::new(
+        rows.iter()
+            .map(|r| (r.t_ms as f64 / 1000.0, r.f_true_n / f0)),
+        &RED,
+    ))?;
+    c.draw_series(LineSeries::new(
+        rows.iter()
+            .map(|r| (r.t_ms as f64 / 1000.0, r.t_true_nm / t0)),
+        &GREEN,
+    ))?;
+    c.draw_series(LineSeries::new(
+        [(0.0, 1.0), (t_end, 1.0)],
+        BLACK.stroke_width(2),
+    ))?;
+    c.draw_series(DashedLineSeries::new(
+        [(0.0, f_max_ratio), (t_end, f_max_ratio)],
+        6,
+        4,
+        BLACK.into(),
+    ))?;
+    // Tool path in XY, coloured by feed.
+    let xs = rows.iter().map(|r| r.pos_blu[0] as f64 / 10_000.0);
+    let ys = rows.iter().map(|r| r.pos_blu[1] as f64 / 10_000.0);
+    let (x0, x1) = xs.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+    let (y0, y1) = ys.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+    let mut c = ChartBuilder::on(&bottom)
+        .caption(
+            "tool path (in), colour = feed: blue slow .. red fast",
+            ("sans-serif", 18),
+        )
+        .margin(8)
+        .x_label_area_size(24)
+        .y_label_area_size(48)
+        .build_cartesian_2d((x0 - 0.2)..(x1 + 0.2), (y0 - 0.2)..(y1 + 0.2))?;
+    c.configure_mesh().draw()?;
+    c.draw_series(rows.windows(2).map(|w| {
+        let v = (w[1].feed_ipm / feed_max).clamp(0.0, 1.0);
+        let colour = RGBColor((255.0 * v) as u8, 40, (255.0 * (1.0 - v)) as u8);
+        PathElement::new(
+            [
+                (
+                    w[0].pos_blu[0] as f64 / 10_000.0,
+                    w[0].pos_blu[1] as f64 / 10_000.0,
+                ),
+                (
+                    w[1].pos_blu[0] as f64 / 10_000.0,
+                    w[1].pos_blu[1] as f64 / 10_000.0,
+                ),
+            ],
+            colour.stroke_width(3),
+        )
+    }))?;
+    root.present()?;
+    Ok(())
+}

@@ -1,0 +1,295 @@
+//! The adaptive loop natively on the host (host): the core's `Frame` (same code as the firmware's
+//! frame ISR), the core's `AcController` (same code as the firmware's AC task) and the simulated
+//! cutting process, on one virtual clock with the firmware's timing (frames at W0 or the rapid rate,
+//! ADC samples at `sample_hz` from the pulses emitted so far, AC periods every `period_ms`). For fast
+//! experiments and benchmarks; the QEMU run is the reference for the firmware itself.
+use crate::analysis::ProgBlock;
+use crate::cut::{Material, Process, Stock, Tool, Transducer};
+use anyhow::{anyhow, Result};
+use millac::ac::{AcController, AcSettings, AcState};
+use millac::nc::{Block, BlockSource, Frame, FrameConfig, Motion, Rate};
+use millac::Settings;
+use std::collections::VecDeque;
+
+/// The frame timer's clock on the QEMU board; frame periods are whole clocks as in the firmware.
+pub const TIMER_HZ: u64 = 12_500_000;
+
+/// One AC period of a run: what the controller saw and did, and what really happened.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AcRow {
+    pub t_ms: u64,
+    pub pos_blu: [i64; 3],
+    /// Path speed over the period, from the pulses (ipm).
+    pub feed_ipm: f64,
+    pub f_meas_n: f64,
+    pub t_meas_nm: f64,
+    /// Peaks of the true force and torque over the period's samples.
+    pub f_true_n: f64,
+    pub t_true_nm: f64,
+    pub e: f64,
+    pub state: String,
+    /// The feed cap the controller wrote for the frame (feed number; u32::MAX = no AC).
+    pub feed_cap: u32,
+}
+
+/// The process set-up of a run.
+#[derive(Clone, Debug)]
+pub struct Cut {
+    pub stock: Stock,
+    pub tool: Tool,
+    pub material: Material,
+    pub spindle_rpm: f64,
+    pub seed: u64,
+    pub transducer: Transducer,
+}
+
+impl Cut {
+    pub fn process(&self) -> Result<Process> {
+        Process::new(
+            self.stock.clone(),
+            self.tool,
+            self.material,
+            self.spindle_rpm,
+            self.seed,
+            self.transducer,
+        )
+        .map_err(|e| anyhow!("{}", e.0))
+    }
+}
+
+/// Result of a host run.
+#[derive(Clone, Debug, Default)]
+pub struct HostRun {
+    pub rows: Vec<AcRow>,
+    /// True force and torque of every ADC sample.
+    pub samples: Vec<(f64, f64)>,
+    /// Virtual time from the first to the last pulse (s).
+    pub machining_time_s: f64,
+    pub final_position: [i64; 3],
+    /// Position after every frame that pulsed, with the programmed feed (ipm) and the block index.
+    pub path: Vec<([i64; 3], f64, usize)>,
+    pub held: bool,
+    /// Per block: (index, first frame start, last frame end) in ns of virtual time.
+    pub spans: Vec<(usize, u64, u64)>,
+}
+
+struct Queue(VecDeque<Block>);
+
+impl BlockSource for Queue {
+    fn front(&mut self) -> Option<&Block> {
+        self.0.front()
+    }
+    fn pop(&mut self) {
+        self.0.pop_front();
+    }
+}
+
+/// Frame period in ns for a rate, in whole timer clocks like the firmware (QEMU counts TAILR clocks).
+pub fn period_ns(settings: &Settings, rate: Rate) -> u64 {
+    let hz = match rate {
+        Rate::Feed => settings.frame_hz,
+        Rate::Rapid => settings.rapid_hz,
+    } as u64;
+    let clocks = TIMER_HZ / hz;
+    clocks * 1_000_000_000 / TIMER_HZ
+}
+
+/// Feed number -> ipm (or the program's unit per minute).
+pub fn feed_ipm(settings: &Settings, f: u32) -> f64 {
+    let (num, den) = settings.blu.per_inch();
+    f as f64 * settings.frame_hz as f64 * 60.0 / (num as f64 / den as f64) / settings.q0 as f64
+}
+
+/// Runs `prog` with the process; `ac` None = no adaptive control (programmed feeds).
+pub fn run(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    ac: Option<AcSettings>,
+) -> Result<HostRun> {
+    let mut frame = Frame::new(FrameConfig::from_settings(settings));
+    let mut queue = Queue(prog.iter().map(|b| b.block).collect());
+    let mut process = cut.process()?;
+    let acs = ac.unwrap_or_default();
+    let mut ctl = match ac {
+        Some(s) => Some(AcController::new(s).map_err(|e| anyhow!("AC settings: {}", e.message()))?),
+        None => None,
+    };
+    let sample_ns = 1_000_000_000 / acs.sample_hz as u64;
+    let ac_ns = acs.period_ms as u64 * 1_000_000;
+    let mut out = HostRun::default();
+    let (mut t, mut next_sample, mut next_period) = (0u64, sample_ns, ac_ns);
+    let mut feed_cap = u32::MAX;
+    let mut pos = [0i64; 3];
+    let mut period_start = pos;
+    let (mut f_peak, mut t_peak) = (0.0f64, 0.0f64);
+    let (mut first, mut last) = (None, 0u64);
+    let mut block_feed = 0.0;
+    // A hold with nothing moving for this long ends the run (the operator would resume or abort).
+    let hold_limit_ns = 2_000_000_000u64;
+    let mut held_since: Option<u64> = None;
+    loop {
+        if frame.idle() {
+            match queue.0.front() {
+                None => break,
+                Some(b) => {
+                    block_feed = match b.motion {
+                        Motion::Linear(l) => feed_ipm(settings, l.f),
+                        Motion::Arc(c) => feed_ipm(settings, c.f),
+                        _ => 0.0,
+                    }
+                }
+            }
+        }
+        let rate = frame.rate();
+        let was_idle = frame.idle();
+        let p = frame.tick(&mut queue, feed_cap);
+        if was_idle && !frame.idle() {
+            out.spans.push((out.spans.len(), t, t));
+        }
+        t += period_ns(settings, rate);
+        if let Some(span) = out.spans.last_mut() {
+            if !was_idle || !frame.idle() {
+                span.2 = t;
+            }
+        }
+        if p.steps != 0 {
+            for (k, v) in pos.iter_mut().enumerate() {
+                if p.steps & (1 << k) != 0 {
+                    *v += if p.signs & (1 << k) != 0 { 1 } else { -1 };
+                }
+            }
+            first.get_or_insert(t);
+            last = t;
+            out.path
+                .push((pos, block_feed, out.spans.len().saturating_sub(1)));
+        }
+        while t >= next_sample {
+            let s = process.sample(next_sample as f64 * 1e-9, pos);
+            out.samples.push((s.f_true_n, s.t_true_nm));
+            f_peak = f_peak.max(s.f_true_n);
+            t_peak = t_peak.max(s.t_true_nm.abs());
+            if let Some(c) = ctl.as_mut() {
+                c.sample(s.codes);
+            }
+            next_sample += sample_ns;
+        }
+        if t >= next_period {
+            let (f_meas, t_meas, e, state) = match ctl.as_mut() {
+                Some(c) => {
+                    let o = c.period();
+                    feed_cap = o.feed_cap;
+                    let state = match o.state {
+                        AcState::Run => "run".to_string(),
+                        AcState::Hold(a) => {
+                            out.held = true;
+                            format!("hold:{}", a.message())
+                        }
+                    };
+                    (o.f_n as f64, o.t_nm as f64, o.e as f64, state)
+                }
+                None => (0.0, 0.0, 0.0, "off".to_string()),
+            };
+            let d: f64 = (0..3)
+                .map(|k| ((pos[k] - period_start[k]) as f64).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let (num, den) = settings.blu.per_inch();
+            out.rows.push(AcRow {
+                t_ms: next_period / 1_000_000,
+                pos_blu: pos,
+                feed_ipm: d / (num as f64 / den as f64) / (acs.period_ms as f64 / 60_000.0),
+                f_meas_n: f_meas,
+                t_meas_nm: t_meas,
+                f_true_n: f_peak,
+                t_true_nm: t_peak,
+                e,
+                state,
+                feed_cap,
+            });
+            period_start = pos;
+            f_peak = 0.0;
+            t_peak = 0.0;
+            next_period += ac_ns;
+            if feed_cap == 0 && p.steps == 0 {
+                let since = *held_since.get_or_insert(t);
+                if t - since > hold_limit_ns {
+                    break;
+                }
+            } else {
+                held_since = None;
+            }
+        }
+    }
+    out.machining_time_s = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);
+    out.final_position = pos;
+    Ok(out)
+}
+
+/// The ac.csv text (header + one row per AC period); column names are stable.
+pub fn csv(rows: &[AcRow]) -> String {
+    let mut s = String::from(
+        "t_ms,x_blu,y_blu,z_blu,feed_ipm,f_meas_n,t_meas_nm,f_true_n,t_true_nm,e,state\n",
+    );
+    for r in rows {
+        s += &format!(
+            "{},{},{},{},{:.3},{:.1},{:.3},{:.1},{:.3},{:.4},{}\n",
+            r.t_ms,
+            r.pos_blu[0],
+            r.pos_blu[1],
+            r.pos_blu[2],
+            r.feed_ipm,
+            r.f_meas_n,
+            r.t_meas_nm,
+            r.f_true_n,
+            r.t_true_nm,
+            r.e,
+            r.state
+        );
+    }
+    s
+}
+
+/// Force/torque figures of a run against the tool's limits (F0, T0 = fraction x limits).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoadFigures {
+    pub peak_force_ratio: f64,
+    pub peak_torque_ratio: f64,
+    pub time_above_f0_s: f64,
+    pub time_above_limit_s: f64,
+}
+
+pub fn load_figures(
+    samples: &[(f64, f64)],
+    tool: &Tool,
+    fraction: f64,
+    sample_hz: u32,
+) -> LoadFigures {
+    let dt = 1.0 / sample_hz as f64;
+    let f0 = fraction * tool.f_max_n;
+    LoadFigures {
+        peak_force_ratio: samples.iter().map(|s| s.0).fold(0.0, f64::max) / tool.f_max_n,
+        peak_torque_ratio: samples.iter().map(|s| s.1.abs()).fold(0.0, f64::max) / tool.t_max_nm,
+        time_above_f0_s: samples.iter().filter(|s| s.0 > f0).count() as f64 * dt,
+        time_above_limit_s: samples
+            .iter()
+            .filter(|s| s.0 > tool.f_max_n || s.1.abs() > tool.t_max_nm)
+            .count() as f64
+            * dt,
+    }
+}
+
+/// The same program with every feed block at one constant feed number `f`.
+pub fn with_constant_feed(prog: &[ProgBlock], f: u32) -> Vec<ProgBlock> {
+    prog.iter()
+        .map(|b| {
+            let mut b = *b;
+            match &mut b.block.motion {
+                Motion::Linear(l) => l.f = f,
+                Motion::Arc(c) => c.f = f,
+                _ => {}
+            }
+            b
+        })
+        .collect()
+}
