@@ -29,8 +29,8 @@
 //! # End of a hold
 //!
 //! Nothing moves during a hold and the operator cannot resume yet, so after
-//! [`HOLD_EXIT_PERIODS`] periods in hold with the encoder unchanged, [`AcTask::run`] asks the app
-//! to stop: it prints `millac: hold blocks=.. position=x,y,z` and exits QEMU with failure status.
+//! [`HOLD_EXIT_PERIODS`] periods in hold with the encoder unchanged (AC enabled; a measure-only run
+//! just logs the hold and goes on), [`AcTask::run`] asks the app to stop: it prints `millac: hold blocks=.. position=x,y,z` and exits QEMU with failure status.
 use core::fmt::Write as _;
 use core::sync::atomic::Ordering::Relaxed;
 
@@ -198,7 +198,8 @@ impl AcTask {
         self.log.write(line.as_bytes());
         Period {
             alarm: out.alarm,
-            halt: held && self.still >= HOLD_EXIT_PERIODS,
+            // Only a hold that is applied stops the machine (measure-only runs keep going).
+            halt: self.enabled && held && self.still >= HOLD_EXIT_PERIODS,
         }
     }
 }

@@ -16,7 +16,8 @@
 //!    `-icount` virtual time does not advance meanwhile: the exchange is lockstep and
 //!    deterministic.
 //! 4. When QEMU exits its ends close and the host reads EOF. If a read or write fails (the host
-//!    went away), the sampler stops its timer.
+//!    went away), the sampler stops its timer and the firmware exits with
+//!    `error: simulated ADC lost` (without samples the AC cannot guard the cut).
 use cortex_m_semihosting::{nr, syscall};
 
 /// Header magic.

@@ -10,7 +10,10 @@
 //! its write end). We write the header `b"MAC1"` + u32 flags (bit 0: AC enabled), then serve
 //! requests until EOF: 16 bytes in (u32 sample index, i32 encoder X, Y, Z in BLU), 6 bytes out
 //! (u16 codes T, Fu, Fv). Every request blocks the whole emulator until answered and under
-//! `-icount` virtual time stands still meanwhile, so runs are deterministic.
+//! `-icount` virtual time stands still meanwhile, so runs are deterministic. The exchange ends
+//! when QEMU exits (EOF on `adc.req`); the firmware ends a run itself, also after a long hold (see
+//! `millac_hal::actask`). Should the host stop answering, the firmware prints
+//! `error: simulated ADC lost` and exits with failure.
 //!
 //! Opening never deadlocks if QEMU dies early: `adc.req` is opened O_NONBLOCK for reading (always
 //! succeeds), `adc.resp` O_NONBLOCK for writing in a retry loop that gives up when the runner says
@@ -45,11 +48,6 @@ pub trait Plant {
     /// Codes [T, Fu, Fv] for sample `index` at virtual time `t_s` = index / sample_hz, given the
     /// encoder positions (BLU) the firmware counted.
     fn sample(&mut self, index: u32, t_s: f64, pos_blu: [i64; 3]) -> [u16; 3];
-    /// True to end the exchange early (the host closes the FIFOs; the firmware's sampler then
-    /// stops). Default: never.
-    fn finished(&self) -> bool {
-        false
-    }
 }
 
 /// One request and its answer.
@@ -164,9 +162,6 @@ fn serve(
     }
     let mut q = [0u8; 16];
     loop {
-        if plant.finished() {
-            break;
-        }
         match input.read_exact(&mut q) {
             Ok(()) => {}
             Err(e) if e.kind() == ErrorKind::UnexpectedEof => break,

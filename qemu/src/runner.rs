@@ -36,7 +36,7 @@ pub fn execute(text: &str, out: &Path, shift: u32) -> Result<Capture> {
 }
 
 /// Builds the firmware, writes program.nc and returns the capture spec (handlers: TIMER_0A frame,
-/// TIMER_1A pulse end, TIMER_2A sampler).
+/// TIMER_1A pulse end, TIMER_2A sampler, SSI0 the AC period's dispatcher).
 fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
     let elf = firmware::build()?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
@@ -48,6 +48,7 @@ fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
         HandlerSpec::from_elf(&elf, "TIMER_0A")?,
         HandlerSpec::from_elf(&elf, "TIMER_1A")?,
         HandlerSpec::from_elf(&elf, "TIMER_2A")?,
+        HandlerSpec::from_elf(&elf, "SSI0")?,
     ];
     Ok(spec)
 }

@@ -81,11 +81,13 @@ fn run(name: &str, program: &str, plant: Toy, enabled: bool) -> Run {
     let virt = cap.end_ns as f64 * 1e-9;
     eprintln!(
         "{name}: {virt:.3} s virtual in {wall:.2} s wall ({:.2} s per simulated s), {} samples; \
-         sampler {:?} instr., pulse end max {:?}",
+         instructions: sampler {}, AC period {}, pulse end {}, frame {}",
         wall / virt,
         exchanges.len(),
         runner::stats(&cap.handlers[2].1),
-        cap.handlers[1].1.iter().max()
+        runner::stats(&cap.handlers[3].1),
+        runner::stats(&cap.handlers[1].1),
+        runner::stats(&cap.handlers[0].1),
     );
     let log = std::fs::read_to_string(out.join(cosim::AC_LOG)).expect("ac.log");
     let records = cosim::parse_ac_log(&log).expect("parse ac.log");

@@ -294,9 +294,10 @@ mod app {
             return;
         };
         match s.sample() {
+            // The host has gone: without samples the AC cannot guard the cut.
             Sampled::Stop => {
                 board::sample_timer_stop();
-                *cx.local.sampler = None;
+                fail(format_args!("simulated ADC lost"));
             }
             Sampled::Ok(Some(due)) => {
                 if ac_period::spawn(due).is_err() {
