@@ -30,11 +30,18 @@ enum Cmd {
         /// QEMU -icount shift: one instruction = 2^N ns (4: 62.5 MIPS, close to a 50-72 MHz M3).
         #[arg(long, default_value_t = 4)]
         shift: u32,
+        /// NC only: no simulated ADC and no adaptive control (the pulses then equal the host core's).
+        #[arg(long)]
+        nc_only: bool,
+        #[command(flatten)]
+        cut: CutArgs,
     },
     /// Run the demo (the default with no arguments).
     Demo {
         #[arg(long, default_value = "out/demo")]
         out: PathBuf,
+        #[command(flatten)]
+        cut: CutArgs,
     },
     /// Run a program with adaptive control natively on the host (no QEMU) against the simulated cut:
     /// DIR/ac.csv, DIR/ac.svg and the side-by-side table. Fast experiments and benchmarks.
@@ -66,15 +73,24 @@ struct CutArgs {
 fn main() {
     let cli = Cli::parse();
     let result = match cli.cmd {
-        None => demo(Path::new("out/demo")),
-        Some(Cmd::Demo { out }) => demo(&out),
+        None => demo(
+            Path::new("out/demo"),
+            &CutArgs {
+                no_ac: false,
+                seed: 1,
+                stock: None,
+            },
+        ),
+        Some(Cmd::Demo { out, cut }) => demo(&out, &cut),
         Some(Cmd::Run {
             program,
             out,
             shift,
+            nc_only,
+            cut,
         }) => std::fs::read_to_string(&program)
             .with_context(|| format!("reading {}", program.display()))
-            .and_then(|text| run(&text, &out, shift)),
+            .and_then(|text| run(&text, &out, shift, (!nc_only).then_some(&cut))),
         Some(Cmd::Analyse { capture, program }) => analyse_file(&capture, &program),
         Some(Cmd::Host { program, out, cut }) => match program {
             Some(p) => std::fs::read_to_string(&p)
@@ -93,13 +109,23 @@ fn main() {
     }
 }
 
-fn demo(out: &Path) -> Result<bool> {
-    println!("millac demo: roughing the cavity of Fig. 1 (Tlusty, Koren, McNeil) through the firmware under QEMU");
-    run(DEMO, out, 4)
+fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
+    println!(
+        "millac demo: roughing the cavity of Fig. 1 (Tlusty, Koren, McNeil) through the firmware under QEMU, {}",
+        if cut.no_ac { "adaptive control off (--no-ac)" } else { "with adaptive control" }
+    );
+    run(DEMO, out, 4, Some(cut))
 }
 
-fn run(text: &str, out: &Path, shift: u32) -> Result<bool> {
-    let o = runner::run(text, out, shift)?;
+fn run(text: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> Result<bool> {
+    let ac = match cut {
+        Some(c) => Some(runner::AcRun {
+            cut: cut_setup(text, c)?,
+            ac: !c.no_ac,
+        }),
+        None => None,
+    };
+    let o = runner::run_with(text, out, shift, ac.as_ref())?;
     if o.report.is_some() {
         runner::print_summary(&o.summary, out);
     }

@@ -19,6 +19,9 @@ pub struct Outcome {
     /// All checks passed (program accepted, end points exact, pulses equal the host core's,
     /// firmware and capture agree on the final position).
     pub ok: bool,
+    /// With the simulated ADC: every sample exchanged and the firmware's AC log.
+    pub exchanges: Vec<cosim::Exchange>,
+    pub ac_log: Vec<cosim::AcRecord>,
 }
 
 /// Runs the firmware on `text` as program.nc in `out` with no pre-check, and returns the capture
@@ -85,6 +88,36 @@ pub fn stats(v: &[u64]) -> Value {
 
 /// Pre-checks, runs and analyses a program; writes out/capture.vcd and out/summary.json.
 pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
+    run_with(text, out, shift, None)
+}
+
+/// A run against the simulated cutting process: the firmware's ADC reads come from `cut` in
+/// lockstep; `ac` applies the controller's feed cap (false: measure and log only, `--no-ac`).
+#[derive(Clone, Debug)]
+pub struct AcRun {
+    pub cut: crate::acsim::Cut,
+    pub ac: bool,
+}
+
+/// The cutting process as the firmware's simulated ADC; keeps the true force and torque of every
+/// sample for the report.
+struct ProcessPlant {
+    process: crate::cut::Process,
+    truth: std::sync::Arc<std::sync::Mutex<Vec<(f64, f64)>>>,
+}
+
+impl cosim::Plant for ProcessPlant {
+    fn sample(&mut self, _index: u32, t_s: f64, pos_blu: [i64; 3]) -> [u16; 3] {
+        let s = self.process.sample(t_s, pos_blu);
+        if let Ok(mut v) = self.truth.lock() {
+            v.push((s.f_true_n, s.t_true_nm));
+        }
+        s.codes
+    }
+}
+
+/// Pre-checks, runs (optionally against the cutting process) and analyses a program.
+pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Result<Outcome> {
     let settings = Settings::default();
     settings
         .validate()
@@ -101,10 +134,22 @@ pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
                 report: None,
                 capture: None,
                 ok: false,
+                exchanges: Vec::new(),
+                ac_log: Vec::new(),
             });
         }
     };
-    let cap = execute(text, out, shift)?;
+    let truth = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let (cap, exchanges) = match ac {
+        None => (execute(text, out, shift)?, Vec::new()),
+        Some(a) => {
+            let plant = ProcessPlant {
+                process: a.cut.process()?,
+                truth: truth.clone(),
+            };
+            execute_with_plant(text, out, shift, Box::new(plant), a.ac)?
+        }
+    };
     if cap.status != Some(0) {
         anyhow::bail!(
             "firmware exited with {:?}:\n{}{}",
@@ -116,15 +161,50 @@ pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
     vcd::write_vcd(&out.join("capture.vcd"), 0, &cap.pins, Some(cap.end_ns))?;
     let mut report = analysis::analyse(&prog, &settings, 0, &cap.pins);
     let e = analysis::edges(0, &cap.pins);
+    let feed_capped = ac.is_some_and(|a| a.ac);
+    // With the feed cap applied the pulses follow the controller, not the programmed feeds.
     report.pulses_match_host =
-        Some(analysis::compare_with_host(&prog, &settings, &e.groups).is_none());
+        (!feed_capped).then(|| analysis::compare_with_host(&prog, &settings, &e.groups).is_none());
     let fw = firmware_position(&cap.stdout);
     let mut summary = summary_json(&prog, &report);
+    if feed_capped {
+        summary["max_feed_error_pct"] = Value::Null;
+    }
     summary["frame_instructions"] = stats(&cap.handlers[0].1);
     summary["pulse_end_instructions"] = stats(&cap.handlers[1].1);
     summary["frames"] = json!(cap.handlers[0].1.len());
     summary["firmware_position_blu"] = json!(fw.map(|p| json!({"x": p[0], "y": p[1], "z": p[2]})));
     summary["icount_shift"] = json!(shift);
+    let mut records = Vec::new();
+    if let Some(a) = ac {
+        let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
+        let log = std::fs::read_to_string(out.join(cosim::AC_LOG)).unwrap_or_default();
+        records = cosim::parse_ac_log(&log)?;
+        let acs = millac::ac::AcSettings::default();
+        let rows = ac_rows(&settings, &acs, &records, &truth);
+        std::fs::write(out.join("ac.csv"), crate::acsim::csv(&rows))?;
+        crate::acreport::plot(
+            &out.join("ac.svg"),
+            &rows,
+            acs.f0_n() as f64,
+            acs.t0_nm() as f64,
+            1.0 / acs.optimal_fraction as f64,
+            crate::acsim::feed_ipm(&settings, settings.q0),
+        )?;
+        let load = crate::acsim::load_figures(
+            &truth,
+            &a.cut.tool,
+            acs.optimal_fraction as f64,
+            acs.sample_hz,
+        );
+        let cmp = crate::acreport::compare(&prog, &settings, &a.cut, &acs)?;
+        summary["ac"] = crate::acreport::ac_json(report.machining_time_s, &load, &cmp);
+        summary["ac"]["enabled"] = json!(a.ac);
+        summary["ac"]["samples"] = json!(exchanges.len());
+        summary["ac"]["holds"] = json!(records.iter().filter(|r| r.hold.is_some()).count());
+        summary["ac"]["overruns"] = json!(records.last().map_or(0, |r| r.overruns));
+        crate::acreport::print_table(report.machining_time_s, &load, &cmp);
+    }
     write_json(&out.join("summary.json"), &summary)?;
     let ok = checks_pass(&report) && fw == Some(report.final_position);
     Ok(Outcome {
@@ -132,7 +212,52 @@ pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
         report: Some(report),
         capture: Some(cap),
         ok,
+        exchanges,
+        ac_log: records,
     })
+}
+
+/// ac.csv rows from the firmware's log (one record per AC period, encoder positions) and the true
+/// force and torque of every sample (period k holds samples 10k .. 10k + 9).
+pub fn ac_rows(
+    settings: &Settings,
+    acs: &millac::ac::AcSettings,
+    records: &[cosim::AcRecord],
+    truth: &[(f64, f64)],
+) -> Vec<crate::acsim::AcRow> {
+    let per = (acs.sample_hz * acs.period_ms / 1000).max(1) as usize;
+    let (num, den) = settings.blu.per_inch();
+    let blu_per_in = num as f64 / den as f64;
+    let mut prev = [0i64; 3];
+    records
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let win = truth
+                .get(k * per..((k + 1) * per).min(truth.len()))
+                .unwrap_or(&[]);
+            let d: f64 = (0..3)
+                .map(|i| ((r.pos_blu[i] - prev[i]) as f64).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            prev = r.pos_blu;
+            crate::acsim::AcRow {
+                t_ms: r.t_ms,
+                pos_blu: r.pos_blu,
+                feed_ipm: d / blu_per_in / (acs.period_ms as f64 / 60_000.0),
+                f_meas_n: r.f_n as f64,
+                t_meas_nm: r.t_nm as f64,
+                f_true_n: win.iter().map(|s| s.0).fold(0.0, f64::max),
+                t_true_nm: win.iter().map(|s| s.1.abs()).fold(0.0, f64::max),
+                e: r.e as f64,
+                state: r
+                    .hold
+                    .as_ref()
+                    .map_or("run".to_string(), |h| format!("hold:{h}")),
+                feed_cap: r.feed_cap,
+            }
+        })
+        .collect()
 }
 
 pub fn checks_pass(r: &Report) -> bool {
@@ -173,12 +298,19 @@ pub fn print_summary(s: &Value, out: &Path) {
     println!("  blocks              {}", s["blocks"]);
     println!("  machining time      {} s", s["machining_time_s"]);
     println!("  final position BLU  {}", s["final_position_blu"]);
+    let compared = match &s["pulses_match_host"] {
+        Value::Null => "not compared (the feed follows the AC)".to_string(),
+        v => v.to_string(),
+    };
     println!(
-        "  end points exact    {}   pulses equal host core: {}",
-        s["end_points_exact"], s["pulses_match_host"]
+        "  end points exact    {}   pulses equal host core: {compared}",
+        s["end_points_exact"]
     );
     println!("  max deviation       {} BLU", s["max_deviation_blu"]);
-    println!("  max feed error      {} %", s["max_feed_error_pct"]);
+    match &s["max_feed_error_pct"] {
+        Value::Null => println!("  max feed error      n/a (the AC sets the feed)"),
+        v => println!("  max feed error      {v} %"),
+    }
     println!(
         "  min pulse width     {} ns   min sign setup {} ns",
         s["min_pulse_width_ns"], s["min_sign_setup_ns"]
@@ -192,4 +324,11 @@ pub fn print_summary(s: &Value, out: &Path) {
         out.display(),
         out.display()
     );
+    if s.get("ac").is_some() {
+        println!(
+            "  wrote {}/ac.csv and {}/ac.svg (feed, F/F0, T/T0 against time; the path coloured by feed)",
+            out.display(),
+            out.display()
+        );
+    }
 }

@@ -137,3 +137,61 @@ fn rejected_program_writes_the_error_and_runs_nothing() {
     );
     assert!(!out.join("capture.vcd").exists());
 }
+
+/// The AC under QEMU against the cutting process: the cut ends exactly, ac.csv and the summary's
+/// `ac` object are written, and a host AcController fed the same samples makes the same decisions.
+#[test]
+fn ac_against_the_cutting_process_and_host_replay() {
+    use millac::ac::{AcController, AcSettings};
+    use millac_qemu::acsim::Cut;
+    use millac_qemu::cut::{Material, Stock, Tool, Transducer};
+    let program = "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n";
+    let out = out_dir("ac");
+    let ac = runner::AcRun {
+        cut: Cut {
+            stock: Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(),
+            tool: Tool::default(),
+            material: Material::STEEL,
+            spindle_rpm: 600.0,
+            seed: 3,
+            transducer: Transducer::default(),
+        },
+        ac: true,
+    };
+    let o = runner::run_with(program, &out, 4, Some(&ac)).unwrap();
+    assert!(o.ok, "{:#}", o.summary);
+    let a = &o.summary["ac"];
+    for key in [
+        "time_s",
+        "time_constant_programmed_s",
+        "time_constant_safe_s",
+        "time_oracle_s",
+        "peak_force_ratio",
+        "peak_torque_ratio",
+        "time_above_f0_s",
+        "time_above_limit_s",
+    ] {
+        assert!(a[key].is_number(), "{key}: {a:#}");
+    }
+    assert_eq!(a["holds"], 0);
+    assert!(
+        a["peak_force_ratio"].as_f64().unwrap() > 0.8,
+        "the cut was loaded: {a:#}"
+    );
+    let csv = std::fs::read_to_string(out.join("ac.csv")).unwrap();
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        "t_ms,x_blu,y_blu,z_blu,feed_ipm,f_meas_n,t_meas_nm,f_true_n,t_true_nm,e,state"
+    );
+    assert_eq!(csv.lines().count(), o.ac_log.len() + 1);
+    // Replay: the same samples, ten per period, through the host's controller.
+    let mut ctl = AcController::new(AcSettings::default()).unwrap();
+    let per = 10;
+    for (k, r) in o.ac_log.iter().enumerate() {
+        for x in o.exchanges.iter().skip(k * per).take(per) {
+            ctl.sample(x.codes);
+        }
+        let d = ctl.period();
+        assert_eq!((d.feed_cap, d.e), (r.feed_cap, r.e), "period {k}");
+    }
+}
