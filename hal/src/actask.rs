@@ -35,7 +35,7 @@ use core::fmt::Write as _;
 use core::sync::atomic::Ordering::Relaxed;
 
 use heapless::spsc::{Consumer, Producer};
-use millac::ac::{AcController, AcState, Alarm};
+use millac::ac::{achieved_feed, AcController, AcState, Alarm};
 
 use crate::simadc::{LogFile, SimAdc};
 use crate::status::{AC_MISSED, ENCODER, FEED_CAP, SAMPLES, SAMPLES_DROPPED};
@@ -117,6 +117,8 @@ pub struct AcTask {
     late: u32,
     still: u32,
     last: [i32; 3],
+    /// The NC settings, for the achieved feed (anti-windup) in frame feed numbers.
+    nc: millac::Settings,
 }
 
 /// What one period asks of the app.
@@ -135,6 +137,7 @@ impl AcTask {
         samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
         mut log: LogFile,
         enabled: bool,
+        nc: millac::Settings,
     ) -> Self {
         log.write(LOG_HEADER.as_bytes());
         if enabled {
@@ -152,6 +155,7 @@ impl AcTask {
             late: 0,
             still: 0,
             last: [0; 3],
+            nc,
         }
     }
 
@@ -165,11 +169,17 @@ impl AcTask {
         while let Some(codes) = self.samples.dequeue() {
             self.ctl.sample(codes);
         }
+        // One encoder reading per period: it gives the achieved feed (anti-windup, see
+        // AcController::set_achieved) and it is the position logged, so a replay from ac.log and
+        // the samples reproduces every decision.
+        let enc = encoder();
+        let d = [0, 1, 2].map(|k| i64::from(enc[k]) - i64::from(self.last[k]));
+        let period_ms = self.ctl.settings().period_ms;
+        self.ctl.set_achieved(achieved_feed(d, &self.nc, period_ms));
         let out = self.ctl.period();
         if self.enabled {
             FEED_CAP.store(out.feed_cap, Relaxed);
         }
-        let enc = encoder();
         let held = matches!(out.state, AcState::Hold(_));
         self.still = if held && enc == self.last {
             self.still + 1

@@ -177,6 +177,8 @@ pub fn run(
         if t >= next_period {
             let (f_meas, t_meas, e, state) = match ctl.as_mut() {
                 Some(c) => {
+                    let d = [0, 1, 2].map(|k| pos[k] - period_start[k]);
+                    c.set_achieved(millac::ac::achieved_feed(d, settings, acs.period_ms));
                     let o = c.period();
                     feed_cap = o.feed_cap;
                     let state = match o.state {

@@ -2,7 +2,7 @@
 //! through the lockstep simulated ADC, runs its AC task and writes `ac.log`. A toy plant is
 //! enough here: the force is proportional to the feed (the distance moved over the last 10
 //! samples); the real cutting model lives in `millac_qemu::cut`.
-use millac::ac::{AcController, AcSettings};
+use millac::ac::AcSettings;
 use millac_qemu::analysis;
 use millac_qemu::cosim::{self, AcRecord, Exchange, Plant};
 use millac_qemu::runner;
@@ -135,15 +135,15 @@ fn check_encoder_against_vcd(r: &Run) {
 fn check_host_replay(r: &Run) {
     let s = AcSettings::default();
     let n = (s.sample_hz * s.period_ms / 1000) as usize;
-    let mut ctl = AcController::new(s).unwrap();
     assert!(!r.records.is_empty());
-    for (k, rec) in r.records.iter().enumerate() {
+    let host =
+        millac_qemu::cosim::replay(&r.records, &r.exchanges, &millac::Settings::default(), s)
+            .unwrap();
+    for (k, (rec, o)) in r.records.iter().zip(&host).enumerate() {
         assert_eq!(rec.t_ms, (k as u64 + 1) * u64::from(s.period_ms));
         for x in &r.exchanges[k * n..(k + 1) * n] {
             assert_eq!(x.index as usize / n, k);
-            ctl.sample(x.codes);
         }
-        let o = ctl.period();
         assert_eq!(o.feed_cap, rec.feed_cap, "period {k}");
         assert_eq!(o.e.to_bits(), rec.e.to_bits(), "period {k}");
         assert_eq!(o.f_n.to_bits(), rec.f_n.to_bits(), "period {k}");

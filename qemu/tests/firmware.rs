@@ -142,7 +142,7 @@ fn rejected_program_writes_the_error_and_runs_nothing() {
 /// `ac` object are written, and a host AcController fed the same samples makes the same decisions.
 #[test]
 fn ac_against_the_cutting_process_and_host_replay() {
-    use millac::ac::{AcController, AcSettings};
+    use millac::ac::AcSettings;
     use millac_qemu::acsim::Cut;
     use millac_qemu::cut::{Material, Stock, Tool, Transducer};
     let program = "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n";
@@ -185,13 +185,15 @@ fn ac_against_the_cutting_process_and_host_replay() {
     );
     assert_eq!(csv.lines().count(), o.ac_log.len() + 1);
     // Replay: the same samples, ten per period, through the host's controller.
-    let mut ctl = AcController::new(AcSettings::default()).unwrap();
-    let per = 10;
-    for (k, r) in o.ac_log.iter().enumerate() {
-        for x in o.exchanges.iter().skip(k * per).take(per) {
-            ctl.sample(x.codes);
-        }
-        let d = ctl.period();
+    let host = millac_qemu::cosim::replay(
+        &o.ac_log,
+        &o.exchanges,
+        &Settings::default(),
+        AcSettings::default(),
+    )
+    .unwrap();
+    assert_eq!(host.len(), o.ac_log.len());
+    for (k, (d, r)) in host.iter().zip(&o.ac_log).enumerate() {
         assert_eq!((d.feed_cap, d.e), (r.feed_cap, r.e), "period {k}");
     }
 }

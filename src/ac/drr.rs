@@ -10,7 +10,7 @@
 //! T is taken as a magnitude (|T|): the spindle may turn either way; the paper's T is a magnitude.
 
 use super::ecr;
-use super::settings::{AcSettings, Calibration, Pick};
+use super::settings::{AcSettings, Calibration, Pick, PEAK_WINDOWS_MAX};
 
 /// Largest code of a 12-bit ADC (the upper rail).
 pub const CODE_MAX: u16 = 4095;
@@ -67,6 +67,10 @@ pub struct Drr {
     count: u32,
     latest: Measured,
     peak: Measured,
+    /// Peaks of the previous windows (a ring of `hold - 1`), for the held peak.
+    past: [Measured; PEAK_WINDOWS_MAX],
+    past_at: usize,
+    hold: usize,
 }
 
 impl Drr {
@@ -86,6 +90,12 @@ impl Drr {
                 f_n: 0.0,
                 t_nm: 0.0,
             },
+            past: [Measured {
+                f_n: 0.0,
+                t_nm: 0.0,
+            }; PEAK_WINDOWS_MAX],
+            past_at: 0,
+            hold: (s.peak_windows as usize).clamp(1, PEAK_WINDOWS_MAX),
         }
     }
 
@@ -152,14 +162,27 @@ impl Drr {
         self.count
     }
 
-    /// Ends the window: the picked measurement, or None when no sample arrived in it.
+    /// Ends the window: the picked measurement, or None when no sample arrived in it. The peak is
+    /// the largest over this window and the `peak_windows - 1` windows before it.
     pub fn take(&mut self, pick: Pick) -> Option<Measured> {
         if self.count == 0 {
             return None;
         }
         self.count = 0;
+        let cur = self.peak;
+        let mut held = cur;
+        for p in self.past.iter().take(self.hold - 1) {
+            held.f_n = held.f_n.max(p.f_n);
+            held.t_nm = held.t_nm.max(p.t_nm);
+        }
+        if self.hold > 1 {
+            if let Some(slot) = self.past.get_mut(self.past_at) {
+                *slot = cur;
+            }
+            self.past_at = (self.past_at + 1) % (self.hold - 1);
+        }
         Some(match pick {
-            Pick::Peak => self.peak,
+            Pick::Peak => held,
             Pick::Latest => self.latest,
         })
     }

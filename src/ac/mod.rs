@@ -133,6 +133,22 @@ pub struct AcController {
     e: f32,
     f_n: f32,
     t_nm: f32,
+    /// Feed number achieved over the last period (anti-windup), taken by the next `period`.
+    achieved: Option<u32>,
+}
+
+/// The feed number the machine achieved over one AC period from the position change `delta_blu`
+/// (encoder counts): path length isqrt(dx^2 + dy^2 + dz^2) per period, in the frame's feed units
+/// (f = q0 x BLU-per-second / W0). Integer arithmetic: the same result on host and target.
+pub fn achieved_feed(delta_blu: [i64; 3], nc: &crate::Settings, period_ms: u32) -> u32 {
+    let sq: u64 = delta_blu
+        .iter()
+        .map(|d| d.unsigned_abs().saturating_mul(d.unsigned_abs()))
+        .fold(0, u64::saturating_add);
+    let len = crate::nc::isqrt(sq);
+    let den = (nc.frame_hz as u64).saturating_mul(period_ms as u64).max(1);
+    let f = len.saturating_mul(nc.q0 as u64).saturating_mul(1000) / den;
+    u32::try_from(f).unwrap_or(u32::MAX)
 }
 
 impl AcController {
@@ -150,8 +166,19 @@ impl AcController {
             e: 1.0,
             f_n: 0.0,
             t_nm: 0.0,
+            achieved: None,
             s,
         })
+    }
+
+    /// Anti-windup (beyond the paper). The frame takes min(programmed feed, cap), so while the
+    /// programmed feed binds, the paper's FRC would keep raising f towards f_max with nothing to
+    /// show for it, and the next block with a higher programmed feed would start at f_max: a step
+    /// into the cut that no 10 ms loop can catch. With the feed achieved over the last period (see
+    /// [`achieved_feed`]) the next `period` keeps f at most one FRC step (fdot_m x dt) above it.
+    /// Without a call the paper's FRC runs unchanged.
+    pub fn set_achieved(&mut self, f: u32) {
+        self.achieved = Some(f);
     }
 
     pub fn settings(&self) -> &AcSettings {
@@ -188,6 +215,7 @@ impl AcController {
             self.t_nm = m.t_nm;
         }
         let pending = self.pending.take();
+        let achieved = self.achieved.take();
         let mut alarm = None;
         if self.state == AcState::Run {
             alarm = match (pending, measured) {
@@ -204,6 +232,12 @@ impl AcController {
                 }),
                 (None, Some(_)) => {
                     self.f = frc::next_feed(self.f, self.e, self.step, self.s.f_min, self.s.f_max);
+                    if let Some(a) = achieved {
+                        let lead = a.saturating_add(self.step as u32).max(self.s.f_min);
+                        if self.f > lead {
+                            self.f = lead;
+                        }
+                    }
                     None
                 }
             };

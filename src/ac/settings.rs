@@ -69,7 +69,16 @@ pub struct AcSettings {
     pub stuck_samples: u32,
     /// Largest plausible change of a code between consecutive samples. 4095 = off. Default 1500.
     pub jump_codes: u16,
+    /// With `Pick::Peak`, the peak is held over this many AC windows (the current one and the
+    /// ones before it), 1..=8. Beyond the paper: a window must span a tooth period, or the peak
+    /// misses the tooth and the FRC raises the feed on a false low reading. At 600 rpm a 4-flute
+    /// cutter has a 25 ms tooth period, longer than the 10 ms window. Choose
+    /// windows >= 60000 / (rpm x flutes x period_ms); default 3 (30 ms).
+    pub peak_windows: u32,
 }
+
+/// Most AC windows a peak can be held over.
+pub const PEAK_WINDOWS_MAX: usize = 8;
 
 impl Default for AcSettings {
     fn default() -> Self {
@@ -102,6 +111,7 @@ impl Default for AcSettings {
             overload_e: -0.1,
             stuck_samples: 20,
             jump_codes: 1500,
+            peak_windows: 3,
         }
     }
 }
@@ -120,6 +130,7 @@ pub enum AcSettingsError {
     OverloadLimit,
     StuckSamples,
     JumpCodes,
+    PeakWindows,
 }
 
 impl AcSettingsError {
@@ -140,6 +151,7 @@ impl AcSettingsError {
             AcSettingsError::OverloadLimit => "overload limit on E must be in [-1, 0)",
             AcSettingsError::StuckSamples => "stuck-sensor count must be 0 (off) ..=1000000 samples",
             AcSettingsError::JumpCodes => "plausible jump must be 1..=4095 codes",
+            AcSettingsError::PeakWindows => "the peak must be held over 1..=8 AC windows",
         }
     }
 }
@@ -197,6 +209,9 @@ impl AcSettings {
         }
         if !(1..=4095).contains(&self.jump_codes) {
             return Err(AcSettingsError::JumpCodes);
+        }
+        if !(1..=PEAK_WINDOWS_MAX as u32).contains(&self.peak_windows) {
+            return Err(AcSettingsError::PeakWindows);
         }
         Ok(())
     }

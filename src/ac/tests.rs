@@ -161,10 +161,37 @@ fn drr_latest_and_peak() {
     d.sample(codes(0.0, 1000.0, 0.0)).unwrap();
     d.sample(codes(0.0, 0.0, 1000.0)).unwrap();
     assert_eq!(d.take(Pick::Peak).unwrap().f_n, 1000.0);
-    // The window restarts after take.
+    // The window restarts after take; the peak is held over `peak_windows` windows (default 3):
+    // 1000 N is still the peak one and two windows later, then the 400 N windows are all that is left.
     assert_eq!(d.take(Pick::Peak), None);
+    let mut peaks = Vec::new();
+    for _ in 0..4 {
+        d.sample(codes(0.0, 400.0, 0.0)).unwrap();
+        peaks.push(d.take(Pick::Peak).unwrap().f_n);
+    }
+    assert_eq!(peaks, [1000.0, 1000.0, 400.0, 400.0]);
+    // With one window (the paper's 10 ms window alone) the peak is the window's own.
+    let one = AcSettings {
+        peak_windows: 1,
+        ..AcSettings::default()
+    };
+    let mut d = Drr::new(&one);
+    d.sample(codes(0.0, 1000.0, 0.0)).unwrap();
+    assert_eq!(d.take(Pick::Peak).unwrap().f_n, 1000.0);
     d.sample(codes(0.0, 400.0, 0.0)).unwrap();
     assert_eq!(d.take(Pick::Peak).unwrap().f_n, 400.0);
+    assert!(AcSettings {
+        peak_windows: 0,
+        ..one
+    }
+    .validate()
+    .is_err());
+    assert!(AcSettings {
+        peak_windows: 9,
+        ..one
+    }
+    .validate()
+    .is_err());
 }
 
 #[test]
@@ -559,4 +586,36 @@ proptest! {
             }
         }
     }
+}
+
+#[test]
+fn achieved_feed_in_frame_units() {
+    let nc = crate::Settings::default();
+    // 30 ipm = 5000 BLU/s = 50 BLU per 10 ms = feed number 3000 (f = 100 x FR).
+    assert_eq!(achieved_feed([50, 0, 0], &nc, 10), 3000);
+    assert_eq!(achieved_feed([30, -40, 0], &nc, 10), 3000);
+    assert_eq!(achieved_feed([0, 0, -10], &nc, 10), 600);
+    assert_eq!(achieved_feed([0, 0, 0], &nc, 10), 0);
+    assert_eq!(achieved_feed([i64::MAX, i64::MAX, 0], &nc, 10), u32::MAX);
+}
+
+#[test]
+fn anti_windup_keeps_f_one_step_above_the_achieved_feed() {
+    let air = codes(0.0, 0.0, 0.0);
+    // Without the achieved feed the FRC runs to f_max in air (the paper's behaviour).
+    let mut free = ctl(AcSettings::default());
+    let out = settle(&mut free, air, 20);
+    assert_eq!(out.feed_cap, AcSettings::default().f_max);
+    // With the programmed feed binding at 12 ipm, the cap stays one step (7.5 ipm) above it.
+    let mut c = ctl(AcSettings::default());
+    let mut last = 0;
+    for _ in 0..20 {
+        c.set_achieved(1200);
+        last = window(&mut c, air).feed_cap;
+        assert!(last <= 1200 + 750, "{last}");
+    }
+    assert_eq!(last, 1950);
+    // The achieved feed is used once: the next period without it runs the plain FRC again.
+    let next = window(&mut c, air).feed_cap;
+    assert!(next > 1950);
 }

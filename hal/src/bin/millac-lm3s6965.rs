@@ -171,7 +171,7 @@ mod app {
                 fail(format_args!("cannot create ac.log"));
             };
             let (tx, rx) = cx.local.samples.split();
-            let task = AcTask::new(ctl, rx, log, flags & FLAG_AC_ENABLED != 0);
+            let task = AcTask::new(ctl, rx, log, flags & FLAG_AC_ENABLED != 0, settings);
             sampler = Some(Sampler::new(adc, tx, task.per_period()));
             ac = Some(task);
             board::sample_timer_start(B::reload(clocks_for_hz(B::TIMER_HZ, ac_settings.sample_hz)));
