@@ -100,12 +100,24 @@ pub fn feed_ipm(settings: &Settings, f: u32) -> f64 {
     f as f64 * settings.frame_hz as f64 * 60.0 / (num as f64 / den as f64) / settings.q0 as f64
 }
 
-/// Runs `prog` with the process; `ac` None = no adaptive control (programmed feeds).
+/// Runs `prog` with the process; `ac` None = no adaptive control (programmed feeds). The
+/// controller gets the achieved feed every period (anti-windup), as in the firmware.
 pub fn run(
     prog: &[ProgBlock],
     settings: &Settings,
     cut: &Cut,
     ac: Option<AcSettings>,
+) -> Result<HostRun> {
+    run_with(prog, settings, cut, ac, true)
+}
+
+/// As [`run`]; `anti_windup` false runs the paper's FRC exactly (no achieved feed).
+pub fn run_with(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    ac: Option<AcSettings>,
+    anti_windup: bool,
 ) -> Result<HostRun> {
     let mut frame = Frame::new(FrameConfig::from_settings(settings));
     let mut queue = Queue(prog.iter().map(|b| b.block).collect());
@@ -177,8 +189,10 @@ pub fn run(
         if t >= next_period {
             let (f_meas, t_meas, e, state) = match ctl.as_mut() {
                 Some(c) => {
-                    let d = [0, 1, 2].map(|k| pos[k] - period_start[k]);
-                    c.set_achieved(millac::ac::achieved_feed(d, settings, acs.period_ms));
+                    if anti_windup {
+                        let d = [0, 1, 2].map(|k| pos[k] - period_start[k]);
+                        c.set_achieved(millac::ac::achieved_feed(d, settings, acs.period_ms));
+                    }
                     let o = c.period();
                     feed_cap = o.feed_cap;
                     let state = match o.state {

@@ -1,0 +1,86 @@
+//! AC benchmark (host): machining time relative to the oracle and peak force relative to the
+//! permissible limit on the Fig. 1 cavity and on a pocket after the thesis' Fig. 5.8, for constant
+//! feeds and for the paper's strategy (as published, and with this project's two additions:
+//! anti-windup and a peak held over 3 windows). Host-native runs of the same Frame and
+//! AcController code as the firmware, against the simulated cut (steel, 0.5 in 4-flute, 600 rpm).
+//!
+//! ```text
+//! cargo run -p millac-qemu --release --example ac_bench
+//! ```
+use anyhow::Result;
+use millac::ac::AcSettings;
+use millac::Settings;
+use millac_qemu::acsim::{self, Cut};
+use millac_qemu::cut::{Material, Stock, Tool, Transducer};
+use millac_qemu::{acreport, analysis};
+
+fn main() -> Result<()> {
+    let settings = Settings::default();
+    let cases = [
+        (
+            "Fig. 1 cavity",
+            include_str!("../programs/fig1-cavity.nc"),
+            None,
+        ),
+        (
+            "pocket (Fig. 5.8)",
+            include_str!("../programs/pocket.nc"),
+            Some(include_str!("../programs/pocket.stock")),
+        ),
+    ];
+    println!("| program | strategy | time s | time / oracle | peak F / F_max | time above F_max s | holds |");
+    println!("| --- | --- | ---: | ---: | ---: | ---: | --- |");
+    for (name, text, stock) in cases {
+        let prog = analysis::load_program(text, &settings).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let cut = Cut {
+            stock: stock
+                .map_or_else(|| Ok(Stock::default()), Stock::parse)
+                .map_err(|e| anyhow::anyhow!("{e}"))?,
+            tool: Tool::default(),
+            material: Material::STEEL,
+            spindle_rpm: 600.0,
+            seed: 1,
+            transducer: Transducer::default(),
+        };
+        let acs = AcSettings::default();
+        let cmp = acreport::compare(&prog, &settings, &cut, &acs)?;
+        let oracle = cmp.oracle_time_s;
+        let row = |strategy: &str, run: &acsim::HostRun| {
+            let l = acsim::load_figures(&run.samples, &cut.tool, 0.9, acs.sample_hz);
+            let done = run.final_position == prog.last().map_or([0; 3], |b| b.end).map(i64::from);
+            println!(
+                "| {name} | {strategy} | {:.2} | {:.3} | {:.3} | {:.3} | {} |",
+                run.machining_time_s,
+                run.machining_time_s / oracle,
+                l.peak_force_ratio,
+                l.time_above_limit_s,
+                if run.held {
+                    "held (overload), stopped in the cut"
+                } else if done {
+                    "none"
+                } else {
+                    "?"
+                }
+            );
+        };
+        row("constant, programmed feeds", &cmp.programmed);
+        row(
+            &format!("constant, safe {:.2} ipm", cmp.safe_feed_ipm),
+            &cmp.safe,
+        );
+        let paper = AcSettings {
+            peak_windows: 1,
+            ..acs
+        };
+        row(
+            "paper's FRC as published",
+            &acsim::run_with(&prog, &settings, &cut, Some(paper), false)?,
+        );
+        row(
+            "paper's FRC + anti-windup + 3-window peak",
+            &acsim::run(&prog, &settings, &cut, Some(acs))?,
+        );
+        println!("| {name} | oracle (bound) | {oracle:.2} | 1.000 | - | - | - |");
+    }
+    Ok(())
+}
