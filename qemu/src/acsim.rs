@@ -120,7 +120,18 @@ pub fn run_with(
     anti_windup: bool,
 ) -> Result<HostRun> {
     let mut frame = Frame::new(FrameConfig::from_settings(settings));
-    let mut queue = Queue(prog.iter().map(|b| b.block).collect());
+    // The loader applies an enabled AC's feed ceiling, as in the firmware.
+    let mut queue = Queue(
+        prog.iter()
+            .map(|b| {
+                let mut b = b.block;
+                if let Some(s) = ac {
+                    millac::ac::apply_ceiling(&mut b, s.ceiling, settings.q0);
+                }
+                b
+            })
+            .collect(),
+    );
     let mut process = cut.process()?;
     let acs = ac.unwrap_or_default();
     let mut ctl = match ac {

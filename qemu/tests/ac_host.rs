@@ -181,3 +181,29 @@ fn fig1_cavity_with_ac_ends_where_it_ends_without() {
         "{load:?}"
     );
 }
+
+/// With the feed ceiling at FRM the controller alone sets the feed: a timid F5 program in a light
+/// cut runs at the feed the cut allows, and still ends exactly.
+#[test]
+fn ceiling_at_frm_lets_the_ac_open_a_timid_feed() {
+    use millac::ac::FeedCeiling;
+    let c = cut("blank X0 Y0 W5 H3 Z0\n", Material::STEEL);
+    let program = "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.05\nG1 X2 F5\nM2\n";
+    let settings = Settings::default();
+    let prog = analysis::load_program(program, &settings).unwrap();
+    let programmed = acsim::run(&prog, &settings, &c, Some(AcSettings::default())).unwrap();
+    let frm = AcSettings {
+        ceiling: FeedCeiling::Frm,
+        ..AcSettings::default()
+    };
+    let open = acsim::run(&prog, &settings, &c, Some(frm)).unwrap();
+    assert!(!open.held);
+    assert_eq!(open.final_position, programmed.final_position);
+    println!(
+        "F5 program, 0.05 in slot: {:.2} s at the programmed ceiling, {:.2} s with the ceiling at FRM",
+        programmed.machining_time_s, open.machining_time_s
+    );
+    assert!(open.machining_time_s < programmed.machining_time_s / 3.0);
+    let load = acsim::load_figures(&open.samples, &c.tool, 0.9, 1000);
+    assert!(load.peak_force_ratio < 1.0, "{load:?}");
+}

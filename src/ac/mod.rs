@@ -19,7 +19,7 @@ mod tests;
 
 pub use drr::{Drr, Measured, Sensor, SensorFault, CODE_MAX};
 pub use ecr::Errors;
-pub use settings::{AcSettings, AcSettingsError, Calibration, Pick};
+pub use settings::{AcSettings, AcSettingsError, Calibration, FeedCeiling, Pick};
 
 /// Why the controller holds the feed.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -135,6 +135,20 @@ pub struct AcController {
     t_nm: f32,
     /// Feed number achieved over the last period (anti-windup), taken by the next `period`.
     achieved: Option<u32>,
+}
+
+/// Applies the feed ceiling of an enabled AC to a validated block before it is queued (loader task):
+/// with [`FeedCeiling::Frm`] a feed block is queued at FRM (f = q0), so the controller's cap alone
+/// sets its feed. The frame is unchanged (it always takes min(block feed, cap)).
+pub fn apply_ceiling(block: &mut crate::nc::Block, ceiling: FeedCeiling, q0: u32) {
+    use crate::nc::Motion;
+    if ceiling == FeedCeiling::Frm {
+        match &mut block.motion {
+            Motion::Linear(l) => l.f = q0,
+            Motion::Arc(c) => c.f = q0,
+            Motion::Rapid(_) | Motion::Dwell(_) => {}
+        }
+    }
 }
 
 /// The feed number the machine achieved over one AC period from the position change `delta_blu`

@@ -75,6 +75,19 @@ pub struct AcSettings {
     /// cutter has a 25 ms tooth period, longer than the 10 ms window. Choose
     /// windows >= 60000 / (rpm x flutes x period_ms); default 3 (30 ms).
     pub peak_windows: u32,
+    /// What the frame's feed ceiling is while the AC runs: the programmed feed (default, the
+    /// frame takes min(programmed, cap)) or FRM, so the AC alone sets the feed up to `f_max`.
+    pub ceiling: FeedCeiling,
+}
+
+/// The feed ceiling under adaptive control (see [`AcSettings::ceiling`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FeedCeiling {
+    /// The programmed F word stays the ceiling.
+    Programmed,
+    /// Feed blocks are queued at FRM (f = q0): the controller's cap is the feed. Only applied
+    /// while the AC is enabled; without AC the programmed feeds run.
+    Frm,
 }
 
 /// Most AC windows a peak can be held over.
@@ -112,6 +125,7 @@ impl Default for AcSettings {
             stuck_samples: 20,
             jump_codes: 1500,
             peak_windows: 3,
+            ceiling: FeedCeiling::Programmed,
         }
     }
 }

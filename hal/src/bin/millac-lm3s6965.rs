@@ -95,7 +95,7 @@ mod app {
 
     use cortex_m_semihosting::{nr, syscall};
     use heapless::spsc::{Consumer, Producer, Queue};
-    use millac::ac::{AcController, AcSettings};
+    use millac::ac::{apply_ceiling, AcController, AcSettings, FeedCeiling};
     use millac::gcode::tape::Tape;
     use millac::nc::{Block, BlockSource, FeedCap, Frame, FrameConfig, Pulses, Rate};
     use millac::Settings;
@@ -135,6 +135,8 @@ mod app {
         reloads: Reloads,
         producer: Producer<'static, Block, QUEUE>,
         settings: Settings,
+        /// The feed ceiling of an enabled AC, applied by the loader (None: programmed feeds).
+        ceiling: Option<FeedCeiling>,
         sampler: Option<Sampler>,
         ac: Option<AcTask>,
     }
@@ -160,7 +162,7 @@ mod app {
         B::init(reloads.feed, pulse);
 
         // The simulated ADC and the AC, if the host serves them (blocks until it is ready).
-        let (mut sampler, mut ac) = (None, None);
+        let (mut sampler, mut ac, mut ceiling) = (None, None, None);
         if let Some((adc, flags)) = SimAdc::open() {
             let ac_settings = AcSettings::default();
             let ctl = match AcController::new(ac_settings) {
@@ -171,7 +173,11 @@ mod app {
                 fail(format_args!("cannot create ac.log"));
             };
             let (tx, rx) = cx.local.samples.split();
-            let task = AcTask::new(ctl, rx, log, flags & FLAG_AC_ENABLED != 0, settings);
+            let enabled = flags & FLAG_AC_ENABLED != 0;
+            if enabled {
+                ceiling = Some(ac_settings.ceiling);
+            }
+            let task = AcTask::new(ctl, rx, log, enabled, settings);
             sampler = Some(Sampler::new(adc, tx, task.per_period()));
             ac = Some(task);
             board::sample_timer_start(B::reload(clocks_for_hz(B::TIMER_HZ, ac_settings.sample_hz)));
@@ -187,6 +193,7 @@ mod app {
                 reloads,
                 producer,
                 settings,
+                ceiling,
                 sampler,
                 ac,
             },
@@ -336,11 +343,11 @@ mod app {
     }
 
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
-    #[idle(local = [producer, settings])]
+    #[idle(local = [producer, settings, ceiling])]
     fn idle(cx: idle::Context) -> ! {
         let producer = cx.local.producer;
         let mut out = Out::open();
-        let ok = match load(producer, cx.local.settings, &mut out) {
+        let ok = match load(producer, cx.local.settings, *cx.local.ceiling, &mut out) {
             Loaded::All => true,
             Loaded::Error => false,
             Loaded::NoFile => exit(false),
@@ -379,8 +386,16 @@ mod app {
     fn load(
         producer: &mut Producer<'static, Block, QUEUE>,
         settings: &Settings,
+        ceiling: Option<FeedCeiling>,
         out: &mut Out,
     ) -> Loaded {
+        let q0 = settings.q0;
+        let mut enqueue = |mut b: Block| {
+            if let Some(c) = ceiling {
+                apply_ceiling(&mut b, c, q0);
+            }
+            enqueue(producer, b)
+        };
         let path = b"program.nc\0";
         // SAFETY: SYS_OPEN with a NUL-terminated name, its length without the NUL, mode "r".
         let fd = unsafe { syscall!(OPEN, path.as_ptr(), nr::open::R, path.len() - 1) } as isize;
@@ -399,14 +414,14 @@ mod app {
                 out.line(format_args!("error: cannot read program.nc"));
                 ok = false;
                 // What was accepted still runs.
-                let _ = tape.finish(|b| enqueue(producer, b));
+                let _ = tape.finish(&mut enqueue);
                 break;
             };
             let bytes = chunk.get(..n).unwrap_or(&[]);
             let result = if bytes.is_empty() {
-                tape.finish(|b| enqueue(producer, b))
+                tape.finish(&mut enqueue)
             } else {
-                tape.feed(bytes, |b| enqueue(producer, b))
+                tape.feed(bytes, &mut enqueue)
             };
             if let Err(e) = result {
                 out.line(format_args!("error: {}", e));
