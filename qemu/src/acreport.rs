@@ -172,7 +172,11 @@ pub fn print_table(time_s: f64, load: &LoadFigures, c: &Comparison) {
             t / c.oracle_time_s
         );
     };
-    row("AC (paper's FRC, anti-windup, held peak)", time_s, Some(load));
+    row(
+        "AC (paper's FRC, anti-windup, held peak)",
+        time_s,
+        Some(load),
+    );
     row(
         "constant, programmed feeds",
         c.programmed.machining_time_s,
