@@ -20,6 +20,8 @@ pub struct FunctionInfo {
     pub size: u32,
     /// Addresses of the return instructions found by [`scan_returns`].
     pub returns: Vec<u32>,
+    /// Calls and traps in the function (see [`scan_calls_and_traps`]).
+    pub calls_and_traps: Vec<u32>,
 }
 
 /// Reads `elf` and looks up the function `name`; see [`find_function_in`].
@@ -56,7 +58,39 @@ pub fn find_function_in(data: &[u8], name: &str) -> Result<FunctionInfo> {
         addr,
         size,
         returns: scan_returns(code, addr),
+        calls_and_traps: scan_calls_and_traps(code, addr),
     })
+}
+
+/// Addresses of the instructions in `code` that call out or trap: BL, BLX (immediate or register),
+/// UDF (16- and 32-bit), BKPT and SVC. A handler without any has no panic path: a Rust panic on
+/// Cortex-M is a call to the panic machinery or a UDF trap.
+pub fn scan_calls_and_traps(code: &[u8], base: u32) -> Vec<u32> {
+    let mut out = Vec::new();
+    let mut i = 0usize;
+    let half = |i: usize| code.get(i..i + 2).map(|b| u16::from_le_bytes([b[0], b[1]]));
+    while let Some(h) = half(i) {
+        if is_thumb32(h) {
+            if let Some(h2) = half(i + 2) {
+                let bl = h & 0xF800 == 0xF000 && (h2 & 0xD000 == 0xD000 || h2 & 0xD001 == 0xC000);
+                let udf_w = h & 0xFFF0 == 0xF7F0 && h2 & 0xF000 == 0xA000;
+                if bl || udf_w {
+                    out.push(base + i as u32);
+                }
+            }
+            i += 4;
+        } else {
+            let blx_reg = h & 0xFF87 == 0x4780;
+            let udf = h & 0xFF00 == 0xDE00;
+            let bkpt = h & 0xFF00 == 0xBE00;
+            let svc = h & 0xFF00 == 0xDF00;
+            if blx_reg || udf || bkpt || svc {
+                out.push(base + i as u32);
+            }
+            i += 2;
+        }
+    }
+    out
 }
 
 /// True when a Thumb halfword is the first half of a 32-bit instruction.
@@ -96,6 +130,20 @@ mod tests {
 
     fn bytes(halves: &[u16]) -> Vec<u8> {
         halves.iter().flat_map(|h| h.to_le_bytes()).collect()
+    }
+
+    #[test]
+    fn finds_calls_and_traps() {
+        // bl <x> (f000 f800); b.w <x> (f000 b800, not a call); blx r3 (4798); bx lr (4770, a return);
+        // udf #0 (de00); udf.w (f7f0 a000); bkpt (be00); svc 0xab (dfab); movs r0, #1 (2001)
+        let code = bytes(&[
+            0xF000, 0xF800, 0xF000, 0xB800, 0x4798, 0x4770, 0xDE00, 0xF7F0, 0xA000, 0xBE00, 0xDFAB,
+            0x2001,
+        ]);
+        assert_eq!(
+            scan_calls_and_traps(&code, 0x300),
+            vec![0x300, 0x308, 0x30C, 0x30E, 0x312, 0x314]
+        );
     }
 
     #[test]

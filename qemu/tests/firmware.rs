@@ -197,3 +197,19 @@ fn ac_against_the_cutting_process_and_host_replay() {
         assert_eq!((d.feed_cap, d.e), (r.feed_cap, r.e), "period {k}");
     }
 }
+
+/// The frame and pulse-end interrupts have no panic path and call nothing: no BL/BLX, no UDF trap,
+/// no BKPT/SVC anywhere in their code (everything is inlined; a panic would be a call or a trap).
+#[test]
+fn interrupts_have_no_calls_and_no_panic_path() {
+    let elf = millac_qemu::firmware::build().unwrap();
+    for name in ["TIMER_0A", "TIMER_1A"] {
+        let f = millac_qemu::elf::find_function(&elf, name).unwrap();
+        assert!(f.size > 40, "{name}: {} bytes", f.size);
+        assert!(
+            f.calls_and_traps.is_empty(),
+            "{name} calls or traps at {:x?}",
+            f.calls_and_traps
+        );
+    }
+}
