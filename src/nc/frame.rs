@@ -98,7 +98,8 @@ pub struct Frame {
     position: [i32; 3],
     signs: u8,
     blocks_done: u32,
-    /// Position counters: pulses left per axis in the block (arc: in the segment).
+    /// PTP position counters: pulses left per axis (a line ends after q commands, an arc's
+    /// segment counters are `ca`, `cb`, a dwell counts `ticks`).
     count: [u32; 3],
     /// Linear: DDA y registers |d_k|. PTP: pulses per axis + 1, n_k + 1 (n_k + 1 - count[k] is
     /// the pulses done + 1, for the acceleration steps).
@@ -295,7 +296,6 @@ impl Frame {
             }
             Motion::Linear(l) => {
                 self.mode = Mode::Linear;
-                self.count = l.steps;
                 self.reg = l.steps;
                 self.q = if l.q == 0 { 1 } else { l.q };
                 let half = self.q / 2;
@@ -329,8 +329,6 @@ impl Frame {
             Motion::Dwell(d) => {
                 self.mode = Mode::Dwell;
                 self.ticks = d.frames;
-                // The dwell's "counter" keeps the block alive until the frames have passed.
-                self.count = [0; 3];
             }
         }
     }
@@ -351,8 +349,12 @@ impl Frame {
                 motion: Motion::Arc(c),
                 ..
             }) => self.load_arc_segment(c),
-            // Not reached: the running arc is the front block. Finish it.
-            _ => self.count = [0; 3],
+            // Not reached: the running arc is the front block. Finish it (no segment left).
+            _ => {
+                self.ca = 0;
+                self.cb = 0;
+                self.seg = self.n_seg;
+            }
         }
     }
 
