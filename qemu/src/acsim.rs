@@ -94,6 +94,14 @@ pub fn period_ns(settings: &Settings, rate: Rate) -> u64 {
     clocks * 1_000_000_000 / TIMER_HZ
 }
 
+/// Path speed (ipm, or the program's unit per minute) of a position change `d` over one period:
+/// the `feed_ipm` of ac.csv, for host runs and QEMU logs alike.
+pub fn path_feed_ipm(settings: &Settings, d: [i64; 3], period_ms: u32) -> f64 {
+    let (num, den) = settings.blu.per_inch();
+    let len = d.iter().map(|v| (*v as f64).powi(2)).sum::<f64>().sqrt();
+    len / (num as f64 / den as f64) / (period_ms as f64 / 60_000.0)
+}
+
 /// Feed number -> ipm (or the program's unit per minute).
 pub fn feed_ipm(settings: &Settings, f: u32) -> f64 {
     let (num, den) = settings.blu.per_inch();
@@ -198,10 +206,10 @@ pub fn run_with(
             next_sample += sample_ns;
         }
         if t >= next_period {
+            let d = [0, 1, 2].map(|k| pos[k] - period_start[k]);
             let (f_meas, t_meas, e, state) = match ctl.as_mut() {
                 Some(c) => {
                     if anti_windup {
-                        let d = [0, 1, 2].map(|k| pos[k] - period_start[k]);
                         c.set_achieved(millac::ac::achieved_feed(d, settings, acs.period_ms));
                     }
                     let o = c.period();
@@ -217,15 +225,10 @@ pub fn run_with(
                 }
                 None => (0.0, 0.0, 0.0, "off".to_string()),
             };
-            let d: f64 = (0..3)
-                .map(|k| ((pos[k] - period_start[k]) as f64).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            let (num, den) = settings.blu.per_inch();
             out.rows.push(AcRow {
                 t_ms: next_period / 1_000_000,
                 pos_blu: pos,
-                feed_ipm: d / (num as f64 / den as f64) / (acs.period_ms as f64 / 60_000.0),
+                feed_ipm: path_feed_ipm(settings, d, acs.period_ms),
                 f_meas_n: f_meas,
                 t_meas_nm: t_meas,
                 f_true_n: f_peak,

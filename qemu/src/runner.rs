@@ -226,8 +226,6 @@ pub fn ac_rows(
     truth: &[(f64, f64)],
 ) -> Vec<crate::acsim::AcRow> {
     let per = (acs.sample_hz * acs.period_ms / 1000).max(1) as usize;
-    let (num, den) = settings.blu.per_inch();
-    let blu_per_in = num as f64 / den as f64;
     let mut prev = [0i64; 3];
     records
         .iter()
@@ -236,15 +234,12 @@ pub fn ac_rows(
             let win = truth
                 .get(k * per..((k + 1) * per).min(truth.len()))
                 .unwrap_or(&[]);
-            let d: f64 = (0..3)
-                .map(|i| ((r.pos_blu[i] - prev[i]) as f64).powi(2))
-                .sum::<f64>()
-                .sqrt();
+            let d = [0, 1, 2].map(|i| r.pos_blu[i] - prev[i]);
             prev = r.pos_blu;
             crate::acsim::AcRow {
                 t_ms: r.t_ms,
                 pos_blu: r.pos_blu,
-                feed_ipm: d / blu_per_in / (acs.period_ms as f64 / 60_000.0),
+                feed_ipm: crate::acsim::path_feed_ipm(settings, d, acs.period_ms),
                 f_meas_n: r.f_n as f64,
                 t_meas_nm: r.t_nm as f64,
                 f_true_n: win.iter().map(|s| s.0).fold(0.0, f64::max),
