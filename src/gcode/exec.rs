@@ -7,7 +7,7 @@ use super::words::{
     self, Words, AXES, F, G_DISTANCE, G_DWELL, G_MOTION, G_PLANE, G_UNITS, M_STOP, OFFSETS, P, R, S,
 };
 use super::{feed_number, Distance, Modes, MotionMode, Parsed, Units};
-use crate::nc::{isqrt, Block, Dwell, Linear, Motion, Plane, Rapid};
+use crate::nc::{isqrt, Block, Dwell, Linear, Motion, Plane, Rapid, Q_MAX};
 use crate::settings::Settings;
 
 /// A length word in BLU (rounded half away from zero); it must fit i32.
@@ -206,9 +206,9 @@ pub fn execute(
             if m.motion == MotionMode::Rapid {
                 Motion::Rapid(Rapid { steps, signs })
             } else {
-                let q = u64::try_from(sum).map(isqrt).map(u32::try_from);
-                let q = match q {
-                    Ok(Ok(q)) => q.max(1),
+                // q = L must fit the DDA's 32-bit sums (see `Q_MAX`).
+                let q = match u64::try_from(sum).map(isqrt) {
+                    Ok(q) if q <= Q_MAX as u64 => (q as u32).max(1),
                     _ => return Err(ErrorKind::MoveTooLong),
                 };
                 Motion::Linear(Linear {

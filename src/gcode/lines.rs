@@ -1,6 +1,6 @@
 //! Splits the program "tape" (bytes in chunks of any size) into numbered lines for the G-code
-//! parser: `\n` ends a line, a `\r` before it is dropped, lines count from 1, the last line needs no
-//! newline. Loader task (firmware idle) and host precheck.
+//! parser: CR, LF and CRLF each end one line (as grbl: a lone `\r` is a line end too), lines count
+//! from 1, the last line needs no newline. Loader task (firmware idle) and host precheck.
 
 /// Longest accepted line in bytes, without its line end.
 pub const LINE_MAX: usize = 256;
@@ -27,12 +27,13 @@ impl LineError {
 /// Line assembler. `feed` and `finish` call the sink once per line with its number and its text
 /// (or why it was refused); the sink returns `false` to stop, and then they return `false` too.
 pub struct Lines {
-    /// One byte more than `LINE_MAX` so that a `\r` before the `\n` fits.
-    buf: [u8; LINE_MAX + 1],
+    buf: [u8; LINE_MAX],
     len: usize,
     line_no: u32,
     /// The current line overflowed and was already reported; skip to its end.
     skipping: bool,
+    /// The last byte was a `\r`: a `\n` right after it belongs to the same line end (CRLF).
+    after_cr: bool,
 }
 
 impl Default for Lines {
@@ -44,10 +45,11 @@ impl Default for Lines {
 impl Lines {
     pub const fn new() -> Self {
         Lines {
-            buf: [0; LINE_MAX + 1],
+            buf: [0; LINE_MAX],
             len: 0,
             line_no: 0,
             skipping: false,
+            after_cr: false,
         }
     }
 
@@ -63,7 +65,11 @@ impl Lines {
         mut sink: impl FnMut(u32, Result<&str, LineError>) -> bool,
     ) -> bool {
         for &b in bytes {
-            if b == b'\n' {
+            let crlf = self.after_cr && b == b'\n';
+            self.after_cr = b == b'\r';
+            if crlf {
+                // The `\n` of a CRLF: the `\r` already ended the line.
+            } else if b == b'\n' || b == b'\r' {
                 if self.skipping {
                     self.skipping = false;
                     self.len = 0;
@@ -98,14 +104,11 @@ impl Lines {
 
     fn emit(&mut self, sink: &mut impl FnMut(u32, Result<&str, LineError>) -> bool) -> bool {
         self.line_no = self.line_no.saturating_add(1);
-        let mut n = self.len;
+        let n = self.len;
         self.len = 0;
-        if n > 0 && self.buf.get(n - 1) == Some(&b'\r') {
-            n -= 1;
-        }
         let text = match self.buf.get(..n) {
-            Some(t) if n <= LINE_MAX => core::str::from_utf8(t).map_err(|_| LineError::NotUtf8),
-            _ => Err(LineError::TooLong),
+            Some(t) => core::str::from_utf8(t).map_err(|_| LineError::NotUtf8),
+            None => Err(LineError::TooLong),
         };
         sink(self.line_no, text)
     }
@@ -146,6 +149,27 @@ mod tests {
                 (4, "M2".into())
             ]
         );
+    }
+
+    /// CR, LF and CRLF each end exactly one line, also split across chunks (grbl's rule); LF CR
+    /// is two line ends.
+    #[test]
+    fn every_line_end() {
+        let texts = |v: Vec<(u32, Result<String, LineError>)>| -> Vec<(u32, String)> {
+            v.into_iter().map(|(n, t)| (n, t.unwrap())).collect()
+        };
+        let lone_cr = texts(split(&[b"G0 Z0.05\rX0.05 Y0.05\r"]));
+        assert_eq!(lone_cr, [(1, "G0 Z0.05".into()), (2, "X0.05 Y0.05".into())]);
+        let want: Vec<(u32, String)> = vec![(1, "A".into()), (2, "B".into()), (3, "C".into())];
+        for sep in [&b"\r"[..], b"\n", b"\r\n"] {
+            let whole = [b"A", sep, b"B", sep, b"C", sep].concat();
+            assert_eq!(texts(split(&[&whole])), want, "{sep:?}");
+            // Byte by byte: a CRLF split between chunks is still one line end.
+            let bytes: Vec<&[u8]> = whole.chunks(1).collect();
+            assert_eq!(texts(split(&bytes)), want, "{sep:?} byte by byte");
+        }
+        let lfcr = texts(split(&[b"A\n\rB"]));
+        assert_eq!(lfcr, [(1, "A".into()), (2, String::new()), (3, "B".into())]);
     }
 
     #[test]

@@ -230,6 +230,27 @@ fn err_move_too_long() {
     ));
 }
 
+/// A line longer than the linear DDA's registers hold (q > 2^31: r_k + |d_k| would pass 2^32 and
+/// the line end short) is refused; the longest one that fits is accepted (see `Q_MAX`).
+#[test]
+fn err_line_beyond_the_dda_registers() {
+    let q_max = crate::nc::Q_MAX as i64;
+    let mut p = Parser::new(wide());
+    block(&mut p, "G1 F1 X-214748.3648");
+    assert_eq!(p.position()[0] as i64, -(1 << 31));
+    // To X = 0: exactly Q_MAX BLU, accepted.
+    match motion(&mut p, "X0") {
+        Motion::Linear(l) => assert_eq!(l.q as i64, q_max),
+        m => panic!("{m:?}"),
+    }
+    // One BLU further: Q_MAX + 1, refused; every longer line too.
+    for bad in ["X0.0001", "X214748.3647", "X214748 Y1"] {
+        let mut p = Parser::new(wide());
+        block(&mut p, "G1 F1 X-214748.3648");
+        assert_rejected(&mut p, bad, ErrorKind::MoveTooLong);
+    }
+}
+
 #[test]
 fn err_soft_limit() {
     let sl = |axis, value, min, max| ErrorKind::SoftLimit {

@@ -35,13 +35,18 @@ pub struct Rapid {
     pub signs: u8,
 }
 
+/// Largest q of a linear block: the DDA adds |d_k| <= q to a remainder below q, so r_k + |d_k| <=
+/// 2q - 1 must fit 32 bits. The parser refuses longer lines (an arc's q = R is below 2^31 and its
+/// registers |i|, |j| fit i32, so its sums fit as well).
+pub const Q_MAX: u32 = 1 << 31;
+
 /// Linear interpolation (G1): q = L = isqrt(x^2 + y^2 + z^2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Linear {
     /// Incremental distances |x|, |y|, |z| in BLU: the DDA registers y1..y3 and the counters.
     pub steps: [u32; 3],
     pub signs: u8,
-    /// q = L, at least 1.
+    /// q = L, 1..=[`Q_MAX`].
     pub q: u32,
     /// Feed number f (1..=q0).
     pub f: u32,

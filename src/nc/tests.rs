@@ -340,6 +340,30 @@ fn ptp_runs_at_rapid_rate_with_three_deceleration_steps() {
     assert!(frames.iter().all(|f| f.pulses.signs & 0b011 == 0b001));
 }
 
+/// The longest line the parser accepts (q = Q_MAX = 2^31, |d_x| = q) pulses on every command from
+/// the first one: the remainder sums stay below 2^32 (at q = 3 * 2^30 + 1 they would not, and the
+/// first command would give no pulse).
+#[test]
+fn longest_line_pulses_on_every_command() {
+    let q = Q_MAX;
+    let b = Block {
+        line: 1,
+        motion: Motion::Linear(Linear {
+            steps: [q, 1, 0],
+            signs: 0b011,
+            q,
+            f: Settings::default().q0,
+            decel: false,
+        }),
+    };
+    let mut frame = Frame::new(cfg());
+    // Frame 0 loads, then one command per frame.
+    let out: Vec<_> = Sim::new(&mut frame, [b].into_iter(), u32::MAX, 1001).collect();
+    assert_eq!(out.len(), 1001);
+    assert!(out[1..].iter().all(|f| f.pulses.steps & 1 == 1));
+    assert_eq!(out[1000].position[0], 1000);
+}
+
 #[test]
 fn dwell_waits_its_frames() {
     let blocks = [
