@@ -25,6 +25,33 @@ fn length(w: &Words, i: usize, per: (i64, i64)) -> Result<Option<i64>, ErrorKind
     }
 }
 
+/// Fine units per millimetre: 10^-19 mm is an exact common unit of every length word, in mm or in
+/// inches (a word has at most 18 decimals, [`super::number::MAX_DECIMALS`], and an inch is 25.4 mm).
+pub const FINE_PER_MM: i128 = 10_000_000_000_000_000_000;
+/// Fine units per inch (25.4 mm).
+pub const FINE_PER_INCH: i128 = 254 * 1_000_000_000_000_000_000;
+
+/// The parser's position: the machine's in BLU and the programmed one, exact, in fine units.
+pub struct Position<'a> {
+    pub blu: &'a mut [i32; 3],
+    pub fine: &'a mut [i128; 3],
+}
+
+/// Fine units of `v` program units (`per_fine`: fine units per unit), exact; None on overflow.
+fn to_fine(v: super::Decimal, per_fine: i128) -> Option<i128> {
+    let scale = super::number::pow10(v.scale as u32)?;
+    v.mantissa.checked_mul(per_fine.checked_div(scale)?)
+}
+
+/// The machine coordinate of a fine position: BLU, rounded half away from zero (the same rounding
+/// as a word converted directly), or None when it does not fit i32.
+fn fine_to_blu(st: &Settings, fine: i128) -> Option<i32> {
+    let (num, den) = st.blu.per_mm();
+    let n = fine.checked_mul(num as i128)?;
+    let d = (den as i128).checked_mul(FINE_PER_MM)?;
+    i32::try_from(super::number::div_round(n, d)?).ok()
+}
+
 fn check_soft(st: &Settings, target: [i32; 3]) -> Result<(), ErrorKind> {
     for (k, ((&t, &min), &max)) in target
         .iter()
@@ -60,10 +87,11 @@ const ARC_WORDS: [usize; 4] = [R, OFFSETS, OFFSETS + 1, OFFSETS + 2];
 pub fn execute(
     st: &Settings,
     m: &mut Modes,
-    pos: &mut [i32; 3],
+    position: Position,
     line_no: u32,
     text: &str,
 ) -> Result<Parsed, ErrorKind> {
+    let pos = position.blu;
     let w = words::lex(text)?;
 
     // Modal words first: they apply to the whole line, wherever they stand.
@@ -84,9 +112,9 @@ pub fn execute(
         _ => {}
     }
     // G94 (feed per minute) is the only feed mode: nothing to do.
-    let per = match m.units {
-        Units::Inch => st.blu.per_inch(),
-        Units::Mm => st.blu.per_mm(),
+    let (per, per_fine) = match m.units {
+        Units::Inch => (st.blu.per_inch(), FINE_PER_INCH),
+        Units::Mm => (st.blu.per_mm(), FINE_PER_MM),
     };
     if let Some(fv) = w.value(F) {
         if fv.is_negative() {
@@ -169,14 +197,20 @@ pub fn execute(
         return Err(ErrorKind::NoFeed { code });
     }
 
+    // The programmed target, exact; the machine target is its rounding (an axis without a word
+    // stays where the machine is).
     let mut target = *pos;
-    for (k, (t, a)) in target.iter_mut().zip(axis.iter()).enumerate() {
-        let v = match (*a, m.distance) {
-            (None, _) => continue,
-            (Some(v), Distance::Absolute) => v,
-            (Some(v), Distance::Incremental) => *t as i64 + v,
+    let mut target_fine = *position.fine;
+    for k in 0..3 {
+        let Some(v) = w.value(AXES + k) else { continue };
+        let overflow = ErrorKind::TargetOverflow { axis: axis_name(k) };
+        let v = to_fine(v, per_fine).ok_or(overflow)?;
+        let t = match m.distance {
+            Distance::Absolute => v,
+            Distance::Incremental => target_fine[k].checked_add(v).ok_or(overflow)?,
         };
-        *t = i32::try_from(v).map_err(|_| ErrorKind::TargetOverflow { axis: axis_name(k) })?;
+        target_fine[k] = t;
+        target[k] = fine_to_blu(st, t).ok_or(overflow)?;
     }
 
     let motion = match m.motion {
@@ -201,6 +235,8 @@ pub fn execute(
                 sum += d.unsigned_abs() as u128 * d.unsigned_abs() as u128;
             }
             if sum == 0 {
+                // No machine motion, but the programmed position moves (an increment below a BLU).
+                *position.fine = target_fine;
                 return Ok(Parsed::Nothing);
             }
             if m.motion == MotionMode::Rapid {
@@ -228,10 +264,23 @@ pub fn execute(
             let centre = match (w.value(R).is_some(), has_offsets) {
                 (true, true) => return Err(ErrorKind::ArcRadiusAndOffsets),
                 (true, false) => Centre::Radius(length(&w, R, per)?.unwrap_or(0)),
-                (false, true) => Centre::Offsets([
-                    length(&w, OFFSETS + ia, per)?.unwrap_or(0),
-                    length(&w, OFFSETS + ib, per)?.unwrap_or(0),
-                ]),
+                (false, true) => {
+                    // The centre is the programmed start plus I, J, K, exact, rounded once.
+                    let mut off = [0i64; 2];
+                    for (o, k) in off.iter_mut().zip([ia, ib]) {
+                        length(&w, OFFSETS + k, per)?;
+                        let letter = words::LETTERS.get(OFFSETS + k).copied().unwrap_or('?');
+                        let too_large = ErrorKind::NumberTooLarge(letter);
+                        let v = match w.value(OFFSETS + k) {
+                            Some(v) => to_fine(v, per_fine).ok_or(too_large)?,
+                            None => 0,
+                        };
+                        let c = position.fine[k].checked_add(v).ok_or(too_large)?;
+                        let c = fine_to_blu(st, c).ok_or(ErrorKind::ArcTooLarge)?;
+                        *o = c as i64 - pos[k] as i64;
+                    }
+                    Centre::Offsets(off)
+                }
                 (false, false) => return Err(ErrorKind::ArcNeedsCentre { code }),
             };
             let a = arc::plan(
@@ -248,6 +297,7 @@ pub fn execute(
         }
     };
     *pos = target;
+    *position.fine = target_fine;
     Ok(Parsed::Block(Block {
         line: line_no,
         motion,

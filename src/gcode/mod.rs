@@ -24,6 +24,8 @@ mod tests_arc;
 #[cfg(test)]
 mod tests_err;
 #[cfg(test)]
+mod tests_incr;
+#[cfg(test)]
 mod tests_prop;
 
 use crate::nc::{Block, Plane};
@@ -136,7 +138,12 @@ pub fn feed_number(st: &Settings, value: Decimal, per_unit: (i64, i64)) -> Optio
 #[derive(Clone, Debug)]
 pub struct Parser {
     settings: Settings,
+    /// Machine position after the last accepted block, BLU: the rounded `programmed` position.
     position: [i32; 3],
+    /// The programmed position, exact, in fine units (see [`exec::FINE_PER_MM`]): G91 increments
+    /// and G20/G21 switches add up exactly, and only the machine target is rounded to a BLU, so N
+    /// increments end where one move of their sum would.
+    programmed: [i128; 3],
     modes: Modes,
     /// The SIGN lines as they stand after the last accepted block (bit k set = axis k positive).
     signs: u8,
@@ -147,6 +154,7 @@ impl Parser {
         Parser {
             settings,
             position: [0; 3],
+            programmed: [0; 3],
             modes: Modes::POWER_UP,
             signs: 0,
         }
@@ -157,10 +165,16 @@ impl Parser {
     pub fn line(&mut self, line_no: u32, text: &str) -> Result<Parsed, GcodeError> {
         let mut modes = self.modes;
         let mut position = self.position;
-        match exec::execute(&self.settings, &mut modes, &mut position, line_no, text) {
+        let mut programmed = self.programmed;
+        let pos = exec::Position {
+            blu: &mut position,
+            fine: &mut programmed,
+        };
+        match exec::execute(&self.settings, &mut modes, pos, line_no, text) {
             Ok(mut p) => {
                 self.modes = modes;
                 self.position = position;
+                self.programmed = programmed;
                 if let Parsed::Block(b) = &mut p {
                     self.signs = carry_signs(&mut b.motion, self.signs);
                 }
