@@ -121,7 +121,7 @@ pub fn compare(
     } else {
         max_f
     };
-    let safe_prog = acsim::with_constant_feed(prog, safe_f);
+    let safe_prog = acsim::with_constant_feed(prog, safe_f, settings);
     let safe = acsim::run(&safe_prog, settings, cut, None)?;
     let safe_load = acsim::load_figures(&safe.samples, &cut.tool, fraction, acs.sample_hz);
     Ok(Comparison {

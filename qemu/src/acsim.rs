@@ -135,6 +135,7 @@ pub fn run_with(
                 let mut b = b.block;
                 if let Some(s) = ac {
                     millac::ac::apply_ceiling(&mut b, s.ceiling, settings.q0);
+                    b.seal(&FrameConfig::from_settings(settings));
                 }
                 b
             })
@@ -310,7 +311,8 @@ pub fn load_figures(
 }
 
 /// The same program with every feed block at one constant feed number `f`.
-pub fn with_constant_feed(prog: &[ProgBlock], f: u32) -> Vec<ProgBlock> {
+pub fn with_constant_feed(prog: &[ProgBlock], f: u32, settings: &Settings) -> Vec<ProgBlock> {
+    let cfg = FrameConfig::from_settings(settings);
     prog.iter()
         .map(|b| {
             let mut b = *b;
@@ -319,6 +321,7 @@ pub fn with_constant_feed(prog: &[ProgBlock], f: u32) -> Vec<ProgBlock> {
                 Motion::Arc(c) => c.f = f,
                 _ => {}
             }
+            b.block.seal(&cfg);
             b
         })
         .collect()

@@ -266,6 +266,8 @@ pub fn plan(
         n_targets: (n_cross + 1) as u8,
         f,
         decel: false,
+        f_floor: 0,
+        decel_below: 0,
         length: length as u32,
     })
 }

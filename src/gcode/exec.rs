@@ -253,6 +253,9 @@ pub fn execute(
                     q,
                     f: m.feed,
                     decel: false,
+                    f_floor: 0,
+                    decel_below: 0,
+                    dir: [1; 3],
                 })
             }
         }

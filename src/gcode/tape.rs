@@ -3,7 +3,8 @@
 //! host tool's pre-check, so both accept and reject exactly the same programs.
 use super::lines::{LineError, Lines};
 use super::{GcodeError, Lookahead, Parsed, Parser};
-use crate::nc::Block;
+use crate::ac::{apply_ceiling, FeedCeiling};
+use crate::nc::{Block, FrameConfig};
 use crate::settings::Settings;
 
 /// Why the tape stopped: a line refused before parsing, or by the parser.
@@ -32,13 +33,34 @@ impl core::fmt::Display for TapeError {
     }
 }
 
-/// Tape reader state. `feed` and `finish` hand each block to `emit` in program order, with its
-/// deceleration flag decided; after an error or M2/M30 the tape ignores the rest.
+/// Tape reader state. `feed` and `finish` hand each block to `emit` in program order, complete:
+/// the one place where a block is finished (parser: geometry, feed and the sign byte; look-ahead:
+/// the deceleration flag; an enabled AC's feed ceiling; [`Block::seal`]: the frame's register
+/// image). After an error or M2/M30 the tape ignores the rest.
 pub struct Tape {
     lines: Lines,
     parser: Parser,
     lookahead: Lookahead,
     done: bool,
+    finish: Finish,
+}
+
+/// What the tape does to every block before it emits it.
+#[derive(Clone, Copy)]
+struct Finish {
+    cfg: FrameConfig,
+    q0: u32,
+    ceiling: Option<FeedCeiling>,
+}
+
+impl Finish {
+    fn block(&self, mut b: Block) -> Block {
+        if let Some(c) = self.ceiling {
+            apply_ceiling(&mut b, c, self.q0);
+        }
+        b.seal(&self.cfg);
+        b
+    }
 }
 
 impl Tape {
@@ -48,7 +70,20 @@ impl Tape {
             parser: Parser::new(settings),
             lookahead: Lookahead::new(),
             done: false,
+            finish: Finish {
+                cfg: FrameConfig::from_settings(&settings),
+                q0: settings.q0,
+                ceiling: None,
+            },
         }
+    }
+
+    /// A tape for a run with the adaptive control enabled: feed blocks are queued with the AC's
+    /// feed ceiling applied (see [`apply_ceiling`]).
+    pub fn with_ac_ceiling(settings: Settings, ceiling: FeedCeiling) -> Self {
+        let mut t = Tape::new(settings);
+        t.finish.ceiling = Some(ceiling);
+        t
     }
 
     /// The parser (modes, programmed position after the last accepted block).
@@ -67,6 +102,8 @@ impl Tape {
         if self.done {
             return Ok(());
         }
+        let finish = self.finish;
+        let mut emit = |b: Block| emit(finish.block(b));
         let mut result = Ok(());
         let (parser, lookahead, done) = (&mut self.parser, &mut self.lookahead, &mut self.done);
         self.lines.feed(bytes, |n, text| {
@@ -77,6 +114,8 @@ impl Tape {
 
     /// End of the tape: a last line without a newline, then the held block.
     pub fn finish(&mut self, mut emit: impl FnMut(Block)) -> Result<(), TapeError> {
+        let finish = self.finish;
+        let mut emit = |b: Block| emit(finish.block(b));
         let mut result = Ok(());
         if !self.done {
             let (parser, lookahead, done) = (&mut self.parser, &mut self.lookahead, &mut self.done);

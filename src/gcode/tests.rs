@@ -336,6 +336,9 @@ fn lin(line: u32, v: [i64; 3]) -> Block {
             q: 1,
             f: 1,
             decel: false,
+            f_floor: 0,
+            decel_below: 0,
+            dir: [1; 3],
         }),
     }
 }

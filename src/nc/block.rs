@@ -41,15 +41,24 @@ pub struct Rapid {
 pub const Q_MAX: u32 = 1 << 31;
 
 /// Linear interpolation (G1): q = L = isqrt(x^2 + y^2 + z^2).
+///
+/// `steps` to `dir` are the frame's register image in the frame's own field order (`repr(C)`), so
+/// that the Initiator loads a line with a few multiple-register loads and stores.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(C)]
 pub struct Linear {
     /// Incremental distances |x|, |y|, |z| in BLU: the DDA registers y1..y3 and the counters.
     pub steps: [u32; 3],
-    pub signs: u8,
     /// q = L, 1..=[`Q_MAX`].
     pub q: u32,
     /// Feed number f (1..=q0).
     pub f: u32,
+    /// Derived from f and decel by [`Block::seal`]: the deceleration floor and threshold.
+    pub f_floor: u32,
+    pub decel_below: u32,
+    /// Derived from signs by [`Block::seal`]: the negated position step per pulse, -1 or +1.
+    pub dir: [i32; 3],
+    pub signs: u8,
     /// Decelerate exponentially to 20 % of f near the end of the block.
     pub decel: bool,
 }
@@ -77,6 +86,9 @@ pub struct Arc {
     pub decel: bool,
     /// Path length in BLU (number of interpolation commands the arc takes), for deceleration.
     pub length: u32,
+    /// Derived from f and decel by [`Block::seal`]: the deceleration floor and threshold.
+    pub f_floor: u32,
+    pub decel_below: u32,
 }
 
 /// G4: wait a number of frames.
@@ -99,4 +111,39 @@ pub struct Block {
     /// Source line number (1-based) of the G-code line that produced it.
     pub line: u32,
     pub motion: Motion,
+}
+
+impl Block {
+    /// Completes the frame's register image of a feed block from its feed number and deceleration
+    /// flag (task context: the tape reader seals every block it emits, and whoever changes `f` or
+    /// `decel` later seals again), so that the Initiator only copies registers:
+    /// - `f_floor` = max(f / 5, 1), the deceleration floor (20 % of f);
+    /// - `decel_below`: the number of commands left below which K * remaining / 256 < f, i.e.
+    ///   floor(256 f / K) + 1 (u32::MAX when K is 0 or 256 f overflows); 0 when the block does not
+    ///   decelerate. Below it, K * remaining <= 256 f fits 32 bits, so the frame's product does.
+    ///
+    /// An unsealed block (both 0) runs at its feed without deceleration.
+    pub fn seal(&mut self, cfg: &super::FrameConfig) {
+        let k = cfg.decel_gain_q8;
+        let regs = |f: u32, decel: bool| {
+            let floor = (f / 5).max(1);
+            let below = if !decel {
+                0
+            } else {
+                match f.checked_mul(256) {
+                    Some(x) => x.checked_div(k).map_or(u32::MAX, |v| v.saturating_add(1)),
+                    None => u32::MAX.checked_div(k).unwrap_or(u32::MAX),
+                }
+            };
+            (floor, below)
+        };
+        match &mut self.motion {
+            Motion::Linear(l) => {
+                (l.f_floor, l.decel_below) = regs(l.f, l.decel);
+                l.dir = super::frame::dirs(l.signs);
+            }
+            Motion::Arc(a) => (a.f_floor, a.decel_below) = regs(a.f, a.decel),
+            Motion::Rapid(_) | Motion::Dwell(_) => {}
+        }
+    }
 }

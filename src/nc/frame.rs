@@ -3,7 +3,7 @@
 //! integers only, no panics, no allocation, no loops over data-dependent lengths.
 //!
 //! Per tick (the paper's "major part"):
-//! - Initiator: with no block loaded, pop the next validated block and load the registers.
+//! - Initiator: with no block loaded, take the next validated block and load the registers.
 //! - PTP: each axis pulses independently at the rapid rate (the frame timer is retimed to
 //!   `rapid_hz` while a PTP block runs, see [`Rate`]); within `ptp_steps[k]` pulses of either end
 //!   of its move an axis pulses only every 2nd, 4th, 8th rapid frame: the paper's three-step
@@ -20,9 +20,17 @@
 //! - Output and Position: the pulses with the current signs; counters decremented per pulse,
 //!   absolute position updated. A line is done in the frame of its q-th command, a dwell in its
 //!   last frame, a PTP block or an arc in the frame after its last pulse (which does nothing
-//!   else); the Initiator runs the tick after that. An arc loads its first segment in the frame after the
-//!   block (each frame loads one set of registers at most).
-use super::block::{Block, Motion};
+//!   else); the Initiator runs the tick after that. An arc loads its first segment in the frame
+//!   after the block (each frame loads one set of registers at most).
+//! - Chained lines (beyond the paper): when a line is followed by a line, the frame of its last
+//!   command also starts the next one, so a chain of short CAM segments costs no load frame and
+//!   runs at its programmed feed (a load frame per block made 10-BLU blocks 10 % slow and 1-BLU
+//!   blocks 50 %). For that a line's DDA registers |d_k|, q and the position steps `dir` are read in
+//!   place from the front block of the queue in every command frame (never copied: a copy made
+//!   the chaining frame 191 instructions, reading in place 176, see the README's budget table);
+//!   starting it only sets the remainders, the command count and the feed registers. Arcs, rapids
+//!   and dwells still load in a frame of their own.
+use super::block::{Block, Linear, Motion};
 use crate::settings::Settings;
 
 /// The frame's share of the settings, precomputed in task context.
@@ -93,6 +101,20 @@ enum Mode {
 
 /// The NC state: DDA registers, counters, position. One instance lives in the frame ISR's locals.
 pub struct Frame {
+    /// The registers of arcs and PTP, in a line's layout (lines read theirs in place from the
+    /// queue, see the module doc). Arcs use q, f, f_floor, decel_below and dir; PTP uses `steps`
+    /// as n_k + 1 (n_k + 1 - count[k] is the pulses done + 1, for the acceleration steps) and dir.
+    /// `dir` is the negated position step per pulse and axis, -1 or +1 (see [`dirs`]), meaningful
+    /// for the axes that move. f_floor = max(f / 5, 1) is the deceleration floor; K * remaining /
+    /// 256 < f only below decel_below commands left (0: no deceleration), so the frames before it
+    /// skip the multiply. (The layout was measured: these fields as one struct give the shortest
+    /// worst-case frame.)
+    regs: Linear,
+    /// DDA r registers (accumulators). Arc: [r_a, r_b, _].
+    acc: [u32; 3],
+    /// Feed DDA accumulator and commands left (for deceleration).
+    r0: u32,
+    remaining: u32,
     cfg: FrameConfig,
     mode: Mode,
     position: [i32; 3],
@@ -101,27 +123,8 @@ pub struct Frame {
     /// PTP position counters: pulses left per axis (a line ends after q commands, an arc's
     /// segment counters are `ca`, `cb`, a dwell counts `ticks`).
     count: [u32; 3],
-    /// Linear: DDA y registers |d_k|. PTP: pulses per axis + 1, n_k + 1 (n_k + 1 - count[k] is
-    /// the pulses done + 1, for the acceleration steps).
-    reg: [u32; 3],
-    /// Negated position step per pulse and axis, -1 or +1 (from the axis' sign, see [`dirs`]; set
-    /// with the signs of the block or arc segment, meaningful for the axes that move).
-    dir: [i32; 3],
-    /// DDA r registers (accumulators). Arc: [r_a, r_b, _].
-    acc: [u32; 3],
-    /// Interpolator capacity q (L or R).
-    q: u32,
-    /// Feed DDA: programmed feed number, accumulator, commands left (for deceleration).
-    f: u32,
-    r0: u32,
-    remaining: u32,
-    /// Deceleration: K * remaining / 256 < f only below this many commands left (0: no
-    /// deceleration), so the frames before it skip the multiply.
-    decel_below: u32,
     /// PTP frame counter; dwell frames left.
     ticks: u32,
-    /// f / 5, at least 1: the deceleration floor.
-    f_floor: u32,
     /// Arc state: axis bits of a and b, register values i, j (position relative to the centre),
     /// segment counters of a and b, unit steps of i and j (+1 or -1), segments.
     bit_a: u8,
@@ -145,16 +148,20 @@ impl Frame {
             signs: 0,
             blocks_done: 0,
             count: [0; 3],
-            reg: [0; 3],
-            dir: [1; 3],
+            regs: Linear {
+                steps: [0; 3],
+                q: 1,
+                f: 0,
+                f_floor: 1,
+                decel_below: 0,
+                dir: [1; 3],
+                signs: 0,
+                decel: false,
+            },
             acc: [0; 3],
-            q: 1,
-            f: 0,
             r0: 0,
             remaining: 0,
-            decel_below: 0,
             ticks: 0,
-            f_floor: 1,
             bit_a: 1,
             bit_b: 2,
             i: 0,
@@ -202,20 +209,46 @@ impl Frame {
                     };
                 }
             }
-            // A line ends in the frame of its last command (its duration is q commands).
+            // A line ends in the frame of its last command (its duration is q commands), and when
+            // the next block is a line too, that frame also loads it: a chain of lines costs no
+            // load frame, so short blocks run at their programmed feed.
             Mode::Linear => {
-                if self.feed(feed_cap.feed_cap()) {
-                    let steps = self.linear();
-                    // q commands give exactly |d_k| overflows per axis (see `linear`).
-                    if self.remaining == 0 {
-                        self.done(src);
+                // The line's registers are read in place, from the front block (never copied).
+                let (steps, signs) = match src.front() {
+                    Some(Block {
+                        motion: Motion::Linear(l),
+                        ..
+                    }) => {
+                        let cap = feed_cap.feed_cap();
+                        if !self.feed(cap, l.f, l.f_floor, l.decel_below) {
+                            return Pulses {
+                                steps: 0,
+                                signs: self.signs,
+                            };
+                        }
+                        let steps = self.linear(&l.steps, l.q);
+                        self.position_update(steps, &l.dir);
+                        (steps, self.signs)
                     }
-                    self.position_update(steps);
-                    return Pulses {
-                        steps,
-                        signs: self.signs,
-                    };
+                    // Not reached: the running line is the front block. End it.
+                    _ => (0, self.signs),
+                };
+                // q commands give exactly |d_k| overflows per axis (see `linear`). The frame of the
+                // last command also starts the next block when that is a line (no copy: its
+                // registers are read in place), so a chain of lines costs no load frame. The
+                // pulses go out with this block's signs; the next block's apply from its own first
+                // pulses (the next frame's).
+                if self.remaining == 0 {
+                    self.done(src);
+                    if let Some(Block {
+                        motion: Motion::Linear(l),
+                        ..
+                    }) = src.front()
+                    {
+                        self.load_linear(l);
+                    }
                 }
+                return Pulses { steps, signs };
             }
             Mode::Arc => {
                 if self.ca | self.cb == 0 {
@@ -227,9 +260,15 @@ impl Frame {
                     } else {
                         self.done(src);
                     }
-                } else if self.feed(feed_cap.feed_cap()) {
+                } else if self.feed(
+                    feed_cap.feed_cap(),
+                    self.regs.f,
+                    self.regs.f_floor,
+                    self.regs.decel_below,
+                ) {
                     let steps = self.circular();
-                    self.position_update(steps);
+                    let dir = self.regs.dir;
+                    self.position_update(steps, &dir);
                     return Pulses {
                         steps,
                         signs: self.signs,
@@ -284,29 +323,17 @@ impl Frame {
             Motion::Rapid(r) => {
                 self.mode = Mode::Rapid;
                 self.count = r.steps;
-                self.reg = [
+                self.regs.steps = [
                     r.steps[0].wrapping_add(1),
                     r.steps[1].wrapping_add(1),
                     r.steps[2].wrapping_add(1),
                 ];
-                self.dir = dirs(r.signs);
+                self.regs.dir = dirs(r.signs);
                 self.ticks = 0;
                 // The parser completed the byte (non-moving axes keep their line): write it as it is.
                 self.signs = r.signs;
             }
-            Motion::Linear(l) => {
-                self.mode = Mode::Linear;
-                self.reg = l.steps;
-                self.q = if l.q == 0 { 1 } else { l.q };
-                let half = self.q / 2;
-                self.acc = [half; 3];
-                self.f = l.f;
-                self.f_floor = if l.f / 5 == 0 { 1 } else { l.f / 5 };
-                self.remaining = self.q;
-                self.decel_below = self.decel_below(l.decel, l.f);
-                self.dir = dirs(l.signs);
-                self.signs = l.signs;
-            }
+            Motion::Linear(l) => self.load_linear(l),
             Motion::Arc(c) => {
                 self.mode = Mode::Arc;
                 let (a, b) = c.plane.axes();
@@ -314,11 +341,12 @@ impl Frame {
                 self.bit_b = 1 << b;
                 self.i = c.start[0];
                 self.j = c.start[1];
-                self.q = if c.r == 0 { 1 } else { c.r };
-                self.f = c.f;
-                self.f_floor = if c.f / 5 == 0 { 1 } else { c.f / 5 };
+                // r >= 1 (parser); f_floor and decel_below come sealed (see `Block::seal`).
+                self.regs.q = c.r;
+                self.regs.f = c.f;
+                self.regs.f_floor = c.f_floor;
                 self.remaining = c.length;
-                self.decel_below = self.decel_below(c.decel, c.f);
+                self.regs.decel_below = c.decel_below;
                 self.n_seg = c.n_targets;
                 // No segment yet: the next frame loads segment 0 (seg wraps to 0), so loading the
                 // block and its first segment are two frames of bounded work.
@@ -331,6 +359,18 @@ impl Frame {
                 self.ticks = d.frames;
             }
         }
+    }
+
+    /// Loads a line's registers (the Initiator; also chained at the end of the line before it).
+    /// The feed DDA's accumulator r0 carries over, so the feed keeps its phase across blocks.
+    #[inline(always)]
+    fn load_linear(&mut self, l: &Linear) {
+        self.mode = Mode::Linear;
+        // q >= 1 (parser); the other registers stay in the block (read in place).
+        let q = l.q;
+        self.acc = [q / 2; 3];
+        self.remaining = q;
+        self.signs = l.signs;
     }
 
     /// The block is done and leaves the source; the Initiator runs next frame.
@@ -374,7 +414,7 @@ impl Frame {
         // Each segment starts on an axis crossing (or the block start): the DDA remainders restart
         // at one half, which rounds each axis to the nearest BLU (measured: smaller deviation than
         // carrying the remainders over the crossing).
-        let half = self.q / 2;
+        let half = self.regs.q / 2;
         self.acc = [half; 3];
         // Only the axes that move in this segment change their sign line.
         let (bit_a, bit_b) = (self.bit_a, self.bit_b);
@@ -393,35 +433,17 @@ impl Frame {
             signs |= bit_b;
         }
         self.signs = (self.signs & !mask) | signs;
-        self.dir = dirs(self.signs);
-    }
-
-    /// The smallest number of commands left from which K * remaining / 256 >= f, so that the
-    /// deceleration leaves f as it is: floor(256 f / K) + 1 (u32::MAX when K is 0; u32::MAX / K
-    /// when 256 f overflows, i.e. f >= 2^24, far above any feed the parser accepts). 0 when the
-    /// block does not decelerate. Below it, K * remaining <= max(256 f, u32::MAX): the frame's
-    /// product fits in 32 bits.
-    #[inline]
-    fn decel_below(&self, decel: bool, f: u32) -> u32 {
-        if !decel {
-            return 0;
-        }
-        let k = self.cfg.decel_gain_q8;
-        if k == 0 {
-            return u32::MAX;
-        }
-        f.checked_mul(256)
-            .map_or(u32::MAX / k, |x| (x / k).saturating_add(1))
+        self.regs.dir = dirs(self.signs);
     }
 
     /// Feed-rate DDA: true when this frame produces an interpolation command.
     #[inline]
-    fn feed(&mut self, feed_cap: u32) -> bool {
-        let mut f = self.f;
-        if self.remaining < self.decel_below {
-            // No overflow: see `decel_below`.
+    fn feed(&mut self, feed_cap: u32, f: u32, f_floor: u32, decel_below: u32) -> bool {
+        let mut f = f;
+        if self.remaining < decel_below {
+            // No overflow: see `Block::seal`.
             let v = self.cfg.decel_gain_q8.wrapping_mul(self.remaining) >> 8;
-            let floor = self.f_floor;
+            let floor = f_floor;
             if v < f {
                 f = if v < floor { floor } else { v };
             }
@@ -444,11 +466,11 @@ impl Frame {
     /// pulses: never more than |d_k| before the q-th command and exactly |d_k| after it, so the
     /// block ends after q commands and needs no per-axis counters.
     #[inline]
-    fn linear(&mut self) -> u8 {
+    #[allow(clippy::needless_range_loop)] // one index for acc and d: the measured codegen
+    fn linear(&mut self, d: &[u32; 3], q: u32) -> u8 {
         let mut steps = 0u8;
-        let q = self.q;
         for k in 0..3 {
-            let r = self.acc[k].wrapping_add(self.reg[k]);
+            let r = self.acc[k].wrapping_add(d[k]);
             if r >= q {
                 self.acc[k] = r - q;
                 steps |= 1 << k;
@@ -465,7 +487,7 @@ impl Frame {
         let (ca, cb) = (self.ca, self.cb);
         let (step_a, step_b);
         if ca != 0 && cb != 0 {
-            let q = self.q;
+            let q = self.regs.q;
             let r = self.acc[0].wrapping_add(self.j.unsigned_abs());
             step_a = r >= q;
             if step_a {
@@ -509,7 +531,7 @@ impl Frame {
             let left = self.count[k];
             if left != 0 {
                 // Pulses done + 1 (exact in wrapping arithmetic: it is at most n_k).
-                let done = self.reg[k].wrapping_sub(left);
+                let done = self.regs.steps[k].wrapping_sub(left);
                 let m = if done < left { done } else { left };
                 let mask = if m > s1 {
                     0
@@ -522,7 +544,7 @@ impl Frame {
                 };
                 if ticks & mask == 0 {
                     self.count[k] = left - 1;
-                    self.position[k] = self.position[k].wrapping_sub(self.dir[k]);
+                    self.position[k] = self.position[k].wrapping_sub(self.regs.dir[k]);
                     steps |= 1 << k;
                 }
             }
@@ -532,10 +554,11 @@ impl Frame {
 
     /// Position: absolute counters follow every pulse with its sign.
     #[inline]
-    fn position_update(&mut self, steps: u8) {
+    #[allow(clippy::needless_range_loop)] // one index for the bit, position and dir
+    fn position_update(&mut self, steps: u8, dir: &[i32; 3]) {
         for k in 0..3 {
             if steps & (1 << k) != 0 {
-                self.position[k] = self.position[k].wrapping_sub(self.dir[k]);
+                self.position[k] = self.position[k].wrapping_sub(dir[k]);
             }
         }
     }
@@ -545,7 +568,7 @@ impl Frame {
 /// axis moves positive) or +1; the position counter subtracts it. (Sign-extending bit k gives 0 or
 /// -1, and `| 1` makes that +1 or -1: two instructions per axis.)
 #[inline(always)]
-fn dirs(signs: u8) -> [i32; 3] {
+pub(crate) const fn dirs(signs: u8) -> [i32; 3] {
     let s = signs as i32;
     [
         (s << 31 >> 31) | 1,

@@ -75,7 +75,9 @@ impl<I: Iterator<Item = Block>> Iterator for Sim<'_, I> {
         let block = self.frame.blocks_done();
         self.blocks.exhausted = false;
         let pulses = self.frame.tick(&mut self.blocks, self.feed_cap);
-        if self.blocks.exhausted && self.frame.idle() {
+        // The end: an idle frame that found no block. (A frame that ends a block also looks for
+        // the next one to chain; it is the last frame, not past the end.)
+        if self.blocks.exhausted && self.frame.idle() && self.frame.blocks_done() == block {
             return None;
         }
         let out = SimFrame {

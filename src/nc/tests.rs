@@ -18,7 +18,7 @@ fn signs_of(d: [i64; 3]) -> u8 {
 fn line(d: [i64; 3], f: u32, decel: bool) -> Block {
     let steps = d.map(|v| v.unsigned_abs() as u32);
     let q = isqrt(d.iter().map(|v| (v * v) as u64).sum()).max(1) as u32;
-    Block {
+    let mut b = Block {
         line: 1,
         motion: Motion::Linear(Linear {
             steps,
@@ -26,8 +26,13 @@ fn line(d: [i64; 3], f: u32, decel: bool) -> Block {
             q,
             f,
             decel,
+            f_floor: 0,
+            decel_below: 0,
+            dir: [1; 3],
         }),
-    }
+    };
+    b.seal(&cfg());
+    b
 }
 
 /// An arc in the XY plane with centre offset `c` from the start, `sweep` radians (sign = direction).
@@ -90,9 +95,13 @@ fn arc(start: [i32; 2], r: f64, a0: f64, sweep: f64, f: u32) -> (Block, [i32; 2]
             n_targets: n as u8,
             f,
             decel: false,
+            f_floor: 0,
+            decel_below: 0,
             length,
         }),
     };
+    let mut b = b;
+    b.seal(&cfg());
     let _ = start;
     (b, [e[0] - s[0], e[1] - s[1]])
 }
@@ -346,7 +355,7 @@ fn ptp_runs_at_rapid_rate_with_three_deceleration_steps() {
 #[test]
 fn longest_line_pulses_on_every_command() {
     let q = Q_MAX;
-    let b = Block {
+    let mut b = Block {
         line: 1,
         motion: Motion::Linear(Linear {
             steps: [q, 1, 0],
@@ -354,14 +363,78 @@ fn longest_line_pulses_on_every_command() {
             q,
             f: Settings::default().q0,
             decel: false,
+            f_floor: 0,
+            decel_below: 0,
+            dir: [1; 3],
         }),
     };
+    b.seal(&cfg());
     let mut frame = Frame::new(cfg());
     // Frame 0 loads, then one command per frame.
     let out: Vec<_> = Sim::new(&mut frame, [b].into_iter(), u32::MAX, 1001).collect();
     assert_eq!(out.len(), 1001);
     assert!(out[1..].iter().all(|f| f.pulses.steps & 1 == 1));
     assert_eq!(out[1000].position[0], 1000);
+}
+
+/// A chain of lines costs no load frame (issue 6, defect 7): 1000 lines of 10 BLU (or 1 BLU) at
+/// FRM take one frame per command plus the first block's load frame, so the path speed is the
+/// programmed feed; each line still ends exactly. (Loading in a frame of its own made 10-BLU blocks
+/// 10 % and 1-BLU blocks 50 % slow.)
+#[test]
+fn chained_lines_run_at_the_programmed_feed() {
+    for (len, f) in [(10i64, 3000u32), (1, 3000), (10, 1000), (7, 2999)] {
+        let d = |k: i64| match k % 3 {
+            0 => [len, 0, 0],
+            1 => [0, len, 0],
+            _ => [-len, -len, 0],
+        };
+        let blocks: Vec<Block> = (0..1000).map(|k| line(d(k), f, false)).collect();
+        let commands: u64 = blocks
+            .iter()
+            .map(|b| match b.motion {
+                Motion::Linear(l) => l.q as u64,
+                _ => 0,
+            })
+            .sum();
+        let mut frame = Frame::new(cfg());
+        let mut ends = Vec::new();
+        // `block` counts the blocks done before a frame: when it moves, the frame before ended one.
+        let mut last: Option<(u32, [i32; 3])> = None;
+        for s in Sim::new(&mut frame, blocks.iter().copied(), u32::MAX, 1 << 30) {
+            if let Some((prev, pos)) = last {
+                if s.block != prev {
+                    ends.push(pos);
+                }
+            }
+            last = Some((s.block, s.position));
+        }
+        ends.extend(last.map(|l| l.1));
+        let frames = frame.blocks_done();
+        assert_eq!(frames, 1000);
+        // Commands come at W0 f / q0: q0 / f frames each, plus one frame for the first load.
+        let ideal = (commands * 3000).div_ceil(f as u64) + 1;
+        let ticks = Sim::new(
+            &mut Frame::new(cfg()),
+            blocks.iter().copied(),
+            u32::MAX,
+            1 << 30,
+        )
+        .count() as u64;
+        assert!(
+            ticks <= ideal + 1,
+            "{len} BLU at f {f}: {ticks} frames for {commands} commands (ideal {ideal})"
+        );
+        // Every block ended on its programmed point.
+        let mut p = [0i64; 3];
+        for (k, e) in ends.iter().enumerate() {
+            let dk = d(k as i64);
+            for a in 0..3 {
+                p[a] += dk[a];
+            }
+            assert_eq!(e.map(|v| v as i64), p, "block {k}");
+        }
+    }
 }
 
 #[test]

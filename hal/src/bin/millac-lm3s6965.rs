@@ -95,7 +95,7 @@ mod app {
 
     use cortex_m_semihosting::{nr, syscall};
     use heapless::spsc::{Consumer, Producer, Queue};
-    use millac::ac::{apply_ceiling, AcController, AcSettings, FeedCeiling};
+    use millac::ac::{AcController, AcSettings, FeedCeiling};
     use millac::gcode::tape::Tape;
     use millac::nc::{Block, BlockSource, FeedCap, Frame, FrameConfig, Pulses, Rate};
     use millac::Settings;
@@ -222,7 +222,10 @@ mod app {
         }
         *cx.local.pending = p;
 
-        if p.steps != 0 {
+        // Published by the frames without pulses (idle, dwell, hold, between feed commands), so
+        // the frames with pulses (the frame's worst case) do not pay for it. Read at the end of the
+        // program and on a hold, when no pulse is computed; the live position is `ENCODER`.
+        if p.steps == 0 {
             let [x, y, z] = frame.position();
             POSITION[0].store(x, Relaxed);
             POSITION[1].store(y, Relaxed);
@@ -389,13 +392,7 @@ mod app {
         ceiling: Option<FeedCeiling>,
         out: &mut Out,
     ) -> Loaded {
-        let q0 = settings.q0;
-        let mut enqueue = |mut b: Block| {
-            if let Some(c) = ceiling {
-                apply_ceiling(&mut b, c, q0);
-            }
-            enqueue(producer, b)
-        };
+        let mut enqueue = |b: Block| enqueue(producer, b);
         let path = b"program.nc\0";
         // SAFETY: SYS_OPEN with a NUL-terminated name, its length without the NUL, mode "r".
         let fd = unsafe { syscall!(OPEN, path.as_ptr(), nr::open::R, path.len() - 1) } as isize;
@@ -404,7 +401,11 @@ mod app {
             return Loaded::NoFile;
         }
 
-        let mut tape = Tape::new(*settings);
+        // The tape finishes every block, with an enabled AC's feed ceiling.
+        let mut tape = match ceiling {
+            Some(c) => Tape::with_ac_ceiling(*settings, c),
+            None => Tape::new(*settings),
+        };
         let mut chunk = [0u8; CHUNK];
         let mut ok = true;
         loop {
