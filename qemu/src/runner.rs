@@ -116,6 +116,47 @@ impl cosim::Plant for ProcessPlant {
     }
 }
 
+/// A program rejected before anything ran: the 1-based line and the message (`line N: ...`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Rejected {
+    pub line: u32,
+    pub message: String,
+}
+
+/// The text of a program file, or its rejection at the first byte that is not UTF-8 (the line
+/// that holds it, and its byte column on that line, both 1-based).
+pub fn program_text(bytes: &[u8]) -> Result<&str, Rejected> {
+    std::str::from_utf8(bytes).map_err(|e| {
+        let at = e.valid_up_to();
+        let before = &bytes[..at];
+        let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+        let column = at
+            - before
+                .iter()
+                .rposition(|&b| b == b'\n')
+                .map_or(0, |i| i + 1)
+            + 1;
+        let line = u32::try_from(line).unwrap_or(u32::MAX);
+        Rejected {
+            line,
+            message: format!(
+                "line {line}: not UTF-8 (byte 0x{:02x} at column {column})",
+                bytes[at]
+            ),
+        }
+    })
+}
+
+/// Writes `out/summary.json` with `error` {`line`, `message`} for a program rejected before
+/// anything ran, says so on stderr and returns the summary.
+pub fn write_rejection(out: &Path, r: &Rejected) -> Result<Value> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let summary = json!({"error": {"line": r.line, "message": r.message}});
+    write_json(&out.join("summary.json"), &summary)?;
+    eprintln!("millac: program rejected, nothing was run: {}", r.message);
+    Ok(summary)
+}
+
 /// Pre-checks, runs (optionally against the cutting process) and analyses a program.
 pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Result<Outcome> {
     let settings = Settings::default();
@@ -126,9 +167,13 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
     let prog = match analysis::load_program(text, &settings) {
         Ok(p) => p,
         Err(e) => {
-            let summary = json!({"error": {"line": e.line(), "message": e.to_string()}});
-            write_json(&out.join("summary.json"), &summary)?;
-            eprintln!("millac: program rejected, nothing was run: {e}");
+            let summary = write_rejection(
+                out,
+                &Rejected {
+                    line: e.line(),
+                    message: e.to_string(),
+                },
+            )?;
             return Ok(Outcome {
                 summary,
                 report: None,
