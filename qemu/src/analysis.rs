@@ -142,6 +142,35 @@ pub fn edges(initial: u8, events: &[(u64, u8)]) -> Edges {
     }
 }
 
+/// The frame of every edge (consecutive numbers from 0). A frame raises its PULSE lines in one
+/// pin store, so in a QEMU capture its edges share one instant; a real board or logic analyser
+/// may show them slightly apart. An edge therefore joins the frame of the edge before it when it
+/// rises less than `window_ns` after that frame's first edge and its axis has not pulsed in that
+/// frame yet (an axis pulses at most once per frame).
+pub fn frame_of_edges(edges: &[Edge], window_ns: u64) -> Vec<usize> {
+    let mut out = Vec::with_capacity(edges.len());
+    let (mut frame, mut start, mut axes) = (0usize, 0u64, 0u8);
+    for (i, e) in edges.iter().enumerate() {
+        let joins = i > 0 && e.t_ns - start < window_ns && axes & (1 << e.axis) == 0;
+        if joins {
+            axes |= 1 << e.axis;
+        } else {
+            if i > 0 {
+                frame += 1;
+            }
+            start = e.t_ns;
+            axes = 1 << e.axis;
+        }
+        out.push(frame);
+    }
+    out
+}
+
+/// The window of [`frame_of_edges`] for `settings`: half the shortest (rapid) frame period.
+pub fn frame_window_ns(settings: &Settings) -> u64 {
+    500_000_000 / u64::from(settings.frame_hz.max(settings.rapid_hz).max(1))
+}
+
 /// Per-block result.
 #[derive(Clone, Debug)]
 pub struct BlockReport {
@@ -185,24 +214,32 @@ pub fn analyse(
     events: &[(u64, u8)],
 ) -> Report {
     let e = edges(initial, events);
+    let frames = frame_of_edges(&e.edges, frame_window_ns(settings));
     let mut pos = [0i64; 3];
     let mut reports = Vec::new();
-    let mut it = e.edges.iter().peekable();
+    let mut it = e.edges.iter().zip(frames).peekable();
     let mut counts_match = true;
     let blu_per_unit = settings.blu.per_inch().0 as f64 / settings.blu.per_inch().1 as f64;
     let frm_ipm = settings.frame_hz as f64 * 60.0 / blu_per_unit;
     let k_decel = settings.decel_gain_q8() as f64 / 256.0;
     for pb in prog {
         let mut left = pb.pulses;
+        // The position after every frame (the deviation is scored per frame, as the host core's:
+        // within a frame the axes' pulses are simultaneous).
         let mut pts: Vec<(u64, [i64; 3])> = Vec::new();
+        let mut last_frame = None;
         while left.iter().any(|&n| n > 0) {
-            let Some(edge) = it.next_if(|ed| left[ed.axis] > 0) else {
+            let Some((edge, frame)) = it.next_if(|(ed, _)| left[ed.axis] > 0) else {
                 counts_match = false;
                 break;
             };
             left[edge.axis] -= 1;
             pos[edge.axis] += edge.dir as i64;
-            pts.push((edge.t_ns, pos));
+            match pts.last_mut() {
+                Some(p) if last_frame == Some(frame) => *p = (edge.t_ns, pos),
+                _ => pts.push((edge.t_ns, pos)),
+            }
+            last_frame = Some(frame);
         }
         let end_exact = pos == pb.end.map(|v| v as i64);
         let (kind, dev, feed) = measure(pb, &pts, blu_per_unit, frm_ipm, k_decel, settings.q0);
