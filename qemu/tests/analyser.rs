@@ -245,3 +245,68 @@ fn deviation_is_scored_per_frame_not_per_edge() {
         );
     }
 }
+
+/// A capture of a real run, exported by sigrok-cli itself (downsampled to 10 MHz, as from a logic
+/// analyser: sigrok writes a `META` line, `$date`, `$version` and a `$comment` before the
+/// definitions and the values on the timestamp lines), analyses like the original: same final
+/// position, exact end points, same per-frame path and deviation, pulses equal to the host core's.
+#[test]
+fn sigrok_exported_capture_analyses_like_the_original() {
+    use millac_qemu::{analysis, runner, tools};
+    let program = "G1 X0.05 F10\nG1 X0 Y0.03\n";
+    let dir = scratch("sigrok-export");
+    let o = runner::run(program, &dir, 4).expect("run");
+    assert!(o.ok, "{:#}", o.summary);
+    tools::ensure_tool("sigrok-cli").unwrap();
+    let original = dir.join("capture.vcd");
+    let export = dir.join("export.vcd");
+    let st = std::process::Command::new("sigrok-cli")
+        .arg("-i")
+        .arg(&original)
+        .args(["-I", "vcd:downsample=100", "-O", "vcd", "-o"])
+        .arg(&export)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let settings = millac::Settings::default();
+    let prog = analysis::load_program(program, &settings).unwrap();
+    let read = |p: &std::path::Path| vcd::read_vcd(&std::fs::read_to_string(p).unwrap()).unwrap();
+    let (a, b) = (read(&original), read(&export));
+    let ra = analysis::analyse(&prog, &settings, a.initial, &a.events);
+    let rb = analysis::analyse(&prog, &settings, b.initial, &b.events);
+    assert!(rb.counts_match && rb.blocks.iter().all(|x| x.end_exact));
+    assert_eq!(rb.final_position, ra.final_position);
+    assert_eq!(rb.max_deviation_blu, ra.max_deviation_blu);
+    let path = |t: &vcd::PinTrace| {
+        let e = analysis::edges(t.initial, &t.events);
+        let f = analysis::frame_of_edges(&e.edges, analysis::frame_window_ns(&settings));
+        e.edges
+            .iter()
+            .zip(f)
+            .map(|(x, f)| (f, x.axis, x.dir))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(path(&b), path(&a));
+    let groups = analysis::edges(b.initial, &b.events).groups;
+    assert_eq!(analysis::compare_with_host(&prog, &settings, &groups), None);
+    // The command line reads it too.
+    let prog_file = dir.join("program.nc");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_millac-qemu"))
+        .arg("analyse")
+        .arg(&export)
+        .arg(&prog_file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let fp = &s["final_position_blu"];
+    assert_eq!(
+        [&fp["x"], &fp["y"], &fp["z"]].map(|v| v.as_i64().unwrap()),
+        ra.final_position
+    );
+    assert_eq!(s["end_points_exact"], true);
+}
