@@ -183,6 +183,9 @@ pub struct BlockReport {
     pub feed: Option<(f64, f64)>,
     pub t_start_ns: u64,
     pub t_end_ns: u64,
+    /// The block got all its pulses (false only for the block a hold stopped, see
+    /// [`analyse_until`]); `end_exact` counts only for completed blocks.
+    pub completed: bool,
 }
 
 /// The whole analysis.
@@ -202,16 +205,44 @@ pub struct Report {
     pub counts_match: bool,
 }
 
+impl Report {
+    /// Every edge went to a block that ran, every completed block got exactly its pulses and
+    /// ended on its programmed point (a block a hold stopped is not checked for its end).
+    pub fn end_points_exact(&self) -> bool {
+        self.counts_match
+            && self
+                .blocks
+                .iter()
+                .filter(|b| b.completed)
+                .all(|b| b.end_exact)
+    }
+}
+
 /// Shortest block path (BLU) on which a feed is measured: shorter blocks are dominated by the
 /// quantisation of the first and last pulse time.
 pub const FEED_MIN_PATH_BLU: f64 = 200.0;
 
-/// Analyses the pin events against the program.
+/// Analyses the pin events against the program (a run that completed every block).
 pub fn analyse(
     prog: &[ProgBlock],
     settings: &Settings,
     initial: u8,
     events: &[(u64, u8)],
+) -> Report {
+    analyse_until(prog, settings, initial, events, prog.len())
+}
+
+/// Analyses a run that stopped after `done` completed blocks (a hold): blocks before `done` must
+/// get exactly their pulses; block `done`, the one running when the run stopped, takes the
+/// pulses that remain (any part of its own) and is reported with `completed` false unless it got
+/// them all; blocks after it never ran and are not reported. `done` >= the program's length is
+/// [`analyse`].
+pub fn analyse_until(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    initial: u8,
+    events: &[(u64, u8)],
+    done: usize,
 ) -> Report {
     let e = edges(initial, events);
     let frames = frame_of_edges(&e.edges, frame_window_ns(settings));
@@ -222,7 +253,7 @@ pub fn analyse(
     let blu_per_unit = settings.blu.per_inch().0 as f64 / settings.blu.per_inch().1 as f64;
     let frm_ipm = settings.frame_hz as f64 * 60.0 / blu_per_unit;
     let k_decel = settings.decel_gain_q8() as f64 / 256.0;
-    for pb in prog {
+    for (i, pb) in prog.iter().enumerate().take(done.saturating_add(1)) {
         let mut left = pb.pulses;
         // The position after every frame (the deviation is scored per frame, as the host core's:
         // within a frame the axes' pulses are simultaneous).
@@ -230,7 +261,8 @@ pub fn analyse(
         let mut last_frame = None;
         while left.iter().any(|&n| n > 0) {
             let Some((edge, frame)) = it.next_if(|(ed, _)| left[ed.axis] > 0) else {
-                counts_match = false;
+                // Only the block a hold stopped may end short.
+                counts_match &= i == done;
                 break;
             };
             left[edge.axis] -= 1;
@@ -251,6 +283,7 @@ pub fn analyse(
             feed,
             t_start_ns: pts.first().map_or(0, |p| p.0),
             t_end_ns: pts.last().map_or(0, |p| p.0),
+            completed: left.iter().all(|&n| n == 0),
         });
     }
     if it.next().is_some() {

@@ -219,12 +219,40 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
         if args.no_ac { "no AC" } else { "AC" },
         run.final_position
     );
-    acreport::print_table(run.machining_time_s, &load, &cmp);
+    // The keys of `run`'s summary.json that apply to a host run.
+    let completed = run.blocks_done >= prog.len();
+    let [x, y, z] = run.final_position;
+    let mut summary = serde_json::json!({
+        "blocks": prog.len(),
+        "machining_time_s": (run.machining_time_s * 1e6).round() / 1e6,
+        "final_position_blu": {"x": x, "y": y, "z": z},
+        "completed": completed,
+    });
+    summary["ac"] = acreport::ac_json(run.machining_time_s, &load, &cmp);
+    summary["ac"]["enabled"] = serde_json::json!(!args.no_ac);
+    summary["ac"]["samples"] = serde_json::json!(run.samples.len());
+    summary["ac"]["holds"] = serde_json::json!(run
+        .rows
+        .iter()
+        .filter(|r| r.state.starts_with("hold"))
+        .count());
+    let hold = (!completed).then(|| runner::Hold {
+        alarm: run.alarm.clone().unwrap_or_default(),
+        blocks_done: run.blocks_done,
+        position: run.final_position,
+    });
+    if let Some(h) = &hold {
+        summary["hold"] = runner::hold_json(&prog, h);
+    }
+    let why = hold.as_ref().map(|h| runner::held_at(&prog, h));
+    acreport::print_table(run.machining_time_s, &load, &cmp, why.as_deref());
+    runner::write_json(&out.join("summary.json"), &summary)?;
     println!(
-        "  wrote {}/ac.csv and {}/ac.svg",
+        "  wrote {}/ac.csv, {}/ac.svg and {}/summary.json",
+        out.display(),
         out.display(),
         out.display()
     );
     let end = prog.last().map_or([0; 3], |b| b.end).map(i64::from);
-    Ok(run.final_position == end)
+    Ok(completed && run.final_position == end)
 }
