@@ -155,10 +155,11 @@ pub fn ac_json(time_s: f64, load: &LoadFigures, c: &Comparison) -> Value {
     })
 }
 
-/// Prints the side-by-side table.
-pub fn print_table(time_s: f64, load: &LoadFigures, c: &Comparison) {
+/// Prints the side-by-side table. `unfinished`: why the AC run did not finish (e.g. `held at
+/// line 3`); its row then says so instead of a ratio to the oracle.
+pub fn print_table(time_s: f64, load: &LoadFigures, c: &Comparison, unfinished: Option<&str>) {
     println!("  adaptive control on the simulated cut        time s   vs oracle  peak F/Fmax  peak T/Tmax  above F0 s  above limit s");
-    let row = |name: &str, t: f64, l: Option<&LoadFigures>| {
+    let row = |name: &str, t: f64, l: Option<&LoadFigures>, unfinished: Option<&str>| {
         let (pf, pt, a0, al) = l.map_or(("-".into(), "-".into(), "-".into(), "-".into()), |l| {
             (
                 format!("{:.3}", l.peak_force_ratio),
@@ -167,27 +168,33 @@ pub fn print_table(time_s: f64, load: &LoadFigures, c: &Comparison) {
                 format!("{:.3}", l.time_above_limit_s),
             )
         });
+        let (ratio, note) = match unfinished {
+            None => (format!("{:.3}", t / c.oracle_time_s), String::new()),
+            Some(why) => ("-".to_string(), format!("  did not finish: {why}")),
+        };
         println!(
-            "  {name:<44} {t:>7.2}   {:>8.3}  {pf:>11}  {pt:>11}  {a0:>10}  {al:>13}",
-            t / c.oracle_time_s
+            "  {name:<44} {t:>7.2}   {ratio:>8}  {pf:>11}  {pt:>11}  {a0:>10}  {al:>13}{note}"
         );
     };
     row(
         "AC (paper's FRC, anti-windup, held peak)",
         time_s,
         Some(load),
+        unfinished,
     );
     row(
         "constant, programmed feeds",
         c.programmed.machining_time_s,
         Some(&c.programmed_load),
+        None,
     );
     row(
         &format!("constant, safe feed {:.2} ipm", c.safe_feed_ipm),
         c.safe.machining_time_s,
         Some(&c.safe_load),
+        None,
     );
-    row("oracle (bound)", c.oracle_time_s, None);
+    row("oracle (bound)", c.oracle_time_s, None, None);
 }
 
 /// Writes the plot (SVG): feed, F/F0 and T/T0 against time with the limits, and the tool path in XY

@@ -69,6 +69,10 @@ pub struct HostRun {
     /// Position after every frame that pulsed, with the programmed feed (ipm) and the block index.
     pub path: Vec<([i64; 3], f64, usize)>,
     pub held: bool,
+    /// The alarm that entered the hold, as the firmware prints it (`alarm: ...`).
+    pub alarm: Option<String>,
+    /// Blocks completed when the run ended (the program's length when it finished).
+    pub blocks_done: usize,
     /// Per block: (index, first frame start, last frame end) in ns of virtual time.
     pub spans: Vec<(usize, u64, u64)>,
 }
@@ -215,6 +219,9 @@ pub fn run_with(
                     }
                     let o = c.period();
                     feed_cap = o.feed_cap;
+                    if let Some(a) = o.alarm {
+                        out.alarm.get_or_insert_with(|| a.to_string());
+                    }
                     let state = match o.state {
                         AcState::Run => "run".to_string(),
                         AcState::Hold(a) => {
@@ -254,6 +261,7 @@ pub fn run_with(
     }
     out.machining_time_s = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);
     out.final_position = pos;
+    out.blocks_done = frame.blocks_done() as usize;
     Ok(out)
 }
 

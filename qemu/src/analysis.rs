@@ -142,6 +142,35 @@ pub fn edges(initial: u8, events: &[(u64, u8)]) -> Edges {
     }
 }
 
+/// The frame of every edge (consecutive numbers from 0). A frame raises its PULSE lines in one
+/// pin store, so in a QEMU capture its edges share one instant; a real board or logic analyser
+/// may show them slightly apart. An edge therefore joins the frame of the edge before it when it
+/// rises less than `window_ns` after that frame's first edge and its axis has not pulsed in that
+/// frame yet (an axis pulses at most once per frame).
+pub fn frame_of_edges(edges: &[Edge], window_ns: u64) -> Vec<usize> {
+    let mut out = Vec::with_capacity(edges.len());
+    let (mut frame, mut start, mut axes) = (0usize, 0u64, 0u8);
+    for (i, e) in edges.iter().enumerate() {
+        let joins = i > 0 && e.t_ns - start < window_ns && axes & (1 << e.axis) == 0;
+        if joins {
+            axes |= 1 << e.axis;
+        } else {
+            if i > 0 {
+                frame += 1;
+            }
+            start = e.t_ns;
+            axes = 1 << e.axis;
+        }
+        out.push(frame);
+    }
+    out
+}
+
+/// The window of [`frame_of_edges`] for `settings`: half the shortest (rapid) frame period.
+pub fn frame_window_ns(settings: &Settings) -> u64 {
+    500_000_000 / u64::from(settings.frame_hz.max(settings.rapid_hz).max(1))
+}
+
 /// Per-block result.
 #[derive(Clone, Debug)]
 pub struct BlockReport {
@@ -154,6 +183,9 @@ pub struct BlockReport {
     pub feed: Option<(f64, f64)>,
     pub t_start_ns: u64,
     pub t_end_ns: u64,
+    /// The block got all its pulses (false only for the block a hold stopped, see
+    /// [`analyse_until`]); `end_exact` counts only for completed blocks.
+    pub completed: bool,
 }
 
 /// The whole analysis.
@@ -173,36 +205,73 @@ pub struct Report {
     pub counts_match: bool,
 }
 
+impl Report {
+    /// Every edge went to a block that ran, every completed block got exactly its pulses and
+    /// ended on its programmed point (a block a hold stopped is not checked for its end).
+    pub fn end_points_exact(&self) -> bool {
+        self.counts_match
+            && self
+                .blocks
+                .iter()
+                .filter(|b| b.completed)
+                .all(|b| b.end_exact)
+    }
+}
+
 /// Shortest block path (BLU) on which a feed is measured: shorter blocks are dominated by the
 /// quantisation of the first and last pulse time.
 pub const FEED_MIN_PATH_BLU: f64 = 200.0;
 
-/// Analyses the pin events against the program.
+/// Analyses the pin events against the program (a run that completed every block).
 pub fn analyse(
     prog: &[ProgBlock],
     settings: &Settings,
     initial: u8,
     events: &[(u64, u8)],
 ) -> Report {
+    analyse_until(prog, settings, initial, events, prog.len())
+}
+
+/// Analyses a run that stopped after `done` completed blocks (a hold): blocks before `done` must
+/// get exactly their pulses; block `done`, the one running when the run stopped, takes the
+/// pulses that remain (any part of its own) and is reported with `completed` false unless it got
+/// them all; blocks after it never ran and are not reported. `done` >= the program's length is
+/// [`analyse`].
+pub fn analyse_until(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    initial: u8,
+    events: &[(u64, u8)],
+    done: usize,
+) -> Report {
     let e = edges(initial, events);
+    let frames = frame_of_edges(&e.edges, frame_window_ns(settings));
     let mut pos = [0i64; 3];
     let mut reports = Vec::new();
-    let mut it = e.edges.iter().peekable();
+    let mut it = e.edges.iter().zip(frames).peekable();
     let mut counts_match = true;
     let blu_per_unit = settings.blu.per_inch().0 as f64 / settings.blu.per_inch().1 as f64;
     let frm_ipm = settings.frame_hz as f64 * 60.0 / blu_per_unit;
     let k_decel = settings.decel_gain_q8() as f64 / 256.0;
-    for pb in prog {
+    for (i, pb) in prog.iter().enumerate().take(done.saturating_add(1)) {
         let mut left = pb.pulses;
+        // The position after every frame (the deviation is scored per frame, as the host core's:
+        // within a frame the axes' pulses are simultaneous).
         let mut pts: Vec<(u64, [i64; 3])> = Vec::new();
+        let mut last_frame = None;
         while left.iter().any(|&n| n > 0) {
-            let Some(edge) = it.next_if(|ed| left[ed.axis] > 0) else {
-                counts_match = false;
+            let Some((edge, frame)) = it.next_if(|(ed, _)| left[ed.axis] > 0) else {
+                // Only the block a hold stopped may end short.
+                counts_match &= i == done;
                 break;
             };
             left[edge.axis] -= 1;
             pos[edge.axis] += edge.dir as i64;
-            pts.push((edge.t_ns, pos));
+            match pts.last_mut() {
+                Some(p) if last_frame == Some(frame) => *p = (edge.t_ns, pos),
+                _ => pts.push((edge.t_ns, pos)),
+            }
+            last_frame = Some(frame);
         }
         let end_exact = pos == pb.end.map(|v| v as i64);
         let (kind, dev, feed) = measure(pb, &pts, blu_per_unit, frm_ipm, k_decel, settings.q0);
@@ -214,6 +283,7 @@ pub fn analyse(
             feed,
             t_start_ns: pts.first().map_or(0, |p| p.0),
             t_end_ns: pts.last().map_or(0, |p| p.0),
+            completed: left.iter().all(|&n| n == 0),
         });
     }
     if it.next().is_some() {

@@ -1,5 +1,6 @@
 //! Builds the QEMU firmware (millac-hal for thumbv7m-none-eabi) from the workspace (host). A nested
-//! cargo with its own target directory, so it never waits on the lock of the cargo that runs us.
+//! cargo with its own target directory, so it never waits on the lock of the cargo that runs us;
+//! the thumb target is added with rustup first when missing (see `tools::ensure_rust_target`).
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -16,9 +17,11 @@ pub fn workspace() -> PathBuf {
         .unwrap_or_default()
 }
 
-/// Builds the firmware in release mode and returns the ELF path.
+/// Builds the firmware in release mode and returns the ELF path. Installs the target with rustup
+/// first when the toolchain lacks it.
 pub fn build() -> Result<PathBuf> {
     let ws = workspace();
+    crate::tools::ensure_rust_target(TARGET, &ws)?;
     let target_dir = ws.join("target").join("firmware");
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = Command::new(&cargo)

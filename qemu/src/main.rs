@@ -88,14 +88,12 @@ fn main() {
             shift,
             nc_only,
             cut,
-        }) => std::fs::read_to_string(&program)
-            .with_context(|| format!("reading {}", program.display()))
-            .and_then(|text| run(&text, &out, shift, (!nc_only).then_some(&cut))),
+        }) => with_program(&program, &out, |text| {
+            run(text, &out, shift, (!nc_only).then_some(&cut))
+        }),
         Some(Cmd::Analyse { capture, program }) => analyse_file(&capture, &program),
         Some(Cmd::Host { program, out, cut }) => match program {
-            Some(p) => std::fs::read_to_string(&p)
-                .with_context(|| format!("reading {}", p.display()))
-                .and_then(|text| host(&text, &out, &cut)),
+            Some(p) => with_program(&p, &out, |text| host(text, &out, &cut)),
             None => host(DEMO, &out, &cut),
         },
     };
@@ -106,6 +104,16 @@ fn main() {
             eprintln!("millac: {e:#}");
             std::process::exit(2);
         }
+    }
+}
+
+/// Reads the program file and runs `f` on its text; a file that is not UTF-8 is rejected like
+/// any bad program (summary.json `error` naming the line, status 1).
+fn with_program(path: &Path, out: &Path, f: impl FnOnce(&str) -> Result<bool>) -> Result<bool> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    match runner::program_text(&bytes) {
+        Ok(text) => f(text),
+        Err(r) => runner::write_rejection(out, &r).map(|_| false),
     }
 }
 
@@ -174,8 +182,16 @@ fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
 fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
     use millac_qemu::{acreport, acsim};
     let settings = Settings::default();
-    let prog = analysis::load_program(text, &settings)
-        .map_err(|e| anyhow::anyhow!("program rejected: {e}"))?;
+    let prog = match analysis::load_program(text, &settings) {
+        Ok(p) => p,
+        Err(e) => {
+            let r = runner::Rejected {
+                line: e.line(),
+                message: e.to_string(),
+            };
+            return runner::write_rejection(out, &r).map(|_| false);
+        }
+    };
     let cut = cut_setup(text, args)?;
     let acs = millac::ac::AcSettings::default();
     std::fs::create_dir_all(out)?;
@@ -203,12 +219,40 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
         if args.no_ac { "no AC" } else { "AC" },
         run.final_position
     );
-    acreport::print_table(run.machining_time_s, &load, &cmp);
+    // The keys of `run`'s summary.json that apply to a host run.
+    let completed = run.blocks_done >= prog.len();
+    let [x, y, z] = run.final_position;
+    let mut summary = serde_json::json!({
+        "blocks": prog.len(),
+        "machining_time_s": (run.machining_time_s * 1e6).round() / 1e6,
+        "final_position_blu": {"x": x, "y": y, "z": z},
+        "completed": completed,
+    });
+    summary["ac"] = acreport::ac_json(run.machining_time_s, &load, &cmp);
+    summary["ac"]["enabled"] = serde_json::json!(!args.no_ac);
+    summary["ac"]["samples"] = serde_json::json!(run.samples.len());
+    summary["ac"]["holds"] = serde_json::json!(run
+        .rows
+        .iter()
+        .filter(|r| r.state.starts_with("hold"))
+        .count());
+    let hold = (!completed).then(|| runner::Hold {
+        alarm: run.alarm.clone().unwrap_or_default(),
+        blocks_done: run.blocks_done,
+        position: run.final_position,
+    });
+    if let Some(h) = &hold {
+        summary["hold"] = runner::hold_json(&prog, h);
+    }
+    let why = hold.as_ref().map(|h| runner::held_at(&prog, h));
+    acreport::print_table(run.machining_time_s, &load, &cmp, why.as_deref());
+    runner::write_json(&out.join("summary.json"), &summary)?;
     println!(
-        "  wrote {}/ac.csv and {}/ac.svg",
+        "  wrote {}/ac.csv, {}/ac.svg and {}/summary.json",
+        out.display(),
         out.display(),
         out.display()
     );
     let end = prog.last().map_or([0; 3], |b| b.end).map(i64::from);
-    Ok(run.final_position == end)
+    Ok(completed && run.final_position == end)
 }

@@ -116,6 +116,47 @@ impl cosim::Plant for ProcessPlant {
     }
 }
 
+/// A program rejected before anything ran: the 1-based line and the message (`line N: ...`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Rejected {
+    pub line: u32,
+    pub message: String,
+}
+
+/// The text of a program file, or its rejection at the first byte that is not UTF-8 (the line
+/// that holds it, and its byte column on that line, both 1-based).
+pub fn program_text(bytes: &[u8]) -> Result<&str, Rejected> {
+    std::str::from_utf8(bytes).map_err(|e| {
+        let at = e.valid_up_to();
+        let before = &bytes[..at];
+        let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+        let column = at
+            - before
+                .iter()
+                .rposition(|&b| b == b'\n')
+                .map_or(0, |i| i + 1)
+            + 1;
+        let line = u32::try_from(line).unwrap_or(u32::MAX);
+        Rejected {
+            line,
+            message: format!(
+                "line {line}: not UTF-8 (byte 0x{:02x} at column {column})",
+                bytes[at]
+            ),
+        }
+    })
+}
+
+/// Writes `out/summary.json` with `error` {`line`, `message`} for a program rejected before
+/// anything ran, says so on stderr and returns the summary.
+pub fn write_rejection(out: &Path, r: &Rejected) -> Result<Value> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let summary = json!({"error": {"line": r.line, "message": r.message}});
+    write_json(&out.join("summary.json"), &summary)?;
+    eprintln!("millac: program rejected, nothing was run: {}", r.message);
+    Ok(summary)
+}
+
 /// Pre-checks, runs (optionally against the cutting process) and analyses a program.
 pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Result<Outcome> {
     let settings = Settings::default();
@@ -126,9 +167,13 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
     let prog = match analysis::load_program(text, &settings) {
         Ok(p) => p,
         Err(e) => {
-            let summary = json!({"error": {"line": e.line(), "message": e.to_string()}});
-            write_json(&out.join("summary.json"), &summary)?;
-            eprintln!("millac: program rejected, nothing was run: {e}");
+            let summary = write_rejection(
+                out,
+                &Rejected {
+                    line: e.line(),
+                    message: e.to_string(),
+                },
+            )?;
             return Ok(Outcome {
                 summary,
                 report: None,
@@ -150,7 +195,10 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
             execute_with_plant(text, out, shift, Box::new(plant), a.ac)?
         }
     };
-    if cap.status != Some(0) {
+    // A hold the firmware reported is a result (the run did not complete), anything else that
+    // ends the firmware with failure is not.
+    let hold = firmware_hold(&cap.stdout);
+    if cap.status != Some(0) && hold.is_none() {
         anyhow::bail!(
             "firmware exited with {:?}:\n{}{}",
             cap.status,
@@ -159,7 +207,8 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
         );
     }
     vcd::write_vcd(&out.join("capture.vcd"), 0, &cap.pins, Some(cap.end_ns))?;
-    let mut report = analysis::analyse(&prog, &settings, 0, &cap.pins);
+    let done = hold.as_ref().map_or(prog.len(), |h| h.blocks_done);
+    let mut report = analysis::analyse_until(&prog, &settings, 0, &cap.pins, done);
     let e = analysis::edges(0, &cap.pins);
     let feed_capped = ac.is_some_and(|a| a.ac);
     // With the feed cap applied the pulses follow the controller, not the programmed feeds.
@@ -175,6 +224,11 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
     summary["frames"] = json!(cap.handlers[0].1.len());
     summary["firmware_position_blu"] = json!(fw.map(|p| json!({"x": p[0], "y": p[1], "z": p[2]})));
     summary["icount_shift"] = json!(shift);
+    summary["completed"] = json!(hold.is_none());
+    if let Some(h) = &hold {
+        summary["hold"] = hold_json(&prog, h);
+        eprintln!("millac: {}", not_finished(&prog, h));
+    }
     let mut records = Vec::new();
     if let Some(a) = ac {
         let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
@@ -203,10 +257,11 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
         summary["ac"]["samples"] = json!(exchanges.len());
         summary["ac"]["holds"] = json!(records.iter().filter(|r| r.hold.is_some()).count());
         summary["ac"]["overruns"] = json!(records.last().map_or(0, |r| r.overruns));
-        crate::acreport::print_table(report.machining_time_s, &load, &cmp);
+        let why = hold.as_ref().map(|h| held_at(&prog, h));
+        crate::acreport::print_table(report.machining_time_s, &load, &cmp, why.as_deref());
     }
     write_json(&out.join("summary.json"), &summary)?;
-    let ok = checks_pass(&report) && fw == Some(report.final_position);
+    let ok = checks_pass(&report) && fw == Some(report.final_position) && hold.is_none();
     Ok(Outcome {
         summary,
         report: Some(report),
@@ -256,7 +311,68 @@ pub fn ac_rows(
 }
 
 pub fn checks_pass(r: &Report) -> bool {
-    r.counts_match && r.blocks.iter().all(|b| b.end_exact) && r.pulses_match_host != Some(false)
+    r.end_points_exact() && r.pulses_match_host != Some(false)
+}
+
+/// A hold that stopped a run: the adaptive controller's alarm, the blocks completed (the next
+/// one was running) and the exact position.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Hold {
+    pub alarm: String,
+    pub blocks_done: usize,
+    pub position: [i64; 3],
+}
+
+/// The firmware's report of a hold: `alarm: <text>` (the first one) and
+/// `millac: hold blocks=N position=x,y,z`; None when the firmware did not stop on a hold.
+pub fn firmware_hold(stdout: &str) -> Option<Hold> {
+    let line = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("millac: hold "))?;
+    let blocks_done = line
+        .split_whitespace()
+        .find_map(|w| w.strip_prefix("blocks="))?
+        .parse()
+        .ok()?;
+    let alarm = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("alarm: "))
+        .unwrap_or("")
+        .to_string();
+    Some(Hold {
+        alarm,
+        blocks_done,
+        position: firmware_position(stdout)?,
+    })
+}
+
+/// `held at line N` (the program line of the block that was running).
+pub fn held_at(prog: &[ProgBlock], h: &Hold) -> String {
+    match prog.get(h.blocks_done) {
+        Some(b) => format!("held at line {}", b.block.line),
+        None => "held after the last block".to_string(),
+    }
+}
+
+fn not_finished(prog: &[ProgBlock], h: &Hold) -> String {
+    let [x, y, z] = h.position;
+    format!(
+        "the program did not finish: {} (position {x},{y},{z} BLU): {}",
+        held_at(prog, h),
+        h.alarm
+    )
+}
+
+/// summary.json's `hold`: the alarm, the line of the running block (`block`, null after the last
+/// block), the blocks completed and the position.
+pub fn hold_json(prog: &[ProgBlock], h: &Hold) -> Value {
+    let [x, y, z] = h.position;
+    json!({
+        "alarm": h.alarm,
+        "block": prog.get(h.blocks_done).map(|b| b.block.line),
+        "blocks_done": h.blocks_done,
+        "position_blu": {"x": x, "y": y, "z": z},
+    })
 }
 
 pub fn firmware_position(stdout: &str) -> Option<[i64; 3]> {
@@ -278,7 +394,7 @@ pub fn summary_json(prog: &[ProgBlock], r: &Report) -> Value {
         "max_feed_error_pct": (r.max_feed_error_pct * 1000.0).round() / 1000.0,
         "min_pulse_width_ns": r.min_pulse_width_ns,
         "min_sign_setup_ns": r.min_sign_setup_ns,
-        "end_points_exact": r.blocks.iter().all(|b| b.end_exact) && r.counts_match,
+        "end_points_exact": r.end_points_exact(),
         "pulses_match_host": r.pulses_match_host,
     })
 }
@@ -293,6 +409,12 @@ pub fn print_summary(s: &Value, out: &Path) {
     println!("  blocks              {}", s["blocks"]);
     println!("  machining time      {} s", s["machining_time_s"]);
     println!("  final position BLU  {}", s["final_position_blu"]);
+    if let Some(h) = s.get("hold") {
+        println!(
+            "  did not finish      held at line {} ({} blocks done) at {}: {}",
+            h["block"], h["blocks_done"], h["position_blu"], h["alarm"]
+        );
+    }
     let compared = match &s["pulses_match_host"] {
         Value::Null => "not compared (the feed follows the AC)".to_string(),
         v => v.to_string(),

@@ -1,7 +1,8 @@
-//! External tools the host tool needs (qemu-system-arm, sigrok-cli, a C compiler): find them on PATH
-//! and, when running as root, install the missing ones with apt-get (host).
+//! External tools the host tool needs (qemu-system-arm, sigrok-cli, a C compiler, the Rust target of
+//! the firmware): find them and install the missing ones (apt-get when running as root; `rustup
+//! target add` for a Rust target) (host).
 use anyhow::{bail, Context, Result};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The Debian package that provides `program`, for the programs millac uses.
@@ -86,6 +87,85 @@ pub fn ensure_c_compiler() -> Result<PathBuf> {
     find_on_path("cc").map_or_else(|| ensure_tool("gcc"), Ok)
 }
 
+/// Makes sure the Rust standard library for `target` is installed for the toolchain that builds in
+/// `dir` (the workspace, where `rust-toolchain.toml` picks the toolchain): if the sysroot lacks
+/// `lib/rustlib/<target>`, runs `rustup target add <target>` there (saying so on stderr). rustup
+/// installs a toolchain file's targets only when it installs the toolchain itself, so a machine
+/// that already had stable needs this. Returns whether it installed the target.
+pub fn ensure_rust_target(target: &str, dir: &Path) -> Result<bool> {
+    let rustc = std::env::var_os("RUSTC").unwrap_or_else(|| "rustc".into());
+    // One `rustup target add` at a time within this process (tests build in parallel).
+    static ADD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = ADD.lock().unwrap_or_else(|e| e.into_inner());
+    ensure_rust_target_with(
+        target,
+        Path::new(&rustc),
+        find_on_path("rustup").as_deref(),
+        dir,
+    )
+}
+
+/// The sysroot of `rustc` as run in `dir` (`rustc --print sysroot`).
+fn rust_sysroot(rustc: &Path, dir: &Path) -> Result<PathBuf> {
+    let out = Command::new(rustc)
+        .args(["--print", "sysroot"])
+        .current_dir(dir)
+        .output()
+        .with_context(|| format!("running `{} --print sysroot`", rustc.display()))?;
+    if !out.status.success() {
+        bail!(
+            "`{} --print sysroot` failed ({}): {}",
+            rustc.display(),
+            out.status,
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    Ok(PathBuf::from(String::from_utf8_lossy(&out.stdout).trim()))
+}
+
+/// [`ensure_rust_target`] with the programs given: `rustc` (for the sysroot) and `rustup` (None:
+/// not installed), both run in `dir`.
+pub fn ensure_rust_target_with(
+    target: &str,
+    rustc: &Path,
+    rustup: Option<&Path>,
+    dir: &Path,
+) -> Result<bool> {
+    let sysroot = rust_sysroot(rustc, dir)?;
+    let lib = sysroot.join("lib").join("rustlib").join(target);
+    if lib.is_dir() {
+        return Ok(false);
+    }
+    let Some(rustup) = rustup else {
+        bail!(
+            "the Rust target {target} is not installed (no {}) and `rustup` is not on PATH: \
+             install it with `rustup target add {target}` (or your distribution's rust-std for {target})",
+            lib.display()
+        );
+    };
+    eprintln!("millac: the Rust target {target} is missing, running `rustup target add {target}`");
+    let status = Command::new(rustup)
+        .args(["target", "add", target])
+        .current_dir(dir)
+        .status()
+        .with_context(|| format!("running `{} target add {target}`", rustup.display()))?;
+    if !status.success() {
+        bail!("`rustup target add {target}` failed ({status})");
+    }
+    if !rust_sysroot(rustc, dir)?
+        .join("lib")
+        .join("rustlib")
+        .join(target)
+        .is_dir()
+    {
+        bail!(
+            "`rustup target add {target}` succeeded but {} is still missing",
+            lib.display()
+        );
+    }
+    Ok(true)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -98,5 +178,85 @@ mod tests {
         let e = ensure_tool("millac-no-such-tool").unwrap_err().to_string();
         assert!(e.contains("millac-no-such-tool"), "{e}");
         assert!(ensure_tool("sh").is_ok() || find_on_path("sh").is_none());
+    }
+
+    /// A scratch directory with a fake `rustc` that prints `sysroot` for `--print sysroot` and
+    /// a fake `rustup` that appends its arguments to `rustup.log` and installs the target dir.
+    fn fake_toolchain(name: &str) -> (PathBuf, PathBuf, PathBuf, PathBuf) {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = std::env::temp_dir().join(format!("millac-tools-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let sysroot = dir.join("sysroot");
+        std::fs::create_dir_all(sysroot.join("lib/rustlib/x86_64-unknown-linux-gnu")).unwrap();
+        let log = dir.join("rustup.log");
+        let script = |name: &str, body: String| {
+            let p = dir.join(name);
+            std::fs::write(&p, format!("#!/bin/sh\n{body}")).unwrap();
+            std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
+            p
+        };
+        let rustc = script(
+            "rustc",
+            format!(
+                "[ \"$1 $2\" = \"--print sysroot\" ] || exit 3\necho '{}'\n",
+                sysroot.display()
+            ),
+        );
+        let rustup = script(
+            "rustup",
+            format!(
+                "echo \"$@\" >> '{}'\n[ \"$1 $2\" = \"target add\" ] && mkdir -p '{}/lib/rustlib/'\"$3\"\n",
+                log.display(),
+                sysroot.display()
+            ),
+        );
+        (dir, rustc, rustup, log)
+    }
+
+    #[test]
+    fn adds_a_missing_rust_target_with_rustup_and_only_then() {
+        let (dir, rustc, rustup, log) = fake_toolchain("add");
+        let installed =
+            ensure_rust_target_with("thumbv7m-none-eabi", &rustc, Some(&rustup), &dir).unwrap();
+        assert!(installed);
+        assert_eq!(
+            std::fs::read_to_string(&log).unwrap(),
+            "target add thumbv7m-none-eabi\n"
+        );
+        // Present now: rustup is not called again.
+        let installed =
+            ensure_rust_target_with("thumbv7m-none-eabi", &rustc, Some(&rustup), &dir).unwrap();
+        assert!(!installed);
+        assert_eq!(
+            std::fs::read_to_string(&log).unwrap(),
+            "target add thumbv7m-none-eabi\n"
+        );
+    }
+
+    #[test]
+    fn a_missing_target_without_rustup_names_the_command() {
+        let (dir, rustc, _, log) = fake_toolchain("no-rustup");
+        let e = ensure_rust_target_with("thumbv7m-none-eabi", &rustc, None, &dir)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("rustup target add thumbv7m-none-eabi"), "{e}");
+        assert!(!log.exists());
+        // A present target needs no rustup at all.
+        let e = ensure_rust_target_with("x86_64-unknown-linux-gnu", &rustc, None, &dir);
+        assert!(!e.unwrap());
+    }
+
+    #[test]
+    fn a_rustup_that_does_not_install_is_an_error() {
+        let (dir, rustc, _, _) = fake_toolchain("false");
+        let e = ensure_rust_target_with(
+            "thumbv7m-none-eabi",
+            &rustc,
+            Some(Path::new("/bin/true")),
+            &dir,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("thumbv7m-none-eabi"), "{e}");
     }
 }

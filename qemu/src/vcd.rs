@@ -117,8 +117,18 @@ fn timescale_fs(spec: &str) -> Result<u128> {
 /// suffix is ignored; other wires are ignored). Accepts any timescale (times are converted to ns,
 /// truncated), scalar changes (`1!`) and 1-bit vector changes (`b1 !`); `x`/`z` read as 0. The
 /// values at the first timestamp are the initial state.
+///
+/// What sigrok-cli and PulseView (libsigrok's VCD output) write is read too: unknown `$...`
+/// sections (`$date`, `$version`, multi-line `$comment`, `$attrbegin`, ...) are skipped to their
+/// `$end`; a line before `$enddefinitions` that is not VCD at all (libsigrok 0.5 starts its files
+/// with `META samplerate: ...`) is skipped whole, as is a `META` line later on. Any other unknown
+/// token in the value changes is an error naming its line.
 pub fn read_vcd(text: &str) -> Result<PinTrace> {
-    let mut toks = text.split_whitespace();
+    let mut toks = text
+        .lines()
+        .enumerate()
+        .flat_map(|(n, l)| l.split_whitespace().map(move |t| (n + 1, t)))
+        .peekable();
     let mut fs_per_unit: u128 = 1_000_000;
     let mut ids: HashMap<String, Vec<u8>> = HashMap::new();
     let mut found = 0u8;
@@ -126,6 +136,9 @@ pub fn read_vcd(text: &str) -> Result<PinTrace> {
     let (mut cur, mut emitted) = (0u8, 0u8);
     let mut time: Option<u64> = None;
     let mut first_time = true;
+    let mut in_header = true;
+    // The line of the previous token: a token on a new line starts that line.
+    let mut prev_line = 0;
     let set = |cur: &mut u8, id: &str, v: bool, ids: &HashMap<String, Vec<u8>>| {
         if let Some(bits) = ids.get(id) {
             for b in bits {
@@ -149,16 +162,26 @@ pub fn read_vcd(text: &str) -> Result<PinTrace> {
                 }
             }
         };
-    while let Some(tok) = toks.next() {
+    while let Some((line, tok)) = toks.next() {
+        let starts_line = line != prev_line;
+        prev_line = line;
         match tok {
             "$timescale" => {
-                let spec: Vec<&str> = toks.by_ref().take_while(|t| *t != "$end").collect();
+                let spec: Vec<&str> = toks
+                    .by_ref()
+                    .map(|(_, t)| t)
+                    .take_while(|t| *t != "$end")
+                    .collect();
                 fs_per_unit = timescale_fs(&spec.concat())?;
             }
             "$var" => {
-                let f: Vec<&str> = toks.by_ref().take_while(|t| *t != "$end").collect();
+                let f: Vec<&str> = toks
+                    .by_ref()
+                    .map(|(_, t)| t)
+                    .take_while(|t| *t != "$end")
+                    .collect();
                 if f.len() < 4 {
-                    bail!("bad $var: {}", f.join(" "));
+                    bail!("line {line}: bad $var: {}", f.join(" "));
                 }
                 let name = f[3].split('[').next().unwrap_or("");
                 if let Some((_, b)) = WIRES.iter().find(|(n, _)| *n == name) {
@@ -170,11 +193,19 @@ pub fn read_vcd(text: &str) -> Result<PinTrace> {
             }
             "$dumpvars" | "$dumpall" | "$dumpon" | "$dumpoff" | "$end" => {}
             t if t.starts_with('$') => {
+                if t == "$enddefinitions" {
+                    in_header = false;
+                }
                 // $scope, $upscope, $comment, $date, $version, $enddefinitions...: skip to $end.
-                toks.by_ref().take_while(|t| *t != "$end").for_each(drop);
+                toks.by_ref()
+                    .map(|(_, t)| t)
+                    .take_while(|t| *t != "$end")
+                    .for_each(drop);
             }
             t if t.starts_with('#') => {
-                let units: u128 = t[1..].parse().with_context(|| format!("bad time `{t}`"))?;
+                let units: u128 = t[1..]
+                    .parse()
+                    .with_context(|| format!("line {line}: bad time `{t}`"))?;
                 flush(&mut trace, cur, &mut emitted, time, first_time);
                 if time.is_some() {
                     first_time = false;
@@ -184,9 +215,9 @@ pub fn read_vcd(text: &str) -> Result<PinTrace> {
                 trace.end_ns = ns;
             }
             t if t.starts_with(['b', 'B']) => {
-                let id = toks
+                let (_, id) = toks
                     .next()
-                    .with_context(|| format!("vector change `{t}` without id"))?;
+                    .with_context(|| format!("line {line}: vector change `{t}` without id"))?;
                 set(&mut cur, id, t.ends_with('1'), &ids);
             }
             t if t.starts_with(['r', 'R']) => {
@@ -195,7 +226,11 @@ pub fn read_vcd(text: &str) -> Result<PinTrace> {
             t if t.len() > 1 && t.starts_with(['0', '1', 'x', 'X', 'z', 'Z']) => {
                 set(&mut cur, &t[1..], t.starts_with('1'), &ids);
             }
-            t => bail!("unexpected VCD token `{t}`"),
+            t if starts_line && (in_header || t == "META") => {
+                // Not VCD: a tool's own line (sigrok's `META samplerate: ...`); skip all of it.
+                while toks.next_if(|(l, _)| *l == line).is_some() {}
+            }
+            t => bail!("line {line}: unexpected VCD token `{t}`"),
         }
     }
     flush(&mut trace, cur, &mut emitted, time, first_time);
@@ -275,6 +310,34 @@ mod tests {
         assert_eq!(positions(t.initial, &t.events), [0, 0, -1]);
         let steps = axis_steps(t.initial, &t.events);
         assert_eq!(steps[0], vec![(30_000, 1), (70_000, -1)]);
+    }
+
+    #[test]
+    fn reads_what_libsigrok_writes_and_names_the_line_of_garbage() {
+        let head = "META samplerate: 10000000\n$date Mon Nov 23 01:20:37 2026 $end\n\
+                    $version libsigrok 0.5.2 $end\n$comment\n  Acquisition with 6/6 channels at 10 MHz\n\
+                    $end\n$timescale 100 ns $end\n$scope module libsigrok $end\n\
+                    $var wire 1 ! X_STEP $end\n$var wire 1 \" X_SIGN $end\n$var wire 1 # Y_STEP $end\n\
+                    $var wire 1 $ Y_SIGN $end\n$var wire 1 % Z_STEP $end\n$var wire 1 & Z_SIGN $end\n\
+                    $upscope $end\n$enddefinitions $end\n#0 0! 0\" 0# 0$ 0% 0&\n#4248 1\"\n";
+        let t = read_vcd(&format!(
+            "{head}#12235 1!\nMETA samplerate: 10000000\n#12291 0!\n#13000\n"
+        ))
+        .unwrap();
+        assert_eq!(t.initial, 0);
+        assert_eq!(
+            t.events,
+            vec![(424_800, 0x08), (1_223_500, 0x09), (1_229_100, 0x08)]
+        );
+        assert_eq!(t.end_ns, 1_300_000);
+        let e = read_vcd(&format!("{head}#12235 1!\nhello 1!\n"))
+            .unwrap_err()
+            .to_string();
+        let line = head.lines().count() + 2;
+        assert!(
+            e.contains(&format!("line {line}:")) && e.contains("hello"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -182,3 +182,131 @@ fn sigrok_decodes_known_positions() {
     );
     assert_eq!(sigrok::decode_positions(&fpath).unwrap(), [2, -3, 0]);
 }
+
+/// Pin events of the host core's frames for `program`, as the firmware drives the pins: the SIGN
+/// lines 1 us before a frame's pulses, PULSE lines high together (the Y and Z edges `skew_ns`
+/// after X's, as a real board or analyser may show them), low 5 us later. Also returns the
+/// largest distance of a frame's end position from its block's ideal line (lines only).
+fn host_frames(program: &str, skew_ns: u64) -> (Vec<(u64, u8)>, f64) {
+    use millac::nc::{sim::Sim, Frame, FrameConfig};
+    use millac_qemu::{acsim, analysis};
+    let settings = millac::Settings::default();
+    let prog = analysis::load_program(program, &settings).unwrap();
+    let mut frame = Frame::new(FrameConfig::from_settings(&settings));
+    let (mut t, mut signs, mut ev, mut dev) = (100_000u64, 0u8, Vec::new(), 0.0f64);
+    for f in Sim::new(&mut frame, prog.iter().map(|b| b.block), u32::MAX, u64::MAX) {
+        t += acsim::period_ns(&settings, f.rate);
+        let p = f.pulses;
+        if p.steps == 0 {
+            continue;
+        }
+        signs = (signs & !(p.steps << 3)) | ((p.signs & p.steps) << 3);
+        ev.push((t - 1_000, signs));
+        let mut pins = signs;
+        for k in 0..3 {
+            if p.steps & (1 << k) != 0 {
+                pins |= 1 << k;
+                ev.push((t + if k == 0 { 0 } else { skew_ns }, pins));
+            }
+        }
+        ev.push((t + 5_000 + skew_ns, signs));
+        let b = &prog[f.block as usize];
+        let (s, e) = (b.start.map(f64::from), b.end.map(f64::from));
+        let d: Vec<f64> = (0..3).map(|k| e[k] - s[k]).collect();
+        let v: Vec<f64> = (0..3).map(|k| f64::from(f.position[k]) - s[k]).collect();
+        let l2: f64 = d.iter().map(|x| x * x).sum();
+        let u = (v.iter().zip(&d).map(|(a, b)| a * b).sum::<f64>() / l2).clamp(0.0, 1.0);
+        let r2: f64 = (0..3).map(|k| (v[k] - u * d[k]).powi(2)).sum();
+        dev = dev.max(r2.sqrt());
+    }
+    ev.sort_by_key(|e| e.0);
+    (ev, dev)
+}
+
+#[test]
+fn deviation_is_scored_per_frame_not_per_edge() {
+    use millac_qemu::analysis;
+    let program = "G1 X0.05 F10\nG1 X0 Y0.03\n";
+    let settings = millac::Settings::default();
+    let prog = analysis::load_program(program, &settings).unwrap();
+    for skew_ns in [0, 200] {
+        let (ev, host_dev) = host_frames(program, skew_ns);
+        let r = analysis::analyse(&prog, &settings, 0, &ev);
+        assert!(r.counts_match && r.blocks.iter().all(|b| b.end_exact));
+        assert!(
+            r.max_deviation_blu < 1.0,
+            "skew {skew_ns} ns: {} BLU",
+            r.max_deviation_blu
+        );
+        assert!(
+            (r.max_deviation_blu - host_dev).abs() < 1e-9,
+            "skew {skew_ns} ns: capture {} BLU, host core per frame {host_dev} BLU",
+            r.max_deviation_blu
+        );
+    }
+}
+
+/// A capture of a real run, exported by sigrok-cli itself (downsampled to 10 MHz, as from a logic
+/// analyser: sigrok writes a `META` line, `$date`, `$version` and a `$comment` before the
+/// definitions and the values on the timestamp lines), analyses like the original: same final
+/// position, exact end points, same per-frame path and deviation, pulses equal to the host core's.
+#[test]
+fn sigrok_exported_capture_analyses_like_the_original() {
+    use millac_qemu::{analysis, runner, tools};
+    let program = "G1 X0.05 F10\nG1 X0 Y0.03\n";
+    let dir = scratch("sigrok-export");
+    let o = runner::run(program, &dir, 4).expect("run");
+    assert!(o.ok, "{:#}", o.summary);
+    tools::ensure_tool("sigrok-cli").unwrap();
+    let original = dir.join("capture.vcd");
+    let export = dir.join("export.vcd");
+    let st = std::process::Command::new("sigrok-cli")
+        .arg("-i")
+        .arg(&original)
+        .args(["-I", "vcd:downsample=100", "-O", "vcd", "-o"])
+        .arg(&export)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let settings = millac::Settings::default();
+    let prog = analysis::load_program(program, &settings).unwrap();
+    let read = |p: &std::path::Path| vcd::read_vcd(&std::fs::read_to_string(p).unwrap()).unwrap();
+    let (a, b) = (read(&original), read(&export));
+    let ra = analysis::analyse(&prog, &settings, a.initial, &a.events);
+    let rb = analysis::analyse(&prog, &settings, b.initial, &b.events);
+    assert!(rb.counts_match && rb.blocks.iter().all(|x| x.end_exact));
+    assert_eq!(rb.final_position, ra.final_position);
+    assert_eq!(rb.max_deviation_blu, ra.max_deviation_blu);
+    let path = |t: &vcd::PinTrace| {
+        let e = analysis::edges(t.initial, &t.events);
+        let f = analysis::frame_of_edges(&e.edges, analysis::frame_window_ns(&settings));
+        e.edges
+            .iter()
+            .zip(f)
+            .map(|(x, f)| (f, x.axis, x.dir))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(path(&b), path(&a));
+    let groups = analysis::edges(b.initial, &b.events).groups;
+    assert_eq!(analysis::compare_with_host(&prog, &settings, &groups), None);
+    // The command line reads it too.
+    let prog_file = dir.join("program.nc");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_millac-qemu"))
+        .arg("analyse")
+        .arg(&export)
+        .arg(&prog_file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let fp = &s["final_position_blu"];
+    assert_eq!(
+        [&fp["x"], &fp["y"], &fp["z"]].map(|v| v.as_i64().unwrap()),
+        ra.final_position
+    );
+    assert_eq!(s["end_points_exact"], true);
+}
