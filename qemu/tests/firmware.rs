@@ -76,6 +76,38 @@ fn arcs_in_all_planes_both_directions_and_full_circles() {
     );
 }
 
+/// Short blocks from CAM run at their programmed feed on the firmware (issue 6, defect 7): 400
+/// absolute lines of 10 BLU at F30 (FRM) take their path length over the feed within 1 %, the
+/// last block's deceleration included (a load
+/// frame per block made them 10 % slow), and a lone CR ends a line like LF (defect 2: here every
+/// other line ends in CR only).
+#[test]
+fn chained_short_blocks_run_at_the_programmed_feed() {
+    let mut program = String::from("G20 G90 G1 F30\n");
+    let mut path = 0.0f64;
+    let (mut x, mut y) = (0i64, 0i64);
+    for k in 0..400 {
+        // Turns of 16 degrees: below the look-ahead's 30, so no block decelerates but the last;
+        // exactly 10 BLU each (q = L = 10 commands, no rounding of the DDA's path length).
+        let (dx, dy) = [(8, 6), (6, 8)][k % 2];
+        x += dx;
+        y += dy;
+        path += ((dx * dx + dy * dy) as f64).sqrt();
+        let end = if k % 2 == 0 { "\r" } else { "\n" };
+        program += &format!("X{:.4} Y{:.4}{end}", x as f64 / 1e4, y as f64 / 1e4);
+    }
+    program += "M2\n";
+    let o = run_checked("chain", &program);
+    assert_eq!(o.summary["blocks"], 400);
+    // 30 ipm = 5000 BLU/s; machining time runs from the first to the last rising edge.
+    let ideal = path / 5000.0;
+    let t = o.summary["machining_time_s"].as_f64().unwrap();
+    assert!(
+        (t - ideal).abs() / ideal < 0.01,
+        "path {path} BLU at F30: {t} s, ideal {ideal} s"
+    );
+}
+
 #[test]
 fn rapids_and_dwell() {
     let o = run_checked(
