@@ -5,6 +5,8 @@
 pub mod ac;
 pub mod gcode;
 pub mod nc;
+pub mod ports;
+pub mod rt;
 pub mod settings;
 
 pub use settings::{Blu, Settings, SettingsError};

@@ -38,7 +38,7 @@ use heapless::spsc::{Consumer, Producer};
 use millac::ac::{achieved_feed, AcController, AcState, Alarm};
 
 use crate::simadc::{LogFile, SimAdc};
-use crate::status::{AC_MISSED, ENCODER, FEED_CAP, SAMPLES, SAMPLES_DROPPED};
+use millac::rt::Status;
 
 /// Sample queue slots (holds one less): three periods of samples at the defaults.
 pub const SAMPLE_QUEUE: usize = 32;
@@ -48,18 +48,11 @@ pub const HOLD_EXIT_PERIODS: u32 = 100;
 pub const LOG_HEADER: &str = "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns\n";
 
 /// One conversion [T, Fu, Fv].
-pub type Codes = [u16; 3];
-
-fn encoder() -> [i32; 3] {
-    [
-        ENCODER[0].load(Relaxed),
-        ENCODER[1].load(Relaxed),
-        ENCODER[2].load(Relaxed),
-    ]
-}
+pub use millac::ports::Codes;
 
 /// The sampler's state: the ADC, the queue to the AC task, the sample index.
 pub struct Sampler {
+    status: &'static Status,
     adc: SimAdc,
     queue: Producer<'static, Codes, SAMPLE_QUEUE>,
     index: u32,
@@ -77,11 +70,13 @@ pub enum Sampled {
 impl Sampler {
     /// `per_period` samples per AC period (validated settings: at least 1).
     pub fn new(
+        status: &'static Status,
         adc: SimAdc,
         queue: Producer<'static, Codes, SAMPLE_QUEUE>,
         per_period: u32,
     ) -> Self {
         Sampler {
+            status,
             adc,
             queue,
             index: 0,
@@ -93,21 +88,22 @@ impl Sampler {
     /// `SAMPLES_DROPPED`). Sampler task.
     pub fn sample(&mut self) -> Sampled {
         let i = self.index;
-        let Some(codes) = self.adc.exchange(i, encoder()) else {
+        let Some(codes) = self.adc.exchange(i, self.status.encoder()) else {
             return Sampled::Stop;
         };
         if self.queue.enqueue(codes).is_err() {
-            SAMPLES_DROPPED.fetch_add(1, Relaxed);
+            self.status.samples_dropped.fetch_add(1, Relaxed);
         }
         let n = i.wrapping_add(1);
         self.index = n;
-        SAMPLES.store(n, Relaxed);
+        self.status.samples.store(n, Relaxed);
         Sampled::Ok((n % self.per_period == 0).then_some(n))
     }
 }
 
 /// The AC period's state.
 pub struct AcTask {
+    status: &'static Status,
     ctl: AcController,
     samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
     log: LogFile,
@@ -133,6 +129,7 @@ impl AcTask {
     /// Writes the log header; sets `FEED_CAP` to the controller's first cap when `enabled`.
     /// Init context.
     pub fn new(
+        status: &'static Status,
         ctl: AcController,
         samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
         mut log: LogFile,
@@ -141,11 +138,12 @@ impl AcTask {
     ) -> Self {
         log.write(LOG_HEADER.as_bytes());
         if enabled {
-            FEED_CAP.store(ctl.feed_cap(), Relaxed);
+            status.feed_cap.store(ctl.feed_cap(), Relaxed);
         }
         let s = ctl.settings();
         let (sample_hz, per_period) = (s.sample_hz, s.sample_hz * s.period_ms / 1000);
         AcTask {
+            status,
             ctl,
             samples,
             log,
@@ -172,13 +170,13 @@ impl AcTask {
         // One encoder reading per period: it gives the achieved feed (anti-windup, see
         // AcController::set_achieved) and it is the position logged, so a replay from ac.log and
         // the samples reproduces every decision.
-        let enc = encoder();
+        let enc = self.status.encoder();
         let d = [0, 1, 2].map(|k| i64::from(enc[k]) - i64::from(self.last[k]));
         let period_ms = self.ctl.settings().period_ms;
         self.ctl.set_achieved(achieved_feed(d, &self.nc, period_ms));
         let out = self.ctl.period();
         if self.enabled {
-            FEED_CAP.store(out.feed_cap, Relaxed);
+            self.status.feed_cap.store(out.feed_cap, Relaxed);
         }
         let held = matches!(out.state, AcState::Hold(_));
         self.still = if held && enc == self.last {
@@ -200,10 +198,10 @@ impl AcTask {
             AcState::Hold(a) => write!(line, "hold:{}", a.message()),
         };
         // Late: the next deadline passed while this period worked.
-        if SAMPLES.load(Relaxed).wrapping_sub(due) >= self.per_period {
+        if self.status.samples.load(Relaxed).wrapping_sub(due) >= self.per_period {
             self.late += 1;
         }
-        let overruns = self.late + AC_MISSED.load(Relaxed);
+        let overruns = self.late + self.status.ac_missed.load(Relaxed);
         let _ = writeln!(line, ",{overruns}");
         self.log.write(line.as_bytes());
         Period {

@@ -2,23 +2,19 @@
 //! general-purpose Timer 0 (TIMER_0A, periodic) and the step pulse end on Timer 1 (TIMER_1A,
 //! one-shot); the simulated ADC's sample clock on Timer 2 (TIMER_2A, periodic, only when the host
 //! serves the ADC). Raw volatile register access: the `lm3s6965` device crate has interrupt names
-//! only. `init` runs in `#[init]`; everything else in the frame and pulse-end ISRs (and the sampler).
+//! only. [`Lm3s6965`] implements the core's ports (`millac::ports`: StepPort, FrameTimer,
+//! PulseTimer, TimerClock, SampleClock) with one register access each. `init` runs in `#[init]`;
+//! everything else in the frame and pulse-end ISRs (and the sampler).
 //!
 //! Pins (port B): PB0 X_STEP, PB1 Y_STEP, PB2 Z_STEP, PB3 X_SIGN, PB4 Y_SIGN, PB5 Z_SIGN.
 //! Registers (LM3S6965 datasheet): SYSCTL RCGC1/RCGC2 clock gates; GPIO DIR, DEN and the masked
 //! data window (address bits [9:2] select the pins a store changes); GPTM CFG, TAMR, CTL, IMR, ICR,
 //! TAILR.
-use crate::Board;
+use millac::ports::{FrameTimer, PulseTimer, SampleClock, StepPort, TimerClock};
+use millac::rt::QemuClock;
 
 /// The board. Zero-sized: all state is in the peripherals.
 pub struct Lm3s6965;
-
-/// Clock the timers see: QEMU's lm3s6965evb runs the timers at 12.5 MHz after reset.
-pub const TIMER_HZ: u32 = 12_500_000;
-
-/// Clocks per period minus the reload value. QEMU 7.2 counts a period of TAILR clocks; real
-/// silicon counts TAILR + 1 (from TAILR down to 0 inclusive), so a real-board build sets 1.
-pub const RELOAD_OFFSET: u32 = 0;
 
 // System control: run-mode clock gating.
 const SYSCTL_RCGC1: usize = 0x400F_E104;
@@ -84,19 +80,20 @@ fn set_bits(addr: usize, bits: u32) {
     write(addr, read(addr) | bits);
 }
 
-impl Board for Lm3s6965 {
-    const TIMER_HZ: u32 = TIMER_HZ;
+/// QEMU's lm3s6965evb timers: 12.5 MHz, a period of TAILR clocks (see [`QemuClock`]; the one
+/// definition the host simulation shares).
+impl TimerClock for Lm3s6965 {
+    const TIMER_HZ: u32 = QemuClock::TIMER_HZ;
 
     fn reload(clocks: u32) -> u32 {
-        let r = clocks.saturating_sub(RELOAD_OFFSET);
-        if r == 0 {
-            1
-        } else {
-            r
-        }
+        QemuClock::reload(clocks)
     }
+}
 
-    fn init(frame_reload: u32, pulse_reload: u32) {
+impl Lm3s6965 {
+    /// Sets up the pins (all low), the periodic frame timer with `frame_reload` and its interrupt
+    /// (started), and the one-shot pulse timer with `pulse_reload` (stopped). Init context.
+    pub fn init(frame_reload: u32, pulse_reload: u32) {
         set_bits(SYSCTL_RCGC1, RCGC1_TIMER0 | RCGC1_TIMER1);
         set_bits(SYSCTL_RCGC2, RCGC2_GPIOB);
         // Silicon needs a few clocks after ungating before the peripheral answers: the read-backs
@@ -127,45 +124,51 @@ impl Board for Lm3s6965 {
         write(TIMER0 + GPTM_IMR, TATO);
         write(TIMER0 + GPTM_CTL, CTL_TAEN);
     }
+}
 
+impl FrameTimer for Lm3s6965 {
     #[inline(always)]
-    fn frame_ack() {
+    fn ack(&mut self) {
         write(TIMER0 + GPTM_ICR, TATO);
     }
 
     /// LM3S silicon loads a new TAILR into the running counter at once; QEMU 7.2 keeps the
     /// time-out already scheduled and uses the new value from the following period on.
     #[inline(always)]
-    fn frame_set_reload(reload: u32) {
+    fn set_reload(&mut self, reload: u32) {
         write(TIMER0 + GPTM_TAILR, reload);
     }
+}
 
+impl PulseTimer for Lm3s6965 {
     /// A one-shot timer clears TAEN at its time-out, so setting TAEN restarts it from TAILR.
     #[inline(always)]
-    fn pulse_start() {
+    fn start(&mut self) {
         write(TIMER1 + GPTM_CTL, CTL_TAEN);
     }
 
     #[inline(always)]
-    fn pulse_ack() {
+    fn ack(&mut self) {
         write(TIMER1 + GPTM_ICR, TATO);
     }
+}
 
+impl StepPort for Lm3s6965 {
     /// The masked address ignores value bits outside PB0..PB2: no masking needed here.
     #[inline(always)]
-    fn write_steps(steps: u8) {
+    fn write_steps(&mut self, steps: u8) {
         write(STEP_DATA, u32::from(steps));
     }
 
     /// The masked address ignores value bits outside PB3..PB5.
     #[inline(always)]
-    fn write_signs(signs: u8) {
+    fn write_signs(&mut self, signs: u8) {
         write(SIGN_DATA, u32::from(signs) << SIGN_SHIFT);
     }
 
     /// A masked read returns the levels of PB0..PB5 only (output pins read their data bits).
     #[inline(always)]
-    fn read_pins() -> u8 {
+    fn read_pins(&mut self) -> u8 {
         read(ALL_DATA) as u8
     }
 }
@@ -184,15 +187,17 @@ pub fn sample_timer_start(reload: u32) {
     write(TIMER2 + GPTM_CTL, CTL_TAEN);
 }
 
-/// Acknowledges the sample timer's interrupt. Sampler task.
-#[inline(always)]
-pub fn sample_timer_ack() {
-    write(TIMER2 + GPTM_ICR, TATO);
-}
+/// Timer 2, the sample clock of the simulated ADC. Sampler task.
+impl SampleClock for Lm3s6965 {
+    #[inline(always)]
+    fn ack(&mut self) {
+        write(TIMER2 + GPTM_ICR, TATO);
+    }
 
-/// Stops the sample timer (the host has gone). Sampler task.
-pub fn sample_timer_stop() {
-    write(TIMER2 + GPTM_CTL, 0);
-    write(TIMER2 + GPTM_IMR, 0);
-    write(TIMER2 + GPTM_ICR, TATO);
+    /// Stops the sample timer (the host has gone).
+    fn stop(&mut self) {
+        write(TIMER2 + GPTM_CTL, 0);
+        write(TIMER2 + GPTM_IMR, 0);
+        write(TIMER2 + GPTM_ICR, TATO);
+    }
 }

@@ -7,12 +7,10 @@ use crate::analysis::ProgBlock;
 use crate::cut::{Material, Process, Stock, Tool, Transducer};
 use anyhow::{anyhow, Result};
 use millac::ac::{AcController, AcSettings, AcState};
-use millac::nc::{Block, BlockSource, Frame, FrameConfig, Motion, Rate};
+use millac::nc::{Block, Frame, FrameConfig, Motion, Rate};
+use millac::ports::BlockSource;
 use millac::Settings;
 use std::collections::VecDeque;
-
-/// The frame timer's clock on the QEMU board; frame periods are whole clocks as in the firmware.
-pub const TIMER_HZ: u64 = 12_500_000;
 
 /// One AC period of a run: what the controller saw and did, and what really happened.
 #[derive(Clone, Debug, PartialEq)]
@@ -88,14 +86,17 @@ impl BlockSource for Queue {
     }
 }
 
-/// Frame period in ns for a rate, in whole timer clocks like the firmware (QEMU counts TAILR clocks).
+/// Frame period in ns for a rate: the reload the firmware computes for the QEMU board (the same
+/// functions and clock, `millac::rt`), in whole timer clocks (QEMU counts TAILR clocks).
 pub fn period_ns(settings: &Settings, rate: Rate) -> u64 {
+    use millac::ports::TimerClock;
+    use millac::rt::{clocks_for_hz, QemuClock};
     let hz = match rate {
         Rate::Feed => settings.frame_hz,
         Rate::Rapid => settings.rapid_hz,
-    } as u64;
-    let clocks = TIMER_HZ / hz;
-    clocks * 1_000_000_000 / TIMER_HZ
+    };
+    let clocks = QemuClock::reload(clocks_for_hz(QemuClock::TIMER_HZ, hz)) as u64;
+    clocks * 1_000_000_000 / QemuClock::TIMER_HZ as u64
 }
 
 /// Path speed (ipm, or the program's unit per minute) of a position change `d` over one period:

@@ -31,6 +31,7 @@
 //!   starting it only sets the remainders, the command count and the feed registers. Arcs, rapids
 //!   and dwells still load in a frame of their own.
 use super::block::{Block, Linear, Motion};
+use crate::ports::{BlockSource, FeedCap};
 use crate::settings::Settings;
 
 /// The frame's share of the settings, precomputed in task context.
@@ -49,30 +50,6 @@ impl FrameConfig {
             ptp_steps: s.ptp_steps,
         }
     }
-}
-
-/// Where a frame gets the adaptive controller's feed cap. A `u32` is a fixed cap; the firmware
-/// passes a type that loads its atomic, so that only the frames that run the feed DDA (linear or
-/// circular feeding) read it: block loads, rapids and dwells do not pay for the load.
-pub trait FeedCap {
-    /// Feed number cap: u32::MAX = no cap, 0 = feed hold.
-    fn feed_cap(&self) -> u32;
-}
-
-impl FeedCap for u32 {
-    #[inline(always)]
-    fn feed_cap(&self) -> u32 {
-        *self
-    }
-}
-
-/// The Initiator's block queue as the frame sees it: the running block stays at the front until
-/// it is done. Implemented by the firmware's queue consumer and by the host simulation.
-pub trait BlockSource {
-    /// The front block, by reference (no copy in the ISR), or None when the queue is empty.
-    fn front(&mut self) -> Option<&Block>;
-    /// Removes the front block (called once, when it is done).
-    fn pop(&mut self);
 }
 
 /// Which timer period the next frame wants: W0 (contouring, dwell, idle) or the rapid rate (PTP).

@@ -8,7 +8,7 @@ pub mod sim;
 mod tests;
 
 pub use block::*;
-pub use frame::{BlockSource, FeedCap, Frame, FrameConfig, Pulses, Rate};
+pub use frame::{Frame, FrameConfig, Pulses, Rate};
 
 /// Integer square root: the largest r with r * r <= n. Used by the parser (task) to compute q = L.
 pub const fn isqrt(n: u64) -> u64 {

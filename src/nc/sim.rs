@@ -1,7 +1,8 @@
 //! A frame driven without hardware: feeds blocks to [`Frame::tick`] and yields every frame's output
 //! with the rate it ran at. Used by host tests and the host tool (host); never by the firmware.
 use super::block::Block;
-use super::frame::{BlockSource, Frame, Pulses, Rate};
+use super::frame::{Frame, Pulses, Rate};
+use crate::ports::BlockSource;
 
 /// One simulated frame: its index, the rate the frame timer ran at for it, and its output.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

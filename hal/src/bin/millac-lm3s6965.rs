@@ -14,24 +14,8 @@
 //! Without `adc.req` in the working directory none of this starts: no sample timer, no AC task,
 //! `FEED_CAP` stays `u32::MAX` and the firmware behaves as before.
 //!
-//! # Timing rule (why pulses and signs are correct by construction)
-//!
-//! Frame ISR and pulse-end ISR run at the same, highest priority, so neither preempts the other:
-//! the pulse end waits (tail-chains) until the frame is done. Each frame first outputs the pulses
-//! computed in the PREVIOUS frame (`pending`): one store sets the PULSE lines high, then the
-//! one-shot pulse timer starts for `pulse_width_ns`. Only then does the frame compute the next
-//! pulses `p` (whose time varies with the block); their SIGN lines are written
-//! - at once, if this frame emitted no pulse (the PULSE lines are low), or
-//! - by the pulse-end ISR, right after it sets the PULSE lines low again.
-//!
-//! So a PULSE line is high for at least `pulse_width_ns` (the timer runs that long, and the falling
-//! edge waits for the frame's work if that is longer), a SIGN line changes only while every PULSE
-//! line is low, and the next rising edge comes one frame period after this frame's rising edge.
-//! The SIGN-to-rising-edge gap is therefore at least the period minus max(pulse width, frame work);
-//! `Settings::validate` guarantees pulse width + sign setup <= 75 % of the shortest (rapid) period,
-//! which leaves the sign setup time as long as the frame's work stays within the remaining 25 %.
-//! Rising edges keep the timer's period exactly: the pulse store is the frame's first work after
-//! the acknowledge, at a fixed number of instructions from the interrupt.
+//! The frame and pulse-end bodies, and the timing rule that makes pulses and signs correct by
+//! construction, are in `millac::rt::isr`; this app binds them to TIMER_0A and TIMER_1A.
 //!
 //! The frame timer runs at W0 (`frame_hz`) while contouring, dwelling or idle, and is retimed to
 //! `rapid_hz` while the frame asks for `Rate::Rapid` (PTP), so the 5 kHz contouring frame and the
@@ -97,18 +81,21 @@ mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::{AcController, AcSettings, FeedCeiling};
     use millac::gcode::tape::Tape;
-    use millac::nc::{Block, BlockSource, FeedCap, Frame, FrameConfig, Pulses, Rate};
+    use millac::nc::{Block, Frame, FrameConfig};
+    use millac::ports::{BlockSource, SampleClock, TimerClock};
+    use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
     use millac::Settings;
     use millac_hal::actask::{AcTask, Codes, Sampled, Sampler, SAMPLE_QUEUE};
-    use millac_hal::lm3s6965::{self as board, Lm3s6965};
+    use millac_hal::lm3s6965 as board;
     use millac_hal::simadc::{LogFile, SimAdc, FLAG_AC_ENABLED};
-    use millac_hal::status::{BLOCKS_DONE, ENCODER, FEED_CAP, IDLE, NEXT_SIGNS, POSITION};
-    use millac_hal::{clocks_for_hz, clocks_for_ns, Board};
 
     use super::{exit, fail, Out};
 
-    /// The board this binary drives.
-    type B = Lm3s6965;
+    /// The board this binary drives (a unit struct: its ports are `&mut B`).
+    use millac_hal::lm3s6965::Lm3s6965 as B;
+
+    /// The status words between the contexts (all zero at reset but `idle`).
+    static STATUS: Status = Status::new();
 
     /// Queue slots (a heapless spsc queue holds one less: 15 blocks).
     const QUEUE: usize = 16;
@@ -120,19 +107,10 @@ mod app {
     #[shared]
     struct Shared {}
 
-    /// Frame timer reload values for the two rates.
-    pub struct Reloads {
-        feed: u32,
-        rapid: u32,
-    }
-
     #[local]
     struct Local {
-        frame: Frame,
+        frame: FrameTask,
         consumer: Consumer<'static, Block, QUEUE>,
-        pending: Pulses,
-        rate: Rate,
-        reloads: Reloads,
         producer: Producer<'static, Block, QUEUE>,
         settings: Settings,
         /// The feed ceiling of an enabled AC, applied by the loader (None: programmed feeds).
@@ -158,7 +136,7 @@ mod app {
         };
         let pulse = B::reload(clocks_for_ns(B::TIMER_HZ, settings.pulse_width_ns));
         // No cap unless the AC says otherwise (before any interrupt is enabled).
-        FEED_CAP.store(u32::MAX, Relaxed);
+        STATUS.feed_cap.store(u32::MAX, Relaxed);
         B::init(reloads.feed, pulse);
 
         // The simulated ADC and the AC, if the host serves them (blocks until it is ready).
@@ -177,8 +155,8 @@ mod app {
             if enabled {
                 ceiling = Some(ac_settings.ceiling);
             }
-            let task = AcTask::new(ctl, rx, log, enabled, settings);
-            sampler = Some(Sampler::new(adc, tx, task.per_period()));
+            let task = AcTask::new(&STATUS, ctl, rx, log, enabled, settings);
+            sampler = Some(Sampler::new(&STATUS, adc, tx, task.per_period()));
             ac = Some(task);
             board::sample_timer_start(B::reload(clocks_for_hz(B::TIMER_HZ, ac_settings.sample_hz)));
         }
@@ -186,11 +164,8 @@ mod app {
         (
             Shared {},
             Local {
-                frame: Frame::new(FrameConfig::from_settings(&settings)),
+                frame: FrameTask::new(Frame::new(FrameConfig::from_settings(&settings)), reloads),
                 consumer,
-                pending: Pulses::default(),
-                rate: Rate::Feed,
-                reloads,
                 producer,
                 settings,
                 ceiling,
@@ -201,54 +176,10 @@ mod app {
     }
 
     /// The frame ISR: highest priority (3). No locks, logging, allocation or panics.
-    #[task(binds = TIMER_0A, priority = 3,
-           local = [frame, consumer, pending, rate, reloads])]
+    #[task(binds = TIMER_0A, priority = 3, local = [frame, consumer])]
     fn frame(cx: frame::Context) {
-        B::frame_ack();
-        let pending = *cx.local.pending;
-        if pending.steps != 0 {
-            B::write_steps(pending.steps);
-            B::pulse_start();
-        }
-
-        let frame = cx.local.frame;
-        let was_idle = frame.idle();
-        let p = frame.tick(&mut Source(cx.local.consumer), AcCap);
-
-        if pending.steps == 0 {
-            B::write_signs(p.signs);
-        } else {
-            NEXT_SIGNS.store(p.signs, Relaxed);
-        }
-        *cx.local.pending = p;
-
-        // Published by the frames without pulses (idle, dwell, hold, between feed commands), so
-        // the frames with pulses (the frame's worst case) do not pay for it. Read at the end of the
-        // program and on a hold, when no pulse is computed; the live position is `ENCODER`.
-        if p.steps == 0 {
-            let [x, y, z] = frame.position();
-            POSITION[0].store(x, Relaxed);
-            POSITION[1].store(y, Relaxed);
-            POSITION[2].store(z, Relaxed);
-        }
-
-        // The rate, the blocks done and the idle flag change only when a block is loaded or done.
-        // They are published by the frames that start idle (the frame after a block's end runs
-        // idle and loads the next block): one frame late after a block's end, never in a frame
-        // that works on a block. IDLE is stored false by the frame that loads a block.
-        if was_idle {
-            let idle = frame.idle();
-            let rate = frame.rate();
-            if rate != *cx.local.rate {
-                *cx.local.rate = rate;
-                B::frame_set_reload(match rate {
-                    Rate::Feed => cx.local.reloads.feed,
-                    Rate::Rapid => cx.local.reloads.rapid,
-                });
-            }
-            BLOCKS_DONE.store(frame.blocks_done(), Relaxed);
-            IDLE.store(idle && p.steps == 0 && pending.steps == 0, Relaxed);
-        }
+        let src = &mut Source(cx.local.consumer);
+        cx.local.frame.run(&mut B, &mut B, &mut B, src, &STATUS);
     }
 
     /// The block queue as the frame's Initiator sees it: the running block stays at the front
@@ -267,51 +198,30 @@ mod app {
         }
     }
 
-    /// The AC's feed cap as the frame reads it: loaded only by the frames that feed.
-    struct AcCap;
-
-    impl FeedCap for AcCap {
-        #[inline(always)]
-        fn feed_cap(&self) -> u32 {
-            FEED_CAP.load(Relaxed)
-        }
-    }
-
     /// The pulse-end ISR: same priority as the frame, so it runs after the frame has finished.
-    /// Before lowering the PULSE lines it counts them, by their SIGN lines, into the encoder
-    /// (the only writer of `ENCODER`: plain load and store).
     #[task(binds = TIMER_1A, priority = 3)]
     fn pulse_end(_: pulse_end::Context) {
-        B::pulse_ack();
-        let pins = B::read_pins();
-        for (k, e) in ENCODER.iter().enumerate() {
-            if pins & (1 << k) != 0 {
-                let d = if pins & (8 << k) != 0 { 1 } else { -1 };
-                e.store(e.load(Relaxed).wrapping_add(d), Relaxed);
-            }
-        }
-        B::write_steps(0);
-        B::write_signs(NEXT_SIGNS.load(Relaxed));
+        rt::pulse_end(&mut B, &mut B, &STATUS);
     }
 
     /// The sampler: one lockstep exchange with the host's simulated ADC per Timer 2 period,
     /// priority 2 (below the frame). Spawns the AC period every N samples.
     #[task(binds = TIMER_2A, priority = 2, local = [sampler])]
     fn sample(cx: sample::Context) {
-        board::sample_timer_ack();
+        SampleClock::ack(&mut B);
         let Some(s) = cx.local.sampler.as_mut() else {
-            board::sample_timer_stop();
+            SampleClock::stop(&mut B);
             return;
         };
         match s.sample() {
             // The host has gone: without samples the AC cannot guard the cut.
             Sampled::Stop => {
-                board::sample_timer_stop();
+                SampleClock::stop(&mut B);
                 fail(format_args!("simulated ADC lost"));
             }
             Sampled::Ok(Some(due)) => {
                 if ac_period::spawn(due).is_err() {
-                    millac_hal::status::AC_MISSED.fetch_add(1, Relaxed);
+                    STATUS.ac_missed.fetch_add(1, Relaxed);
                 }
             }
             Sampled::Ok(None) => {}
@@ -330,13 +240,13 @@ mod app {
         }
         if p.halt {
             let [x, y, z] = [
-                POSITION[0].load(Relaxed),
-                POSITION[1].load(Relaxed),
-                POSITION[2].load(Relaxed),
+                STATUS.position[0].load(Relaxed),
+                STATUS.position[1].load(Relaxed),
+                STATUS.position[2].load(Relaxed),
             ];
             Out::open().line(format_args!(
                 "millac: hold blocks={} position={},{},{}",
-                BLOCKS_DONE.load(Relaxed),
+                STATUS.blocks_done.load(Relaxed),
                 x,
                 y,
                 z
@@ -357,17 +267,17 @@ mod app {
         };
 
         // Every accepted block runs to completion, also after an error.
-        while producer.len() != 0 || !IDLE.load(Relaxed) {
+        while producer.len() != 0 || !STATUS.idle.load(Relaxed) {
             cortex_m::asm::nop();
         }
         let [x, y, z] = [
-            POSITION[0].load(Relaxed),
-            POSITION[1].load(Relaxed),
-            POSITION[2].load(Relaxed),
+            STATUS.position[0].load(Relaxed),
+            STATUS.position[1].load(Relaxed),
+            STATUS.position[2].load(Relaxed),
         ];
         out.line(format_args!(
             "millac: blocks={} position={},{},{}",
-            BLOCKS_DONE.load(Relaxed),
+            STATUS.blocks_done.load(Relaxed),
             x,
             y,
             z

@@ -1,0 +1,264 @@
+//! Ports: one trait per hardware role the firmware needs, each saying which context calls it. The
+//! bodies of the frame ISR, the pulse-end ISR, the sampler and the AC period ([`crate::rt`]) are
+//! written once over these traits; a board implements them (hal/) and a thin RTIC app per board
+//! binds the bodies to its interrupts; the host simulation implements them in software.
+//!
+//! Static dispatch only (generics, no trait objects, no function-pointer tables): a board's port
+//! is usually a zero-sized type whose methods are one register access each, and the ISR budget is
+//! measured with them inlined.
+//!
+//! # embedded-hal
+//!
+//! embedded-hal 1.0 has traits for digital pins ([`embedded_hal::digital::OutputPin`],
+//! [`embedded_hal::digital::InputPin`]) and delays, but none for ADCs or timers (0.2's `adc` and
+//! `timer` modules were dropped in 1.0). So:
+//! - step/sign output: [`PinStepPort`] implements [`StepPort`] over six embedded-hal output pins
+//!   (any board, tested with embedded-hal-mock). A board whose pins share a GPIO port should write
+//!   them with one store instead (the LM3S6965 board does: a masked store sets all three PULSE
+//!   lines at once, the timing rule of the README needs that);
+//! - operator inputs: [`PinInputs`] implements [`OperatorInputs`] over embedded-hal input pins;
+//! - frame timer, pulse timer, sample clock, force/torque ADC, serial, settings storage: millac's
+//!   own traits below.
+use crate::nc::Block;
+
+/// The Initiator's block queue as the frame sees it: the running block stays at the front until
+/// it is done. Frame ISR (the consumer end of the queue the loader fills); the host simulation.
+pub trait BlockSource {
+    /// The front block, by reference (no copy in the ISR), or None when the queue is empty.
+    fn front(&mut self) -> Option<&Block>;
+    /// Removes the front block (called once, when it is done).
+    fn pop(&mut self);
+}
+
+/// Where a frame gets the adaptive controller's feed cap. Frame ISR: only the frames that run the
+/// feed DDA (linear or circular feeding) read it. A `u32` is a fixed cap; the firmware passes a
+/// type that loads the AC task's atomic.
+pub trait FeedCap {
+    /// Feed number cap: u32::MAX = no cap, 0 = feed hold.
+    fn feed_cap(&self) -> u32;
+}
+
+impl FeedCap for u32 {
+    #[inline(always)]
+    fn feed_cap(&self) -> u32 {
+        *self
+    }
+}
+
+/// Step (PULSE) and direction (SIGN) lines, X, Y, Z. Frame ISR and pulse-end ISR (one priority:
+/// neither preempts the other, so the writes need no lock).
+pub trait StepPort {
+    /// PULSE line of axis k = bit k of `steps` (X, Y, Z = bits 0..2), all three together.
+    fn write_steps(&mut self, steps: u8);
+    /// SIGN line of axis k = bit k of `signs` (high = positive).
+    fn write_signs(&mut self, signs: u8);
+    /// The pin levels: bit k = PULSE line of axis k, bit k + 3 = its SIGN line (the pulse-end ISR
+    /// counts the encoder from them).
+    fn read_pins(&mut self) -> u8;
+}
+
+/// The periodic frame timer. Frame ISR (and init, which starts it).
+pub trait FrameTimer {
+    /// Acknowledges the frame timer's interrupt.
+    fn ack(&mut self);
+    /// Sets the reload value of the next periods (from [`TimerClock::reload`]).
+    fn set_reload(&mut self, reload: u32);
+}
+
+/// The one-shot pulse-width timer. Frame ISR (start) and pulse-end ISR (ack).
+pub trait PulseTimer {
+    /// Starts the one-shot for the pulse width set at init.
+    fn start(&mut self);
+    /// Acknowledges its interrupt.
+    fn ack(&mut self);
+}
+
+/// The clock of a board's timers. Init context (it divides).
+pub trait TimerClock {
+    /// Timer clock in Hz.
+    const TIMER_HZ: u32;
+    /// Reload value for a period of `clocks` timer clocks (boards differ: some count
+    /// `reload + 1` clocks per period).
+    fn reload(clocks: u32) -> u32;
+}
+
+/// The sample clock of the force/torque ADC. Sampler task (its interrupt).
+pub trait SampleClock {
+    /// Acknowledges the sample clock's interrupt.
+    fn ack(&mut self);
+    /// Stops the clock (the ADC has gone).
+    fn stop(&mut self);
+}
+
+/// Codes of one simultaneous conversion: [T, Fu, Fv], 12 bits each.
+pub type Codes = [u16; 3];
+
+/// The force/torque ADC: three channels converted together. Sampler task.
+pub trait ForceTorqueAdc {
+    /// One conversion, given the encoder counts at the sample (a simulated ADC computes the cut
+    /// from them; a real one ignores them). None: the ADC has gone (the sampler stops and the
+    /// firmware holds).
+    fn sample(&mut self, index: u32, encoder: [i32; 3]) -> Option<Codes>;
+}
+
+/// The operator's serial line (grbl protocol, later). Loader task.
+pub trait Serial {
+    /// Reads what has arrived into `buf`, returns the count (0: nothing yet).
+    fn read(&mut self, buf: &mut [u8]) -> usize;
+    /// Writes as much of `bytes` as fits, returns the count.
+    fn write(&mut self, bytes: &[u8]) -> usize;
+}
+
+/// Persistent settings. Init (load) and loader task (store).
+pub trait SettingsStorage {
+    /// Reads the stored image into `buf`, returns its length, or None when nothing is stored.
+    fn load(&mut self, buf: &mut [u8]) -> Option<usize>;
+    /// Stores an image; false when the storage refused it.
+    fn store(&mut self, image: &[u8]) -> bool;
+}
+
+/// The operator's inputs, debounced by the board. Loader task (and the board's input interrupt).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Inputs {
+    pub estop: bool,
+    pub feed_hold: bool,
+    pub cycle_start: bool,
+    /// Axis limit switches, bit k = axis k.
+    pub limits: u8,
+}
+
+/// Operator inputs (e-stop, feed hold, cycle start, limits). Loader task.
+pub trait OperatorInputs {
+    fn read(&mut self) -> Inputs;
+}
+
+/// A [`StepPort`] over six embedded-hal output pins (any board). Pin errors are ignored: a GPIO
+/// write on the boards we know cannot fail, and the frame has no way to report one. The three
+/// PULSE lines are written one after the other (a few instructions apart); boards with a shared
+/// GPIO port should implement [`StepPort`] with one store.
+pub struct PinStepPort<S, D> {
+    pub step: [S; 3],
+    pub sign: [D; 3],
+    /// The levels last written (read back by `read_pins`).
+    levels: u8,
+}
+
+impl<S: embedded_hal::digital::OutputPin, D: embedded_hal::digital::OutputPin> PinStepPort<S, D> {
+    pub fn new(step: [S; 3], sign: [D; 3]) -> Self {
+        PinStepPort {
+            step,
+            sign,
+            levels: 0,
+        }
+    }
+}
+
+impl<S: embedded_hal::digital::OutputPin, D: embedded_hal::digital::OutputPin> StepPort
+    for PinStepPort<S, D>
+{
+    fn write_steps(&mut self, steps: u8) {
+        for (k, pin) in self.step.iter_mut().enumerate() {
+            let _ = pin.set_state((steps & (1 << k) != 0).into());
+        }
+        self.levels = (self.levels & !0b111) | (steps & 0b111);
+    }
+
+    fn write_signs(&mut self, signs: u8) {
+        for (k, pin) in self.sign.iter_mut().enumerate() {
+            let _ = pin.set_state((signs & (1 << k) != 0).into());
+        }
+        self.levels = (self.levels & 0b111) | ((signs & 0b111) << 3);
+    }
+
+    fn read_pins(&mut self) -> u8 {
+        self.levels
+    }
+}
+
+/// [`OperatorInputs`] over embedded-hal input pins, active low (switches to ground with pull-ups,
+/// the usual wiring; an e-stop is normally closed, so a broken wire reads as pressed). A pin that
+/// cannot be read counts as active (safe side). No debouncing here: the board samples it.
+pub struct PinInputs<P> {
+    pub estop: P,
+    pub feed_hold: P,
+    pub cycle_start: P,
+    pub limits: [P; 3],
+}
+
+impl<P: embedded_hal::digital::InputPin> OperatorInputs for PinInputs<P> {
+    fn read(&mut self) -> Inputs {
+        let active = |p: &mut P| p.is_low().unwrap_or(true);
+        let mut limits = 0u8;
+        for (k, p) in self.limits.iter_mut().enumerate() {
+            if active(p) {
+                limits |= 1 << k;
+            }
+        }
+        Inputs {
+            estop: active(&mut self.estop),
+            feed_hold: active(&mut self.feed_hold),
+            cycle_start: active(&mut self.cycle_start),
+            limits,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use embedded_hal_mock::eh1::digital::{Mock as PinMock, State, Transaction as T};
+
+    #[test]
+    fn pin_step_port_sets_each_line_and_reads_back() {
+        let step = [
+            PinMock::new(&[T::set(State::High), T::set(State::Low)]),
+            PinMock::new(&[T::set(State::Low), T::set(State::Low)]),
+            PinMock::new(&[T::set(State::High), T::set(State::Low)]),
+        ];
+        let sign = [
+            PinMock::new(&[T::set(State::Low)]),
+            PinMock::new(&[T::set(State::High)]),
+            PinMock::new(&[T::set(State::High)]),
+        ];
+        let mut p = PinStepPort::new(step, sign);
+        p.write_steps(0b101);
+        p.write_signs(0b110);
+        assert_eq!(p.read_pins(), 0b110_101);
+        p.write_steps(0);
+        assert_eq!(p.read_pins(), 0b110_000);
+        for pin in p.step.iter_mut().chain(p.sign.iter_mut()) {
+            pin.done();
+        }
+    }
+
+    #[test]
+    fn pin_inputs_are_active_low_and_fail_safe() {
+        let mut i = PinInputs {
+            estop: PinMock::new(&[T::get(State::High)]),
+            feed_hold: PinMock::new(&[T::get(State::Low)]),
+            cycle_start: PinMock::new(&[T::get(State::High)]),
+            limits: [
+                PinMock::new(&[T::get(State::High)]),
+                PinMock::new(&[T::get(State::Low)]),
+                PinMock::new(&[T::get(State::High)]),
+            ],
+        };
+        let got = i.read();
+        assert_eq!(
+            got,
+            Inputs {
+                estop: false,
+                feed_hold: true,
+                cycle_start: false,
+                limits: 0b010,
+            }
+        );
+        for pin in [&mut i.estop, &mut i.feed_hold, &mut i.cycle_start]
+            .into_iter()
+            .chain(i.limits.iter_mut())
+        {
+            pin.done();
+        }
+    }
+}
