@@ -8,5 +8,6 @@ pub mod nc;
 pub mod ports;
 pub mod rt;
 pub mod settings;
+pub mod wire;
 
 pub use settings::{Blu, Settings, SettingsError};

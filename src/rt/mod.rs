@@ -1,11 +1,14 @@
 //! Run-time bodies of the firmware, written once over the [`crate::ports`] and called by a thin
 //! RTIC app per board (hal/) and by the host simulation: the frame ISR and the pulse-end ISR
-//! ([`isr`]), the status words between the contexts ([`status`]), and the timer arithmetic of
+//! ([`isr`]), the sampler and the AC period ([`ac`]), the status words between the contexts
+//! ([`status`]), and the timer arithmetic of
 //! init ([`clocks_for_hz`], [`clocks_for_ns`]) with the QEMU board's clock ([`QemuClock`]).
 //!
-//! Contexts: [`isr::FrameTask::run`] frame ISR; [`isr::pulse_end`] pulse-end ISR; the clock
+//! Contexts: [`isr::FrameTask::run`] frame ISR; [`isr::pulse_end`] pulse-end ISR; [`ac::sample`]
+//! sampler; [`ac::AcPeriod::run`] AC task; the clock
 //! functions init (they divide); [`status::Status`] any.
 
+pub mod ac;
 pub mod isr;
 pub mod status;
 

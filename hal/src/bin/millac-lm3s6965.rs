@@ -87,7 +87,8 @@ mod app {
     use millac::Settings;
     use millac_hal::actask::{AcTask, Codes, Sampled, Sampler, SAMPLE_QUEUE};
     use millac_hal::lm3s6965 as board;
-    use millac_hal::simadc::{LogFile, SimAdc, FLAG_AC_ENABLED};
+    use millac::wire::FLAG_AC_ENABLED;
+    use millac_hal::simadc::{LogFile, SimAdc};
 
     use super::{exit, fail, Out};
 
@@ -147,7 +148,7 @@ mod app {
                 Ok(c) => c,
                 Err(e) => fail(format_args!("AC settings: {}", e.message())),
             };
-            let Some(log) = LogFile::create(b"ac.log\0") else {
+            let Some(log) = LogFile::create(millac::wire::AC_LOG_FILE.as_bytes()) else {
                 fail(format_args!("cannot create ac.log"));
             };
             let (tx, rx) = cx.local.samples.split();

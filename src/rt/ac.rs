@@ -1,0 +1,144 @@
+//! The bodies of the sampler and of the AC period, over the ports, for the firmware's tasks and the
+//! host simulation alike, so the two cannot drift (sampler task, AC task; host).
+//!
+//! # Timing of the AC period
+//!
+//! The sampler takes one conversion per sample-clock period and says that an AC period is due
+//! after every `sample_hz * period_ms / 1000`-th sample (10 at the defaults), with the sample count
+//! as the period's deadline base. The period is thus clocked by the same clock as the samples:
+//! every period sees exactly its own window of samples, and the host can replay the grouping
+//! (period k = samples `k*N .. (k+1)*N`). A separate monotonic (SysTick) would be a second clock
+//! beating against the sample clock, giving 9, 10 or 11 samples per window depending on phase.
+//!
+//! # The period
+//!
+//! One encoder reading per period: it gives the achieved feed (anti-windup, see
+//! `AcController::set_achieved`) and it is the position logged, so a replay from `ac.log` and the
+//! samples reproduces every decision. A hold is a feed cap of 0: the frame keeps its block and its
+//! counters, it simply stops feeding; no block is dropped.
+//!
+//! # End of a hold
+//!
+//! Resume is not wired to an operator command yet (`AcController::resume` exists; the protocol will
+//! call it), so after [`HOLD_EXIT_PERIODS`] periods in hold with the encoder unchanged (only when
+//! the AC is enabled: a measure-only run logs the hold and goes on) the period asks its caller to
+//! stop: the firmware reports its position and exits, the host simulation ends the run.
+use core::sync::atomic::Ordering::Relaxed;
+
+use super::status::Status;
+use crate::ac::{achieved_feed, AcController, AcOutput, AcState};
+use crate::ports::{Codes, ForceTorqueAdc};
+use crate::settings::Settings;
+
+/// AC periods in hold with the encoder unchanged before a run stops (1 s at 10 ms).
+pub const HOLD_EXIT_PERIODS: u32 = 100;
+
+/// What one sample gave.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sampled {
+    /// The ADC has gone: stop the sample clock (the firmware holds and stops).
+    Lost,
+    /// The codes; `due`: an AC period is due with this deadline base (the sample count).
+    Codes { codes: Codes, due: Option<u32> },
+}
+
+/// One sample: the ADC converts with the encoder counts of this instant (a simulated ADC needs
+/// them), the sample count advances. Sampler task.
+pub fn sample(adc: &mut impl ForceTorqueAdc, status: &Status, per_period: u32) -> Sampled {
+    let i = status.samples.load(Relaxed);
+    let Some(codes) = adc.sample(i, status.encoder()) else {
+        return Sampled::Lost;
+    };
+    let n = i.wrapping_add(1);
+    status.samples.store(n, Relaxed);
+    Sampled::Codes {
+        codes,
+        due: (n % per_period.max(1) == 0).then_some(n),
+    }
+}
+
+/// The AC period's state: the controller and what the period keeps between periods.
+pub struct AcPeriod {
+    pub ctl: AcController,
+    nc: Settings,
+    /// The controller's feed cap is applied (else measure and log only).
+    enabled: bool,
+    /// Feed the achieved feed to the controller (the firmware always does; the benchmark can run
+    /// the paper's FRC exactly without it).
+    anti_windup: bool,
+    last: [i32; 3],
+    still: u32,
+}
+
+/// What one period did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Period {
+    pub out: AcOutput,
+    /// The encoder counts the period read (logged as its position).
+    pub encoder: [i32; 3],
+    /// Held long enough with nothing moving: stop the run.
+    pub halt: bool,
+}
+
+impl AcPeriod {
+    /// Stores the controller's first cap into `status` when `enabled`. Init context.
+    pub fn new(ctl: AcController, nc: Settings, enabled: bool, status: &Status) -> Self {
+        if enabled {
+            status.feed_cap.store(ctl.feed_cap(), Relaxed);
+        }
+        AcPeriod {
+            ctl,
+            nc,
+            enabled,
+            anti_windup: true,
+            last: [0; 3],
+            still: 0,
+        }
+    }
+
+    /// Runs the paper's FRC without the anti-windup input (benchmarks).
+    pub fn without_anti_windup(mut self) -> Self {
+        self.anti_windup = false;
+        self
+    }
+
+    /// Samples per AC period.
+    pub fn per_period(&self) -> u32 {
+        let s = self.ctl.settings();
+        (s.sample_hz * s.period_ms / 1000).max(1)
+    }
+
+    /// One conversion into the controller's window. AC task (from the sampler's queue) or host.
+    pub fn sample(&mut self, codes: Codes) {
+        self.ctl.sample(codes);
+    }
+
+    /// One AC period: reads the encoder, gives the controller the achieved feed, runs it, writes
+    /// the feed cap (when enabled) and counts the periods held with nothing moving. AC task.
+    pub fn run(&mut self, status: &Status) -> Period {
+        let enc = status.encoder();
+        if self.anti_windup {
+            let d = [0, 1, 2].map(|k| i64::from(enc[k]) - i64::from(self.last[k]));
+            let period_ms = self.ctl.settings().period_ms;
+            self.ctl
+                .set_achieved(achieved_feed(d, &self.nc, period_ms));
+        }
+        let out = self.ctl.period();
+        if self.enabled {
+            status.feed_cap.store(out.feed_cap, Relaxed);
+        }
+        let held = matches!(out.state, AcState::Hold(_));
+        self.still = if held && enc == self.last {
+            self.still.saturating_add(1)
+        } else {
+            0
+        };
+        self.last = enc;
+        Period {
+            out,
+            encoder: enc,
+            // Only a hold that is applied stops the machine (measure-only runs keep going).
+            halt: self.enabled && held && self.still >= HOLD_EXIT_PERIODS,
+        }
+    }
+}

@@ -1,0 +1,235 @@
+//! Wire formats between the QEMU firmware and the host tool, defined once for both sides: the
+//! lockstep simulated ADC (header, request, response; the firmware's `simadc` and the host's
+//! `cosim` bridge) and the lines of the AC log `ac.log` (the firmware's AC task writes them, the
+//! host parses them). Each format is a parse/emit pair with a round-trip test. Sampler and AC task
+//! (firmware), host.
+//!
+//! # Lockstep ADC (all integers little endian)
+//!
+//! Two FIFOs in QEMU's working directory: [`REQ_FILE`] (firmware -> host) and [`RESP_FILE`] (host ->
+//! firmware). The host writes a [`Header`] (8 bytes: `b"MAC1"`, u32 flags), then per sample the
+//! firmware writes a [`Request`] (16 bytes: u32 sample index, i32 encoder X, Y, Z in BLU) and reads
+//! a response (6 bytes: u16 codes T, Fu, Fv; [`emit_codes`], [`parse_codes`]).
+//!
+//! # AC log
+//!
+//! Text: [`AC_LOG_HEADER`], then one [`AcLogLine`] per AC period.
+use core::fmt;
+
+/// Request FIFO (firmware -> host). File names are NUL-terminated for the firmware's semihosting
+/// open; the host takes [`file_name`].
+pub const REQ_FILE: &str = "adc.req\0";
+/// Response FIFO (host -> firmware).
+pub const RESP_FILE: &str = "adc.resp\0";
+/// The AC log the firmware writes in the run directory.
+pub const AC_LOG_FILE: &str = "ac.log\0";
+
+/// A file name above without its NUL.
+pub fn file_name(nul_terminated: &'static str) -> &'static str {
+    nul_terminated
+        .strip_suffix('\0')
+        .unwrap_or(nul_terminated)
+}
+
+/// Header magic.
+pub const MAGIC: [u8; 4] = *b"MAC1";
+/// Header flag: the firmware applies the controller's feed cap (clear: measure and log only).
+pub const FLAG_AC_ENABLED: u32 = 1;
+
+/// The host's first message.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Header {
+    pub flags: u32,
+}
+
+impl Header {
+    pub const LEN: usize = 8;
+
+    pub fn emit(&self) -> [u8; 8] {
+        let mut h = [0u8; 8];
+        h[..4].copy_from_slice(&MAGIC);
+        h[4..].copy_from_slice(&self.flags.to_le_bytes());
+        h
+    }
+
+    /// None when the magic is wrong.
+    pub fn parse(h: &[u8; 8]) -> Option<Header> {
+        if h[..4] != MAGIC {
+            return None;
+        }
+        Some(Header {
+            flags: u32::from_le_bytes([h[4], h[5], h[6], h[7]]),
+        })
+    }
+}
+
+/// One sample request: the sample index and the encoder counts at the sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Request {
+    pub index: u32,
+    pub encoder: [i32; 3],
+}
+
+impl Request {
+    pub const LEN: usize = 16;
+
+    pub fn emit(&self) -> [u8; 16] {
+        let mut q = [0u8; 16];
+        q[0..4].copy_from_slice(&self.index.to_le_bytes());
+        for (k, e) in self.encoder.iter().enumerate() {
+            q[4 + 4 * k..8 + 4 * k].copy_from_slice(&e.to_le_bytes());
+        }
+        q
+    }
+
+    pub fn parse(q: &[u8; 16]) -> Request {
+        let le = |i: usize| [q[i], q[i + 1], q[i + 2], q[i + 3]];
+        Request {
+            index: u32::from_le_bytes(le(0)),
+            encoder: [4, 8, 12].map(|i| i32::from_le_bytes(le(i))),
+        }
+    }
+}
+
+/// Length of a response.
+pub const CODES_LEN: usize = 6;
+
+/// The response: codes T, Fu, Fv.
+pub fn emit_codes(codes: [u16; 3]) -> [u8; 6] {
+    let mut r = [0u8; 6];
+    for (k, c) in codes.iter().enumerate() {
+        r[2 * k..2 * k + 2].copy_from_slice(&c.to_le_bytes());
+    }
+    r
+}
+
+pub fn parse_codes(r: &[u8; 6]) -> [u16; 3] {
+    [0, 2, 4].map(|i| u16::from_le_bytes([r[i], r[i + 1]]))
+}
+
+/// Header row of `ac.log` (with its newline).
+pub const AC_LOG_HEADER: &str = "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns\n";
+
+/// The state of one AC period in the log.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LogState<'a> {
+    Run,
+    /// Holding, with the alarm's fixed message (`hold:<message>`; no comma in it).
+    Hold(&'a str),
+}
+
+/// One line of `ac.log`: `t_ms` the period's deadline (sample count * 1000 / sample_hz), the
+/// encoder counts in BLU at the end of the period's work, the controller's feed number, E, F (N)
+/// and T (N*m) as Rust's shortest round-trip f32 text, the state, the running overrun count.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AcLogLine<'a> {
+    pub t_ms: u64,
+    pub pos_blu: [i32; 3],
+    pub feed_cap: u32,
+    pub e: f32,
+    pub f_n: f32,
+    pub t_nm: f32,
+    pub state: LogState<'a>,
+    pub overruns: u32,
+}
+
+impl AcLogLine<'_> {
+    /// Writes the line with its newline.
+    pub fn emit(&self, w: &mut impl fmt::Write) -> fmt::Result {
+        let [x, y, z] = self.pos_blu;
+        write!(
+            w,
+            "{},{x},{y},{z},{},{},{},{},",
+            self.t_ms, self.feed_cap, self.e, self.f_n, self.t_nm
+        )?;
+        match self.state {
+            LogState::Run => w.write_str("run")?,
+            LogState::Hold(m) => write!(w, "hold:{m}")?,
+        }
+        writeln!(w, ",{}", self.overruns)
+    }
+}
+
+impl<'a> AcLogLine<'a> {
+    /// Parses one line (without its newline); None when it is not one.
+    pub fn parse(line: &'a str) -> Option<AcLogLine<'a>> {
+        let mut f = line.split(',');
+        let mut next = || f.next();
+        let t_ms = next()?.parse().ok()?;
+        let pos_blu = [
+            next()?.parse().ok()?,
+            next()?.parse().ok()?,
+            next()?.parse().ok()?,
+        ];
+        let feed_cap = next()?.parse().ok()?;
+        let e = next()?.parse().ok()?;
+        let f_n = next()?.parse().ok()?;
+        let t_nm = next()?.parse().ok()?;
+        let state = match next()? {
+            "run" => LogState::Run,
+            s => LogState::Hold(s.strip_prefix("hold:")?),
+        };
+        let overruns = next()?.parse().ok()?;
+        if next().is_some() {
+            return None;
+        }
+        Some(AcLogLine {
+            t_ms,
+            pos_blu,
+            feed_cap,
+            e,
+            f_n,
+            t_nm,
+            state,
+            overruns,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use proptest::prelude::*;
+    use std::string::String;
+
+    proptest! {
+        #[test]
+        fn adc_messages_round_trip(flags: u32, index: u32, enc: [i32; 3], codes: [u16; 3]) {
+            let h = Header { flags };
+            prop_assert_eq!(Header::parse(&h.emit()), Some(h));
+            let q = Request { index, encoder: enc };
+            prop_assert_eq!(Request::parse(&q.emit()), q);
+            prop_assert_eq!(parse_codes(&emit_codes(codes)), codes);
+        }
+
+        #[test]
+        fn log_lines_round_trip(
+            t_ms: u64, pos: [i32; 3], feed_cap: u32,
+            e in -1e6f32..1e6, f_n in 0f32..1e6, t_nm in -1e4f32..1e4,
+            hold: bool, overruns: u32,
+        ) {
+            let l = AcLogLine {
+                t_ms, pos_blu: pos, feed_cap, e, f_n, t_nm,
+                state: if hold { LogState::Hold("overload: cutting force above the limit") } else { LogState::Run },
+                overruns,
+            };
+            let mut s = String::new();
+            l.emit(&mut s).unwrap();
+            prop_assert!(s.ends_with('\n'));
+            prop_assert_eq!(AcLogLine::parse(s.trim_end()), Some(l));
+        }
+    }
+
+    #[test]
+    fn wrong_messages_are_refused() {
+        assert_eq!(Header::parse(b"MAC2\0\0\0\0"), None);
+        assert_eq!(AcLogLine::parse("1,2,3"), None);
+        assert_eq!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,ran,0"), None);
+        assert_eq!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0,7"), None);
+        assert!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0").is_some());
+        assert_eq!(AC_LOG_HEADER.trim_end().split(',').count(), 10);
+        assert_eq!(file_name(REQ_FILE), "adc.req");
+        assert_eq!(file_name(AC_LOG_FILE), "ac.log");
+    }
+}
