@@ -69,6 +69,8 @@ pub struct HostRun {
     /// Position after every frame that pulsed, with the programmed feed (ipm) and the block index.
     pub path: Vec<([i64; 3], f64, usize)>,
     pub held: bool,
+    /// The alarm that first held the feed (None: no hold).
+    pub alarm: Option<millac::ac::Alarm>,
     /// Per block: (index, first frame start, last frame end) in ns of virtual time.
     pub spans: Vec<(usize, u64, u64)>,
 }
@@ -214,6 +216,9 @@ pub fn run_with(
                     }
                     let o = c.period();
                     feed_cap = o.feed_cap;
+                    if out.alarm.is_none() {
+                        out.alarm = o.alarm;
+                    }
                     let state = match o.state {
                         AcState::Run => "run".to_string(),
                         AcState::Hold(a) => {

@@ -156,6 +156,24 @@ fn entry_from_air_cut_overshoot_is_reported() {
     }
 }
 
+/// Issue 6, D4: the full-depth entry at F30 steps Fu by about 1930 codes in one sample (more than
+/// the 1500-code jump limit). The step persists and torque moves with it: a real overload, and the
+/// hold must say so (it used to report "sensor hold: Fu jumped from code 2049 to 3978").
+#[test]
+fn full_depth_entry_at_f30_holds_on_overload_not_on_a_sensor_jump() {
+    use millac::ac::Alarm;
+    let c = cut("blank X0 Y0 W5 H3 Z0\n", Material::STEEL);
+    let (run, f0) = run_any("G20 G90\nG0 X-1 Y1.5\nG0 Z-0.3\nG1 X2.5 F30\nM2\n", &c);
+    assert!(run.held);
+    let Some(Alarm::Overload { f_n, e, .. }) = run.alarm else {
+        panic!("expected an overload hold, got {:?}", run.alarm);
+    };
+    println!("entry at F30: {}", run.alarm.unwrap());
+    assert!(f64::from(f_n) > 1.1 * f0 && e < AcSettings::default().overload_e);
+    let hold = run.rows.iter().find(|r| r.state != "run").unwrap();
+    assert_eq!(hold.state, format!("hold:{}", run.alarm.unwrap().message()));
+}
+
 #[test]
 fn fig1_cavity_with_ac_ends_where_it_ends_without() {
     let text = include_str!("../programs/fig1-cavity.nc");

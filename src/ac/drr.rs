@@ -8,8 +8,27 @@
 //! the peaks (largest F = sqrt(Fu^2 + Fv^2) over the samples, computed per sample so that the peak
 //! is a force that really occurred; largest |T|). [`Pick`] chooses which one the ECR uses.
 //! T is taken as a magnitude (|T|): the spindle may turn either way; the paper's T is a magnitude.
+//!
+//! # Jumps: load step or sensor fault (issue 6, D4)
+//!
+//! A code that moves more than `jump_codes` since the previous sample is a *jump*. A real load
+//! can do that: with straight flutes a full-depth entry steps Fu by 1900 codes in one sample. A
+//! jump is therefore judged by its physical plausibility before the sample may enter the window:
+//! - the other channels must confirm it: F*R/T of the jumped sample inside the force/torque band
+//!   ([`super::plaus`]; a Fu spike does not move T, a T stuck at a rail does not move F). If not:
+//!   [`SensorFault::Jump`] at once;
+//! - it must persist: the jumped sample is kept out of the window until the next sample; if a
+//!   jumped channel is back (closer to its code before the jump than to the jumped code), the
+//!   jump was a lone spike: [`SensorFault::Jump`]. Otherwise it is load, and the kept sample
+//!   enters the window (before the one that confirmed it).
+//!
+//! So a step that persists and agrees with the torque reaches the ECR one sample later, and an
+//! overload is reported as an overload; a spike never reaches the window. The `spike` fault
+//! (one sample of Fu +3000 codes, then back) gives `sensor hold: Fu jumped from code A to B`
+//! and holds the feed at the end of the AC period.
 
 use super::ecr;
+use super::plaus::Band;
 use super::settings::{AcSettings, Calibration, Pick, PEAK_WINDOWS_MAX};
 
 /// Largest code of a 12-bit ADC (the upper rail).
@@ -40,7 +59,8 @@ impl Sensor {
 pub enum SensorFault {
     /// The code was at a rail (0 or 4095) for the settable number of consecutive samples.
     Stuck { sensor: Sensor, code: u16 },
-    /// The code moved more than the settable plausible jump since the previous sample.
+    /// The code moved more than `jump_codes` since the previous sample and the jump was not
+    /// plausible: force and torque disagreed, or it returned at the next sample (a spike).
     Jump { sensor: Sensor, from: u16, to: u16 },
     /// A code above 4095: not a 12-bit conversion.
     Range { sensor: Sensor, code: u16 },
@@ -53,12 +73,44 @@ pub struct Measured {
     pub t_nm: f32,
 }
 
+/// A jumped sample kept out of the window until the next sample judges it.
+#[derive(Clone, Copy, Debug)]
+struct Suspect {
+    codes: [u16; 3],
+    /// The codes before the jump.
+    from: [u16; 3],
+    /// Bit k: channel k jumped.
+    jumped: u8,
+}
+
+impl Suspect {
+    /// The first jumped channel that `now` has brought back (closer to its code before the jump
+    /// than to the jumped code): the jump was a spike.
+    fn returned(&self, now: [u16; 3]) -> Option<usize> {
+        (0..3).find(|&k| {
+            self.jumped & (1 << k) != 0
+                && now[k].abs_diff(self.from[k]) < now[k].abs_diff(self.codes[k])
+        })
+    }
+
+    fn fault(&self, k: usize) -> SensorFault {
+        SensorFault::Jump {
+            sensor: Sensor::ALL[k],
+            from: self.from[k],
+            to: self.codes[k],
+        }
+    }
+}
+
 /// The DRR state: calibration, the running fault detectors and the current window.
 #[derive(Clone, Debug)]
 pub struct Drr {
     cal: [Calibration; 3],
     stuck_samples: u32,
     jump_codes: u16,
+    band: Band,
+    /// A jumped sample waiting for the next sample (see the module docs).
+    suspect: Option<Suspect>,
     /// Previous in-range codes (for the jump check); None before the first sample.
     prev: Option<[u16; 3]>,
     /// Consecutive samples at a rail, per channel.
@@ -79,6 +131,8 @@ impl Drr {
             cal: s.cal,
             stuck_samples: s.stuck_samples,
             jump_codes: s.jump_codes,
+            band: Band::new(s),
+            suspect: None,
             prev: None,
             at_rail: [0; 3],
             count: 0,
@@ -106,8 +160,19 @@ impl Drr {
         (ct.value(t), cu.value(u), cv.value(v))
     }
 
+    /// Engineering values of one sample: F (N) and |T| (N*m).
+    fn measure(&self, codes: [u16; 3]) -> Measured {
+        let (t, fu, fv) = self.convert(codes);
+        Measured {
+            f_n: ecr::force(fu, fv),
+            t_nm: t.abs(),
+        }
+    }
+
     /// One conversion of the three ADCs. A faulty sample is reported and kept out of the window.
-    /// Checks, per channel in the order T, Fu, Fv: range, then stuck at a rail, then jump.
+    /// Checks, per channel in the order T, Fu, Fv: range, then stuck at a rail; then the judgement
+    /// of a pending jump and the jump check (see the module docs). A jumped sample is kept out
+    /// (`Ok`) until the next sample judges it.
     pub fn sample(&mut self, codes: [u16; 3]) -> Result<(), SensorFault> {
         let mut fault = None;
         for (k, (&code, &sensor)) in codes.iter().zip(Sensor::ALL.iter()).enumerate() {
@@ -125,27 +190,49 @@ impl Drr {
                     fault = fault.or(Some(SensorFault::Stuck { sensor, code }));
                 }
             }
-            if let Some(prev) = self.prev.as_ref().and_then(|p| p.get(k)).copied() {
-                if prev.abs_diff(code) > self.jump_codes {
-                    fault = fault.or(Some(SensorFault::Jump {
-                        sensor,
-                        from: prev,
-                        to: code,
-                    }));
-                }
+        }
+        if fault.is_some() && codes.iter().any(|&c| c > CODE_MAX) {
+            // Not a conversion: neither the jump reference nor a judge of a pending jump.
+            return fault.map_or(Ok(()), Err);
+        }
+        let prev = self.prev.replace(codes);
+        if let Some(s) = self.suspect.take() {
+            match s.returned(codes) {
+                // A lone spike: this sample is back where the one before the spike was.
+                Some(k) => return Err(fault.unwrap_or(s.fault(k))),
+                // The step persists: it was load.
+                None => self.admit(self.measure(s.codes)),
             }
         }
-        if codes.iter().all(|&c| c <= CODE_MAX) {
-            self.prev = Some(codes);
+        let m = self.measure(codes);
+        if let Some(p) = prev {
+            let jumped = (0..3).fold(0u8, |acc, k| {
+                acc | (u8::from(p[k].abs_diff(codes[k]) > self.jump_codes) << k)
+            });
+            if jumped != 0 {
+                let s = Suspect {
+                    codes,
+                    from: p,
+                    jumped,
+                };
+                let first = jumped.trailing_zeros() as usize;
+                if self.band.judge(m.f_n, m.t_nm) == Some(false) {
+                    // Force and torque disagree: the other channels do not confirm the jump.
+                    return Err(fault.unwrap_or(s.fault(first)));
+                }
+                self.suspect = Some(s);
+                return fault.map_or(Ok(()), Err);
+            }
         }
         if let Some(f) = fault {
             return Err(f);
         }
-        let (t, fu, fv) = self.convert(codes);
-        let m = Measured {
-            f_n: ecr::force(fu, fv),
-            t_nm: t.abs(),
-        };
+        self.admit(m);
+        Ok(())
+    }
+
+    /// One accepted sample into the window.
+    fn admit(&mut self, m: Measured) {
         if self.count == 0 {
             self.peak = m;
         } else {
@@ -154,7 +241,6 @@ impl Drr {
         }
         self.latest = m;
         self.count = self.count.saturating_add(1);
-        Ok(())
     }
 
     /// Samples accepted into the current window so far.

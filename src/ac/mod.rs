@@ -13,9 +13,12 @@
 pub mod drr;
 pub mod ecr;
 pub mod frc;
+pub mod plaus;
 pub mod settings;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_faults;
 
 pub use drr::{Drr, Measured, Sensor, SensorFault, CODE_MAX};
 pub use ecr::Errors;
@@ -232,10 +235,11 @@ impl AcController {
         let achieved = self.achieved.take();
         let mut alarm = None;
         if self.state == AcState::Run {
+            // An overload measured on samples that passed every check comes first: it is real,
+            // whatever else a sensor did in the same period (faulty samples never enter the
+            // window). Then the sensor faults, then the absence of samples.
             alarm = match (pending, measured) {
-                (Some(fault), _) => Some(Alarm::Sensor(fault)),
-                (None, None) => Some(Alarm::NoSamples),
-                (None, Some(m)) if self.e < self.s.overload_e => Some(Alarm::Overload {
+                (_, Some(m)) if self.e < self.s.overload_e => Some(Alarm::Overload {
                     f_n: m.f_n,
                     t_nm: m.t_nm,
                     f0_n: self.f0_n,
@@ -244,6 +248,8 @@ impl AcController {
                     torque_limit_nm: self.s.torque_limit_nm,
                     e: self.e,
                 }),
+                (Some(fault), _) => Some(Alarm::Sensor(fault)),
+                (None, None) => Some(Alarm::NoSamples),
                 (None, Some(_)) => {
                     self.f = frc::next_feed(self.f, self.e, self.step, self.s.f_min, self.s.f_max);
                     if let Some(a) = achieved {

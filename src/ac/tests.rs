@@ -382,10 +382,13 @@ fn implausible_jump_holds() {
     let s = AcSettings::default();
     let mut c = ctl(s);
     c.sample([MID; 3]);
-    c.sample([MID, MID, MID + 1500]); // exactly the limit: plausible
+    c.sample([MID, MID, MID + 1500]); // exactly the limit: no jump
     assert_eq!(c.period().state, AcState::Run);
+    // A jump of 1501 codes down to F = 2.5 N, too small for the force/torque judgement: kept out
+    // and judged by the next sample, which is back: a spike.
     c.sample([MID, MID, MID + 1500]);
     c.sample([MID, MID, MID - 1]);
+    c.sample([MID, MID, MID + 1499]);
     let want = SensorFault::Jump {
         sensor: Sensor::ForceV,
         from: MID + 1500,

@@ -1,0 +1,197 @@
+//! Host tests of the AC program's fault detectors (host tests): a real load step against a lone
+//! spike (issue 6, D4), a frozen sensor while the axes feed (D6), and the force/torque plausibility
+//! check that catches a gain fault (G).
+use super::*;
+
+const MID: u16 = 2048;
+
+fn ctl(s: AcSettings) -> AcController {
+    AcController::new(s).expect("valid settings")
+}
+
+/// Codes for a torque (N*m) and force components (N) under the default calibration.
+fn codes(t_nm: f32, fu_n: f32, fv_n: f32) -> [u16; 3] {
+    let s = AcSettings::default();
+    let c = |v: f32, cal: Calibration| (cal.offset + v / cal.gain).round() as u16;
+    [c(t_nm, s.cal[0]), c(fu_n, s.cal[1]), c(fv_n, s.cal[2])]
+}
+
+/// A live transducer's codes: `k` plus a small deterministic dither (+-2 codes, period 4), as noise.
+fn live(k: [u16; 3], i: usize) -> [u16; 3] {
+    let d = [0i32, 2, 0, -2][i % 4];
+    k.map(|c| (c as i32 + d).clamp(0, 4095) as u16)
+}
+
+/// `n` live samples of `k` starting at dither phase `i0`.
+fn feed_live(c: &mut AcController, k: [u16; 3], i0: usize, n: usize) {
+    for i in i0..i0 + n {
+        c.sample(live(k, i));
+    }
+}
+
+/// The codes of a cut at force F (N; Fu = -0.9 F, so that Fu + 3000 codes stays on the scale) with
+/// the torque F*R/ratio (R = 6.35 mm, the default tool).
+fn cut_codes(f_n: f32, ratio: f32) -> [u16; 3] {
+    let t = f_n * 0.00635 / ratio;
+    codes(t, -0.9 * f_n, 0.435_89 * f_n)
+}
+
+// ---------------------------------------------------------------- D4: step against spike
+
+/// The reproducer of issue 6 (D4): a full-depth entry at F30 steps Fu from about 2049 to 3978 in one
+/// sample (F = 5052 N, T = 30.7 N*m: a physical load, F*R/T = 1.04) and the step persists. That is
+/// an overload, not a sensor jump, wherever in the window the step lands.
+#[test]
+fn real_load_step_that_persists_is_an_overload_not_a_jump() {
+    let s = AcSettings::default();
+    let air = [MID, 2049, MID];
+    // Fu 3978 (4825 N), Fv 1497 N: F = 5052 N; T 30.75 N*m.
+    let load = [MID + 615, 3978, MID + 599];
+    for at in 0..10 {
+        let mut c = ctl(s);
+        feed_live(&mut c, air, 0, 30);
+        assert_eq!(c.period().state, AcState::Run);
+        // `at` samples of air, then the step, which persists.
+        feed_live(&mut c, air, 0, at);
+        let mut first_hold = None;
+        for p in 0..3 {
+            let n = if p == 0 { 10 - at } else { 10 };
+            feed_live(&mut c, load, 0, n);
+            let out = c.period();
+            if out.alarm.is_some() {
+                first_hold = Some((p, out));
+                break;
+            }
+        }
+        let (p, out) = first_hold.expect("the overload holds");
+        assert!(p <= 1, "within one period after the step (at {at}): {p}");
+        let Some(Alarm::Overload { f_n, t_nm, e, .. }) = out.alarm else {
+            panic!("step at sample {at}: expected an overload, got {out:?}");
+        };
+        assert!(f_n > 5000.0 && t_nm > 30.0 && e < s.overload_e, "{out:?}");
+        assert_eq!(out.feed_cap, 0);
+        assert!(format!("{}", out.alarm.unwrap()).starts_with("overload hold: F = "));
+    }
+}
+
+/// A lone spike of +3000 codes on Fu that returns at the next sample is a sensor fault (the
+/// `spike` fault of issue 6): `SensorFault::Jump`, and the spike sample never reaches the window.
+#[test]
+fn lone_spike_on_fu_is_a_jump_fault_kept_out_of_the_window() {
+    let s = AcSettings::default();
+    // In air and in a cut (F = 3000 N, T consistent), spike in the middle of a window.
+    for base in [[MID, 1000, MID], cut_codes(3000.0, 0.9)] {
+        let spike = [base[0], base[1] + 3000, base[2]];
+        let mut c = ctl(s);
+        let quiet = c.period(); // NoSamples hold, resume
+        assert_eq!(quiet.alarm, Some(Alarm::NoSamples));
+        c.resume();
+        feed_live(&mut c, base, 0, 10);
+        let before = c.period();
+        assert_eq!(before.state, AcState::Run);
+        feed_live(&mut c, base, 1, 4); // ends on phase 4: the undithered base
+        c.sample(spike);
+        c.sample(base);
+        feed_live(&mut c, base, 2, 4);
+        let out = c.period();
+        let want = SensorFault::Jump {
+            sensor: Sensor::ForceU,
+            from: base[1],
+            to: base[1] + 3000,
+        };
+        assert_eq!(out.alarm, Some(Alarm::Sensor(want)), "{base:?}");
+        assert_eq!(out.feed_cap, 0);
+        // The spike (F about 7500 N) stayed out: the window's peak is the base load.
+        assert!(out.f_n < before.f_n + 20.0, "{out:?} vs {before:?}");
+        assert_eq!(
+            format!("{}", out.alarm.unwrap()),
+            format!(
+                "sensor hold: Fu jumped from code {} to {}",
+                base[1],
+                base[1] + 3000
+            )
+        );
+    }
+    // Fu alone cannot jump by 3000 codes in a cut: the torque contradicts it, so a spike as the
+    // last sample of a window holds at the end of that very window.
+    let base = [MID, 1000, MID];
+    let mut c = ctl(s);
+    feed_live(&mut c, base, 0, 9);
+    c.sample([MID, 4000, MID]);
+    let out = c.period();
+    assert_eq!(
+        out.alarm,
+        Some(Alarm::Sensor(SensorFault::Jump {
+            sensor: Sensor::ForceU,
+            from: 1000,
+            to: 4000
+        }))
+    );
+    assert!(out.f_n < 2700.0, "{out:?}");
+}
+
+/// A jump that force and torque agree on (all channels together) is judged by persistence: kept
+/// out of the window while it waits for the next sample; back at the next sample it was a spike.
+#[test]
+fn consistent_jump_that_returns_is_a_spike() {
+    let s = AcSettings::default();
+    let base = cut_codes(800.0, 0.9);
+    let high = cut_codes(5000.0, 0.9); // Fu jumps by 1512 codes, Fv by 732, T by 593
+    assert!(base[1].abs_diff(high[1]) > s.jump_codes);
+    let mut c = ctl(s);
+    feed_live(&mut c, base, 0, 9); // ends on phase 8: the undithered base
+    c.sample(high);
+    let out = c.period();
+    assert_eq!((out.state, out.alarm), (AcState::Run, None));
+    assert!(out.f_n < 900.0, "the jumped sample is kept out: {out:?}");
+    c.sample(base);
+    feed_live(&mut c, base, 1, 9);
+    let out = c.period();
+    assert_eq!(
+        out.alarm,
+        Some(Alarm::Sensor(SensorFault::Jump {
+            sensor: Sensor::ForceU,
+            from: base[1],
+            to: high[1]
+        }))
+    );
+    // The same jump, persisting: load (here an overload, reported as such).
+    let mut c = ctl(s);
+    feed_live(&mut c, base, 0, 9); // ends on phase 8: the undithered base
+    c.sample(high);
+    assert_eq!(c.period().alarm, None);
+    c.sample(high);
+    let out = c.period();
+    assert!(
+        matches!(out.alarm, Some(Alarm::Overload { f_n, .. }) if f_n > 5000.0),
+        "{out:?}"
+    );
+}
+
+#[test]
+fn plausibility_settings_validation() {
+    let d = AcSettings::default();
+    type Edit = fn(&mut AcSettings);
+    let bad: [(Edit, AcSettingsError); 7] = [
+        (|s| s.tool_radius_mm = 0.0, AcSettingsError::ToolRadius),
+        (|s| s.tool_radius_mm = f32::NAN, AcSettingsError::ToolRadius),
+        (|s| s.ft_ratio_min = 0.0, AcSettingsError::ForceTorqueBand),
+        (|s| s.ft_ratio_max = 0.5, AcSettingsError::ForceTorqueBand),
+        (
+            |s| s.ft_ratio_max = f32::INFINITY,
+            AcSettingsError::ForceTorqueBand,
+        ),
+        (|s| s.ft_floor_nm = 0.0, AcSettingsError::ForceTorqueFloor),
+        (
+            |s| s.ft_floor_nm = f32::NAN,
+            AcSettingsError::ForceTorqueFloor,
+        ),
+    ];
+    for (edit, e) in bad {
+        let mut s = d;
+        edit(&mut s);
+        assert_eq!(s.validate(), Err(e));
+        assert_eq!(AcController::new(s).err(), Some(e));
+        assert_eq!(format!("{e}"), e.message());
+    }
+}
