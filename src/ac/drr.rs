@@ -9,6 +9,13 @@
 //! is a force that really occurred; largest |T|). [`Pick`] chooses which one the ECR uses.
 //! T is taken as a magnitude (|T|): the spindle may turn either way; the paper's T is a magnitude.
 //!
+//! # Frozen channels (issue 6, D6)
+//!
+//! Per channel the DRR counts the samples the code has stayed within `frozen_codes` of the code
+//! that started the run (integer compare per channel and sample). Whether a run is a fault is the
+//! controller's decision: only while the axes feed (see [`super::AcController::period`]), because
+//! an idle machine may have perfectly quiet transducers.
+//!
 //! # Jumps: load step or sensor fault (issue 6, D4)
 //!
 //! A code that moves more than `jump_codes` since the previous sample is a *jump*. A real load
@@ -64,6 +71,12 @@ pub enum SensorFault {
     Jump { sensor: Sensor, from: u16, to: u16 },
     /// A code above 4095: not a 12-bit conversion.
     Range { sensor: Sensor, code: u16 },
+    /// The code stayed within `frozen_codes` of `code` for `samples` samples while the axes fed.
+    Frozen {
+        sensor: Sensor,
+        code: u16,
+        samples: u32,
+    },
 }
 
 /// What the ECR gets from one window: the resultant force F (N) and the torque magnitude (N*m).
@@ -111,6 +124,10 @@ pub struct Drr {
     band: Band,
     /// A jumped sample waiting for the next sample (see the module docs).
     suspect: Option<Suspect>,
+    frozen_codes: u16,
+    /// Per channel: the code that started the current run of unchanged codes, and its length.
+    frozen_at: [u16; 3],
+    frozen_run: [u32; 3],
     /// Previous in-range codes (for the jump check); None before the first sample.
     prev: Option<[u16; 3]>,
     /// Consecutive samples at a rail, per channel.
@@ -133,6 +150,9 @@ impl Drr {
             jump_codes: s.jump_codes,
             band: Band::new(s),
             suspect: None,
+            frozen_codes: s.frozen_codes,
+            frozen_at: [0; 3],
+            frozen_run: [0; 3],
             prev: None,
             at_rail: [0; 3],
             count: 0,
@@ -179,6 +199,13 @@ impl Drr {
             if code > CODE_MAX {
                 fault = fault.or(Some(SensorFault::Range { sensor, code }));
                 continue;
+            }
+            if let (Some(at), Some(run)) = (self.frozen_at.get_mut(k), self.frozen_run.get_mut(k)) {
+                if *run > 0 && code.abs_diff(*at) <= self.frozen_codes {
+                    *run = run.saturating_add(1);
+                } else {
+                    (*at, *run) = (code, 1);
+                }
             }
             if let Some(run) = self.at_rail.get_mut(k) {
                 *run = if code == 0 || code == CODE_MAX {
@@ -241,6 +268,27 @@ impl Drr {
         }
         self.latest = m;
         self.count = self.count.saturating_add(1);
+    }
+
+    /// The first channel whose code has not moved (beyond `frozen_codes`) for at least `samples`
+    /// samples since the last [`Drr::restart_frozen`]. `samples` = 0: never.
+    pub fn frozen(&self, samples: u32) -> Option<SensorFault> {
+        if samples == 0 {
+            return None;
+        }
+        (0..3).find_map(|k| {
+            let (run, code) = (*self.frozen_run.get(k)?, *self.frozen_at.get(k)?);
+            (run >= samples).then_some(SensorFault::Frozen {
+                sensor: Sensor::ALL[k],
+                code,
+                samples: run,
+            })
+        })
+    }
+
+    /// Restarts the frozen-channel runs (the axes stood still: quiet codes are no fault).
+    pub fn restart_frozen(&mut self) {
+        self.frozen_run = [0; 3];
     }
 
     /// Samples accepted into the current window so far.

@@ -52,6 +52,7 @@ impl Alarm {
             Alarm::Sensor(SensorFault::Stuck { .. }) => "sensor stuck at an ADC rail",
             Alarm::Sensor(SensorFault::Jump { .. }) => "sensor jump larger than plausible",
             Alarm::Sensor(SensorFault::Range { .. }) => "sensor code outside 0..=4095",
+            Alarm::Sensor(SensorFault::Frozen { .. }) => "sensor frozen while the axes feed",
             Alarm::NoSamples => "no fresh sensor samples in an AC period",
         }
     }
@@ -90,6 +91,15 @@ impl core::fmt::Display for Alarm {
                     sensor.name()
                 )
             }
+            Alarm::Sensor(SensorFault::Frozen {
+                sensor,
+                code,
+                samples,
+            }) => write!(
+                w,
+                "sensor hold: {} frozen at code {code} for {samples} samples",
+                sensor.name()
+            ),
             Alarm::NoSamples => w.write_str("sensor hold: no fresh samples in an AC period"),
         }
     }
@@ -233,6 +243,14 @@ impl AcController {
         }
         let pending = self.pending.take();
         let achieved = self.achieved.take();
+        // Frozen channels count only while the axes feed (an idle machine may be quiet); without
+        // an achieved feed the controller cannot tell, and the check is off.
+        let frozen = if achieved.is_some_and(|a| a > 0) {
+            self.drr.frozen(self.s.frozen_samples)
+        } else {
+            self.drr.restart_frozen();
+            None
+        };
         let mut alarm = None;
         if self.state == AcState::Run {
             // An overload measured on samples that passed every check comes first: it is real,
@@ -249,6 +267,7 @@ impl AcController {
                     e: self.e,
                 }),
                 (Some(fault), _) => Some(Alarm::Sensor(fault)),
+                (None, _) if frozen.is_some() => frozen.map(Alarm::Sensor),
                 (None, None) => Some(Alarm::NoSamples),
                 (None, Some(_)) => {
                     self.f = frc::next_feed(self.f, self.e, self.step, self.s.f_min, self.s.f_max);

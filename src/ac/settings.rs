@@ -72,6 +72,16 @@ pub struct AcSettings {
     /// (force against torque, see `ft_ratio_min`) or that returns at the next sample is a sensor
     /// fault; a jump that is consistent and persists is load. 4095 = off. Default 1500.
     pub jump_codes: u16,
+    /// A channel whose code stays within this many codes of where it started, for `frozen_samples`
+    /// samples while the axes feed, is frozen (a dead amplifier, a hung ADC channel): a live
+    /// transducer always moves (noise, tooth pulsation, the rotating holder). 0..=100 and below
+    /// `jump_codes`. Default 1 (the simulated transducer's noise is 2 codes sigma; set it above the
+    /// real channel's quantisation and below its noise in a cut).
+    pub frozen_codes: u16,
+    /// Samples a channel must stay within `frozen_codes` while the axes feed (the achieved feed of
+    /// [`super::AcController::set_achieved`] above zero) to be frozen. 0 = off. Default 50 (50 ms:
+    /// half a spindle turn at 600 rpm).
+    pub frozen_samples: u32,
     /// Cutter radius R in mm, for the force/torque plausibility F*R/T. Default 6.35 (the 0.5 in
     /// end mill of the demo).
     pub tool_radius_mm: f32,
@@ -141,6 +151,8 @@ impl Default for AcSettings {
             overload_e: -0.1,
             stuck_samples: 20,
             jump_codes: 1500,
+            frozen_codes: 1,
+            frozen_samples: 50,
             tool_radius_mm: 6.35,
             ft_ratio_min: 0.6,
             ft_ratio_max: 1.4,
@@ -166,6 +178,8 @@ pub enum AcSettingsError {
     StuckSamples,
     JumpCodes,
     PeakWindows,
+    FrozenCodes,
+    FrozenSamples,
     ToolRadius,
     ForceTorqueBand,
     ForceTorqueFloor,
@@ -190,6 +204,12 @@ impl AcSettingsError {
             AcSettingsError::StuckSamples => "stuck-sensor count must be 0 (off) ..=1000000 samples",
             AcSettingsError::JumpCodes => "plausible jump must be 1..=4095 codes",
             AcSettingsError::PeakWindows => "the peak must be held over 1..=8 AC windows",
+            AcSettingsError::FrozenCodes => {
+                "frozen-sensor band must be 0..=100 codes and below the plausible jump"
+            }
+            AcSettingsError::FrozenSamples => {
+                "frozen-sensor count must be 0 (off) ..=1000000 samples"
+            }
             AcSettingsError::ToolRadius => "tool radius must be finite and in (0, 1000] mm",
             AcSettingsError::ForceTorqueBand => {
                 "F*R/T band must be finite with 0 < ft_ratio_min < ft_ratio_max <= 100"
@@ -257,6 +277,12 @@ impl AcSettings {
         }
         if !(1..=PEAK_WINDOWS_MAX as u32).contains(&self.peak_windows) {
             return Err(AcSettingsError::PeakWindows);
+        }
+        if self.frozen_codes > 100 || self.frozen_codes >= self.jump_codes {
+            return Err(AcSettingsError::FrozenCodes);
+        }
+        if self.frozen_samples > 1_000_000 {
+            return Err(AcSettingsError::FrozenSamples);
         }
         let r = self.tool_radius_mm;
         if !(r.is_finite() && r > 0.0 && r <= 1000.0) {

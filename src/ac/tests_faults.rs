@@ -195,3 +195,141 @@ fn plausibility_settings_validation() {
         assert_eq!(format!("{e}"), e.message());
     }
 }
+
+// ---------------------------------------------------------------- D6: frozen sensor
+
+/// Periods of the same codes `k` (`live` adds the dither) with the axes feeding at the cap.
+fn feed_periods(c: &mut AcController, k: [u16; 3], live_noise: bool, periods: usize) -> AcOutput {
+    let mut out = None;
+    for p in 0..periods {
+        for i in 0..10 {
+            c.sample(if live_noise { live(k, p * 10 + i) } else { k });
+        }
+        let cap = c.feed_cap();
+        c.set_achieved(cap);
+        let o = c.period();
+        if o.alarm.is_some() {
+            return o;
+        }
+        out = Some(o);
+    }
+    out.expect("at least one period")
+}
+
+/// Issue 6, D6: a transducer frozen at mid-scale reads "no load" and the FRC opens the feed to
+/// f_max. While the axes feed a live transducer always moves (noise, tooth pulsation), so a channel
+/// that stays within `frozen_codes` for `frozen_samples` samples while feeding is a sensor fault.
+#[test]
+fn frozen_sensor_while_the_axes_feed_holds() {
+    let s = AcSettings::default();
+    let mut c = ctl(s);
+    let out = feed_periods(&mut c, [MID; 3], false, 300);
+    let want = SensorFault::Frozen {
+        sensor: Sensor::Torque,
+        code: MID,
+        samples: s.frozen_samples,
+    };
+    assert_eq!(out.alarm, Some(Alarm::Sensor(want)), "{out:?}");
+    assert_eq!(out.feed_cap, 0);
+    assert_eq!(
+        format!("{}", out.alarm.unwrap()),
+        format!(
+            "sensor hold: T frozen at code 2048 for {} samples",
+            s.frozen_samples
+        )
+    );
+    // One channel frozen among live ones (within +-1 code: still frozen).
+    let mut c = ctl(s);
+    let mut out = None;
+    for p in 0..300 {
+        for i in 0..10 {
+            let mut k = live([MID + 100, 1500, MID + 300], p * 10 + i);
+            k[1] = 1500 + (i % 2) as u16;
+            c.sample(k);
+        }
+        c.set_achieved(1000);
+        let o = c.period();
+        if o.alarm.is_some() {
+            out = Some((p, o));
+            break;
+        }
+    }
+    let (p, o) = out.expect("the frozen Fu holds");
+    assert!(
+        matches!(
+            o.alarm,
+            Some(Alarm::Sensor(SensorFault::Frozen {
+                sensor: Sensor::ForceU,
+                code: 1500,
+                ..
+            }))
+        ),
+        "{o:?}"
+    );
+    assert_eq!(
+        p as u32 + 1,
+        s.frozen_samples / 10,
+        "detected in the period that completes the count"
+    );
+}
+
+/// Quiet (noise-free) transducers on an idle machine are not a fault, nor are live ones while
+/// feeding; without the achieved feed the check is off.
+#[test]
+fn frozen_check_needs_the_axes_to_feed() {
+    let s = AcSettings::default();
+    let mut c = ctl(s);
+    for _ in 0..300 {
+        for _ in 0..10 {
+            c.sample([MID; 3]);
+        }
+        c.set_achieved(0);
+        assert_eq!(c.period().alarm, None);
+    }
+    // Idle, then feeding: the count starts when the feed does.
+    let out = feed_periods(&mut c, [MID; 3], false, s.frozen_samples as usize / 10 - 1);
+    assert_eq!((out.state, out.alarm), (AcState::Run, None));
+    let out = feed_periods(&mut c, [MID; 3], false, 1);
+    assert!(matches!(
+        out.alarm,
+        Some(Alarm::Sensor(SensorFault::Frozen { .. }))
+    ));
+    // Live transducers while feeding: never.
+    let mut c = ctl(s);
+    let out = feed_periods(&mut c, [MID; 3], true, 300);
+    assert_eq!((out.state, out.feed_cap), (AcState::Run, s.f_max));
+    // No achieved feed given: the check is off (as the paper's loop, which knows no feed).
+    let mut c = ctl(s);
+    for _ in 0..300 {
+        for _ in 0..10 {
+            c.sample([MID; 3]);
+        }
+        assert_eq!(c.period().alarm, None);
+    }
+    // frozen_samples = 0 switches the check off.
+    let mut c = ctl(AcSettings {
+        frozen_samples: 0,
+        ..s
+    });
+    assert_eq!(feed_periods(&mut c, [MID; 3], false, 300).alarm, None);
+}
+
+#[test]
+fn frozen_settings_validation() {
+    let d = AcSettings::default();
+    type Edit = fn(&mut AcSettings);
+    let bad: [(Edit, AcSettingsError); 3] = [
+        (|s| s.frozen_codes = 1500, AcSettingsError::FrozenCodes),
+        (|s| s.frozen_codes = 101, AcSettingsError::FrozenCodes),
+        (
+            |s| s.frozen_samples = 2_000_000,
+            AcSettingsError::FrozenSamples,
+        ),
+    ];
+    for (edit, e) in bad {
+        let mut s = d;
+        edit(&mut s);
+        assert_eq!(s.validate(), Err(e));
+        assert_eq!(format!("{e}"), e.message());
+    }
+}
