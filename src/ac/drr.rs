@@ -136,6 +136,8 @@ pub struct Drr {
     count: u32,
     latest: Measured,
     peak: Measured,
+    /// The peaks of the window the last `take` ended (its own samples, whatever the pick).
+    window_peak: Measured,
     /// Peaks of the previous windows (a ring of `hold - 1`), for the held peak.
     past: [Measured; PEAK_WINDOWS_MAX],
     past_at: usize,
@@ -161,6 +163,10 @@ impl Drr {
                 t_nm: 0.0,
             },
             peak: Measured {
+                f_n: 0.0,
+                t_nm: 0.0,
+            },
+            window_peak: Measured {
                 f_n: 0.0,
                 t_nm: 0.0,
             },
@@ -291,6 +297,14 @@ impl Drr {
         self.frozen_run = [0; 3];
     }
 
+    /// The peaks (largest F, largest |T|) of the window the last `take` ended, over its own
+    /// samples, whatever the pick: the force/torque check compares them. Each accepted sample of a
+    /// cut has F*R/T in the band, so the two peaks do too, even when they come from different
+    /// samples.
+    pub fn window_peak(&self) -> Measured {
+        self.window_peak
+    }
+
     /// Samples accepted into the current window so far.
     pub fn count(&self) -> u32 {
         self.count
@@ -309,6 +323,7 @@ impl Drr {
             held.f_n = held.f_n.max(p.f_n);
             held.t_nm = held.t_nm.max(p.t_nm);
         }
+        self.window_peak = cur;
         if self.hold > 1 {
             if let Some(slot) = self.past.get_mut(self.past_at) {
                 *slot = cur;

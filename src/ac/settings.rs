@@ -96,6 +96,12 @@ pub struct AcSettings {
     /// F*R/T is judged only when T or F*R is at least this (N*m), well above the noise (the
     /// default transducer's noise is 0.1 N*m on T, 0.03 N*m on F*R). Default 5 N*m (7 % of T0).
     pub ft_floor_nm: f32,
+    /// AC windows whose peaks give F*R/T outside the band (above the floor) that hold the feed
+    /// with [`super::Alarm::ForceTorqueMismatch`]: a gain fault (a loose or miscalibrated
+    /// transducer). A window in the band restarts the count, one below the floor (air, a tooth
+    /// gap) leaves it. In a window out of the band the FRC does not raise the feed. 0 = off (the
+    /// band still judges jumps). Default 5 (50 ms).
+    pub ft_periods: u32,
     /// With `Pick::Peak`, the peak is held over this many AC windows (the current one and the
     /// ones before it), 1..=8. Beyond the paper: a window must span a tooth period, or the peak
     /// misses the tooth and the FRC raises the feed on a false low reading. At 600 rpm a 4-flute
@@ -157,6 +163,7 @@ impl Default for AcSettings {
             ft_ratio_min: 0.6,
             ft_ratio_max: 1.4,
             ft_floor_nm: 5.0,
+            ft_periods: 5,
             peak_windows: 3,
             ceiling: FeedCeiling::Programmed,
         }
@@ -183,6 +190,7 @@ pub enum AcSettingsError {
     ToolRadius,
     ForceTorqueBand,
     ForceTorqueFloor,
+    ForceTorquePeriods,
 }
 
 impl AcSettingsError {
@@ -213,6 +221,9 @@ impl AcSettingsError {
             AcSettingsError::ToolRadius => "tool radius must be finite and in (0, 1000] mm",
             AcSettingsError::ForceTorqueBand => {
                 "F*R/T band must be finite with 0 < ft_ratio_min < ft_ratio_max <= 100"
+            }
+            AcSettingsError::ForceTorquePeriods => {
+                "force/torque mismatch count must be 0 (off) ..=100000 AC periods"
             }
             AcSettingsError::ForceTorqueFloor => {
                 "F*R/T torque floor must be finite and in (0, 1e7] N*m"
@@ -295,6 +306,9 @@ impl AcSettings {
         let fl = self.ft_floor_nm;
         if !(fl.is_finite() && fl > 0.0 && fl <= 1e7) {
             return Err(AcSettingsError::ForceTorqueFloor);
+        }
+        if self.ft_periods > 100_000 {
+            return Err(AcSettingsError::ForceTorquePeriods);
         }
         Ok(())
     }

@@ -222,8 +222,12 @@ fn ecr_force_and_smaller_error() {
     let e = ecr::errors(3780.0, 36.0, 3600.0, 72.0);
     assert_eq!(e.e, e.ef);
     assert!(e.e < 0.0);
-    // Through the controller: a torque-limited cut runs on Et.
-    let mut c = ctl(AcSettings::default());
+    // Through the controller: a torque-limited cut runs on Et (not a cut the default 0.5 in tool
+    // can make, F*R/T = 0.21: the force/torque check is off).
+    let mut c = ctl(AcSettings {
+        ft_periods: 0,
+        ..AcSettings::default()
+    });
     let out = window(&mut c, codes(54.0, 1800.0, 0.0));
     assert_eq!(out.e, 0.25);
     assert_eq!(out.feed_cap, 100 + 46);
@@ -241,7 +245,11 @@ fn settle(c: &mut AcController, k: [u16; 3], n: usize) -> AcOutput {
 
 #[test]
 fn overload_holds_within_one_period_and_resume_restarts_at_f_min() {
-    let s = AcSettings::default();
+    // Force and torque set freely (F*R/T up to 2.7): the force/torque check is off.
+    let s = AcSettings {
+        ft_periods: 0,
+        ..AcSettings::default()
+    };
     let mut c = ctl(s);
     let air = codes(1.0, 100.0, 0.0);
     let out = settle(&mut c, air, 10);
@@ -539,7 +547,9 @@ fn closed_loop_through_the_controller() {
         let mut cap = c.feed_cap();
         let mut caps = Vec::new();
         for _ in 0..300 {
-            let out = window(&mut c, codes(0.0, k * cap as f32, 0.0));
+            // With the torque of the default tool (F*R/T = 0.9).
+            let f = k * cap as f32;
+            let out = window(&mut c, codes(f * 0.00635 / 0.9, f, 0.0));
             assert_eq!(out.state, AcState::Run);
             assert!(
                 out.e > -0.001,

@@ -333,3 +333,78 @@ fn frozen_settings_validation() {
         assert_eq!(format!("{e}"), e.message());
     }
 }
+
+// ---------------------------------------------------------------- G: gain fault
+
+/// One period of a live cut at force F (N) with the torque for F*R/T = `ratio`; Fu, Fv scaled by
+/// `gain` about mid-scale (a loose transducer reads `gain` x the true force).
+fn cut_period(c: &mut AcController, f_n: f32, ratio: f32, gain: f32, p: usize) -> AcOutput {
+    let k = cut_codes(f_n, ratio);
+    let scale = |code: u16| (MID as f32 + gain * (code as f32 - MID as f32)).round() as u16;
+    for i in 0..10 {
+        let k = [k[0], scale(k[1]), scale(k[2])];
+        c.sample(live(k, p * 10 + i));
+    }
+    c.set_achieved(c.feed_cap());
+    c.period()
+}
+
+/// Issue 6, G: Fu and Fv read half the true force (a loose transducer). The force codes alone look
+/// like a light cut, but the torque does not agree: F*R/T falls from the tool's band (0.74..1.04 in
+/// the model) to about 0.45. Held after `ft_periods` periods, and the feed does not rise meanwhile.
+#[test]
+fn gain_fault_force_against_torque_holds() {
+    let s = AcSettings::default();
+    for (gain, t_scale) in [(0.5f32, 1.0f32), (1.0, 0.5)] {
+        let mut c = ctl(s);
+        // Honest cuts at the ends of the model's band, and in air (nothing to judge): no alarm.
+        for p in 0..40 {
+            let (f, ratio) = [(2000.0, 0.74), (3000.0, 1.04), (0.0, 1.0)][p % 3];
+            let out = cut_period(&mut c, f, ratio, 1.0, p);
+            assert_eq!(out.alarm, None, "honest cut, period {p}");
+        }
+        let before = c.feed_cap();
+        let mut hold = None;
+        for p in 0..20 {
+            // The fault: F about 2400 N, ratio 0.9 in truth; the transducer halves one side.
+            let out = cut_period(&mut c, 2400.0, 0.9 / t_scale, gain, p);
+            if let Some(a) = out.alarm {
+                hold = Some((p, a));
+                break;
+            }
+            assert!(
+                out.feed_cap <= before,
+                "the feed does not rise while F and T disagree"
+            );
+        }
+        let (p, a) = hold.expect("the gain fault holds");
+        assert_eq!(p as u32 + 1, s.ft_periods, "held after ft_periods periods");
+        let Alarm::ForceTorqueMismatch { ratio, .. } = a else {
+            panic!("expected a force/torque mismatch, got {a:?}");
+        };
+        assert!(ratio < s.ft_ratio_min || ratio > s.ft_ratio_max, "{a:?}");
+        let text = format!("{a}");
+        assert!(
+            text.starts_with("sensor hold: force and torque disagree: F*R/T = "),
+            "{text}"
+        );
+        assert!(!a.message().contains(','), "ac.log field");
+    }
+}
+
+#[test]
+fn gain_check_settings_validation() {
+    let s = AcSettings {
+        ft_periods: 200_000,
+        ..AcSettings::default()
+    };
+    assert_eq!(s.validate(), Err(AcSettingsError::ForceTorquePeriods));
+    // 0 switches the periodic check off (the band still judges jumps).
+    let mut c = ctl(AcSettings {
+        ft_periods: 0,
+        ..AcSettings::default()
+    });
+    for p in 0..50 {
+        assert_eq!(cut_period(&mut c, 2400.0, 0.9, 0.5, p).alarm, None);
+    }
+}
