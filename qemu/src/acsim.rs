@@ -129,6 +129,20 @@ pub fn run_with(
     ac: Option<AcSettings>,
     anti_windup: bool,
 ) -> Result<HostRun> {
+    run_with_faults(prog, settings, cut, ac, anti_windup, &[])
+}
+
+/// As [`run_with`], with sensor faults injected into the codes the controller samples (see
+/// [`crate::fault`]; the zero-force codes are the AC calibration's offsets). The true force and
+/// torque of `HostRun::samples` are the process's.
+pub fn run_with_faults(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    ac: Option<AcSettings>,
+    anti_windup: bool,
+    faults: &[crate::fault::Fault],
+) -> Result<HostRun> {
     let mut frame = Frame::new(FrameConfig::from_settings(settings));
     // The loader applies an enabled AC's feed ceiling, as in the firmware.
     let mut queue = Queue(
@@ -148,6 +162,7 @@ pub fn run_with(
         Some(s) => Some(AcController::new(s).map_err(|e| anyhow!("AC settings: {}", e.message()))?),
         None => None,
     };
+    let mut injector = crate::fault::Injector::new(faults, acs.cal.map(|c| f64::from(c.offset)));
     let sample_ns = 1_000_000_000 / acs.sample_hz as u64;
     let ac_ns = acs.period_ms as u64 * 1_000_000;
     let mut out = HostRun::default();
@@ -202,8 +217,11 @@ pub fn run_with(
             out.samples.push((s.f_true_n, s.t_true_nm));
             f_peak = f_peak.max(s.f_true_n);
             t_peak = t_peak.max(s.t_true_nm.abs());
-            if let Some(c) = ctl.as_mut() {
-                c.sample(s.codes);
+            if let (Some(c), Some(codes)) = (
+                ctl.as_mut(),
+                injector.apply(next_sample as f64 * 1e-9, s.codes),
+            ) {
+                c.sample(codes);
             }
             next_sample += sample_ns;
         }
