@@ -3,6 +3,14 @@
 //! hold with alarms. [`AcController`] runs in the AC task: `sample` at the sample rate (1 kHz),
 //! `period` every AC period (10 ms), `resume` on the operator's command.
 //!
+//! Sensor faults (issue 6): per sample the DRR checks range, rails, and judges jumps by their
+//! physical plausibility (a load step that persists and agrees with the torque is load; a lone
+//! spike, or a jump force and torque disagree on, is a fault); per period the controller checks
+//! for frozen channels while the axes feed and for a gain fault (F*R/T of the window peaks outside
+//! the tool's band, [`plaus`]). Each has its own [`Alarm`]; an overload measured on accepted
+//! samples is reported first. Cost per sample: a few integer compares (and one F, T conversion
+//! for a jump); per period: three f32 multiplications more than before.
+//!
 //! The controller only writes a feed cap (a feed number) for the frame, which takes
 //! min(programmed, cap); 0 holds the feed. A hold never loses position: the frame keeps its
 //! counters and simply stops feeding.
@@ -283,7 +291,9 @@ impl AcController {
                 }
                 None => {}
             }
-            if self.s.ft_periods > 0 && self.mismatch >= self.s.ft_periods {
+            // Raised only on a window that is itself out of the band (after a resume in air the
+            // count stays, and the next window out of the band holds again at once).
+            if self.s.ft_periods > 0 && out_of_band && self.mismatch >= self.s.ft_periods {
                 mismatch = Some(Alarm::ForceTorqueMismatch {
                     f_n: w.f_n,
                     t_nm: w.t_nm,

@@ -408,3 +408,27 @@ fn gain_check_settings_validation() {
         assert_eq!(cut_period(&mut c, 2400.0, 0.9, 0.5, p).alarm, None);
     }
 }
+
+/// After a gain-fault hold, a resume in air runs (nothing to judge: the feed opens), and the
+/// next window out of the band holds again at once.
+#[test]
+fn gain_fault_after_resume_holds_at_the_next_window_out_of_the_band() {
+    let s = AcSettings::default();
+    let mut c = ctl(s);
+    let mut p = 0;
+    while cut_period(&mut c, 2400.0, 0.9, 0.5, p).alarm.is_none() {
+        p += 1;
+        assert!(p < 50, "the gain fault holds");
+    }
+    c.resume();
+    for q in 0..5 {
+        let out = cut_period(&mut c, 0.0, 1.0, 0.5, q);
+        assert_eq!(out.alarm, None);
+    }
+    assert!(c.feed_cap() > s.f_min, "the feed opens in air");
+    let out = cut_period(&mut c, 2400.0, 0.9, 0.5, 0);
+    assert!(
+        matches!(out.alarm, Some(Alarm::ForceTorqueMismatch { .. })),
+        "{out:?}"
+    );
+}
