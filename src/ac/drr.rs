@@ -29,6 +29,10 @@
 //!   jump was a lone spike: [`SensorFault::Jump`]. Otherwise it is load, and the kept sample
 //!   enters the window (before the one that confirmed it).
 //!
+//! A code that *arrives at a rail* (0 or 4095) is judged the same way whatever its size: a
+//! saturated channel is the `rail` fault's signature, and T = 4095 alone (102 N*m) would read as
+//! an overload. A load beyond the range that the other channels confirm is still an overload.
+//!
 //! So a step that persists and agrees with the torque reaches the ECR one sample later, and an
 //! overload is reported as an overload; a spike never reaches the window. The `spike` fault
 //! (one sample of Fu +3000 codes, then back) gives `sensor hold: Fu jumped from code A to B`
@@ -66,8 +70,8 @@ impl Sensor {
 pub enum SensorFault {
     /// The code was at a rail (0 or 4095) for the settable number of consecutive samples.
     Stuck { sensor: Sensor, code: u16 },
-    /// The code moved more than `jump_codes` since the previous sample and the jump was not
-    /// plausible: force and torque disagreed, or it returned at the next sample (a spike).
+    /// The code moved more than `jump_codes` (or arrived at a rail) since the previous sample and
+    /// the jump was not plausible: force and torque disagreed, or it returned at the next sample.
     Jump { sensor: Sensor, from: u16, to: u16 },
     /// A code above 4095: not a 12-bit conversion.
     Range { sensor: Sensor, code: u16 },
@@ -239,8 +243,10 @@ impl Drr {
         }
         let m = self.measure(codes);
         if let Some(p) = prev {
+            let rail = |c: u16| c == 0 || c == CODE_MAX;
             let jumped = (0..3).fold(0u8, |acc, k| {
-                acc | (u8::from(p[k].abs_diff(codes[k]) > self.jump_codes) << k)
+                let arrives = self.jump_codes < CODE_MAX && rail(codes[k]) && !rail(p[k]);
+                acc | (u8::from(arrives || p[k].abs_diff(codes[k]) > self.jump_codes) << k)
             });
             if jumped != 0 {
                 let s = Suspect {

@@ -7,8 +7,7 @@
 //! physical plausibility (a load step that persists and agrees with the torque is load; a lone
 //! spike, or a jump force and torque disagree on, is a fault); per period the controller checks
 //! for frozen channels while the axes feed and for a gain fault (F*R/T of the window peaks outside
-//! the tool's band, [`plaus`]). Each has its own [`Alarm`]; an overload measured on accepted
-//! samples is reported first. Cost per sample: a few integer compares (and one F, T conversion
+//! the tool's band, [`plaus`]). Each has its own [`Alarm`]. Cost per sample: a few integer compares (and one F, T conversion
 //! for a jump); per period: three f32 multiplications more than before.
 //!
 //! The controller only writes a feed cap (a feed number) for the frame, which takes
@@ -316,11 +315,13 @@ impl AcController {
         };
         let mut alarm = None;
         if self.state == AcState::Run {
-            // An overload measured on samples that passed every check comes first: it is real,
-            // whatever else a sensor did in the same period (faulty samples never enter the
-            // window). Then the sensor faults, then the absence of samples.
+            // A sample-level sensor fault comes first: the samples after it (a channel stuck at
+            // the level it jumped to) may read as an overload. A real load step raises no fault
+            // (the DRR judges jumps), so an overload is still reported as an overload. Then the
+            // overload, the period-level checks, and the absence of samples.
             alarm = match (pending, measured) {
-                (_, Some(m)) if self.e < self.s.overload_e => Some(Alarm::Overload {
+                (Some(fault), _) => Some(Alarm::Sensor(fault)),
+                (None, Some(m)) if self.e < self.s.overload_e => Some(Alarm::Overload {
                     f_n: m.f_n,
                     t_nm: m.t_nm,
                     f0_n: self.f0_n,
@@ -329,7 +330,6 @@ impl AcController {
                     torque_limit_nm: self.s.torque_limit_nm,
                     e: self.e,
                 }),
-                (Some(fault), _) => Some(Alarm::Sensor(fault)),
                 (None, _) if frozen.is_some() => frozen.map(Alarm::Sensor),
                 (None, _) if mismatch.is_some() => mismatch,
                 (None, None) => Some(Alarm::NoSamples),

@@ -70,7 +70,8 @@ pub struct AcSettings {
     /// A change of a code by more than this between consecutive samples is a *jump*, judged before
     /// the sample may enter the window (see [`super::drr`]): a jump the other channels contradict
     /// (force against torque, see `ft_ratio_min`) or that returns at the next sample is a sensor
-    /// fault; a jump that is consistent and persists is load. 4095 = off. Default 1500.
+    /// fault; a jump that is consistent and persists is load. A code arriving at a rail is judged
+    /// the same way. 4095 = off (both). Default 1500.
     pub jump_codes: u16,
     /// A channel whose code stays within this many codes of where it started, for `frozen_samples`
     /// samples while the axes feed, is frozen (a dead amplifier, a hung ADC channel): a live

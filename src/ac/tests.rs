@@ -328,10 +328,13 @@ fn assert_sensor_hold(out: AcOutput, want: SensorFault) {
 
 #[test]
 fn stuck_at_rail_holds() {
-    // Limits far above full scale, so that a rail reads as a load but not as an overload.
+    // Limits far above full scale, so that a rail reads as a load but not as an overload; the
+    // force/torque judgement off (floor above any load), so arriving at the rail is judged by
+    // persistence alone and the rail samples reach the stuck count.
     let s = AcSettings {
         force_limit_n: 1.0e5,
         torque_limit_nm: 1.0e4,
+        ft_floor_nm: 1.0e7,
         ..AcSettings::default()
     };
     for (ch, rail) in [(0usize, 4095u16), (1, 0), (2, 4095)] {
@@ -360,9 +363,10 @@ fn stuck_at_rail_holds() {
         c.sample(k);
         assert_sensor_hold(c.period(), SensorFault::Stuck { sensor, code: rail });
     }
-    // 0 switches the check off.
+    // 0 switches the check off (and 4095 the jump judgement, which a rail arrival also gets).
     let mut c = ctl(AcSettings {
         stuck_samples: 0,
+        jump_codes: 4095,
         ..s
     });
     for _ in 0..100 {

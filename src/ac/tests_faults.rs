@@ -432,3 +432,42 @@ fn gain_fault_after_resume_holds_at_the_next_window_out_of_the_band() {
         "{out:?}"
     );
 }
+
+/// The `rail` fault in a heavy cut: T goes to 4095 from less than `jump_codes` below it, so it is
+/// no jump by size, and T = 102 N*m alone would read as an overload. Arriving at a rail is judged
+/// like a jump: the force (3600 N, F*R/T = 0.22) does not confirm it, so it is a sensor fault.
+/// A force that does confirm it (a real load beyond the transducer's range) is an overload.
+#[test]
+fn torque_arriving_at_the_rail_unconfirmed_is_a_sensor_fault() {
+    let s = AcSettings::default();
+    let base = cut_codes(3600.0, 0.45); // T = 50.8 N*m: code 3064, 1031 below the rail
+    let mut c = ctl(s);
+    for p in 0..3 {
+        let _ = cut_period(&mut c, 3600.0, 0.45, 1.0, p); // out of band, below ft_periods
+    }
+    c.resume();
+    feed_live(&mut c, base, 0, 9);
+    c.sample([4095, base[1], base[2]]);
+    feed_live(&mut c, [4095, base[1], base[2]], 0, 10);
+    let out = c.period();
+    assert!(
+        matches!(
+            out.alarm,
+            Some(Alarm::Sensor(SensorFault::Jump {
+                sensor: Sensor::Torque,
+                to: 4095,
+                ..
+            }))
+        ),
+        "{out:?}"
+    );
+    // Confirmed by the force: an overload.
+    let high = cut_codes(5000.0, 0.9);
+    let mut c = ctl(s);
+    feed_live(&mut c, cut_codes(3000.0, 0.9), 0, 10);
+    c.period();
+    c.sample([high[0], 4095, high[2]]);
+    c.sample([high[0], 4095, high[2]]);
+    let out = c.period();
+    assert!(matches!(out.alarm, Some(Alarm::Overload { .. })), "{out:?}");
+}
