@@ -20,23 +20,27 @@
 //!
 //! A code that moves more than `jump_codes` since the previous sample is a *jump*. A real load
 //! can do that: with straight flutes a full-depth entry steps Fu by 1900 codes in one sample. A
-//! jump is therefore judged by its physical plausibility before the sample may enter the window:
-//! - the other channels must confirm it: F*R/T of the jumped sample inside the force/torque band
-//!   ([`super::plaus`]; a Fu spike does not move T, a T stuck at a rail does not move F). If not:
-//!   [`SensorFault::Jump`] at once;
-//! - it must persist: the jumped sample is kept out of the window until the next sample; if a
-//!   jumped channel is back (closer to its code before the jump than to the jumped code), the
-//!   jump was a lone spike: [`SensorFault::Jump`]. Otherwise it is load, and the kept sample
-//!   enters the window (before the one that confirmed it).
+//! jump is therefore judged by its physical plausibility before the sample may enter the window,
+//! first by the other channels, F*R/T of the jumped sample against the force/torque band
+//! ([`super::plaus`]):
+//! - outside the band (a Fu spike does not move T, a T stuck at a rail does not move F):
+//!   [`SensorFault::Jump`] at once, the sample kept out;
+//! - inside the band: load, into the window at once, even a one-sample pulse (the model makes
+//!   them when a tooth meets a wall: the chips made it, so it counts);
+//! - both F*R and T below the band's floor (nothing to judge; with the default 1500 codes and
+//!   5 N*m floor a jump is always large enough to judge): by persistence. The sample is kept out
+//!   until the next one; if a jumped channel is back (closer to its code before the jump than to
+//!   the jumped code) it was a lone spike, [`SensorFault::Jump`]; otherwise it enters the window.
 //!
 //! A code that *arrives at a rail* (0 or 4095) is judged the same way whatever its size: a
 //! saturated channel is the `rail` fault's signature, and T = 4095 alone (102 N*m) would read as
 //! an overload. A load beyond the range that the other channels confirm is still an overload.
 //!
-//! So a step that persists and agrees with the torque reaches the ECR one sample later, and an
-//! overload is reported as an overload; a spike never reaches the window. The `spike` fault
-//! (one sample of Fu +3000 codes, then back) gives `sensor hold: Fu jumped from code A to B`
-//! and holds the feed at the end of the AC period.
+//! So a real load step reaches the ECR with its own sample and an overload is reported as an
+//! overload; a spike never reaches the window. The `spike` fault (one sample of Fu +3000 codes,
+//! then back) gives `sensor hold: Fu jumped from code A to B` and holds the feed at the end of
+//! the AC period. (A spike that happens to leave F and T consistent, e.g. Fu -3750 N -> +3750 N,
+//! passes as load: it does not change F, so it cannot mislead the feed.)
 
 use super::ecr;
 use super::plaus::Band;
@@ -201,8 +205,8 @@ impl Drr {
 
     /// One conversion of the three ADCs. A faulty sample is reported and kept out of the window.
     /// Checks, per channel in the order T, Fu, Fv: range, then stuck at a rail; then the judgement
-    /// of a pending jump and the jump check (see the module docs). A jumped sample is kept out
-    /// (`Ok`) until the next sample judges it.
+    /// of a pending jump and the jump check (see the module docs). A jumped sample too small for
+    /// the force/torque judgement is kept out (`Ok`) until the next sample judges it.
     pub fn sample(&mut self, codes: [u16; 3]) -> Result<(), SensorFault> {
         let mut fault = None;
         for (k, (&code, &sensor)) in codes.iter().zip(Sensor::ALL.iter()).enumerate() {
@@ -255,12 +259,17 @@ impl Drr {
                     jumped,
                 };
                 let first = jumped.trailing_zeros() as usize;
-                if self.band.judge(m.f_n, m.t_nm) == Some(false) {
+                match self.band.judge(m.f_n, m.t_nm) {
                     // Force and torque disagree: the other channels do not confirm the jump.
-                    return Err(fault.unwrap_or(s.fault(first)));
+                    Some(false) => return Err(fault.unwrap_or(s.fault(first))),
+                    // They agree: load (even a one-sample pulse: the chips made it).
+                    Some(true) => {}
+                    // Too small to judge: kept out until the next sample shows it persists.
+                    None => {
+                        self.suspect = Some(s);
+                        return fault.map_or(Ok(()), Err);
+                    }
                 }
-                self.suspect = Some(s);
-                return fault.map_or(Ok(()), Err);
             }
         }
         if let Some(f) = fault {

@@ -396,8 +396,9 @@ fn implausible_jump_holds() {
     c.sample([MID; 3]);
     c.sample([MID, MID, MID + 1500]); // exactly the limit: no jump
     assert_eq!(c.period().state, AcState::Run);
-    // A jump of 1501 codes down to F = 2.5 N, too small for the force/torque judgement: kept out
-    // and judged by the next sample, which is back: a spike.
+    // A jump of 1501 codes down to F = 2.5 N: the window before had F = 3750 N without torque,
+    // but the jumped sample is too small for the force/torque judgement: kept out and judged by
+    // the next sample, which is back: a spike.
     c.sample([MID, MID, MID + 1500]);
     c.sample([MID, MID, MID - 1]);
     c.sample([MID, MID, MID + 1499]);
