@@ -26,9 +26,7 @@ pub const AC_LOG_FILE: &str = "ac.log\0";
 
 /// A file name above without its NUL.
 pub fn file_name(nul_terminated: &'static str) -> &'static str {
-    nul_terminated
-        .strip_suffix('\0')
-        .unwrap_or(nul_terminated)
+    nul_terminated.strip_suffix('\0').unwrap_or(nul_terminated)
 }
 
 /// Header magic.

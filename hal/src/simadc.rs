@@ -55,7 +55,6 @@ impl SimAdc {
         let header = Header::parse(&h)?;
         Some((SimAdc { req, resp }, header.flags))
     }
-
 }
 
 impl ForceTorqueAdc for SimAdc {

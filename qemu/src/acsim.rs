@@ -67,8 +67,9 @@ pub struct HostRun {
     /// Position after every frame that pulsed, with the programmed feed (ipm) and the block index.
     pub path: Vec<([i64; 3], f64, usize)>,
     pub held: bool,
-    /// The alarm that entered the hold, as the firmware prints it (`alarm: ...`).
-    pub alarm: Option<String>,
+    /// The alarm that first held the feed (None: no hold); its text is what the firmware prints
+    /// (`alarm: ...`).
+    pub alarm: Option<millac::ac::Alarm>,
     /// Blocks completed when the run ended (the program's length when it finished).
     pub blocks_done: usize,
     /// Per block: (index, first frame start, last frame end) in ns of virtual time.
@@ -132,6 +133,20 @@ pub fn run_with(
     ac: Option<AcSettings>,
     anti_windup: bool,
 ) -> Result<HostRun> {
+    run_with_faults(prog, settings, cut, ac, anti_windup, &[])
+}
+
+/// As [`run_with`], with sensor faults injected into the codes the controller samples (see
+/// [`crate::fault`]; the zero-force codes are the AC calibration's offsets). The true force and
+/// torque of `HostRun::samples` are the process's.
+pub fn run_with_faults(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    ac: Option<AcSettings>,
+    anti_windup: bool,
+    faults: &[crate::fault::Fault],
+) -> Result<HostRun> {
     let mut frame = Frame::new(FrameConfig::from_settings(settings));
     // The loader applies an enabled AC's feed ceiling, as in the firmware.
     let mut queue = Queue(
@@ -152,6 +167,7 @@ pub fn run_with(
         Some(s) => Some(AcController::new(s).map_err(|e| anyhow!("AC settings: {}", e.message()))?),
         None => None,
     };
+    let mut injector = crate::fault::Injector::new(faults, acs.cal.map(|c| f64::from(c.offset)));
     let sample_ns = 1_000_000_000 / acs.sample_hz as u64;
     let ac_ns = acs.period_ms as u64 * 1_000_000;
     let mut out = HostRun::default();
@@ -206,8 +222,11 @@ pub fn run_with(
             out.samples.push((s.f_true_n, s.t_true_nm));
             f_peak = f_peak.max(s.f_true_n);
             t_peak = t_peak.max(s.t_true_nm.abs());
-            if let Some(c) = ctl.as_mut() {
-                c.sample(s.codes);
+            if let (Some(c), Some(codes)) = (
+                ctl.as_mut(),
+                injector.apply(next_sample as f64 * 1e-9, s.codes),
+            ) {
+                c.sample(codes);
             }
             next_sample += sample_ns;
         }
@@ -220,8 +239,8 @@ pub fn run_with(
                     }
                     let o = c.period();
                     feed_cap = o.feed_cap;
-                    if let Some(a) = o.alarm {
-                        out.alarm.get_or_insert_with(|| a.to_string());
+                    if out.alarm.is_none() {
+                        out.alarm = o.alarm;
                     }
                     let state = match o.state {
                         AcState::Run => "run".to_string(),

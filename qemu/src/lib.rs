@@ -11,6 +11,7 @@ pub mod capture;
 pub mod cosim;
 pub mod cut;
 pub mod elf;
+pub mod fault;
 pub mod firmware;
 pub mod plugin;
 pub mod runner;

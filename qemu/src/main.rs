@@ -51,6 +51,10 @@ enum Cmd {
         out: PathBuf,
         #[command(flatten)]
         cut: CutArgs,
+        /// Inject a sensor fault KIND@SECONDS (rail, frozen, dropout, spike, gain; repeatable),
+        /// e.g. --fault gain@2.5. See millac_qemu::fault for each fault's alarm.
+        #[arg(long = "fault", value_name = "KIND@SECONDS")]
+        faults: Vec<millac_qemu::fault::Fault>,
     },
     /// Check a VCD capture against a program (no QEMU); writes a summary to stdout.
     Analyse { capture: PathBuf, program: PathBuf },
@@ -92,9 +96,14 @@ fn main() {
             run(text, &out, shift, (!nc_only).then_some(&cut))
         }),
         Some(Cmd::Analyse { capture, program }) => analyse_file(&capture, &program),
-        Some(Cmd::Host { program, out, cut }) => match program {
-            Some(p) => with_program(&p, &out, |text| host(text, &out, &cut)),
-            None => host(DEMO, &out, &cut),
+        Some(Cmd::Host {
+            program,
+            out,
+            cut,
+            faults,
+        }) => match program {
+            Some(p) => with_program(&p, &out, |text| host(text, &out, &cut, &faults)),
+            None => host(DEMO, &out, &cut, &faults),
         },
     };
     match result {
@@ -179,7 +188,12 @@ fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
     })
 }
 
-fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
+fn host(
+    text: &str,
+    out: &Path,
+    args: &CutArgs,
+    faults: &[millac_qemu::fault::Fault],
+) -> Result<bool> {
     use millac_qemu::{acreport, acsim};
     let settings = Settings::default();
     let prog = match analysis::load_program(text, &settings) {
@@ -195,7 +209,14 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
     let cut = cut_setup(text, args)?;
     let acs = millac::ac::AcSettings::default();
     std::fs::create_dir_all(out)?;
-    let run = acsim::run(&prog, &settings, &cut, (!args.no_ac).then_some(acs))?;
+    let run = acsim::run_with_faults(
+        &prog,
+        &settings,
+        &cut,
+        (!args.no_ac).then_some(acs),
+        true,
+        faults,
+    )?;
     std::fs::write(out.join("ac.csv"), acsim::csv(&run.rows))?;
     let f0 = acs.f0_n() as f64;
     let t0 = acs.t0_nm() as f64;
@@ -219,6 +240,9 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
         if args.no_ac { "no AC" } else { "AC" },
         run.final_position
     );
+    if let Some(a) = run.alarm {
+        println!("  alarm: {a}");
+    }
     // The keys of `run`'s summary.json that apply to a host run.
     let completed = run.blocks_done >= prog.len();
     let [x, y, z] = run.final_position;
@@ -237,7 +261,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
         .filter(|r| r.state.starts_with("hold"))
         .count());
     let hold = (!completed).then(|| runner::Hold {
-        alarm: run.alarm.clone().unwrap_or_default(),
+        alarm: run.alarm.map(|a| a.to_string()).unwrap_or_default(),
         blocks_done: run.blocks_done,
         position: run.final_position,
     });

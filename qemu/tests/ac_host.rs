@@ -156,6 +156,81 @@ fn entry_from_air_cut_overshoot_is_reported() {
     }
 }
 
+/// Issue 6, D4: the full-depth entry at F30 steps Fu by about 1930 codes in one sample (more than
+/// the 1500-code jump limit). The step persists and torque moves with it: a real overload, and the
+/// hold must say so (it used to report "sensor hold: Fu jumped from code 2049 to 3978").
+#[test]
+fn full_depth_entry_at_f30_holds_on_overload_not_on_a_sensor_jump() {
+    use millac::ac::Alarm;
+    let c = cut("blank X0 Y0 W5 H3 Z0\n", Material::STEEL);
+    let (run, f0) = run_any("G20 G90\nG0 X-1 Y1.5\nG0 Z-0.3\nG1 X2.5 F30\nM2\n", &c);
+    assert!(run.held);
+    let Some(Alarm::Overload { f_n, e, .. }) = run.alarm else {
+        panic!("expected an overload hold, got {:?}", run.alarm);
+    };
+    println!("entry at F30: {}", run.alarm.unwrap());
+    assert!(f64::from(f_n) > 1.1 * f0 && e < AcSettings::default().overload_e);
+    let hold = run.rows.iter().find(|r| r.state != "run").unwrap();
+    assert_eq!(hold.state, format!("hold:{}", run.alarm.unwrap().message()));
+}
+
+/// Issue 6, G and the fault list: each injected sensor fault, 3 s into a steady full slot (at
+/// about 21 ipm, near F0), holds with its own alarm. The gain fault (Fu, Fv read half the force)
+/// looks like a light cut to the force codes; the torque gives it away.
+#[test]
+fn injected_sensor_faults_hold_with_their_own_alarm() {
+    use millac::ac::{Alarm, SensorFault};
+    use millac_qemu::fault::{Fault, FaultKind};
+    let c = cut("blank X0 Y0 W5 H3 Z0\n", Material::STEEL);
+    let settings = Settings::default();
+    let prog = analysis::load_program(
+        "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X3 F22\nM2\n",
+        &settings,
+    )
+    .unwrap();
+    let acs = AcSettings::default();
+    for kind in FaultKind::ALL {
+        let fault = Fault { kind, at_s: 3.0 };
+        let run = acsim::run_with_faults(&prog, &settings, &c, Some(acs), true, &[fault]).unwrap();
+        let alarm = run.alarm.expect("the fault holds");
+        let hold = run.rows.iter().find(|r| r.state != "run").unwrap();
+        println!("{} at 3 s: held at {} ms: {alarm}", kind.name(), hold.t_ms);
+        assert!(hold.t_ms >= 3000, "no hold before the fault");
+        assert!(
+            hold.t_ms <= 3000 + 10 * (acs.ft_periods as u64 + 2),
+            "held promptly"
+        );
+        let ok = match (kind, alarm) {
+            (FaultKind::Rail, Alarm::Sensor(SensorFault::Jump { to: 4095, .. })) => true,
+            (FaultKind::Rail, Alarm::Sensor(SensorFault::Stuck { code: 4095, .. })) => true,
+            (FaultKind::Frozen, Alarm::Sensor(SensorFault::Frozen { .. })) => true,
+            (FaultKind::Dropout, Alarm::NoSamples) => true,
+            (FaultKind::Spike, Alarm::Sensor(SensorFault::Jump { .. })) => true,
+            (FaultKind::Gain, Alarm::ForceTorqueMismatch { ratio, .. }) => ratio < acs.ft_ratio_min,
+            _ => false,
+        };
+        assert!(ok, "{}: unexpected alarm {alarm:?}", kind.name());
+        // The true force never reaches the permissible limit while the fault is judged.
+        let peak = peak_after(&run, 3000);
+        assert!(
+            peak < f64::from(acs.force_limit_n),
+            "{}: peak {peak} N",
+            kind.name()
+        );
+    }
+}
+
+/// The honest runs of the benchmark never hold: no false alarm of the fault detectors.
+#[test]
+fn pocket_with_its_stock_runs_without_a_hold() {
+    let c = Cut {
+        stock: Stock::parse(include_str!("../programs/pocket.stock")).unwrap(),
+        seed: 1,
+        ..cut("blank X0 Y0 W1 H1 Z0\n", Material::STEEL)
+    };
+    run_ac(include_str!("../programs/pocket.nc"), &c);
+}
+
 #[test]
 fn fig1_cavity_with_ac_ends_where_it_ends_without() {
     let text = include_str!("../programs/fig1-cavity.nc");

@@ -21,8 +21,11 @@ const WINDOW: usize = 10;
 /// Mid-scale code (zero load) of the default calibration.
 const MID: f64 = 2048.0;
 
-/// Force (N) = `n_per_blu_s` x path speed (BLU/s) over the last `WINDOW` samples, on Fu; Fv and
-/// T at zero load. From sample `stuck_from` on, T is stuck at the upper rail.
+/// Force (N) = `n_per_blu_s` x path speed (BLU/s) over the last `WINDOW` samples, on Fu; Fv at
+/// zero load; T the torque of that force on the default 0.5 in cutter (F*R/T = 0.9, inside the
+/// AC's force/torque band). Every channel carries a small deterministic dither (+-2 codes), as a
+/// live transducer does (a perfectly still channel while the axes feed is a frozen sensor to the
+/// AC). From sample `stuck_from` on, T is stuck at the upper rail.
 struct Toy {
     n_per_blu_s: f64,
     hist: VecDeque<[i64; 3]>,
@@ -52,13 +55,18 @@ impl Plant for Toy {
         let d2: f64 = (0..3).map(|k| ((pos[k] - first[k]) as f64).powi(2)).sum();
         let n = (self.hist.len() - 1).max(1) as f64;
         let force = self.n_per_blu_s * d2.sqrt() / n * 1000.0;
-        let gain = f64::from(AcSettings::default().cal[1].gain);
-        let fu = (MID + force / gain).round().clamp(0.0, 4095.0) as u16;
+        let cal = AcSettings::default().cal;
+        let dither = [0.0, 2.0, 0.0, -2.0][index as usize % 4];
+        let code = |v: f64, k: usize| {
+            (MID + v / f64::from(cal[k].gain) + dither)
+                .round()
+                .clamp(0.0, 4095.0) as u16
+        };
         let t = match self.stuck_from {
             Some(s) if index >= s => 4095,
-            _ => 2048,
+            _ => code(force * 0.00635 / 0.9, 0),
         };
-        [t, fu, 2048]
+        [t, code(force, 1), code(0.0, 2)]
     }
 }
 

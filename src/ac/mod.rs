@@ -3,6 +3,13 @@
 //! hold with alarms. [`AcController`] runs in the AC task: `sample` at the sample rate (1 kHz),
 //! `period` every AC period (10 ms), `resume` on the operator's command.
 //!
+//! Sensor faults (issue 6): per sample the DRR checks range, rails, and judges jumps by their
+//! physical plausibility (a load step that persists and agrees with the torque is load; a lone
+//! spike, or a jump force and torque disagree on, is a fault); per period the controller checks
+//! for frozen channels while the axes feed and for a gain fault (F*R/T of the window peaks outside
+//! the tool's band, [`plaus`]). Each has its own [`Alarm`]. Cost per sample: a few integer compares (and one F, T conversion
+//! for a jump); per period: three f32 multiplications more than before.
+//!
 //! The controller only writes a feed cap (a feed number) for the frame, which takes
 //! min(programmed, cap); 0 holds the feed. A hold never loses position: the frame keeps its
 //! counters and simply stops feeding.
@@ -13,9 +20,12 @@
 pub mod drr;
 pub mod ecr;
 pub mod frc;
+pub mod plaus;
 pub mod settings;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_faults;
 
 pub use drr::{Drr, Measured, Sensor, SensorFault, CODE_MAX};
 pub use ecr::Errors;
@@ -39,6 +49,18 @@ pub enum Alarm {
     Sensor(SensorFault),
     /// No sample arrived (or none passed the checks) during an AC period.
     NoSamples,
+    /// Force and torque disagree: F*R/T of the window peaks (`ratio`) stayed outside the band
+    /// `lo..hi` the tool geometry allows for `periods` AC periods while cutting. A gain fault (a
+    /// loose transducer reads a fraction of the force) that the force codes alone cannot show;
+    /// it cannot say which channel is wrong, so it names no sensor.
+    ForceTorqueMismatch {
+        f_n: f32,
+        t_nm: f32,
+        ratio: f32,
+        lo: f32,
+        hi: f32,
+        periods: u32,
+    },
 }
 
 impl Alarm {
@@ -49,7 +71,9 @@ impl Alarm {
             Alarm::Sensor(SensorFault::Stuck { .. }) => "sensor stuck at an ADC rail",
             Alarm::Sensor(SensorFault::Jump { .. }) => "sensor jump larger than plausible",
             Alarm::Sensor(SensorFault::Range { .. }) => "sensor code outside 0..=4095",
+            Alarm::Sensor(SensorFault::Frozen { .. }) => "sensor frozen while the axes feed",
             Alarm::NoSamples => "no fresh sensor samples in an AC period",
+            Alarm::ForceTorqueMismatch { .. } => "force and torque disagree (transducer gain)",
         }
     }
 }
@@ -87,7 +111,28 @@ impl core::fmt::Display for Alarm {
                     sensor.name()
                 )
             }
+            Alarm::Sensor(SensorFault::Frozen {
+                sensor,
+                code,
+                samples,
+            }) => write!(
+                w,
+                "sensor hold: {} frozen at code {code} for {samples} samples",
+                sensor.name()
+            ),
             Alarm::NoSamples => w.write_str("sensor hold: no fresh samples in an AC period"),
+            Alarm::ForceTorqueMismatch {
+                f_n,
+                t_nm,
+                ratio,
+                lo,
+                hi,
+                periods,
+            } => write!(
+                w,
+                "sensor hold: force and torque disagree: F*R/T = {ratio:.2} outside \
+                 {lo:.2}..{hi:.2} for {periods} periods (F = {f_n:.1} N, T = {t_nm:.2} N*m)"
+            ),
         }
     }
 }
@@ -135,6 +180,9 @@ pub struct AcController {
     t_nm: f32,
     /// Feed number achieved over the last period (anti-windup), taken by the next `period`.
     achieved: Option<u32>,
+    band: plaus::Band,
+    /// Periods with F*R/T of the window peaks outside the band since the last one inside it.
+    mismatch: u32,
 }
 
 /// Applies the feed ceiling of an enabled AC to a validated block before it is queued (loader task):
@@ -181,6 +229,8 @@ impl AcController {
             f_n: 0.0,
             t_nm: 0.0,
             achieved: None,
+            band: plaus::Band::new(&s),
+            mismatch: 0,
             s,
         })
     }
@@ -222,19 +272,55 @@ impl AcController {
     /// One AC period: ends the DRR window, runs ECR and FRC (or holds), returns the feed cap.
     pub fn period(&mut self) -> AcOutput {
         let measured = self.drr.take(self.s.pick);
+        let mut mismatch = None;
+        let mut out_of_band = false;
         if let Some(m) = measured {
             let err = ecr::errors(m.f_n, m.t_nm, self.f0_n, self.t0_nm);
             self.e = err.e;
             self.f_n = m.f_n;
             self.t_nm = m.t_nm;
+            // Gain fault: force against torque on this window's own peaks. A window in the band
+            // restarts the count; one below the floor (a tooth gap, air) leaves it.
+            let w = self.drr.window_peak();
+            match self.band.judge(w.f_n, w.t_nm) {
+                Some(true) => self.mismatch = 0,
+                Some(false) => {
+                    self.mismatch = self.mismatch.saturating_add(1);
+                    out_of_band = true;
+                }
+                None => {}
+            }
+            // Raised only on a window that is itself out of the band (after a resume in air the
+            // count stays, and the next window out of the band holds again at once).
+            if self.s.ft_periods > 0 && out_of_band && self.mismatch >= self.s.ft_periods {
+                mismatch = Some(Alarm::ForceTorqueMismatch {
+                    f_n: w.f_n,
+                    t_nm: w.t_nm,
+                    ratio: self.band.ratio(w.f_n, w.t_nm),
+                    lo: self.s.ft_ratio_min,
+                    hi: self.s.ft_ratio_max,
+                    periods: self.mismatch,
+                });
+            }
         }
         let pending = self.pending.take();
         let achieved = self.achieved.take();
+        // Frozen channels count only while the axes feed (an idle machine may be quiet); without
+        // an achieved feed the controller cannot tell, and the check is off.
+        let frozen = if achieved.is_some_and(|a| a > 0) {
+            self.drr.frozen(self.s.frozen_samples)
+        } else {
+            self.drr.restart_frozen();
+            None
+        };
         let mut alarm = None;
         if self.state == AcState::Run {
+            // A sample-level sensor fault comes first: the samples after it (a channel stuck at
+            // the level it jumped to) may read as an overload. A real load step raises no fault
+            // (the DRR judges jumps), so an overload is still reported as an overload. Then the
+            // overload, the period-level checks, and the absence of samples.
             alarm = match (pending, measured) {
                 (Some(fault), _) => Some(Alarm::Sensor(fault)),
-                (None, None) => Some(Alarm::NoSamples),
                 (None, Some(m)) if self.e < self.s.overload_e => Some(Alarm::Overload {
                     f_n: m.f_n,
                     t_nm: m.t_nm,
@@ -244,8 +330,17 @@ impl AcController {
                     torque_limit_nm: self.s.torque_limit_nm,
                     e: self.e,
                 }),
+                (None, _) if frozen.is_some() => frozen.map(Alarm::Sensor),
+                (None, _) if mismatch.is_some() => mismatch,
+                (None, None) => Some(Alarm::NoSamples),
                 (None, Some(_)) => {
-                    self.f = frc::next_feed(self.f, self.e, self.step, self.s.f_min, self.s.f_max);
+                    let f = frc::next_feed(self.f, self.e, self.step, self.s.f_min, self.s.f_max);
+                    // While force and torque disagree the measured load may be too low: no raise.
+                    self.f = if self.s.ft_periods > 0 && out_of_band {
+                        f.min(self.f)
+                    } else {
+                        f
+                    };
                     if let Some(a) = achieved {
                         let lead = a.saturating_add(self.step as u32).max(self.s.f_min);
                         if self.f > lead {

@@ -67,8 +67,42 @@ pub struct AcSettings {
     /// A code at a rail (0 or 4095) this many consecutive samples is a stuck sensor. 0 = off.
     /// Default 20 (20 ms at 1 kHz).
     pub stuck_samples: u32,
-    /// Largest plausible change of a code between consecutive samples. 4095 = off. Default 1500.
+    /// A change of a code by more than this between consecutive samples is a *jump*, judged before
+    /// the sample may enter the window (see [`super::drr`]): a jump the other channels contradict
+    /// (force against torque, see `ft_ratio_min`) or that returns at the next sample is a sensor
+    /// fault; a jump that is consistent and persists is load. A code arriving at a rail is judged
+    /// the same way. 4095 = off (both). Default 1500.
     pub jump_codes: u16,
+    /// A channel whose code stays within this many codes of where it started, for `frozen_samples`
+    /// samples while the axes feed, is frozen (a dead amplifier, a hung ADC channel): a live
+    /// transducer always moves (noise, tooth pulsation, the rotating holder). 0..=100 and below
+    /// `jump_codes`. Default 1 (the simulated transducer's noise is 2 codes sigma; set it above the
+    /// real channel's quantisation and below its noise in a cut).
+    pub frozen_codes: u16,
+    /// Samples a channel must stay within `frozen_codes` while the axes feed (the achieved feed of
+    /// [`super::AcController::set_achieved`] above zero) to be frozen. 0 = off. Default 50 (50 ms:
+    /// half a spindle turn at 600 rpm).
+    pub frozen_samples: u32,
+    /// Cutter radius R in mm, for the force/torque plausibility F*R/T. Default 6.35 (the 0.5 in
+    /// end mill of the demo).
+    pub tool_radius_mm: f32,
+    /// Band of F*R/T that a cut can produce. One tooth cutting gives sqrt(1 + Kr^2) (1.04 at
+    /// Kr = 0.3); several teeth partly cancel in the resultant F but not in T: a full slot with a
+    /// 4-flute cutter gives 0.74..1.04, many teeth tend to pi/4 sqrt(1 + Kr^2) = 0.82. Defaults
+    /// 0.6 and 1.4: a margin of about 20 % on the model's honest range, while a gain fault that
+    /// halves Fu, Fv (0.37..0.52) or T (1.5..2.1) falls outside. Widen it for other cutters.
+    pub ft_ratio_min: f32,
+    /// Upper end of the F*R/T band (see `ft_ratio_min`). Default 1.4.
+    pub ft_ratio_max: f32,
+    /// F*R/T is judged only when T or F*R is at least this (N*m), well above the noise (the
+    /// default transducer's noise is 0.1 N*m on T, 0.03 N*m on F*R). Default 5 N*m (7 % of T0).
+    pub ft_floor_nm: f32,
+    /// AC windows whose peaks give F*R/T outside the band (above the floor) that hold the feed
+    /// with [`super::Alarm::ForceTorqueMismatch`]: a gain fault (a loose or miscalibrated
+    /// transducer). A window in the band restarts the count, one below the floor (air, a tooth
+    /// gap) leaves it. In a window out of the band the FRC does not raise the feed. 0 = off (the
+    /// band still judges jumps). Default 5 (50 ms).
+    pub ft_periods: u32,
     /// With `Pick::Peak`, the peak is held over this many AC windows (the current one and the
     /// ones before it), 1..=8. Beyond the paper: a window must span a tooth period, or the peak
     /// misses the tooth and the FRC raises the feed on a false low reading. At 600 rpm a 4-flute
@@ -124,6 +158,13 @@ impl Default for AcSettings {
             overload_e: -0.1,
             stuck_samples: 20,
             jump_codes: 1500,
+            frozen_codes: 1,
+            frozen_samples: 50,
+            tool_radius_mm: 6.35,
+            ft_ratio_min: 0.6,
+            ft_ratio_max: 1.4,
+            ft_floor_nm: 5.0,
+            ft_periods: 5,
             peak_windows: 3,
             ceiling: FeedCeiling::Programmed,
         }
@@ -145,6 +186,12 @@ pub enum AcSettingsError {
     StuckSamples,
     JumpCodes,
     PeakWindows,
+    FrozenCodes,
+    FrozenSamples,
+    ToolRadius,
+    ForceTorqueBand,
+    ForceTorqueFloor,
+    ForceTorquePeriods,
 }
 
 impl AcSettingsError {
@@ -166,6 +213,22 @@ impl AcSettingsError {
             AcSettingsError::StuckSamples => "stuck-sensor count must be 0 (off) ..=1000000 samples",
             AcSettingsError::JumpCodes => "plausible jump must be 1..=4095 codes",
             AcSettingsError::PeakWindows => "the peak must be held over 1..=8 AC windows",
+            AcSettingsError::FrozenCodes => {
+                "frozen-sensor band must be 0..=100 codes and below the plausible jump"
+            }
+            AcSettingsError::FrozenSamples => {
+                "frozen-sensor count must be 0 (off) ..=1000000 samples"
+            }
+            AcSettingsError::ToolRadius => "tool radius must be finite and in (0, 1000] mm",
+            AcSettingsError::ForceTorqueBand => {
+                "F*R/T band must be finite with 0 < ft_ratio_min < ft_ratio_max <= 100"
+            }
+            AcSettingsError::ForceTorquePeriods => {
+                "force/torque mismatch count must be 0 (off) ..=100000 AC periods"
+            }
+            AcSettingsError::ForceTorqueFloor => {
+                "F*R/T torque floor must be finite and in (0, 1e7] N*m"
+            }
         }
     }
 }
@@ -226,6 +289,27 @@ impl AcSettings {
         }
         if !(1..=PEAK_WINDOWS_MAX as u32).contains(&self.peak_windows) {
             return Err(AcSettingsError::PeakWindows);
+        }
+        if self.frozen_codes > 100 || self.frozen_codes >= self.jump_codes {
+            return Err(AcSettingsError::FrozenCodes);
+        }
+        if self.frozen_samples > 1_000_000 {
+            return Err(AcSettingsError::FrozenSamples);
+        }
+        let r = self.tool_radius_mm;
+        if !(r.is_finite() && r > 0.0 && r <= 1000.0) {
+            return Err(AcSettingsError::ToolRadius);
+        }
+        let (lo, hi) = (self.ft_ratio_min, self.ft_ratio_max);
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo < hi && hi <= 100.0) {
+            return Err(AcSettingsError::ForceTorqueBand);
+        }
+        let fl = self.ft_floor_nm;
+        if !(fl.is_finite() && fl > 0.0 && fl <= 1e7) {
+            return Err(AcSettingsError::ForceTorqueFloor);
+        }
+        if self.ft_periods > 100_000 {
+            return Err(AcSettingsError::ForceTorquePeriods);
         }
         Ok(())
     }

@@ -222,8 +222,12 @@ fn ecr_force_and_smaller_error() {
     let e = ecr::errors(3780.0, 36.0, 3600.0, 72.0);
     assert_eq!(e.e, e.ef);
     assert!(e.e < 0.0);
-    // Through the controller: a torque-limited cut runs on Et.
-    let mut c = ctl(AcSettings::default());
+    // Through the controller: a torque-limited cut runs on Et (not a cut the default 0.5 in tool
+    // can make, F*R/T = 0.21: the force/torque check is off).
+    let mut c = ctl(AcSettings {
+        ft_periods: 0,
+        ..AcSettings::default()
+    });
     let out = window(&mut c, codes(54.0, 1800.0, 0.0));
     assert_eq!(out.e, 0.25);
     assert_eq!(out.feed_cap, 100 + 46);
@@ -241,7 +245,11 @@ fn settle(c: &mut AcController, k: [u16; 3], n: usize) -> AcOutput {
 
 #[test]
 fn overload_holds_within_one_period_and_resume_restarts_at_f_min() {
-    let s = AcSettings::default();
+    // Force and torque set freely (F*R/T up to 2.7): the force/torque check is off.
+    let s = AcSettings {
+        ft_periods: 0,
+        ..AcSettings::default()
+    };
     let mut c = ctl(s);
     let air = codes(1.0, 100.0, 0.0);
     let out = settle(&mut c, air, 10);
@@ -320,10 +328,13 @@ fn assert_sensor_hold(out: AcOutput, want: SensorFault) {
 
 #[test]
 fn stuck_at_rail_holds() {
-    // Limits far above full scale, so that a rail reads as a load but not as an overload.
+    // Limits far above full scale, so that a rail reads as a load but not as an overload; the
+    // force/torque judgement off (floor above any load), so arriving at the rail is judged by
+    // persistence alone and the rail samples reach the stuck count.
     let s = AcSettings {
         force_limit_n: 1.0e5,
         torque_limit_nm: 1.0e4,
+        ft_floor_nm: 1.0e7,
         ..AcSettings::default()
     };
     for (ch, rail) in [(0usize, 4095u16), (1, 0), (2, 4095)] {
@@ -352,9 +363,10 @@ fn stuck_at_rail_holds() {
         c.sample(k);
         assert_sensor_hold(c.period(), SensorFault::Stuck { sensor, code: rail });
     }
-    // 0 switches the check off.
+    // 0 switches the check off (and 4095 the jump judgement, which a rail arrival also gets).
     let mut c = ctl(AcSettings {
         stuck_samples: 0,
+        jump_codes: 4095,
         ..s
     });
     for _ in 0..100 {
@@ -382,10 +394,14 @@ fn implausible_jump_holds() {
     let s = AcSettings::default();
     let mut c = ctl(s);
     c.sample([MID; 3]);
-    c.sample([MID, MID, MID + 1500]); // exactly the limit: plausible
+    c.sample([MID, MID, MID + 1500]); // exactly the limit: no jump
     assert_eq!(c.period().state, AcState::Run);
+    // A jump of 1501 codes down to F = 2.5 N: the window before had F = 3750 N without torque,
+    // but the jumped sample is too small for the force/torque judgement: kept out and judged by
+    // the next sample, which is back: a spike.
     c.sample([MID, MID, MID + 1500]);
     c.sample([MID, MID, MID - 1]);
+    c.sample([MID, MID, MID + 1499]);
     let want = SensorFault::Jump {
         sensor: Sensor::ForceV,
         from: MID + 1500,
@@ -536,7 +552,9 @@ fn closed_loop_through_the_controller() {
         let mut cap = c.feed_cap();
         let mut caps = Vec::new();
         for _ in 0..300 {
-            let out = window(&mut c, codes(0.0, k * cap as f32, 0.0));
+            // With the torque of the default tool (F*R/T = 0.9).
+            let f = k * cap as f32;
+            let out = window(&mut c, codes(f * 0.00635 / 0.9, f, 0.0));
             assert_eq!(out.state, AcState::Run);
             assert!(
                 out.e > -0.001,
@@ -606,12 +624,16 @@ fn anti_windup_keeps_f_one_step_above_the_achieved_feed() {
     let mut free = ctl(AcSettings::default());
     let out = settle(&mut free, air, 20);
     assert_eq!(out.feed_cap, AcSettings::default().f_max);
-    // With the programmed feed binding at 12 ipm, the cap stays one step (7.5 ipm) above it.
+    // With the programmed feed binding at 12 ipm, the cap stays one step (7.5 ipm) above it. The
+    // axes feed, so the transducer must look alive (2 codes of noise), or it is frozen.
     let mut c = ctl(AcSettings::default());
     let mut last = 0;
     for _ in 0..20 {
         c.set_achieved(1200);
-        last = window(&mut c, air).feed_cap;
+        for i in 0..10u16 {
+            c.sample([MID + 2 * (i % 2); 3]);
+        }
+        last = c.period().feed_cap;
         assert!(last <= 1200 + 750, "{last}");
     }
     assert_eq!(last, 1950);

@@ -120,8 +120,7 @@ impl AcPeriod {
         if self.anti_windup {
             let d = [0, 1, 2].map(|k| i64::from(enc[k]) - i64::from(self.last[k]));
             let period_ms = self.ctl.settings().period_ms;
-            self.ctl
-                .set_achieved(achieved_feed(d, &self.nc, period_ms));
+            self.ctl.set_achieved(achieved_feed(d, &self.nc, period_ms));
         }
         let out = self.ctl.period();
         if self.enabled {

@@ -82,12 +82,13 @@ mod app {
     use millac::ac::{AcController, AcSettings, FeedCeiling};
     use millac::gcode::tape::Tape;
     use millac::nc::{Block, Frame, FrameConfig};
-    use millac::ports::{BlockSource, SampleClock, TimerClock};
+    use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
+    use millac::rt::ac::AcPeriod;
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
-    use millac::Settings;
-    use millac_hal::actask::{AcTask, Codes, Sampled, Sampler, SAMPLE_QUEUE};
-    use millac_hal::lm3s6965 as board;
     use millac::wire::FLAG_AC_ENABLED;
+    use millac::Settings;
+    use millac_hal::actask::{AcTask, Sampled, Sampler, SAMPLE_QUEUE};
+    use millac_hal::lm3s6965 as board;
     use millac_hal::simadc::{LogFile, SimAdc};
 
     use super::{exit, fail, Out};
@@ -156,7 +157,8 @@ mod app {
             if enabled {
                 ceiling = Some(ac_settings.ceiling);
             }
-            let task = AcTask::new(&STATUS, ctl, rx, log, enabled, settings);
+            let period = AcPeriod::new(ctl, settings, enabled, &STATUS);
+            let task = AcTask::new(&STATUS, period, rx, log);
             sampler = Some(Sampler::new(&STATUS, adc, tx, task.per_period()));
             ac = Some(task);
             board::sample_timer_start(B::reload(clocks_for_hz(B::TIMER_HZ, ac_settings.sample_hz)));
