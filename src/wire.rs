@@ -16,17 +16,27 @@
 //! Text: [`AC_LOG_HEADER`], then one [`AcLogLine`] per AC period.
 use core::fmt;
 
-/// Request FIFO (firmware -> host). File names are NUL-terminated for the firmware's semihosting
-/// open; the host takes [`file_name`].
+/// Request FIFO (firmware -> host). The names are NUL-terminated for the firmware's semihosting
+/// open; the host takes them without the NUL (`*_NAME`).
 pub const REQ_FILE: &str = "adc.req\0";
 /// Response FIFO (host -> firmware).
 pub const RESP_FILE: &str = "adc.resp\0";
 /// The AC log the firmware writes in the run directory.
 pub const AC_LOG_FILE: &str = "ac.log\0";
+/// The names without their NUL.
+pub const REQ_NAME: &str = strip_nul(REQ_FILE);
+pub const RESP_NAME: &str = strip_nul(RESP_FILE);
+pub const AC_LOG_NAME: &str = strip_nul(AC_LOG_FILE);
 
-/// A file name above without its NUL.
-pub fn file_name(nul_terminated: &'static str) -> &'static str {
-    nul_terminated.strip_suffix('\0').unwrap_or(nul_terminated)
+/// `s` without a trailing NUL.
+const fn strip_nul(s: &str) -> &str {
+    match s.as_bytes().split_last() {
+        Some((0, rest)) => match core::str::from_utf8(rest) {
+            Ok(t) => t,
+            Err(_) => s,
+        },
+        _ => s,
+    }
 }
 
 /// Header magic.
@@ -227,7 +237,8 @@ mod tests {
         assert_eq!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0,7"), None);
         assert!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0").is_some());
         assert_eq!(AC_LOG_HEADER.trim_end().split(',').count(), 10);
-        assert_eq!(file_name(REQ_FILE), "adc.req");
-        assert_eq!(file_name(AC_LOG_FILE), "ac.log");
+        assert_eq!(REQ_NAME, "adc.req");
+        assert_eq!(RESP_NAME, "adc.resp");
+        assert_eq!(AC_LOG_NAME, "ac.log");
     }
 }

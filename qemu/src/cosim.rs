@@ -2,18 +2,17 @@
 //! samples (see `millac_hal::simadc` for the firmware side), a [`Plant`] that turns encoder
 //! positions into ADC codes, and the parser of the firmware's `ac.log`.
 //!
-//! # Protocol (all integers little endian)
+//! # Protocol
 //!
-//! Two FIFOs in the run directory (QEMU's working directory), created here before QEMU starts:
-//! `adc.req` (firmware -> host) and `adc.resp` (host -> firmware). The firmware opens `adc.req`
-//! O_RDWR (no create, no block; absent = no AC), then `adc.resp` for reading (blocks until we open
-//! its write end). We write the header `b"MAC1"` + u32 flags (bit 0: AC enabled), then serve
-//! requests until EOF: 16 bytes in (u32 sample index, i32 encoder X, Y, Z in BLU), 6 bytes out
-//! (u16 codes T, Fu, Fv). Every request blocks the whole emulator until answered and under
-//! `-icount` virtual time stands still meanwhile, so runs are deterministic. The exchange ends
-//! when QEMU exits (EOF on `adc.req`); the firmware ends a run itself, also after a long hold (see
-//! `millac_hal::actask`). Should the host stop answering, the firmware prints
-//! `error: simulated ADC lost` and exits with failure.
+//! `millac::wire` (the one definition the firmware shares): two FIFOs in the run directory (QEMU's
+//! working directory), created here before QEMU starts: `adc.req` (firmware -> host) and
+//! `adc.resp` (host -> firmware). The firmware opens `adc.req` O_RDWR (no create, no block; absent
+//! = no AC), then `adc.resp` for reading (blocks until we open its write end). We write the header,
+//! then serve requests until EOF (a request in, three codes out). Every request blocks the whole
+//! emulator until answered and under `-icount` virtual time stands still meanwhile, so runs are
+//! deterministic. The exchange ends when QEMU exits (EOF on `adc.req`); the firmware ends a run
+//! itself, also after a long hold (see `millac::rt::ac`). Should the host stop answering, the
+//! firmware prints `error: simulated ADC lost` and exits with failure.
 //!
 //! Opening never deadlocks if QEMU dies early: `adc.req` is opened O_NONBLOCK for reading (always
 //! succeeds), `adc.resp` O_NONBLOCK for writing in a retry loop that gives up when the runner says
@@ -32,16 +31,14 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use millac::wire::{self, AcLogLine, Header, LogState, Request};
+
 /// Request FIFO (firmware -> host).
-pub const REQ: &str = "adc.req";
+pub const REQ: &str = wire::REQ_NAME;
 /// Response FIFO (host -> firmware).
-pub const RESP: &str = "adc.resp";
+pub const RESP: &str = wire::RESP_NAME;
 /// The AC log the firmware writes in the run directory.
-pub const AC_LOG: &str = "ac.log";
-/// Header magic.
-pub const MAGIC: [u8; 4] = *b"MAC1";
-/// Header flag: the firmware applies the controller's feed cap.
-pub const FLAG_AC_ENABLED: u32 = 1;
+pub const AC_LOG: &str = wire::AC_LOG_NAME;
 
 /// The simulated machine and cutting process behind the ADC: one conversion per request.
 pub trait Plant {
@@ -97,7 +94,7 @@ impl Bridge {
         mkfifo(&resp)?;
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
-        let flags = if ac_enabled { FLAG_AC_ENABLED } else { 0 };
+        let flags = if ac_enabled { wire::FLAG_AC_ENABLED } else { 0 };
         let thread =
             std::thread::spawn(move || serve(&req, &resp, &flag, flags, sample_hz, plant.as_mut()));
         Ok(Bridge { stop, thread })
@@ -153,28 +150,22 @@ fn serve(
     // at once, and reads now block until a request or EOF.
     let mut input = File::open(req).with_context(|| format!("reopening {}", req.display()))?;
     drop(probe);
-    let mut header = [0u8; 8];
-    header[..4].copy_from_slice(&MAGIC);
-    header[4..].copy_from_slice(&flags.to_le_bytes());
+    let header = Header { flags }.emit();
     let mut log = Vec::new();
     if write_all(&mut out, &header).is_err() {
         return Ok(log);
     }
-    let mut q = [0u8; 16];
+    let mut q = [0u8; Request::LEN];
     loop {
         match input.read_exact(&mut q) {
             Ok(()) => {}
             Err(e) if e.kind() == ErrorKind::UnexpectedEof => break,
             Err(e) => return Err(e).context("reading adc.req"),
         }
-        let le = |i: usize| [q[i], q[i + 1], q[i + 2], q[i + 3]];
-        let index = u32::from_le_bytes(le(0));
-        let pos_blu = [4, 8, 12].map(|i| i64::from(i32::from_le_bytes(le(i))));
+        let Request { index, encoder } = Request::parse(&q);
+        let pos_blu = encoder.map(i64::from);
         let codes = plant.sample(index, f64::from(index) / f64::from(sample_hz), pos_blu);
-        let mut r = [0u8; 6];
-        for (k, c) in codes.iter().enumerate() {
-            r[2 * k..2 * k + 2].copy_from_slice(&c.to_le_bytes());
-        }
+        let r = wire::emit_codes(codes);
         log.push(Exchange {
             index,
             pos_blu,
@@ -222,41 +213,34 @@ pub struct AcRecord {
     pub overruns: u32,
 }
 
-/// Parses `ac.log` (header row + one line per period; see `millac_hal::actask`).
+/// Parses `ac.log` (header row + one line per period; the format is `millac::wire::AcLogLine`).
 pub fn parse_ac_log(text: &str) -> Result<Vec<AcRecord>> {
     let mut lines = text.lines();
     let header = lines.next().context("ac.log is empty")?;
     ensure!(
-        header == "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns",
+        header == wire::AC_LOG_HEADER.trim_end(),
         "unexpected ac.log header `{header}`"
     );
     lines
         .enumerate()
-        .map(|(n, l)| parse_record(l).with_context(|| format!("ac.log line {}: `{l}`", n + 2)))
+        .map(|(n, l)| {
+            let r = AcLogLine::parse(l)
+                .with_context(|| format!("ac.log line {}: `{l}` is not a log line", n + 2))?;
+            Ok(AcRecord {
+                t_ms: r.t_ms,
+                pos_blu: r.pos_blu.map(i64::from),
+                feed_cap: r.feed_cap,
+                e: r.e,
+                f_n: r.f_n,
+                t_nm: r.t_nm,
+                hold: match r.state {
+                    LogState::Run => None,
+                    LogState::Hold(m) => Some(m.to_string()),
+                },
+                overruns: r.overruns,
+            })
+        })
         .collect()
-}
-
-fn parse_record(l: &str) -> Result<AcRecord> {
-    let f: Vec<&str> = l.split(',').collect();
-    ensure!(f.len() == 10, "{} fields, expected 10", f.len());
-    let hold = match f[8] {
-        "run" => None,
-        s => Some(
-            s.strip_prefix("hold:")
-                .context("state is neither `run` nor `hold:..`")?
-                .to_string(),
-        ),
-    };
-    Ok(AcRecord {
-        t_ms: f[0].parse()?,
-        pos_blu: [f[1].parse()?, f[2].parse()?, f[3].parse()?],
-        feed_cap: f[4].parse()?,
-        e: f[5].parse()?,
-        f_n: f[6].parse()?,
-        t_nm: f[7].parse()?,
-        hold,
-        overruns: f[9].parse()?,
-    })
 }
 
 /// Replays a co-simulation on the host: the firmware's samples, grouped per AC period, and the
