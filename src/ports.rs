@@ -93,12 +93,23 @@ pub trait SampleClock {
 /// Codes of one simultaneous conversion: [T, Fu, Fv], 12 bits each.
 pub type Codes = [u16; 3];
 
+/// What the ADC gave at one tick of the sample clock.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Conversion {
+    /// A fresh conversion.
+    Fresh(Codes),
+    /// No fresh conversion this tick (a dropout: the converter did not answer). The sample clock
+    /// goes on; the AC period that sees no fresh sample holds (`Alarm::NoSamples`).
+    Missed,
+    /// The ADC has gone for good (the simulation's host closed the link): the sampler stops.
+    Lost,
+}
+
 /// The force/torque ADC: three channels converted together. Sampler task.
 pub trait ForceTorqueAdc {
     /// One conversion, given the encoder counts at the sample (a simulated ADC computes the cut
-    /// from them; a real one ignores them). None: the ADC has gone (the sampler stops and the
-    /// firmware holds).
-    fn sample(&mut self, index: u32, encoder: [i32; 3]) -> Option<Codes>;
+    /// from them; a real one ignores them).
+    fn sample(&mut self, index: u32, encoder: [i32; 3]) -> Conversion;
 }
 
 /// The operator's serial line (grbl protocol, later). Loader task.

@@ -9,7 +9,13 @@
 //! Two FIFOs in QEMU's working directory: [`REQ_FILE`] (firmware -> host) and [`RESP_FILE`] (host ->
 //! firmware). The host writes a [`Header`] (8 bytes: `b"MAC1"`, u32 flags), then per sample the
 //! firmware writes a [`Request`] (16 bytes: u32 sample index, i32 encoder X, Y, Z in BLU) and reads
-//! a response (6 bytes: u16 codes T, Fu, Fv; [`emit_codes`], [`parse_codes`]).
+//! a response (6 bytes: u16 codes T, Fu, Fv; [`emit_response`], [`parse_response`]).
+//!
+//! A response of three `0xFFFF` ([`NO_CONVERSION`], no 12-bit ADC can deliver it) means "no
+//! conversion this sample": the ADC did not answer (a dropout, `millac --fault dropout@S`). The
+//! firmware's sampler keeps its clock and its sample count but hands the AC period nothing, so the
+//! period sees no fresh samples and holds (`Alarm::NoSamples`), as a real board whose ADC stops
+//! converting would. The host closing the FIFOs is something else: the simulation has gone.
 //!
 //! # AC log
 //!
@@ -115,6 +121,21 @@ pub fn parse_codes(r: &[u8; 6]) -> [u16; 3] {
     [0, 2, 4].map(|i| u16::from_le_bytes([r[i], r[i + 1]]))
 }
 
+/// The reserved response "no conversion this sample" (codes no 12-bit ADC delivers).
+pub const NO_CONVERSION: [u16; 3] = [0xFFFF; 3];
+
+/// The response to a request: the codes, or [`NO_CONVERSION`] for None (the ADC did not answer).
+pub fn emit_response(codes: Option<[u16; 3]>) -> [u8; 6] {
+    emit_codes(codes.unwrap_or(NO_CONVERSION))
+}
+
+/// The codes of a response; None: no conversion this sample ([`NO_CONVERSION`]). Any other
+/// codes, also out of the 12-bit range, are codes (the AC's range check judges them).
+pub fn parse_response(r: &[u8; 6]) -> Option<[u16; 3]> {
+    let codes = parse_codes(r);
+    (codes != NO_CONVERSION).then_some(codes)
+}
+
 /// Header row of `ac.log` (with its newline).
 pub const AC_LOG_HEADER: &str = "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns\n";
 
@@ -209,6 +230,8 @@ mod tests {
             let q = Request { index, encoder: enc };
             prop_assert_eq!(Request::parse(&q.emit()), q);
             prop_assert_eq!(parse_codes(&emit_codes(codes)), codes);
+            let expect = (codes != NO_CONVERSION).then_some(codes);
+            prop_assert_eq!(parse_response(&emit_response(Some(codes))), expect);
         }
 
         #[test]
@@ -227,6 +250,19 @@ mod tests {
             prop_assert!(s.ends_with('\n'));
             prop_assert_eq!(AcLogLine::parse(s.trim_end()), Some(l));
         }
+    }
+
+    #[test]
+    fn no_conversion_is_its_own_response() {
+        assert_eq!(parse_response(&emit_response(None)), None);
+        assert_eq!(emit_response(None), [0xFF; 6]);
+        // Out-of-range codes that are not the reserved triple stay codes.
+        let odd = [0xFFFF, 0xFFFF, 4095];
+        assert_eq!(parse_response(&emit_response(Some(odd))), Some(odd));
+        assert_eq!(
+            parse_response(&emit_codes([0, 2048, 4095])),
+            Some([0, 2048, 4095])
+        );
     }
 
     #[test]

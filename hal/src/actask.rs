@@ -54,13 +54,16 @@ impl Sampler {
     }
 
     /// One sample (the core's body), codes into the queue (a full queue counts
-    /// `samples_dropped`). Sampler task.
+    /// `samples_dropped`; a missed conversion queues nothing, so the period sees no fresh sample
+    /// for it). Sampler task.
     pub fn sample(&mut self) -> Sampled {
         match body::sample(&mut self.adc, self.status, self.per_period) {
             body::Sampled::Lost => Sampled::Stop,
             body::Sampled::Codes { codes, due } => {
-                if self.queue.enqueue(codes).is_err() {
-                    self.status.samples_dropped.fetch_add(1, Relaxed);
+                if let Some(c) = codes {
+                    if self.queue.enqueue(c).is_err() {
+                        self.status.samples_dropped.fetch_add(1, Relaxed);
+                    }
                 }
                 Sampled::Ok(due)
             }

@@ -9,12 +9,15 @@
 //! (mode "r": blocks until the host has opened its write end) and reads the header. Per sample
 //! (Timer 2, `sample_hz`) the sampler writes a request and reads the codes. A semihosting call stops
 //! the whole emulator until it returns, and under `-icount` virtual time does not advance
-//! meanwhile: the exchange is lockstep and deterministic. If a read or write fails (the host went
-//! away), the sampler stops its timer and the firmware exits with `error: simulated ADC lost`
-//! (without samples the AC cannot guard the cut).
+//! meanwhile: the exchange is lockstep and deterministic. The host answers `wire::NO_CONVERSION`
+//! when the simulated ADC does not convert (a dropout, `--fault dropout@S`): that sample is
+//! [`Conversion::Missed`], the sampler's clock goes on and the AC period, seeing no fresh samples,
+//! holds (`Alarm::NoSamples`), exactly as on a board whose converter stops. If a read or write
+//! fails (the host went away), the sampler stops its timer and the firmware exits with
+//! `error: simulated ADC lost` (without samples the AC cannot guard the cut).
 use cortex_m_semihosting::{nr, syscall};
 
-use millac::ports::{Codes, ForceTorqueAdc};
+use millac::ports::{Conversion, ForceTorqueAdc};
 use millac::wire::{self, Header, Request};
 
 /// Opens `name` (NUL-terminated) with a semihosting open mode; None if the host refuses.
@@ -59,17 +62,21 @@ impl SimAdc {
 
 impl ForceTorqueAdc for SimAdc {
     /// One lockstep conversion: sends the sample index and the encoder counts, returns the codes
-    /// [T, Fu, Fv]; None if the host has gone. Sampler task.
-    fn sample(&mut self, index: u32, encoder: [i32; 3]) -> Option<Codes> {
+    /// [T, Fu, Fv]; `Missed` on the host's no-conversion response, `Lost` if the host has gone.
+    /// Sampler task.
+    fn sample(&mut self, index: u32, encoder: [i32; 3]) -> Conversion {
         let q = Request { index, encoder }.emit();
         if !write_all(self.req, &q) {
-            return None;
+            return Conversion::Lost;
         }
         let mut r = [0u8; wire::CODES_LEN];
         if !read_exact(self.resp, &mut r) {
-            return None;
+            return Conversion::Lost;
         }
-        Some(wire::parse_codes(&r))
+        match wire::parse_response(&r) {
+            Some(codes) => Conversion::Fresh(codes),
+            None => Conversion::Missed,
+        }
     }
 }
 

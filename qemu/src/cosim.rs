@@ -11,8 +11,11 @@
 //! then serve requests until EOF (a request in, three codes out). Every request blocks the whole
 //! emulator until answered and under `-icount` virtual time stands still meanwhile, so runs are
 //! deterministic. The exchange ends when QEMU exits (EOF on `adc.req`); the firmware ends a run
-//! itself, also after a long hold (see `millac::rt::ac`). Should the host stop answering, the
-//! firmware prints `error: simulated ADC lost` and exits with failure.
+//! itself, also after a long hold (see `millac::rt::ac`). A plant that has no conversion for a
+//! sample (`None`: an ADC dropout, see [`crate::fault`]) is answered with the wire's reserved
+//! `NO_CONVERSION` response: the firmware's sampler goes on, its AC period sees no fresh samples
+//! and holds (`Alarm::NoSamples`), and the run ends as a hold with its report. Should the host
+//! close the FIFOs instead, the firmware prints `error: simulated ADC lost` and exits with failure.
 //!
 //! Opening never deadlocks if QEMU dies early: `adc.req` is opened O_NONBLOCK for reading (always
 //! succeeds), `adc.resp` O_NONBLOCK for writing in a retry loop that gives up when the runner says
@@ -43,8 +46,9 @@ pub const AC_LOG: &str = wire::AC_LOG_NAME;
 /// The simulated machine and cutting process behind the ADC: one conversion per request.
 pub trait Plant {
     /// Codes [T, Fu, Fv] for sample `index` at virtual time `t_s` = index / sample_hz, given the
-    /// encoder positions (BLU) the firmware counted.
-    fn sample(&mut self, index: u32, t_s: f64, pos_blu: [i64; 3]) -> [u16; 3];
+    /// encoder positions (BLU) the firmware counted; None: no conversion for this sample (the
+    /// ADC does not answer, a dropout).
+    fn sample(&mut self, index: u32, t_s: f64, pos_blu: [i64; 3]) -> Option<[u16; 3]>;
 }
 
 /// One request and its answer.
@@ -52,7 +56,8 @@ pub trait Plant {
 pub struct Exchange {
     pub index: u32,
     pub pos_blu: [i64; 3],
-    pub codes: [u16; 3],
+    /// None: answered "no conversion".
+    pub codes: Option<[u16; 3]>,
 }
 
 /// The bridge thread serving one run.
@@ -165,7 +170,7 @@ fn serve(
         let Request { index, encoder } = Request::parse(&q);
         let pos_blu = encoder.map(i64::from);
         let codes = plant.sample(index, f64::from(index) / f64::from(sample_hz), pos_blu);
-        let r = wire::emit_codes(codes);
+        let r = wire::emit_response(codes);
         log.push(Exchange {
             index,
             pos_blu,
@@ -259,7 +264,9 @@ pub fn replay(
     let mut out = Vec::with_capacity(records.len());
     for (k, rec) in records.iter().enumerate() {
         for x in exchanges.iter().skip(k * per).take(per) {
-            ctl.sample(x.codes);
+            if let Some(c) = x.codes {
+                ctl.sample(c);
+            }
         }
         let d = [0, 1, 2].map(|i| rec.pos_blu[i] - last[i]);
         last = rec.pos_blu;

@@ -1,15 +1,29 @@
 //! Sensor fault injection (host): transforms the ADC codes [T, Fu, Fv] of the simulated
-//! transducer from a given time on, as a failing transducer or ADC would, so host runs (`millac
-//! host --fault KIND@SECONDS`, [`crate::acsim::run_with_faults`]) can check that every fault has
-//! its alarm and reaction. Called from the host simulation's sample loop only.
+//! transducer from a given time on, as a failing transducer or ADC would, so runs can check that
+//! every fault has its alarm and reaction. One transformation, [`Injector::apply`], serves both
+//! runs: the host simulation's sample loop (`millac host --fault KIND@SECONDS`,
+//! [`crate::acsim::run_with_faults`]) calls it directly, and the QEMU co-simulation (`millac run
+//! --fault KIND@SECONDS`, `demo --fault ..`) wraps the cutting process in [`Faulty`], the
+//! [`Plant`] the cosim bridge thread asks for every sample the firmware requests.
+//!
+//! A fault starts at the first sample whose nominal virtual time, (index + 1) / sample_hz (the
+//! sample timer first fires one period after reset), is at or after its time: the same sample in
+//! both runs.
 //!
 //! | kind | what the ADC delivers | alarm (reaction: hold, cap 0) |
 //! | --- | --- | --- |
 //! | `rail` | T at 4095 | `sensor hold: T jumped from code C to 4095` (the force does not confirm the torque), or `T stuck at code 4095` after `stuck_samples` when T was already near the rail |
 //! | `frozen` | every channel keeps its last code | `sensor hold: T frozen at code C for N samples`, once the axes feed for `frozen_samples` samples (an idle machine: no alarm, no harm) |
-//! | `dropout` | nothing (the ADC stops answering) | `sensor hold: no fresh samples in an AC period` |
+//! | `dropout` | nothing (the ADC stops answering; under QEMU the host answers the wire's `NO_CONVERSION`, see `millac::wire`) | `sensor hold: no fresh samples in an AC period` |
 //! | `spike` | one sample of Fu + 3000 codes (clamped to 4095), then the true codes | `sensor hold: Fu jumped from code A to B` |
 //! | `gain` | Fu, Fv at half the true force about the zero-force code | `sensor hold: force and torque disagree: F*R/T = ..` after `ft_periods` windows in a cut (in air: nothing to see, no harm) |
+//!
+//! Time from the fault to the hold (first `hold:` row of ac.csv, AC period deadlines), measured
+//! under QEMU by `qemu/tests/faults.rs` (a full-depth slot at F22, fault at 3 s; the README has the
+//! command): rail, spike, dropout within one AC period (10 ms); frozen within
+//! `frozen_samples` / sample_hz + one period; gain within `ft_periods` + 1 periods.
+
+use crate::cosim::Plant;
 use std::str::FromStr;
 
 /// What fails.
@@ -130,6 +144,34 @@ impl Injector {
     }
 }
 
+/// A plant whose ADC fails: the wrapped plant's codes through an [`Injector`]. The QEMU
+/// co-simulation's plant (`millac run --fault`); cosim bridge thread.
+pub struct Faulty<P> {
+    plant: P,
+    injector: Injector,
+    sample_hz: u32,
+}
+
+impl<P: Plant> Faulty<P> {
+    /// `zero`: the code at zero load per channel (the AC calibration's offsets); `sample_hz`: the
+    /// firmware's sample rate (sample `index` is at (index + 1) / sample_hz).
+    pub fn new(plant: P, faults: &[Fault], zero: [f64; 3], sample_hz: u32) -> Faulty<P> {
+        Faulty {
+            plant,
+            injector: Injector::new(faults, zero),
+            sample_hz: sample_hz.max(1),
+        }
+    }
+}
+
+impl<P: Plant> Plant for Faulty<P> {
+    fn sample(&mut self, index: u32, t_s: f64, pos_blu: [i64; 3]) -> Option<[u16; 3]> {
+        let codes = self.plant.sample(index, t_s, pos_blu)?;
+        let at = (f64::from(index) + 1.0) / f64::from(self.sample_hz);
+        self.injector.apply(at, codes)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -205,5 +247,29 @@ mod tests {
             &codes,
         );
         assert_eq!(both[0], Some([4095, 2248, 1848]));
+    }
+
+    /// The plant wrapper applies the injector's transformation at the sample's nominal time.
+    #[test]
+    fn faulty_plant_applies_the_same_transformation() {
+        struct Ramp;
+        impl Plant for Ramp {
+            fn sample(&mut self, index: u32, _t_s: f64, _pos: [i64; 3]) -> Option<[u16; 3]> {
+                // Sample `index` is at (index + 1) ms: the host stream's sample index + 1.
+                let i = index as u16 + 1;
+                Some([2100 + i, 2448 + i, 1648 - i])
+            }
+        }
+        let codes: Vec<[u16; 3]> = (0..6u16).map(|i| [2100 + i, 2448 + i, 1648 - i]).collect();
+        for kind in FaultKind::ALL {
+            let f = [at(kind, 0.002)];
+            let mut plant = Faulty::new(Ramp, &f, Z, 1000);
+            let got: Vec<_> = (0..5u32)
+                .map(|i| plant.sample(i, f64::from(i) / 1000.0, [0; 3]))
+                .collect();
+            let want = stream(&f, &codes);
+            assert_eq!(got, want[1..6], "{}", kind.name());
+            assert_eq!(got[0], Some(codes[1]), "{}: before its time", kind.name());
+        }
     }
 }

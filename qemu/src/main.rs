@@ -31,7 +31,7 @@ enum Cmd {
         #[arg(long, default_value_t = 4)]
         shift: u32,
         /// NC only: no simulated ADC and no adaptive control (the pulses then equal the host core's).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "faults")]
         nc_only: bool,
         #[command(flatten)]
         cut: CutArgs,
@@ -51,10 +51,6 @@ enum Cmd {
         out: PathBuf,
         #[command(flatten)]
         cut: CutArgs,
-        /// Inject a sensor fault KIND@SECONDS (rail, frozen, dropout, spike, gain; repeatable),
-        /// e.g. --fault gain@2.5. See millac_qemu::fault for each fault's alarm.
-        #[arg(long = "fault", value_name = "KIND@SECONDS")]
-        faults: Vec<millac_qemu::fault::Fault>,
     },
     /// Check a VCD capture against a program (no QEMU); writes a summary to stdout.
     Analyse { capture: PathBuf, program: PathBuf },
@@ -72,6 +68,11 @@ struct CutArgs {
     /// Stock description file (default: the Fig. 1 die blank with its drilled start hole).
     #[arg(long)]
     stock: Option<PathBuf>,
+    /// Inject a sensor fault into the simulated ADC from KIND@SECONDS of virtual time on (rail,
+    /// frozen, dropout, spike, gain; repeatable), e.g. --fault gain@2.5. The same transformation
+    /// under QEMU (run, demo) and on the host (host); millac_qemu::fault lists each alarm.
+    #[arg(long = "fault", value_name = "KIND@SECONDS")]
+    faults: Vec<millac_qemu::fault::Fault>,
 }
 
 fn main() {
@@ -83,6 +84,7 @@ fn main() {
                 no_ac: false,
                 seed: 1,
                 stock: None,
+                faults: Vec::new(),
             },
         ),
         Some(Cmd::Demo { out, cut }) => demo(&out, &cut),
@@ -96,14 +98,9 @@ fn main() {
             run(text, &out, shift, (!nc_only).then_some(&cut))
         }),
         Some(Cmd::Analyse { capture, program }) => analyse_file(&capture, &program),
-        Some(Cmd::Host {
-            program,
-            out,
-            cut,
-            faults,
-        }) => match program {
-            Some(p) => with_program(&p, &out, |text| host(text, &out, &cut, &faults)),
-            None => host(DEMO, &out, &cut, &faults),
+        Some(Cmd::Host { program, out, cut }) => match program {
+            Some(p) => with_program(&p, &out, |text| host(text, &out, &cut)),
+            None => host(DEMO, &out, &cut),
         },
     };
     match result {
@@ -139,6 +136,7 @@ fn run(text: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> Result<bool
         Some(c) => Some(runner::AcRun {
             cut: cut_setup(text, c)?,
             ac: !c.no_ac,
+            faults: c.faults.clone(),
         }),
         None => None,
     };
@@ -188,12 +186,7 @@ fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
     })
 }
 
-fn host(
-    text: &str,
-    out: &Path,
-    args: &CutArgs,
-    faults: &[millac_qemu::fault::Fault],
-) -> Result<bool> {
+fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
     use millac_qemu::{acreport, acsim};
     let settings = Settings::default();
     let prog = match analysis::load_program(text, &settings) {
@@ -215,7 +208,7 @@ fn host(
         &cut,
         (!args.no_ac).then_some(acs),
         true,
-        faults,
+        &args.faults,
     )?;
     std::fs::write(out.join("ac.csv"), acsim::csv(&run.rows))?;
     let f0 = acs.f0_n() as f64;

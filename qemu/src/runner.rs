@@ -92,11 +92,13 @@ pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
 }
 
 /// A run against the simulated cutting process: the firmware's ADC reads come from `cut` in
-/// lockstep; `ac` applies the controller's feed cap (false: measure and log only, `--no-ac`).
+/// lockstep; `ac` applies the controller's feed cap (false: measure and log only, `--no-ac`);
+/// `faults` are injected into the codes the firmware reads (`--fault`, see [`crate::fault`]).
 #[derive(Clone, Debug)]
 pub struct AcRun {
     pub cut: crate::acsim::Cut,
     pub ac: bool,
+    pub faults: Vec<crate::fault::Fault>,
 }
 
 /// The cutting process as the firmware's simulated ADC; keeps the true force and torque of every
@@ -107,12 +109,12 @@ struct ProcessPlant {
 }
 
 impl cosim::Plant for ProcessPlant {
-    fn sample(&mut self, _index: u32, t_s: f64, pos_blu: [i64; 3]) -> [u16; 3] {
+    fn sample(&mut self, _index: u32, t_s: f64, pos_blu: [i64; 3]) -> Option<[u16; 3]> {
         let s = self.process.sample(t_s, pos_blu);
         if let Ok(mut v) = self.truth.lock() {
             v.push((s.f_true_n, s.t_true_nm));
         }
-        s.codes
+        Some(s.codes)
     }
 }
 
@@ -192,6 +194,9 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
                 process: a.cut.process()?,
                 truth: truth.clone(),
             };
+            let acs = millac::ac::AcSettings::default();
+            let zero = acs.cal.map(|c| f64::from(c.offset));
+            let plant = crate::fault::Faulty::new(plant, &a.faults, zero, acs.sample_hz);
             execute_with_plant(text, out, shift, Box::new(plant), a.ac)?
         }
     };

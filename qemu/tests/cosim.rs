@@ -46,7 +46,7 @@ impl Toy {
 }
 
 impl Plant for Toy {
-    fn sample(&mut self, index: u32, _t_s: f64, pos: [i64; 3]) -> [u16; 3] {
+    fn sample(&mut self, index: u32, _t_s: f64, pos: [i64; 3]) -> Option<[u16; 3]> {
         self.hist.push_back(pos);
         if self.hist.len() > WINDOW + 1 {
             self.hist.pop_front();
@@ -66,7 +66,7 @@ impl Plant for Toy {
             Some(s) if index >= s => 4095,
             _ => code(force * 0.00635 / 0.9, 0),
         };
-        [t, code(force, 1), code(0.0, 2)]
+        Some([t, code(force, 1), code(0.0, 2)])
     }
 }
 

@@ -189,6 +189,7 @@ fn ac_against_the_cutting_process_and_host_replay() {
             transducer: Transducer::default(),
         },
         ac: true,
+        faults: Vec::new(),
     };
     let o = runner::run_with(program, &out, 4, Some(&ac)).unwrap();
     assert!(o.ok, "{:#}", o.summary);

@@ -17,6 +17,15 @@
 //! samples reproduces every decision. A hold is a feed cap of 0: the frame keeps its block and its
 //! counters, it simply stops feeding; no block is dropped.
 //!
+//! # A missed conversion
+//!
+//! A sample clock tick whose ADC gives no fresh conversion ([`Conversion::Missed`], a dropout)
+//! still counts as a sample and still makes a period due: the clock is the sample timer's, not the
+//! ADC's answer. The sampler hands the period nothing for it, so a period whose whole window was
+//! missed sees no fresh samples and holds with `Alarm::NoSamples` (feed cap 0, position kept), and
+//! the run ends as after any hold. Only an ADC that is gone for good ([`Conversion::Lost`]) stops
+//! the sampler.
+//!
 //! # End of a hold
 //!
 //! Resume is not wired to an operator command yet (`AcController::resume` exists; the protocol will
@@ -27,7 +36,7 @@ use core::sync::atomic::Ordering::Relaxed;
 
 use super::status::Status;
 use crate::ac::{achieved_feed, AcController, AcOutput, AcState};
-use crate::ports::{Codes, ForceTorqueAdc};
+use crate::ports::{Codes, Conversion, ForceTorqueAdc};
 use crate::settings::Settings;
 
 /// AC periods in hold with the encoder unchanged before a run stops (1 s at 10 ms).
@@ -38,16 +47,22 @@ pub const HOLD_EXIT_PERIODS: u32 = 100;
 pub enum Sampled {
     /// The ADC has gone: stop the sample clock (the firmware holds and stops).
     Lost,
-    /// The codes; `due`: an AC period is due with this deadline base (the sample count).
-    Codes { codes: Codes, due: Option<u32> },
+    /// The codes (None: no fresh conversion this tick, nothing for the AC period); `due`: an AC
+    /// period is due with this deadline base (the sample count).
+    Codes {
+        codes: Option<Codes>,
+        due: Option<u32>,
+    },
 }
 
 /// One sample: the ADC converts with the encoder counts of this instant (a simulated ADC needs
-/// them), the sample count advances. Sampler task.
+/// them), the sample count advances (also when the conversion was missed). Sampler task.
 pub fn sample(adc: &mut impl ForceTorqueAdc, status: &Status, per_period: u32) -> Sampled {
     let i = status.samples.load(Relaxed);
-    let Some(codes) = adc.sample(i, status.encoder()) else {
-        return Sampled::Lost;
+    let codes = match adc.sample(i, status.encoder()) {
+        Conversion::Fresh(c) => Some(c),
+        Conversion::Missed => None,
+        Conversion::Lost => return Sampled::Lost,
     };
     let n = i.wrapping_add(1);
     status.samples.store(n, Relaxed);
@@ -139,5 +154,80 @@ impl AcPeriod {
             // Only a hold that is applied stops the machine (measure-only runs keep going).
             halt: self.enabled && held && self.still >= HOLD_EXIT_PERIODS,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ac::{AcSettings, Alarm};
+
+    /// An ADC that converts mid-scale codes until `miss_from`, then misses every conversion, and
+    /// is gone from `lost_from` on.
+    struct Adc {
+        miss_from: u32,
+        lost_from: u32,
+    }
+
+    impl ForceTorqueAdc for Adc {
+        fn sample(&mut self, index: u32, _encoder: [i32; 3]) -> Conversion {
+            if index >= self.lost_from {
+                Conversion::Lost
+            } else if index >= self.miss_from {
+                Conversion::Missed
+            } else {
+                let d = [0, 3, 0, 5][index as usize % 4];
+                Conversion::Fresh([2048 + d, 2048 - d, 2048 + d])
+            }
+        }
+    }
+
+    /// A dropout: the sample clock goes on, periods stay due, the first period without a fresh
+    /// sample holds with NoSamples (cap 0), and only a lost ADC stops the sampler.
+    #[test]
+    fn missed_conversions_keep_the_clock_and_hold_with_no_samples() {
+        let status = Status::new();
+        let ctl = AcController::new(AcSettings::default()).unwrap();
+        let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+        let per = period.per_period();
+        let mut adc = Adc {
+            miss_from: 2 * per,
+            lost_from: 5 * per,
+        };
+        let mut states = [None; 5];
+        for p in 0..5 {
+            for k in 0..per {
+                let Sampled::Codes { codes, due } = sample(&mut adc, &status, per) else {
+                    panic!("lost before its time");
+                };
+                let i = p * per + k;
+                assert_eq!(codes.is_some(), i < 2 * per, "sample {i}");
+                assert_eq!(due, (k + 1 == per).then_some(i + 1), "sample {i}");
+                if let Some(c) = codes {
+                    period.sample(c);
+                }
+            }
+            let out = period.run(&status);
+            states[p as usize] =
+                Some((out.out.state, out.out.alarm, status.feed_cap.load(Relaxed)));
+        }
+        assert_eq!(status.samples.load(Relaxed), 5 * per);
+        for s in &states[..2] {
+            assert!(
+                matches!(s, Some((AcState::Run, None, cap)) if *cap > 0),
+                "{s:?}"
+            );
+        }
+        assert_eq!(
+            states[2],
+            Some((AcState::Hold(Alarm::NoSamples), Some(Alarm::NoSamples), 0))
+        );
+        assert!(matches!(
+            states[4],
+            Some((AcState::Hold(Alarm::NoSamples), None, 0))
+        ));
+        assert_eq!(sample(&mut adc, &status, per), Sampled::Lost);
+        // A lost ADC does not count a sample.
+        assert_eq!(status.samples.load(Relaxed), 5 * per);
     }
 }
