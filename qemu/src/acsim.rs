@@ -9,8 +9,12 @@ use anyhow::{anyhow, Result};
 use millac::ac::{AcController, AcSettings, AcState};
 use millac::nc::{Block, Frame, FrameConfig, Motion, Rate};
 use millac::ports::BlockSource;
+use millac::ports::{Conversion, ForceTorqueAdc};
+use millac::rt::ac::{self as rt_ac, AcPeriod};
+use millac::rt::Status;
 use millac::Settings;
 use std::collections::VecDeque;
+use std::sync::atomic::Ordering::Relaxed;
 
 /// One AC period of a run: what the controller saw and did, and what really happened.
 #[derive(Clone, Debug, PartialEq)]
@@ -84,6 +88,58 @@ impl BlockSource for Queue {
     }
     fn pop(&mut self) {
         self.0.pop_front();
+    }
+}
+
+/// The programmed feed of a block in ipm (0 for rapids and dwells).
+fn programmed_ipm(settings: &Settings, b: &Block) -> f64 {
+    match b.motion {
+        Motion::Linear(l) => feed_ipm(settings, l.f),
+        Motion::Arc(c) => feed_ipm(settings, c.f),
+        _ => 0.0,
+    }
+}
+
+/// The simulated process as the firmware's ADC port (host): converts at the sample's time with
+/// the encoder counts, applies the injected faults (the same [`crate::fault::Injector`] the QEMU
+/// co-simulation's `Faulty` plant applies), and keeps the true force and torque of every sample.
+/// A fault that delivers no conversion (dropout) is a missed conversion, as under QEMU.
+struct HostAdc {
+    process: Process,
+    injector: crate::fault::Injector,
+    sample_hz: u32,
+    truth: Vec<(f64, f64)>,
+}
+
+impl HostAdc {
+    /// Virtual time of sample `index` (the sample clock's (index + 1)-th tick).
+    fn time_s(&self, index: u32) -> f64 {
+        (u64::from(index) + 1) as f64 / f64::from(self.sample_hz)
+    }
+}
+
+/// What the host ADC answers: Some(codes), or None for a dropout sample.
+type HostCodes = Option<[u16; 3]>;
+
+/// The sampler body of the firmware (`millac::rt::ac::sample`) over the host ADC: the codes the
+/// controller gets (None for a missed conversion) and the AC period due, if any.
+fn sample(adc: &mut HostAdc, status: &Status, per_period: u32) -> (HostCodes, Option<u32>) {
+    match rt_ac::sample(adc, status, per_period) {
+        rt_ac::Sampled::Codes { codes, due } => (codes, due),
+        // Not reached: the host ADC never goes away.
+        rt_ac::Sampled::Lost => (None, None),
+    }
+}
+
+impl ForceTorqueAdc for HostAdc {
+    fn sample(&mut self, index: u32, encoder: [i32; 3]) -> Conversion {
+        let t_s = self.time_s(index);
+        let s = self.process.sample(t_s, encoder.map(i64::from));
+        self.truth.push((s.f_true_n, s.t_true_nm));
+        match self.injector.apply(t_s, s.codes) {
+            Some(codes) => Conversion::Fresh(codes),
+            None => Conversion::Missed,
+        }
     }
 }
 
@@ -161,51 +217,61 @@ pub fn run_with_faults(
             })
             .collect(),
     );
-    let mut process = cut.process()?;
     let acs = ac.unwrap_or_default();
-    let mut ctl = match ac {
-        Some(s) => Some(AcController::new(s).map_err(|e| anyhow!("AC settings: {}", e.message()))?),
+    // The firmware's sampler and AC period (`millac::rt::ac`) over a host status and ADC.
+    let status = Status::new();
+    status.feed_cap.store(u32::MAX, Relaxed);
+    let mut period = match ac {
+        Some(s) => {
+            let ctl = AcController::new(s).map_err(|e| anyhow!("AC settings: {}", e.message()))?;
+            let p = AcPeriod::new(ctl, *settings, true, &status);
+            Some(if anti_windup {
+                p
+            } else {
+                p.without_anti_windup()
+            })
+        }
         None => None,
     };
-    let mut injector = crate::fault::Injector::new(faults, acs.cal.map(|c| f64::from(c.offset)));
+    let mut adc = HostAdc {
+        process: cut.process()?,
+        injector: crate::fault::Injector::new(faults, acs.cal.map(|c| f64::from(c.offset))),
+        sample_hz: acs.sample_hz,
+        truth: Vec::new(),
+    };
+    let per_period = (acs.sample_hz * acs.period_ms / 1000).max(1);
     let sample_ns = 1_000_000_000 / acs.sample_hz as u64;
-    let ac_ns = acs.period_ms as u64 * 1_000_000;
     let mut out = HostRun::default();
-    let (mut t, mut next_sample, mut next_period) = (0u64, sample_ns, ac_ns);
+    let (mut t, mut next_sample) = (0u64, sample_ns);
     let mut feed_cap = u32::MAX;
     let mut pos = [0i64; 3];
     let mut period_start = pos;
-    let (mut f_peak, mut t_peak) = (0.0f64, 0.0f64);
     let (mut first, mut last) = (None, 0u64);
     let mut block_feed = 0.0;
-    // A hold with nothing moving for this long ends the run (the operator would resume or abort).
-    let hold_limit_ns = 2_000_000_000u64;
-    let mut held_since: Option<u64> = None;
     loop {
         if frame.idle() {
             match queue.0.front() {
                 None => break,
-                Some(b) => {
-                    block_feed = match b.motion {
-                        Motion::Linear(l) => feed_ipm(settings, l.f),
-                        Motion::Arc(c) => feed_ipm(settings, c.f),
-                        _ => 0.0,
-                    }
-                }
+                Some(b) => block_feed = programmed_ipm(settings, b),
             }
         }
         let rate = frame.rate();
         let was_idle = frame.idle();
+        let done_before = frame.blocks_done();
         let p = frame.tick(&mut queue, feed_cap);
-        if was_idle && !frame.idle() {
-            out.spans.push((out.spans.len(), t, t));
-        }
+        let t0 = t;
         t += period_ns(settings, rate);
-        if let Some(span) = out.spans.last_mut() {
-            if !was_idle || !frame.idle() {
+        if was_idle && !frame.idle() {
+            // A block loaded from idle: its span starts with this frame.
+            out.spans.push((out.spans.len(), t0, t));
+        } else if let Some(span) = out.spans.last_mut() {
+            if !was_idle {
                 span.2 = t;
             }
         }
+        // A line chained at the end of the line before (no idle frame between them): this frame's
+        // pulses are the old block's last ones; the new block's span starts after it.
+        let chained = !was_idle && !frame.idle() && frame.blocks_done() != done_before;
         if p.steps != 0 {
             for (k, v) in pos.iter_mut().enumerate() {
                 if p.steps & (1 << k) != 0 {
@@ -216,29 +282,29 @@ pub fn run_with_faults(
             last = t;
             out.path
                 .push((pos, block_feed, out.spans.len().saturating_sub(1)));
-        }
-        while t >= next_sample {
-            let s = process.sample(next_sample as f64 * 1e-9, pos);
-            out.samples.push((s.f_true_n, s.t_true_nm));
-            f_peak = f_peak.max(s.f_true_n);
-            t_peak = t_peak.max(s.t_true_nm.abs());
-            if let (Some(c), Some(codes)) = (
-                ctl.as_mut(),
-                injector.apply(next_sample as f64 * 1e-9, s.codes),
-            ) {
-                c.sample(codes);
+            for (e, &v) in status.encoder.iter().zip(pos.iter()) {
+                e.store(v as i32, Relaxed);
             }
-            next_sample += sample_ns;
         }
-        if t >= next_period {
+        if chained {
+            out.spans.push((out.spans.len(), t, t));
+            block_feed = queue.0.front().map_or(0.0, |b| programmed_ipm(settings, b));
+        }
+        let mut halt = false;
+        while t >= next_sample {
+            next_sample += sample_ns;
+            let (codes, due) = sample(&mut adc, &status, per_period);
+            if let (Some(ac), Some(codes)) = (period.as_mut(), codes) {
+                ac.sample(codes);
+            }
+            let Some(due) = due else { continue };
             let d = [0, 1, 2].map(|k| pos[k] - period_start[k]);
-            let (f_meas, t_meas, e, state) = match ctl.as_mut() {
-                Some(c) => {
-                    if anti_windup {
-                        c.set_achieved(millac::ac::achieved_feed(d, settings, acs.period_ms));
-                    }
-                    let o = c.period();
-                    feed_cap = o.feed_cap;
+            let (f_meas, t_meas, e, state) = match period.as_mut() {
+                Some(ac) => {
+                    let r = ac.run(&status);
+                    halt = r.halt;
+                    let o = r.out;
+                    feed_cap = status.feed_cap.load(Relaxed);
                     if out.alarm.is_none() {
                         out.alarm = o.alarm;
                     }
@@ -253,32 +319,29 @@ pub fn run_with_faults(
                 }
                 None => (0.0, 0.0, 0.0, "off".to_string()),
             };
+            let window = adc
+                .truth
+                .get(adc.truth.len().saturating_sub(per_period as usize)..)
+                .unwrap_or(&[]);
             out.rows.push(AcRow {
-                t_ms: next_period / 1_000_000,
+                t_ms: u64::from(due) * 1000 / u64::from(acs.sample_hz),
                 pos_blu: pos,
                 feed_ipm: path_feed_ipm(settings, d, acs.period_ms),
                 f_meas_n: f_meas,
                 t_meas_nm: t_meas,
-                f_true_n: f_peak,
-                t_true_nm: t_peak,
+                f_true_n: window.iter().map(|s| s.0).fold(0.0, f64::max),
+                t_true_nm: window.iter().map(|s| s.1.abs()).fold(0.0, f64::max),
                 e,
                 state,
                 feed_cap,
             });
             period_start = pos;
-            f_peak = 0.0;
-            t_peak = 0.0;
-            next_period += ac_ns;
-            if feed_cap == 0 && p.steps == 0 {
-                let since = *held_since.get_or_insert(t);
-                if t - since > hold_limit_ns {
-                    break;
-                }
-            } else {
-                held_since = None;
-            }
+        }
+        if halt {
+            break;
         }
     }
+    out.samples = adc.truth;
     out.machining_time_s = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);
     out.final_position = pos;
     out.blocks_done = frame.blocks_done() as usize;

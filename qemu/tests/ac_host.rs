@@ -282,3 +282,38 @@ fn ceiling_at_frm_lets_the_ac_open_a_timid_feed() {
     let load = acsim::load_figures(&open.samples, &c.tool, 0.9, 1000);
     assert!(load.peak_force_ratio < 1.0, "{load:?}");
 }
+
+/// The host run knows which block every pulse belongs to, also along a chain of lines that starts
+/// each line in the frame that ends the one before (no idle frame between them): one span per
+/// block, in order, and every pulse carries its own block's programmed feed. (The oracle and the
+/// safe constant feed are computed from this attribution: with chained lines counted as one block
+/// the oracle came out infinite.)
+#[test]
+fn chained_lines_keep_their_blocks_and_feeds() {
+    let settings = Settings::default();
+    let program =
+        "G20 G90 G1 F10 X0.01\nG1 X0.02 Y0.001 F20\nX0.03 F5\nG0 Z0.01\nG1 X0.04 F30\nM2\n";
+    let prog = analysis::load_program(program, &settings).unwrap();
+    let c = cut("blank X-1 Y-1 W3 H3 Z-1", Material::STEEL);
+    let run = acsim::run(&prog, &settings, &c, None).unwrap();
+    assert_eq!(run.spans.len(), prog.len());
+    assert!(run
+        .spans
+        .windows(2)
+        .all(|w| w[0].2 <= w[1].1 && w[0].0 + 1 == w[1].0));
+    let feeds: Vec<f64> = prog
+        .iter()
+        .map(|b| match b.block.motion {
+            millac::nc::Motion::Linear(l) => acsim::feed_ipm(&settings, l.f),
+            _ => 0.0,
+        })
+        .collect();
+    for (k, &(pos, feed, block)) in run.path.iter().enumerate() {
+        assert_eq!(feed, feeds[block], "pulse {k} at {pos:?} of block {block}");
+    }
+    // Every block's last pulse is its programmed end point.
+    for (i, b) in prog.iter().enumerate() {
+        let last = run.path.iter().rev().find(|p| p.2 == i).unwrap();
+        assert_eq!(last.0, b.end.map(i64::from), "block {i}");
+    }
+}

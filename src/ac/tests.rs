@@ -5,14 +5,14 @@ use super::frc::{dead_zone, fdot, next_feed};
 use super::*;
 use proptest::prelude::*;
 
-const MID: u16 = 2048;
+pub(super) const MID: u16 = 2048;
 
-fn ctl(s: AcSettings) -> AcController {
+pub(super) fn ctl(s: AcSettings) -> AcController {
     AcController::new(s).expect("valid settings")
 }
 
 /// Codes for a torque (N*m) and force components (N) under the default calibration.
-fn codes(t_nm: f32, fu_n: f32, fv_n: f32) -> [u16; 3] {
+pub(super) fn codes(t_nm: f32, fu_n: f32, fv_n: f32) -> [u16; 3] {
     let s = AcSettings::default();
     let c = |v: f32, cal: Calibration| (cal.offset + v / cal.gain).round() as u16;
     [c(t_nm, s.cal[0]), c(fu_n, s.cal[1]), c(fv_n, s.cal[2])]

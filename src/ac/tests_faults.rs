@@ -1,20 +1,8 @@
 //! Host tests of the AC program's fault detectors (host tests): a real load step against a lone
 //! spike (issue 6, D4), a frozen sensor while the axes feed (D6), and the force/torque plausibility
 //! check that catches a gain fault (G).
+use super::tests::{codes, ctl, MID};
 use super::*;
-
-const MID: u16 = 2048;
-
-fn ctl(s: AcSettings) -> AcController {
-    AcController::new(s).expect("valid settings")
-}
-
-/// Codes for a torque (N*m) and force components (N) under the default calibration.
-fn codes(t_nm: f32, fu_n: f32, fv_n: f32) -> [u16; 3] {
-    let s = AcSettings::default();
-    let c = |v: f32, cal: Calibration| (cal.offset + v / cal.gain).round() as u16;
-    [c(t_nm, s.cal[0]), c(fu_n, s.cal[1]), c(fv_n, s.cal[2])]
-}
 
 /// A live transducer's codes: `k` plus a small deterministic dither (+-2 codes, period 4), as noise.
 fn live(k: [u16; 3], i: usize) -> [u16; 3] {
