@@ -30,11 +30,12 @@ pub struct Sampler {
     per_period: u32,
 }
 
-/// What the app does after a sample.
+/// What the app does after a sample: `due` = spawn the AC period with this deadline base (the
+/// sample count).
 pub enum Sampled {
-    /// The host has gone: stop the sample timer.
-    Stop,
-    /// Sampled; `Some(due)`: spawn the AC period with this deadline base (the sample count).
+    /// The host has just gone: report it once. The clock goes on and the AC periods see no samples
+    /// from now on, so the machine holds (NoSamples) and the run ends as after any hold.
+    Lost(Option<u32>),
     Ok(Option<u32>),
 }
 
@@ -58,7 +59,7 @@ impl Sampler {
     /// for it). Sampler task.
     pub fn sample(&mut self) -> Sampled {
         match body::sample(&mut self.adc, self.status, self.per_period) {
-            body::Sampled::Lost => Sampled::Stop,
+            body::Sampled::Lost { due } => Sampled::Lost(due),
             body::Sampled::Codes { codes, due } => {
                 if let Some(c) = codes {
                     if self.queue.enqueue(c).is_err() {

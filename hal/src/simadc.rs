@@ -43,6 +43,8 @@ fn read_exact(fd: usize, buf: &mut [u8]) -> bool {
 pub struct SimAdc {
     req: usize,
     resp: usize,
+    /// The host has gone: the ADC answers no more.
+    lost: bool,
 }
 
 impl SimAdc {
@@ -56,7 +58,14 @@ impl SimAdc {
             return None;
         }
         let header = Header::parse(&h)?;
-        Some((SimAdc { req, resp }, header.flags))
+        Some((
+            SimAdc {
+                req,
+                resp,
+                lost: false,
+            },
+            header.flags,
+        ))
     }
 }
 
@@ -65,12 +74,14 @@ impl ForceTorqueAdc for SimAdc {
     /// [T, Fu, Fv]; `Missed` on the host's no-conversion response, `Lost` if the host has gone.
     /// Sampler task.
     fn sample(&mut self, index: u32, encoder: [i32; 3]) -> Conversion {
-        let q = Request { index, encoder }.emit();
-        if !write_all(self.req, &q) {
-            return Conversion::Lost;
+        // Gone before: no more semihosting calls, every tick is missed.
+        if self.lost {
+            return Conversion::Missed;
         }
+        let q = Request { index, encoder }.emit();
         let mut r = [0u8; wire::CODES_LEN];
-        if !read_exact(self.resp, &mut r) {
+        if !write_all(self.req, &q) || !read_exact(self.resp, &mut r) {
+            self.lost = true;
             return Conversion::Lost;
         }
         match wire::parse_response(&r) {

@@ -127,7 +127,7 @@ fn sample(adc: &mut HostAdc, status: &Status, per_period: u32) -> (HostCodes, Op
     match rt_ac::sample(adc, status, per_period) {
         rt_ac::Sampled::Codes { codes, due } => (codes, due),
         // Not reached: the host ADC never goes away.
-        rt_ac::Sampled::Lost => (None, None),
+        rt_ac::Sampled::Lost { due } => (None, due),
     }
 }
 

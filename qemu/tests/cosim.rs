@@ -30,6 +30,9 @@ struct Toy {
     n_per_blu_s: f64,
     hist: VecDeque<[i64; 3]>,
     stuck_from: Option<u32>,
+    /// From this sample on the plant's thread dies (a panic): the bridge closes its ends, the
+    /// firmware's simulated ADC is gone.
+    gone_from: Option<u32>,
 }
 
 impl Toy {
@@ -41,12 +44,16 @@ impl Toy {
             n_per_blu_s: f0 / blu_s,
             hist: VecDeque::new(),
             stuck_from,
+            gone_from: None,
         }
     }
 }
 
 impl Plant for Toy {
     fn sample(&mut self, index: u32, _t_s: f64, pos: [i64; 3]) -> Option<[u16; 3]> {
+        if self.gone_from.is_some_and(|g| index >= g) {
+            panic!("test: the simulated ADC goes away at sample {index}");
+        }
         self.hist.push_back(pos);
         if self.hist.len() > WINDOW + 1 {
             self.hist.pop_front();
@@ -234,6 +241,31 @@ fn stuck_sensor_holds_without_losing_a_pulse_and_the_run_ends() {
     assert!(held.iter().all(|x| x.pos_blu == enc));
     check_encoder_against_vcd(&r);
     check_host_replay(&r);
+}
+
+/// The host side of the ADC goes away in the cut (its thread dies and the pipes close): the
+/// firmware says so once, holds (no fresh samples), and the run ends as after any hold, with the
+/// exact position (firmware, pins and last log line agree) and exit status 1; before, it exited at
+/// once with no position.
+#[test]
+fn a_lost_adc_holds_and_reports_like_any_hold() {
+    let mut plant = Toy::new(25.0, None);
+    plant.gone_from = Some(300);
+    let r = run("lost", PROGRAM, plant, true);
+    assert_eq!(r.cap.status, Some(1), "{}", r.cap.stdout);
+    let out = &r.cap.stdout;
+    assert!(out.contains("error: simulated ADC lost"), "{out}");
+    let hold = runner::firmware_hold(out).expect("a hold report");
+    assert_eq!(hold.alarm, "sensor hold: no fresh samples in an AC period");
+    let vcd = vcd_path(&r.cap.pins).last().unwrap().1;
+    assert_eq!(hold.position, vcd, "firmware counters vs pins");
+    assert_eq!(r.records.last().unwrap().pos_blu, vcd);
+    assert!(vcd[0] > 0 && vcd[0] < END_X, "{vcd:?}");
+    assert_eq!(hold.blocks_done, 0);
+    // Held at the first period without samples, nothing moved afterwards.
+    let first = r.records.iter().position(|x| x.hold.is_some()).unwrap();
+    assert!(r.records[first].t_ms <= 320, "{:?}", r.records[first]);
+    assert!(r.records[first + 1..].iter().all(|x| x.pos_blu == vcd));
 }
 
 #[test]

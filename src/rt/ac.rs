@@ -23,8 +23,10 @@
 //! still counts as a sample and still makes a period due: the clock is the sample timer's, not the
 //! ADC's answer. The sampler hands the period nothing for it, so a period whose whole window was
 //! missed sees no fresh samples and holds with `Alarm::NoSamples` (feed cap 0, position kept), and
-//! the run ends as after any hold. Only an ADC that is gone for good ([`Conversion::Lost`]) stops
-//! the sampler.
+//! the run ends as after any hold. An ADC that is gone for good ([`Conversion::Lost`]) is the same
+//! for the AC period (every later tick is missed, the period holds with `Alarm::NoSamples`), and
+//! the sampler says so once ([`Sampled::Lost`]) so the app can report it: the machine stops
+//! safely with its position exact and the run leaves its report, as after any hold.
 //!
 //! # End of a hold
 //!
@@ -45,8 +47,9 @@ pub const HOLD_EXIT_PERIODS: u32 = 100;
 /// What one sample gave.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Sampled {
-    /// The ADC has gone: stop the sample clock (the firmware holds and stops).
-    Lost,
+    /// The ADC has gone (for good) at this tick: no codes, the clock goes on as for a missed
+    /// conversion (`due` likewise), so the AC periods hold with NoSamples.
+    Lost { due: Option<u32> },
     /// The codes (None: no fresh conversion this tick, nothing for the AC period); `due`: an AC
     /// period is due with this deadline base (the sample count).
     Codes {
@@ -59,16 +62,17 @@ pub enum Sampled {
 /// them), the sample count advances (also when the conversion was missed). Sampler task.
 pub fn sample(adc: &mut impl ForceTorqueAdc, status: &Status, per_period: u32) -> Sampled {
     let i = status.samples.load(Relaxed);
-    let codes = match adc.sample(i, status.encoder()) {
-        Conversion::Fresh(c) => Some(c),
-        Conversion::Missed => None,
-        Conversion::Lost => return Sampled::Lost,
-    };
+    let conversion = adc.sample(i, status.encoder());
     let n = i.wrapping_add(1);
     status.samples.store(n, Relaxed);
-    Sampled::Codes {
-        codes,
-        due: (n % per_period.max(1) == 0).then_some(n),
+    let due = (n % per_period.max(1) == 0).then_some(n);
+    match conversion {
+        Conversion::Fresh(c) => Sampled::Codes {
+            codes: Some(c),
+            due,
+        },
+        Conversion::Missed => Sampled::Codes { codes: None, due },
+        Conversion::Lost => Sampled::Lost { due },
     }
 }
 
@@ -183,7 +187,8 @@ mod tests {
     }
 
     /// A dropout: the sample clock goes on, periods stay due, the first period without a fresh
-    /// sample holds with NoSamples (cap 0), and only a lost ADC stops the sampler.
+    /// sample holds with NoSamples (cap 0); a lost ADC is said once and then counts like missed
+    /// conversions, and with nothing moving the hold ends the run after HOLD_EXIT_PERIODS.
     #[test]
     fn missed_conversions_keep_the_clock_and_hold_with_no_samples() {
         let status = Status::new();
@@ -226,8 +231,27 @@ mod tests {
             states[4],
             Some((AcState::Hold(Alarm::NoSamples), None, 0))
         ));
-        assert_eq!(sample(&mut adc, &status, per), Sampled::Lost);
-        // A lost ADC does not count a sample.
-        assert_eq!(status.samples.load(Relaxed), 5 * per);
+        // Lost: said, counted, periods still due; the hold goes on and, the encoder still, ends
+        // the run after HOLD_EXIT_PERIODS periods.
+        let mut halted = None;
+        for p in 5..(6 + HOLD_EXIT_PERIODS) {
+            for k in 0..per {
+                let due = match sample(&mut adc, &status, per) {
+                    Sampled::Lost { due } => due,
+                    s => panic!("sample {}: {s:?}", p * per + k),
+                };
+                assert_eq!(due, (k + 1 == per).then_some(p * per + k + 1));
+            }
+            let out = period.run(&status);
+            assert_eq!(out.out.state, AcState::Hold(Alarm::NoSamples));
+            assert_eq!(status.feed_cap.load(Relaxed), 0);
+            if out.halt {
+                halted = Some(p);
+                break;
+            }
+        }
+        assert_eq!(status.samples.load(Relaxed) % per, 0);
+        // Held from period 2 on (the encoder never moved): the HOLD_EXIT_PERIODS-th held period.
+        assert_eq!(halted, Some(2 + HOLD_EXIT_PERIODS - 1));
     }
 }

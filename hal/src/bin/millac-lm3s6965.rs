@@ -216,18 +216,19 @@ mod app {
             SampleClock::stop(&mut B);
             return;
         };
-        match s.sample() {
-            // The host has gone: without samples the AC cannot guard the cut.
-            Sampled::Stop => {
-                SampleClock::stop(&mut B);
-                fail(format_args!("simulated ADC lost"));
+        let due = match s.sample() {
+            // The host has gone: without samples the AC cannot guard the cut. Said once; the
+            // periods go on, see no samples and hold, and the run ends as after any hold.
+            Sampled::Lost(due) => {
+                Out::open().line(format_args!("error: simulated ADC lost"));
+                due
             }
-            Sampled::Ok(Some(due)) => {
-                if ac_period::spawn(due).is_err() {
-                    STATUS.ac_missed.fetch_add(1, Relaxed);
-                }
+            Sampled::Ok(due) => due,
+        };
+        if let Some(due) = due {
+            if ac_period::spawn(due).is_err() {
+                STATUS.ac_missed.fetch_add(1, Relaxed);
             }
-            Sampled::Ok(None) => {}
         }
     }
 
