@@ -4,12 +4,12 @@
 //! ADC samples at `sample_hz` from the pulses emitted so far, AC periods every `period_ms`). For fast
 //! experiments and benchmarks; the QEMU run is the reference for the firmware itself.
 use crate::analysis::ProgBlock;
-use crate::cut::{Material, Process, Stock, Tool, Transducer};
 use anyhow::{anyhow, Result};
 use millac::ac::{AcController, AcSettings, AcState};
 use millac::nc::{Block, Frame, FrameConfig, Motion, Rate};
 use millac::ports::BlockSource;
 use millac::Settings;
+use millac_plant::{Material, Process, Stock, Tool, Transducer};
 use std::collections::VecDeque;
 
 /// One AC period of a run: what the controller saw and did, and what really happened.

@@ -9,7 +9,6 @@ pub mod acsim;
 pub mod analysis;
 pub mod capture;
 pub mod cosim;
-pub mod cut;
 pub mod elf;
 pub mod fault;
 pub mod firmware;
