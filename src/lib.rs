@@ -1,5 +1,18 @@
-//! millac core: the NC program (frame ISR), the G-code parser (loader task) and settings, after
-//! Tlusty, Koren and McNeil's HP 2100A die-sinking system. no_std, no chip dependencies; host-tested.
+//! millac core: NC + adaptive control after Tlusty, Koren and McNeil's HP 2100A die-sinking
+//! system. no_std, no chip dependencies; host-tested (unit tests here, end-to-end programs in
+//! tests/). Modules and the contexts that call them:
+//! - [`nc`]: validated blocks and the frame (Initiator, PTP, feed and interpolation DDAs), the
+//!   frame ISR's work; `nc::sim` drives it on the host.
+//! - [`gcode`]: G-code lines -> validated blocks, the loader task's work (the firmware's idle loop
+//!   and the host tool's pre-check share the tape).
+//! - [`ac`]: the adaptive control (DRR, ECR, FRC, holds and alarms), the sampler's and AC task's
+//!   work.
+//! - [`ports`]: one trait per hardware role, with its context; boards (hal/) and the host
+//!   simulation implement them.
+//! - [`rt`]: the run-time bodies over the ports (frame ISR, pulse-end ISR, sampler, AC period), the
+//!   status words between the contexts and the timer arithmetic of init.
+//! - [`wire`]: the formats between the QEMU firmware and the host tool (lockstep ADC, `ac.log`).
+//! - [`settings`]: the machine settings and their validation (init, loader, host).
 #![cfg_attr(not(test), no_std)]
 
 pub mod ac;

@@ -10,8 +10,8 @@
 use anyhow::Result;
 use millac::ac::AcSettings;
 use millac::Settings;
+use millac_plant::{Material, Stock, Tool, Transducer};
 use millac_qemu::acsim::{self, Cut};
-use millac_qemu::cut::{Material, Stock, Tool, Transducer};
 use millac_qemu::{acreport, analysis};
 
 fn main() -> Result<()> {

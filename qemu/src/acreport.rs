@@ -4,11 +4,11 @@
 //! Also the ac.csv text and the plot. Used by the `run`/demo commands and the benchmark.
 use crate::acsim::{self, AcRow, Cut, HostRun, LoadFigures};
 use crate::analysis::ProgBlock;
-use crate::cut::oracle::{oracle_time, OracleLimits, OraclePoint};
 use anyhow::Result;
 use millac::ac::AcSettings;
 use millac::nc::Motion;
 use millac::Settings;
+use millac_plant::oracle::{oracle_time, OracleLimits, OraclePoint};
 use serde_json::{json, Value};
 
 /// The comparison runs (all on the host, same process model and seed).
@@ -46,7 +46,7 @@ pub fn compare(
     let mut seg: Vec<OraclePoint> = Vec::new();
     let mut pulse = 0usize;
     let mut flush = |seg: &mut Vec<OraclePoint>,
-                     stock: &mut crate::cut::Stock,
+                     stock: &mut millac_plant::Stock,
                      oracle_s: &mut f64|
      -> Result<()> {
         if seg.len() > 1 {
@@ -69,7 +69,7 @@ pub fn compare(
             }
             // The stock after this segment, for the next one.
             for w in seg.windows(2) {
-                let mm = |v: [i64; 3]| v.map(|c| c as f64 * crate::cut::MM_PER_BLU);
+                let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
                 stock.cut_capsule(
                     mm(w[0].pos_blu),
                     mm(w[1].pos_blu),
@@ -104,7 +104,7 @@ pub fn compare(
                 oracle_s += (t1 - t0) as f64 * 1e-9;
             }
             // Rapids cut nothing in a sane program; keep the stock in step anyway.
-            let mm = |v: [i64; 3]| v.map(|c| c as f64 * crate::cut::MM_PER_BLU);
+            let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
             if let Some(last) = pts.last() {
                 stock.cut_capsule(mm(pos), mm(last.0), cut.tool.diameter_mm / 2.0);
             }

@@ -4,7 +4,6 @@
 //! ADC samples at `sample_hz` from the pulses emitted so far, AC periods every `period_ms`). For fast
 //! experiments and benchmarks; the QEMU run is the reference for the firmware itself.
 use crate::analysis::ProgBlock;
-use crate::cut::{Material, Process, Stock, Tool, Transducer};
 use anyhow::{anyhow, Result};
 use millac::ac::{AcController, AcSettings, AcState};
 use millac::nc::{Block, Frame, FrameConfig, Motion, Rate};
@@ -13,6 +12,7 @@ use millac::ports::{Conversion, ForceTorqueAdc};
 use millac::rt::ac::{self as rt_ac, AcPeriod};
 use millac::rt::Status;
 use millac::Settings;
+use millac_plant::{Material, Process, Stock, Tool, Transducer};
 use std::collections::VecDeque;
 use std::sync::atomic::Ordering::Relaxed;
 

@@ -1,6 +1,19 @@
-//! millac-qemu library (host): the virtual logic analyser. Runs the firmware under QEMU with a TCG
-//! plugin and the `pl061_write` trace, turns the GPIO port B writes into timed pin events, writes and
-//! reads VCD files and cross-checks step counts with sigrok's `stepper_motor` decoder.
+//! millac-qemu library (host): everything the host tool does around the firmware and the core.
+//! The simulated cutting process itself is the separate crate `millac-plant` (qemu/plant), which
+//! knows nothing of the controller; this crate is the evaluation side that connects the two.
+//!
+//! - Virtual logic analyser: [`capture`] runs the firmware under QEMU with the TCG plugin
+//!   ([`plugin`], handler exits from [`elf`]) and the `pl061_write` trace and turns the GPIO port B
+//!   writes into timed pin events; [`vcd`] writes and reads VCD files; [`sigrok`] cross-checks the
+//!   step counts with sigrok's `stepper_motor` decoder; [`analysis`] checks a capture against its
+//!   program (end points, path deviation, feed).
+//! - Running the firmware: [`firmware`] builds it, [`tools`] finds or installs the external tools,
+//!   [`runner`] runs a program under QEMU and analyses the capture.
+//! - Adaptive control: [`cosim`] is the host side of the lockstep simulated ADC (the plant behind
+//!   the firmware's ADC) and the `ac.log` parser; [`acsim`] runs the core's frame and AC
+//!   controller natively on the host against the plant; [`fault`] injects sensor faults into the
+//!   transducer codes; [`acreport`] compares AC, constant feeds and the plant's oracle (the path
+//!   from the NC program) and writes ac.csv and the plot.
 //!
 //! Pins (GPIO port B, PL061 at 0x4000_5000): PB0 X_STEP, PB1 Y_STEP, PB2 Z_STEP, PB3 X_SIGN,
 //! PB4 Y_SIGN, PB5 Z_SIGN. Sign high = positive direction; a rising step edge = one BLU.
@@ -9,7 +22,6 @@ pub mod acsim;
 pub mod analysis;
 pub mod capture;
 pub mod cosim;
-pub mod cut;
 pub mod elf;
 pub mod fault;
 pub mod firmware;

@@ -167,7 +167,7 @@ fn analyse_file(capture: &Path, program: &Path) -> Result<bool> {
 }
 
 fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
-    use millac_qemu::cut::{Material, Stock, Tool, Transducer, DEFAULT_RPM};
+    use millac_plant::{Material, Stock, Tool, Transducer, DEFAULT_RPM};
     let stock = match &args.stock {
         Some(p) => Stock::parse(
             &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,

@@ -110,7 +110,7 @@ pub struct AcRun {
 /// The cutting process as the firmware's simulated ADC; keeps the true force and torque of every
 /// sample for the report.
 struct ProcessPlant {
-    process: crate::cut::Process,
+    process: millac_plant::Process,
     truth: std::sync::Arc<std::sync::Mutex<Vec<(f64, f64)>>>,
 }
 

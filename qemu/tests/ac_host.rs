@@ -1,12 +1,14 @@
 //! Closed-loop tests of the paper's adaptive control on the simulated cut, run natively on the host
 //! (host): the core's Frame and AcController against the cutting process. Steady cut, a step in
 //! depth (the thesis' test TIIM, 7.62 -> 10.5 mm), an entry from an air cut (overshoot reported),
-//! and the Fig. 1 cavity ends where it ends without AC.
+//! the Fig. 1 cavity ends where it ends without AC, and the default experiment is a matched one
+//! (the controller believes the plant's real calibration and strength).
 use millac::ac::AcSettings;
 use millac::Settings;
+use millac_plant::oracle::OracleLimits;
+use millac_plant::{Material, Stock, Tool, Transducer};
 use millac_qemu::acsim::{self, Cut};
 use millac_qemu::analysis;
-use millac_qemu::cut::{Material, Stock, Tool, Transducer};
 
 fn cut(stock: &str, material: Material) -> Cut {
     Cut {
@@ -316,4 +318,31 @@ fn chained_lines_keep_their_blocks_and_feeds() {
         let last = run.path.iter().rev().find(|p| p.2 == i).unwrap();
         assert_eq!(last.0, b.end.map(i64::from), "block {i}");
     }
+}
+
+/// The plant knows nothing of the controller, so whether the default experiment is a matched one
+/// (the controller believes the transducer's real calibration, its limits are the tool's real
+/// strength, the oracle is held to the controller's F0, T0 and fdot_m) is checked here, on the
+/// evaluation side.
+#[test]
+fn default_experiment_controller_believes_the_plant() {
+    let ac = AcSettings::default();
+    let t = Transducer::default();
+    for ch in 0..3 {
+        assert_eq!(t.gain[ch] as f32, ac.cal[ch].gain, "gain of channel {ch}");
+        assert_eq!(
+            t.offset[ch] as f32, ac.cal[ch].offset,
+            "offset of channel {ch}"
+        );
+    }
+    let tool = Tool::default();
+    assert_eq!(tool.f_max_n, ac.force_limit_n as f64);
+    assert_eq!(tool.t_max_nm, ac.torque_limit_nm as f64);
+    let limits = OracleLimits::for_tool(&tool);
+    assert_eq!(limits.f0_n as f32, ac.f0_n());
+    assert_eq!(limits.t0_nm as f32, ac.t0_nm());
+    // fdot_m: feed numbers per second -> ipm/s (f = q0 * FR / FRM).
+    let s = Settings::default();
+    let ipm_per_f = s.max_feed_blu_per_min() as f64 / s.q0 as f64 / 10_000.0;
+    assert_eq!(limits.fdot_m_ipm_s, ac.fdot_m as f64 * ipm_per_f);
 }

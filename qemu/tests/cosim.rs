@@ -1,7 +1,7 @@
 //! QEMU co-simulation tests of the adaptive control (host): the firmware samples a toy plant
 //! through the lockstep simulated ADC, runs its AC task and writes `ac.log`. A toy plant is
 //! enough here: the force is proportional to the feed (the distance moved over the last 10
-//! samples); the real cutting model lives in `millac_qemu::cut`.
+//! samples); the real cutting model lives in the `millac-plant` crate (qemu/plant).
 use millac::ac::AcSettings;
 use millac_qemu::analysis;
 use millac_qemu::cosim::{self, AcRecord, Exchange, Plant};

@@ -175,8 +175,8 @@ fn rejected_program_writes_the_error_and_runs_nothing() {
 #[test]
 fn ac_against_the_cutting_process_and_host_replay() {
     use millac::ac::AcSettings;
+    use millac_plant::{Material, Stock, Tool, Transducer};
     use millac_qemu::acsim::Cut;
-    use millac_qemu::cut::{Material, Stock, Tool, Transducer};
     let program = "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n";
     let out = out_dir("ac");
     let ac = runner::AcRun {

@@ -84,6 +84,16 @@ fn reject_words(w: &Words, list: &[usize]) -> Result<(), ErrorKind> {
 
 const ARC_WORDS: [usize; 4] = [R, OFFSETS, OFFSETS + 1, OFFSETS + 2];
 
+/// How the line's length words convert: BLU per program unit (a ratio) and fine units per
+/// program unit.
+#[derive(Clone, Copy)]
+struct Scale {
+    per: (i64, i64),
+    fine: i128,
+}
+
+/// The semantics of one line on the parser's state: modal words, feed and spindle, then end,
+/// dwell or motion. `m` and `position` are the caller's copies (committed only on `Ok`).
 pub fn execute(
     st: &Settings,
     m: &mut Modes,
@@ -91,10 +101,72 @@ pub fn execute(
     line_no: u32,
     text: &str,
 ) -> Result<Parsed, ErrorKind> {
-    let pos = position.blu;
     let w = words::lex(text)?;
 
     // Modal words first: they apply to the whole line, wherever they stand.
+    modal_words(&w, m);
+    let scale = match m.units {
+        Units::Inch => Scale {
+            per: st.blu.per_inch(),
+            fine: FINE_PER_INCH,
+        },
+        Units::Mm => Scale {
+            per: st.blu.per_mm(),
+            fine: FINE_PER_MM,
+        },
+    };
+    feed_and_spindle(st, &w, m, scale)?;
+    let motion_word = motion_mode(&w, m);
+
+    let mut has_axes = false;
+    for k in 0..3 {
+        has_axes |= length(&w, AXES + k, scale.per)?.is_some();
+    }
+    let dwell = w.g[G_DWELL].is_some();
+
+    if w.m[M_STOP].is_some() {
+        return end(&w, has_axes || dwell);
+    }
+    if dwell {
+        return dwell_block(st, &w, has_axes, line_no);
+    }
+    reject_words(&w, &[P])?;
+
+    // A motion runs when the line has axis words or names a motion mode (grbl).
+    if !has_axes && motion_word.is_none() {
+        reject_words(&w, &ARC_WORDS)?;
+        return Ok(Parsed::Nothing);
+    }
+    let code = motion_code(m.motion);
+    if code != 0 && m.feed == 0 {
+        return Err(ErrorKind::NoFeed { code });
+    }
+
+    let (target, target_fine) = targets(st, &w, m.distance, &position, scale)?;
+    let motion = match m.motion {
+        MotionMode::Rapid | MotionMode::Linear => {
+            match line_motion(st, m, &w, *position.blu, target)? {
+                Some(motion) => motion,
+                None => {
+                    // No machine motion, but the programmed position moves (an increment below
+                    // a BLU).
+                    *position.fine = target_fine;
+                    return Ok(Parsed::Nothing);
+                }
+            }
+        }
+        MotionMode::ArcCw | MotionMode::ArcCcw => arc_motion(st, m, &w, &position, target, scale)?,
+    };
+    *position.blu = target;
+    *position.fine = target_fine;
+    Ok(Parsed::Block(Block {
+        line: line_no,
+        motion,
+    }))
+}
+
+/// G20/G21, G17/G18/G19, G90/G91. (G94, feed per minute, is the only feed mode: nothing to do.)
+fn modal_words(w: &Words, m: &mut Modes) {
     match w.g[G_UNITS] {
         Some(20) => m.units = Units::Inch,
         Some(21) => m.units = Units::Mm,
@@ -111,16 +183,20 @@ pub fn execute(
         Some(91) => m.distance = Distance::Incremental,
         _ => {}
     }
-    // G94 (feed per minute) is the only feed mode: nothing to do.
-    let (per, per_fine) = match m.units {
-        Units::Inch => (st.blu.per_inch(), FINE_PER_INCH),
-        Units::Mm => (st.blu.per_mm(), FINE_PER_MM),
-    };
+}
+
+/// F (to the feed number, in the line's units) and S (rpm, stored only).
+fn feed_and_spindle(
+    st: &Settings,
+    w: &Words,
+    m: &mut Modes,
+    scale: Scale,
+) -> Result<(), ErrorKind> {
     if let Some(fv) = w.value(F) {
         if fv.is_negative() {
             return Err(ErrorKind::NegativeValue('F'));
         }
-        m.feed = feed_number(st, fv, per).ok_or(ErrorKind::NumberTooLarge('F'))?;
+        m.feed = feed_number(st, fv, scale.per).ok_or(ErrorKind::NumberTooLarge('F'))?;
     }
     if let Some(sv) = w.value(S) {
         if sv.is_negative() {
@@ -131,178 +207,198 @@ pub fn execute(
             _ => return Err(ErrorKind::NumberTooLarge('S')),
         };
     }
-    let motion_word = w.g[G_MOTION];
-    match motion_word {
+    Ok(())
+}
+
+/// G0..G3: sets the motion mode; returns the motion word of the line, if any.
+fn motion_mode(w: &Words, m: &mut Modes) -> Option<u8> {
+    let word = w.g[G_MOTION];
+    match word {
         Some(0) => m.motion = MotionMode::Rapid,
         Some(1) => m.motion = MotionMode::Linear,
         Some(2) => m.motion = MotionMode::ArcCw,
         Some(3) => m.motion = MotionMode::ArcCcw,
         _ => {}
     }
+    word
+}
 
-    let mut axis = [None; 3];
-    for (k, a) in axis.iter_mut().enumerate() {
-        *a = length(&w, AXES + k, per)?;
-    }
-    let has_axes = axis.iter().any(Option::is_some);
-    let dwell = w.g[G_DWELL].is_some();
-
-    if w.m[M_STOP].is_some() {
-        if has_axes || dwell {
-            return Err(ErrorKind::EndWithMotion);
-        }
-        reject_words(&w, &[P, R, OFFSETS, OFFSETS + 1, OFFSETS + 2])?;
-        return Ok(Parsed::End);
-    }
-
-    if dwell {
-        if has_axes {
-            return Err(ErrorKind::DwellWithAxes);
-        }
-        reject_words(&w, &ARC_WORDS)?;
-        let pv = w.value(P).ok_or(ErrorKind::DwellNeedsP)?;
-        if pv.is_negative() {
-            return Err(ErrorKind::NegativeValue('P'));
-        }
-        let frames = match pv
-            .mul_ratio_round(st.frame_hz as i128, 1)
-            .map(u32::try_from)
-        {
-            Some(Ok(v)) => v,
-            _ => return Err(ErrorKind::NumberTooLarge('P')),
-        };
-        // A dwell of zero frames is no block (the frame never sees an empty dwell).
-        if frames == 0 {
-            return Ok(Parsed::Nothing);
-        }
-        return Ok(Parsed::Block(Block {
-            line: line_no,
-            motion: Motion::Dwell(Dwell { frames }),
-        }));
-    }
-    reject_words(&w, &[P])?;
-
-    // A motion runs when the line has axis words or names a motion mode (grbl).
-    if !has_axes && motion_word.is_none() {
-        reject_words(&w, &ARC_WORDS)?;
-        return Ok(Parsed::Nothing);
-    }
-    let code = match m.motion {
+/// The G code number of a motion mode (for the error messages).
+const fn motion_code(mode: MotionMode) -> u8 {
+    match mode {
         MotionMode::Rapid => 0,
         MotionMode::Linear => 1,
         MotionMode::ArcCw => 2,
         MotionMode::ArcCcw => 3,
-    };
-    if code != 0 && m.feed == 0 {
-        return Err(ErrorKind::NoFeed { code });
     }
+}
 
-    // The programmed target, exact; the machine target is its rounding (an axis without a word
-    // stays where the machine is).
-    let mut target = *pos;
+/// M2/M30: the end of the program, on a line without motion.
+fn end(w: &Words, moves: bool) -> Result<Parsed, ErrorKind> {
+    if moves {
+        return Err(ErrorKind::EndWithMotion);
+    }
+    reject_words(w, &[P, R, OFFSETS, OFFSETS + 1, OFFSETS + 2])?;
+    Ok(Parsed::End)
+}
+
+/// G4 P<seconds>: a dwell of P * W0 frames (none for zero frames).
+fn dwell_block(
+    st: &Settings,
+    w: &Words,
+    has_axes: bool,
+    line_no: u32,
+) -> Result<Parsed, ErrorKind> {
+    if has_axes {
+        return Err(ErrorKind::DwellWithAxes);
+    }
+    reject_words(w, &ARC_WORDS)?;
+    let pv = w.value(P).ok_or(ErrorKind::DwellNeedsP)?;
+    if pv.is_negative() {
+        return Err(ErrorKind::NegativeValue('P'));
+    }
+    let frames = match pv
+        .mul_ratio_round(st.frame_hz as i128, 1)
+        .map(u32::try_from)
+    {
+        Some(Ok(v)) => v,
+        _ => return Err(ErrorKind::NumberTooLarge('P')),
+    };
+    // A dwell of zero frames is no block (the frame never sees an empty dwell).
+    if frames == 0 {
+        return Ok(Parsed::Nothing);
+    }
+    Ok(Parsed::Block(Block {
+        line: line_no,
+        motion: Motion::Dwell(Dwell { frames }),
+    }))
+}
+
+/// The programmed target, exact, and the machine target, its rounding (an axis without a word
+/// stays where the machine is).
+fn targets(
+    st: &Settings,
+    w: &Words,
+    distance: Distance,
+    position: &Position,
+    scale: Scale,
+) -> Result<([i32; 3], [i128; 3]), ErrorKind> {
+    let mut target = *position.blu;
     let mut target_fine = *position.fine;
     for k in 0..3 {
         let Some(v) = w.value(AXES + k) else { continue };
         let overflow = ErrorKind::TargetOverflow { axis: axis_name(k) };
-        let v = to_fine(v, per_fine).ok_or(overflow)?;
-        let t = match m.distance {
+        let v = to_fine(v, scale.fine).ok_or(overflow)?;
+        let t = match distance {
             Distance::Absolute => v,
             Distance::Incremental => target_fine[k].checked_add(v).ok_or(overflow)?,
         };
         target_fine[k] = t;
         target[k] = fine_to_blu(st, t).ok_or(overflow)?;
     }
+    Ok((target, target_fine))
+}
 
-    let motion = match m.motion {
-        MotionMode::Rapid | MotionMode::Linear => {
-            reject_words(&w, &ARC_WORDS)?;
-            check_soft(st, target)?;
-            let mut steps = [0u32; 3];
-            let mut signs = 0u8;
-            let mut sum: u128 = 0;
-            for (k, ((s, &t), &p)) in steps
-                .iter_mut()
-                .zip(target.iter())
-                .zip(pos.iter())
-                .enumerate()
-            {
-                let d = t as i64 - p as i64;
-                // |d| < 2^32: fits u32.
-                *s = d.unsigned_abs() as u32;
-                if d > 0 {
-                    signs |= 1 << k;
-                }
-                sum += d.unsigned_abs() as u128 * d.unsigned_abs() as u128;
-            }
-            if sum == 0 {
-                // No machine motion, but the programmed position moves (an increment below a BLU).
-                *position.fine = target_fine;
-                return Ok(Parsed::Nothing);
-            }
-            if m.motion == MotionMode::Rapid {
-                Motion::Rapid(Rapid { steps, signs })
-            } else {
-                // q = L must fit the DDA's 32-bit sums (see `Q_MAX`).
-                let q = match u64::try_from(sum).map(isqrt) {
-                    Ok(q) if q <= Q_MAX as u64 => (q as u32).max(1),
-                    _ => return Err(ErrorKind::MoveTooLong),
-                };
-                Motion::Linear(Linear {
-                    steps,
-                    signs,
-                    q,
-                    f: m.feed,
-                    decel: false,
-                    f_floor: 0,
-                    decel_below: 0,
-                    dir: [1; 3],
-                })
-            }
+/// G0/G1 from `pos` to `target`: the rapid or line, or None when the machine does not move.
+fn line_motion(
+    st: &Settings,
+    m: &Modes,
+    w: &Words,
+    pos: [i32; 3],
+    target: [i32; 3],
+) -> Result<Option<Motion>, ErrorKind> {
+    reject_words(w, &ARC_WORDS)?;
+    check_soft(st, target)?;
+    let mut steps = [0u32; 3];
+    let mut signs = 0u8;
+    let mut sum: u128 = 0;
+    for (k, ((s, &t), &p)) in steps
+        .iter_mut()
+        .zip(target.iter())
+        .zip(pos.iter())
+        .enumerate()
+    {
+        let d = t as i64 - p as i64;
+        // |d| < 2^32: fits u32.
+        *s = d.unsigned_abs() as u32;
+        if d > 0 {
+            signs |= 1 << k;
         }
-        MotionMode::ArcCw | MotionMode::ArcCcw => {
-            let (ia, ib) = m.plane.axes();
-            let third = 3 - ia - ib;
-            reject_words(&w, &[OFFSETS + third])?;
-            let has_offsets = w.value(OFFSETS + ia).is_some() || w.value(OFFSETS + ib).is_some();
-            let centre = match (w.value(R).is_some(), has_offsets) {
-                (true, true) => return Err(ErrorKind::ArcRadiusAndOffsets),
-                (true, false) => Centre::Radius(length(&w, R, per)?.unwrap_or(0)),
-                (false, true) => {
-                    // The centre is the programmed start plus I, J, K, exact, rounded once.
-                    let mut off = [0i64; 2];
-                    for (o, k) in off.iter_mut().zip([ia, ib]) {
-                        length(&w, OFFSETS + k, per)?;
-                        let letter = words::LETTERS.get(OFFSETS + k).copied().unwrap_or('?');
-                        let too_large = ErrorKind::NumberTooLarge(letter);
-                        let v = match w.value(OFFSETS + k) {
-                            Some(v) => to_fine(v, per_fine).ok_or(too_large)?,
-                            None => 0,
-                        };
-                        let c = position.fine[k].checked_add(v).ok_or(too_large)?;
-                        let c = fine_to_blu(st, c).ok_or(ErrorKind::ArcTooLarge)?;
-                        *o = c as i64 - pos[k] as i64;
-                    }
-                    Centre::Offsets(off)
-                }
-                (false, false) => return Err(ErrorKind::ArcNeedsCentre { code }),
-            };
-            let a = arc::plan(
-                st,
-                m.plane,
-                m.motion == MotionMode::ArcCcw,
-                *pos,
-                target,
-                centre,
-                m.feed,
-            )?;
-            check_soft(st, target)?;
-            Motion::Arc(a)
+        sum += d.unsigned_abs() as u128 * d.unsigned_abs() as u128;
+    }
+    if sum == 0 {
+        return Ok(None);
+    }
+    if m.motion == MotionMode::Rapid {
+        return Ok(Some(Motion::Rapid(Rapid { steps, signs })));
+    }
+    // q = L must fit the DDA's 32-bit sums (see `Q_MAX`).
+    let q = match u64::try_from(sum).map(isqrt) {
+        Ok(q) if q <= Q_MAX as u64 => (q as u32).max(1),
+        _ => return Err(ErrorKind::MoveTooLong),
+    };
+    Ok(Some(Motion::Linear(Linear {
+        steps,
+        signs,
+        q,
+        f: m.feed,
+        decel: false,
+        f_floor: 0,
+        decel_below: 0,
+        dir: [1; 3],
+    })))
+}
+
+/// G2/G3 from the position to `target` in the plane in force: the centre (R, or I/J/K from the
+/// exact programmed start, rounded once), then the planned arc within the soft limits.
+fn arc_motion(
+    st: &Settings,
+    m: &Modes,
+    w: &Words,
+    position: &Position,
+    target: [i32; 3],
+    scale: Scale,
+) -> Result<Motion, ErrorKind> {
+    let pos = *position.blu;
+    let (ia, ib) = m.plane.axes();
+    let third = 3 - ia - ib;
+    reject_words(w, &[OFFSETS + third])?;
+    let has_offsets = w.value(OFFSETS + ia).is_some() || w.value(OFFSETS + ib).is_some();
+    let centre = match (w.value(R).is_some(), has_offsets) {
+        (true, true) => return Err(ErrorKind::ArcRadiusAndOffsets),
+        (true, false) => Centre::Radius(length(w, R, scale.per)?.unwrap_or(0)),
+        (false, true) => {
+            // The centre is the programmed start plus I, J, K, exact, rounded once.
+            let mut off = [0i64; 2];
+            for (o, k) in off.iter_mut().zip([ia, ib]) {
+                length(w, OFFSETS + k, scale.per)?;
+                let letter = words::LETTERS.get(OFFSETS + k).copied().unwrap_or('?');
+                let too_large = ErrorKind::NumberTooLarge(letter);
+                let v = match w.value(OFFSETS + k) {
+                    Some(v) => to_fine(v, scale.fine).ok_or(too_large)?,
+                    None => 0,
+                };
+                let c = position.fine[k].checked_add(v).ok_or(too_large)?;
+                let c = fine_to_blu(st, c).ok_or(ErrorKind::ArcTooLarge)?;
+                *o = c as i64 - pos[k] as i64;
+            }
+            Centre::Offsets(off)
+        }
+        (false, false) => {
+            return Err(ErrorKind::ArcNeedsCentre {
+                code: motion_code(m.motion),
+            })
         }
     };
-    *pos = target;
-    *position.fine = target_fine;
-    Ok(Parsed::Block(Block {
-        line: line_no,
-        motion,
-    }))
+    let a = arc::plan(
+        st,
+        m.plane,
+        m.motion == MotionMode::ArcCcw,
+        pos,
+        target,
+        centre,
+        m.feed,
+    )?;
+    check_soft(st, target)?;
+    Ok(Motion::Arc(a))
 }

@@ -7,12 +7,13 @@
 //!
 //! Priorities: frame and pulse-end 3; the sampler (TIMER_2A, `sample_hz`) 2; the AC period
 //! (software task, dispatcher SSI0, spawned by the sampler every `period_ms`) 1; the idle loader
-//! 0. The pulse-end ISR counts the pulses on the pins into `ENCODER`; the sampler exchanges the
-//! encoder counts for ADC codes with the host in lockstep and queues them; the AC task runs the
-//! `AcController` on them, writes `FEED_CAP` (when enabled) and `ac.log`, prints `alarm: ..` on a
-//! hold and stops the run after a long hold with nothing moving (see `millac_hal::actask`).
-//! Without `adc.req` in the working directory none of this starts: no sample timer, no AC task,
-//! `FEED_CAP` stays `u32::MAX` and the firmware behaves as before.
+//! 0. The pulse-end ISR counts the pulses on the pins into the encoder counts (`STATUS.encoder`,
+//! a `millac::rt::Status`); the sampler exchanges them for ADC codes with the host in lockstep and
+//! queues them; the AC task runs the `AcController` on them, writes the feed cap
+//! (`STATUS.feed_cap`, when enabled) and `ac.log`, prints `alarm: ..` on a hold and stops the run
+//! after a long hold with nothing moving (see `millac_hal::actask`). Without `adc.req` in the
+//! working directory none of this starts: no sample timer, no AC task, the feed cap stays
+//! `u32::MAX` and the firmware behaves as before.
 //!
 //! The frame and pulse-end bodies, and the timing rule that makes pulses and signs correct by
 //! construction, are in `millac::rt::isr`; this app binds them to TIMER_0A and TIMER_1A.

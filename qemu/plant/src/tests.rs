@@ -1,4 +1,5 @@
-//! Host tests of the cutting process and the oracle.
+//! Host tests of the cutting process and the oracle (host): stock parsing, forces against the
+//! model, noise, determinism, the oracle's schedule.
 use super::*;
 
 const RATE: f64 = 1000.0;
@@ -288,17 +289,7 @@ fn same_seed_same_bytes_other_seed_other_noise() {
 }
 
 #[test]
-fn transducer_defaults_match_the_ac_core() {
-    let ac = millac::ac::AcSettings::default();
-    let t = Transducer::default();
-    for ch in 0..3 {
-        assert_eq!(t.gain[ch] as f32, ac.cal[ch].gain);
-        assert_eq!(t.offset[ch] as f32, ac.cal[ch].offset);
-    }
-    let tool = Tool::default();
-    assert_eq!(tool.f_max_n, ac.force_limit_n as f64);
-    assert_eq!(tool.t_max_nm, ac.torque_limit_nm as f64);
-    // Codes clamp at the rails.
+fn transducer_codes_clamp_at_the_rails() {
     let mut p = Process::new(blank(), Tool::default(), Material::STEEL, 600.0, 1, quiet()).unwrap();
     let s = run(
         &mut p,

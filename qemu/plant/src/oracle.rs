@@ -1,7 +1,8 @@
-//! The oracle (host): the fastest feed schedule along a tool path that keeps the force F <= F0 and
-//! the torque T <= T0 everywhere, never exceeds the programmed feed and changes the feed by at most
-//! fdot_m (750 ipm/s by default, up and down), computed with full knowledge of the stock. Its time
-//! is the bound no honest adaptive controller can beat.
+//! The oracle (host; the evaluation calls it with the path of a program): the fastest feed schedule
+//! along a tool path that keeps the force F <= F0 and the torque T <= T0 everywhere, never exceeds
+//! the programmed feed and changes the feed by at most fdot_m (750 ipm/s by default, up and down),
+//! computed with full knowledge of the stock. Its time is the bound no honest adaptive controller
+//! can beat.
 //!
 //! Algorithm:
 //! 1. Walk the path once, cutting the stock as the process does (the removal does not depend on
@@ -20,8 +21,8 @@
 //! so it can only do worse); the feed per tooth is taken from the instantaneous path direction
 //! (the process averages it over one tooth period, which matters only at sharp corners); the
 //! noise and the transducer quantisation are ignored.
-use super::process::Cutter;
-use super::{validate, CutError, Material, Stock, Tool, MM_PER_BLU, MM_S_PER_IPM};
+use crate::process::Cutter;
+use crate::{validate, CutError, Material, Stock, Tool, MM_PER_BLU, MM_S_PER_IPM};
 
 /// One point of the tool path: tool tip position (BLU) and the programmed feed (ipm) of the move
 /// arriving at it, the ceiling of the schedule there.
@@ -45,8 +46,9 @@ pub struct OracleLimits {
 }
 
 impl OracleLimits {
-    /// The AC core's defaults for `tool`: F0, T0 = 0.9 x permissible, fdot_m = 750 ipm/s,
-    /// starting and ending at rest.
+    /// The paper's constraints for `tool`: F0, T0 = 0.9 x permissible ("around 90 percent"),
+    /// fdot_m = 750 ipm/s, starting and ending at rest. (The AC core's defaults are the same
+    /// numbers; millac-qemu's tests check it, the plant does not know the controller.)
     pub fn for_tool(tool: &Tool) -> OracleLimits {
         OracleLimits {
             f0_n: 0.9 * tool.f_max_n,

@@ -3,7 +3,7 @@
 //! and torque from the engagement at that instant, removes the material swept since the previous
 //! sample and returns the true values and the ADC codes.
 //!
-//! Model (Munasinghe 1994, eq. 3.1 to 3.5; straight flutes, see [`super::Tool`]):
+//! Model (Munasinghe 1994, eq. 3.1 to 3.5; straight flutes, see [`crate::Tool`]):
 //! - Spindle clockwise seen from above (M3). Spindle angle `theta = 2 pi rpm t / 60`; tooth k sits
 //!   at the world angle `psi_k = -theta - k 2 pi / z` (counter-clockwise from +X), tooth 0 on +X
 //!   at t = 0.
@@ -34,7 +34,7 @@
 //!   to this one get `top = min(top, tip Z)`.
 use std::collections::VecDeque;
 
-use super::{validate, CutError, Material, Stock, Tool, Transducer, MM_PER_BLU};
+use crate::{validate, CutError, Material, Stock, Tool, Transducer, MM_PER_BLU};
 
 /// One ADC sample of the process.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -128,7 +128,7 @@ impl Stock {
                 continue;
             };
             let g = |w: &[Option<f64>; 26], l: char| w[(l as u8 - b'A') as usize].unwrap_or(0.0);
-            let to_mm = |v: f64| v * super::MM_PER_IN;
+            let to_mm = |v: f64| v * crate::MM_PER_IN;
             let err = |msg: &str| StockError {
                 line,
                 msg: msg.into(),

@@ -1,14 +1,26 @@
-//! The simulated cutting process (host): the thing the simulated ADC measures. A flat end mill
-//! cuts a height-map stock; at every ADC sample [`Process::sample`] computes the instantaneous
-//! cutting force and torque from the engagement at that instant (mechanistic model of Munasinghe
-//! 1994, eq. 3.1 to 3.5: Ft = Ks a h, Fr = Kr Ft, h = c sin(phi)), resolves the force in the
-//! rotating tool holder (Tlusty, Koren and McNeil: Fu, Fv 90 degrees apart, F = sqrt(Fu^2 + Fv^2),
-//! torque T) and turns T, Fu, Fv into 12-bit ADC codes with seeded noise. [`oracle`] computes the
-//! fastest feed schedule any controller could run with full knowledge of the stock.
+//! millac-plant (host): the simulated plant of millac, the machine the controller drives, modelled
+//! on the host. Today that is the cutting process, the thing the simulated ADC measures: a flat end
+//! mill cuts a height-map stock ([`stock`]); at every ADC sample [`Process::sample`] ([`process`])
+//! computes the instantaneous cutting force and torque from the engagement at that instant
+//! (mechanistic model of Munasinghe 1994, eq. 3.1 to 3.5: Ft = Ks a h, Fr = Kr Ft, h = c sin(phi)),
+//! resolves the force in the rotating tool holder (Tlusty, Koren and McNeil: Fu, Fv 90 degrees
+//! apart, F = sqrt(Fu^2 + Fv^2), torque T) and turns T, Fu, Fv into 12-bit ADC codes with seeded
+//! noise. [`oracle`] computes the fastest feed schedule any controller could run along a tool path
+//! with full knowledge of the stock: the bound the evaluation (millac-qemu's `acreport`, which turns
+//! the NC program into the path) compares controllers with.
 //!
-//! Units: the firmware speaks BLU (0.0001 in, integers) and ipm; this module works in SI inside:
-//! mm, s, N, N*m (1 BLU = 0.00254 mm, 1 ipm = 25.4 / 60 mm/s). Stock descriptions are in inches
-//! like the G20 programs. Called from the host tool only (no firmware context).
+//! The plant knows nothing of the controller: it does not depend on `millac` and reads none of its
+//! settings. Its parameters are physical properties of the simulated machine ([`Tool`] strength,
+//! [`Material`] coefficients, the [`Transducer`]'s real gain, offset and noise); the controller's
+//! settings (e.g. its calibration) are its belief about them, set separately by whoever runs the
+//! experiment, so an honest evaluation can make the two disagree. The defaults happen to agree with
+//! the controller's defaults; millac-qemu's tests check that the default experiment is matched.
+//! Later models of the plant live here too: tool breakage, chatter, the feed drives.
+//!
+//! Units: the controller speaks BLU (0.0001 in, integers) and ipm at the plant's boundary (tool tip
+//! positions in [`MM_PER_BLU`] steps, programmed feeds); inside, the plant works in SI: mm, s, N,
+//! N*m (1 BLU = 0.00254 mm, 1 ipm = 25.4 / 60 mm/s). Stock descriptions are in inches like the G20
+//! programs. Called from the host tool only (no firmware context).
 //!
 //! Determinism: no hash maps, no clocks, no threads; noise from a seeded SplitMix64 and a sum of
 //! twelve uniforms (only + and *). Same inputs and seed give the same bytes on one platform (the
@@ -48,8 +60,8 @@ pub struct Tool {
 }
 
 impl Default for Tool {
-    /// The 0.5 in four-flute end mill of the Fig. 1 demo; limits = the AC core's defaults
-    /// (`AcSettings::force_limit_n` 4000 N, `torque_limit_nm` 80 N*m).
+    /// The 0.5 in four-flute end mill of the Fig. 1 demo, permissible 4000 N and 80 N*m (the
+    /// values the AC core's default limits assume; millac-qemu's tests check they agree).
     fn default() -> Self {
         Tool {
             diameter_mm: 0.5 * MM_PER_IN,
@@ -87,9 +99,10 @@ impl Material {
     };
 }
 
-/// The force/torque transducer and its ADC. `code = round(value / gain + offset + noise)`,
-/// clamped to 0..=4095, the inverse of the AC core's `Calibration::value` (`gain * (code -
-/// offset)`). Channels in the order of the codes: [T, Fu, Fv].
+/// The force/torque transducer and its ADC, as they really are (the controller's calibration is
+/// its belief about them). `code = round(value / gain + offset + noise)`, clamped to 0..=4095;
+/// a controller reads the value back as `gain * (code - offset)`. Channels in the order of the
+/// codes: [T, Fu, Fv].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Transducer {
     /// Engineering units per code: N*m/code for T, N/code for Fu, Fv.
@@ -101,8 +114,9 @@ pub struct Transducer {
 }
 
 impl Default for Transducer {
-    /// Same calibration as `millac::ac::AcSettings::default().cal` (0.05 N*m and 2.5 N per code,
-    /// offset 2048), noise sigma 2 codes.
+    /// 0.05 N*m and 2.5 N per code (+-102.4 N*m and +-5120 N full scale), offset 2048, noise
+    /// sigma 2 codes. The AC core's default calibration believes the same gains and offsets
+    /// (checked by millac-qemu's tests, not here).
     fn default() -> Self {
         Transducer {
             gain: [0.05, 2.5, 2.5],
