@@ -17,7 +17,7 @@
 //! The plugin sees store addresses but not values (plugin API v1); the trace sees offsets and values
 //! but not the time. Both list the same writes in the same order, so they are zipped one to one (the
 //! offsets must agree, else the capture fails) and the port B writes are replayed like QEMU's PL061
-//! (data writes are masked by address bits [9:2] and by the direction register). Pin levels reported
+//! (data writes are masked by address bits \[9:2\] and by the direction register). Pin levels reported
 //! are `data & dir` (input pins read 0). Time of a write = (instructions executed up to and including
 //! the store) << shift, in ns; exact under `-icount shift=N,sleep=off` with a busy idle loop.
 use anyhow::{bail, ensure, Context, Result};

@@ -15,7 +15,7 @@ pub enum LineError {
 }
 
 impl LineError {
-    /// The reason, worded like the parser's errors ("line N: <reason>").
+    /// The reason, worded like the parser's errors (`line N: <reason>`).
     pub const fn message(self) -> &'static str {
         match self {
             LineError::TooLong => "line too long",
