@@ -1,14 +1,16 @@
 //! The adaptive loop natively on the host (host): the core's `Frame` (same code as the firmware's
-//! frame ISR), the core's `AcController` (same code as the firmware's AC task) and the simulated
-//! cutting process, on one virtual clock with the firmware's timing (frames at W0 or the rapid rate,
-//! ADC samples at `sample_hz` from the pulses emitted so far, AC periods every `period_ms`). For fast
-//! experiments and benchmarks; the QEMU run is the reference for the firmware itself.
+//! frame ISR), the firmware's sampler and AC-period bodies (`millac::rt::ac`, with the same
+//! `AcController`) over a host ADC port, and the simulated cutting process (`millac-plant`), on one
+//! virtual clock with the firmware's timing (frames at W0 or the rapid rate in the QEMU board's
+//! timer clocks, ADC samples at `sample_hz` from the pulses emitted so far, an AC period every
+//! `sample_hz * period_ms / 1000` samples). For fast experiments and benchmarks; the QEMU run is
+//! the reference for the firmware itself.
 use crate::analysis::ProgBlock;
 use anyhow::{anyhow, Result};
 use millac::ac::{AcController, AcSettings, AcState};
+use millac::gcode::tape::finish_block;
 use millac::nc::{Block, Frame, FrameConfig, Motion, Rate};
-use millac::ports::BlockSource;
-use millac::ports::{Conversion, ForceTorqueAdc};
+use millac::ports::{BlockSource, Conversion, ForceTorqueAdc};
 use millac::rt::ac::{self as rt_ac, AcPeriod};
 use millac::rt::Status;
 use millac::Settings;
@@ -204,17 +206,12 @@ pub fn run_with_faults(
     faults: &[crate::fault::Fault],
 ) -> Result<HostRun> {
     let mut frame = Frame::new(FrameConfig::from_settings(settings));
-    // The loader applies an enabled AC's feed ceiling, as in the firmware.
+    // An enabled AC's feed ceiling, as the firmware's tape applies it (the same function).
+    let cfg = FrameConfig::from_settings(settings);
+    let ceiling = ac.map(|s| s.ceiling);
     let mut queue = Queue(
         prog.iter()
-            .map(|b| {
-                let mut b = b.block;
-                if let Some(s) = ac {
-                    millac::ac::apply_ceiling(&mut b, s.ceiling, settings.q0);
-                    b.seal(&FrameConfig::from_settings(settings));
-                }
-                b
-            })
+            .map(|b| finish_block(b.block, ceiling, &cfg, settings.q0))
             .collect(),
     );
     let acs = ac.unwrap_or_default();

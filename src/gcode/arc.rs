@@ -71,7 +71,7 @@ const fn mirror(p: [i64; 2], cw: bool) -> [i64; 2] {
 
 /// The grbl radius tolerance in BLU for a circle of radius `r` BLU:
 /// min(max(0.005 mm, 0.001 r), 0.5 mm).
-fn tolerance(st: &Settings, r: f64) -> f64 {
+pub(crate) fn tolerance(st: &Settings, r: f64) -> f64 {
     let (num, den) = st.blu.per_mm();
     let mm = num as f64 / den as f64;
     let t = (0.005 * mm).max(0.001 * r);
@@ -182,7 +182,10 @@ pub fn plan(
     }
     let rs = libm::sqrt(n0 as f64);
     let re = libm::sqrt(n1 as f64);
-    if (re - rs).abs() > tolerance(st, rs) {
+    let tol = tolerance(st, rs);
+    // In whole BLU, for the last segment's step back (below); at least the 1 BLU of rounding.
+    let tol_blu = (libm::ceil(tol) as i64).max(1);
+    if (re - rs).abs() > tol {
         return Err(ErrorKind::ArcEndNotOnCircle {
             start: r,
             end: r_end,
@@ -219,9 +222,14 @@ pub fn plan(
             (m1, q0 + n_cross)
         };
         let dirs = ccw_dirs(quad);
-        let da = (point[0] - prev[0]).signum();
-        let db = (point[1] - prev[1]).signum();
-        if da * dirs[0] < 0 || db * dirs[1] < 0 {
+        // A segment runs monotonically along the circle. Only the last one may step back, by no
+        // more than the radius tolerance: an end point that is off the start's circle (rounding,
+        // or within grbl's tolerance) can lie a BLU or so outside the last crossing, and the
+        // frame's segment counters still end it exactly (the DDA moves each axis towards the
+        // target; the path stays in the band between the start and the end radius).
+        let slack = if t == n_cross { tol_blu } else { 0 };
+        let back = |d: i64, dir: i64| if d * dir < 0 { d.abs() } else { 0 };
+        if back(point[0] - prev[0], dirs[0]) > slack || back(point[1] - prev[1], dirs[1]) > slack {
             return Err(ErrorKind::ArcEndUnreachable {
                 start: r,
                 end: r_end,

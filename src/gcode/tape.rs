@@ -54,13 +54,25 @@ struct Finish {
 }
 
 impl Finish {
-    fn block(&self, mut b: Block) -> Block {
-        if let Some(c) = self.ceiling {
-            apply_ceiling(&mut b, c, self.q0);
-        }
-        b.seal(&self.cfg);
-        b
+    fn block(&self, b: Block) -> Block {
+        finish_block(b, self.ceiling, &self.cfg, self.q0)
     }
+}
+
+/// The last steps of a block before the queue, after the parser and the look-ahead: an enabled
+/// AC's feed ceiling, then the frame's register image ([`Block::seal`]). The tape runs it on every
+/// block it emits; the host simulation runs it on a loaded program it queues with the AC enabled.
+pub fn finish_block(
+    mut b: Block,
+    ceiling: Option<FeedCeiling>,
+    cfg: &FrameConfig,
+    q0: u32,
+) -> Block {
+    if let Some(c) = ceiling {
+        apply_ceiling(&mut b, c, q0);
+    }
+    b.seal(cfg);
+    b
 }
 
 impl Tape {

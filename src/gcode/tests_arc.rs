@@ -4,7 +4,7 @@ extern crate std;
 use std::format;
 use std::string::String;
 
-use super::tests::{assert_rejected, block, parser};
+use super::tests::{assert_rejected, block, motion, parser};
 use super::*;
 use crate::nc::{Arc, Motion, Plane};
 
@@ -249,4 +249,43 @@ fn arc_extent_soft_limits() {
     let mut p = parser();
     block(&mut p, "X9.6 Y-0.5 F10");
     assert!(p.line(2, "G2 X9.6 Y0.5 J0.5").is_ok());
+}
+
+/// An arc whose end lies just past an axis crossing and a BLU or two outside the start's circle
+/// (rounding; within grbl's radius tolerance) is accepted, as grbl accepts it, and runs to its exact
+/// end inside the band between the start and the end radius: its last segment steps back along the
+/// crossing axis by at most the tolerance. (It was refused as "end unreachable".)
+#[test]
+fn end_just_outside_the_circle_past_a_crossing_is_accepted_and_exact() {
+    use crate::nc::{sim::Sim, Frame, FrameConfig};
+    // Centre (-1000, 0) BLU from the start (0, 0); end (-1, 1001) from the centre: past the +b
+    // crossing (0, 1000), one BLU outside the circle.
+    let mut p = parser();
+    let mut b = block(&mut p, "G3 F30 X-0.1001 Y0.1001 I-0.1");
+    let Motion::Arc(a) = b.motion else {
+        panic!("{b:?}")
+    };
+    assert_eq!(a.targets[a.n_targets as usize - 1], [-1, 1001]);
+    let cfg = FrameConfig::from_settings(&Settings::default());
+    b.seal(&cfg);
+    let mut frame = Frame::new(cfg);
+    let mut last = [0; 3];
+    for f in Sim::new(&mut frame, [b].into_iter(), u32::MAX, 1 << 24) {
+        let (x, y) = ((f.position[0] + 1000) as f64, f.position[1] as f64);
+        let rad = (x * x + y * y).sqrt();
+        assert!(
+            (1000.0 - 1.5..=1001.5 + 1.5).contains(&rad),
+            "{:?} at radius {rad}",
+            f.position
+        );
+        last = f.position;
+    }
+    assert_eq!(last, [-1001, 1001, 0]);
+    // The case the review found: from X5.5329 in, an arc in mm whose end rounds a BLU outside.
+    let mut p = parser();
+    block(&mut p, "G20 G1 F10 X5.5329");
+    assert!(matches!(
+        motion(&mut p, "G21 G3 X195.989 Y15.892 I25.510 J15.680"),
+        Motion::Arc(_)
+    ));
 }

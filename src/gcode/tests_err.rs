@@ -356,20 +356,6 @@ fn err_arc_end_not_on_circle() {
 }
 
 #[test]
-fn err_arc_end_unreachable() {
-    // Centre (-1000, 0), start (1000, 0) relative; end (-1, 1001) relative lies past the +b
-    // crossing (0, 1000) but outside the circle: b would have to rise again after the crossing.
-    assert_rejected(
-        &mut parser(),
-        "G3 F1 X-0.1001 Y0.1001 I-0.1",
-        ErrorKind::ArcEndUnreachable {
-            start: 1000,
-            end: 1001,
-        },
-    );
-}
-
-#[test]
 fn err_arc_too_large() {
     let mut p = Parser::new(wide());
     block(&mut p, "X-214748.3647 F1");

@@ -276,15 +276,8 @@ impl Builder {
         }
         let a1 = if ccw { a0 + sweep } else { a0 - sweep };
         let e = [c[0] as f64 + r_nm * a1.cos(), c[1] as f64 + r_nm * a1.sin()];
-        // An end just past an axis crossing but a BLU outside the start's circle (the rounding of
-        // the centre and the end) is refused by the parser as unreachable (the crossing lies on the
-        // start's circle, and from there the end is against the direction of travel): keep the
-        // end's smaller coordinate away from the axis (radius mismatch 2 BLU at most, so
-        // r - sqrt(r^2 - b^2) ~ b^2 / 2r > 2 needs b > 2 sqrt(r)).
-        let rel = [e[0] - c[0] as f64, e[1] - c[1] as f64].map(|v| v.abs() / NM_PER_BLU as f64);
-        if rel[0].min(rel[1]) < 2.0 * (radius as f64).sqrt() + 3.0 {
-            return;
-        }
+        // Ends anywhere, also just past an axis crossing and a BLU outside the start's circle (the
+        // rounding of the centre and the end): the parser accepts them, as grbl does.
         let mut s = self.preamble(m, true);
         if plane != self.plane {
             s.push_str(["G17 ", "G18 ", "G19 "][plane]);
