@@ -121,6 +121,11 @@ impl Lookahead {
         Some(with_decel(prev, decel))
     }
 
+    /// True when a block is held.
+    pub fn holds(&self) -> bool {
+        self.pending.is_some()
+    }
+
     /// End of program: the held block (a feed block always decelerates at the end).
     pub fn flush(&mut self) -> Option<Block> {
         let b = self.pending.take()?;

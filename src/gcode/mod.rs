@@ -187,6 +187,12 @@ impl Parser {
         }
     }
 
+    /// Program end (M2/M30) of a streamed program: the modes return to power-up, the position
+    /// (machine and programmed) and the SIGN lines stay.
+    pub fn end_program(&mut self) {
+        self.modes = Modes::POWER_UP;
+    }
+
     /// SIGN lines after the last accepted block (bit k set = axis k positive).
     pub fn signs(&self) -> u8 {
         self.signs

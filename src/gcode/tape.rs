@@ -138,6 +138,50 @@ impl Tape {
         self.settle(result, emit)
     }
 
+    /// Streaming (a serial sender): one line, already split and numbered by the caller. An error
+    /// refuses this line only (the parser is unchanged) and the next line is read as usual; the
+    /// blocks before it have been emitted or are held as usual. M2/M30 ends the program: the held
+    /// block is emitted and the modes return to power-up (the position stays), so the next program
+    /// starts fresh, as grbl does. Loader task.
+    pub fn line(
+        &mut self,
+        n: u32,
+        text: &str,
+        mut emit: impl FnMut(Block),
+    ) -> Result<(), TapeError> {
+        let finish = self.finish;
+        let mut emit = |b: Block| emit(finish.block(b));
+        match self.parser.line(n, text).map_err(TapeError::Gcode)? {
+            Parsed::Nothing => {}
+            Parsed::Block(b) => {
+                if let Some(prev) = self.lookahead.push(b) {
+                    emit(prev);
+                }
+            }
+            Parsed::End => {
+                if let Some(b) = self.lookahead.flush() {
+                    emit(b);
+                }
+                self.parser.end_program();
+            }
+        }
+        Ok(())
+    }
+
+    /// Emits the held block, decelerating at its end as at the end of a program: for a streamed
+    /// program whose next line has not arrived while the machine would otherwise stop (a lone
+    /// line from a sender runs at once). Loader task.
+    pub fn flush(&mut self, mut emit: impl FnMut(Block)) {
+        if let Some(b) = self.lookahead.flush() {
+            emit(self.finish.block(b));
+        }
+    }
+
+    /// True when a block is held by the look-ahead (see [`Tape::flush`]).
+    pub fn holds_a_block(&self) -> bool {
+        self.lookahead.holds()
+    }
+
     fn settle(
         &mut self,
         result: Result<(), TapeError>,
@@ -182,5 +226,51 @@ fn step(
             *done = true;
             false
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::nc::Motion;
+    use std::vec::Vec;
+
+    /// A streamed program, line by line: an error refuses only its line (the next lines run from
+    /// the unchanged state), the look-ahead holds the last block until the next line or a flush,
+    /// and M2 ends the program (held block out, modes back to power-up, position kept).
+    #[test]
+    fn streamed_lines_refuse_one_line_and_flush_on_demand() {
+        let mut tape = Tape::new(Settings::default());
+        let mut out: Vec<Block> = Vec::new();
+        tape.line(1, "G21 G91 G1 F100 X1", |b| out.push(b)).unwrap();
+        assert!(out.is_empty() && tape.holds_a_block());
+        let e = tape.line(2, "G1 X1 Q7", |b| out.push(b)).unwrap_err();
+        assert_eq!(e.line(), 2);
+        tape.line(3, "X1", |b| out.push(b)).unwrap();
+        assert_eq!(out.len(), 1);
+        tape.flush(|b| out.push(b));
+        assert_eq!(out.len(), 2);
+        assert!(!tape.holds_a_block());
+        // Both lines ran 1 mm in G91, and the flushed one decelerates (it ends the motion).
+        let Motion::Linear(l) = out[1].motion else {
+            panic!("{:?}", out[1])
+        };
+        assert!(
+            l.decel && l.decel_below > 0,
+            "sealed for deceleration: {l:?}"
+        );
+        assert_eq!(tape.parser().position(), [787, 0, 0]);
+        tape.line(4, "Y1", |b| out.push(b)).unwrap();
+        tape.line(5, "M2", |b| out.push(b)).unwrap();
+        assert_eq!(out.len(), 3);
+        // After M2: power-up modes (G90, inch, no feed), the position stays.
+        assert_eq!(tape.parser().modes(), crate::gcode::Modes::POWER_UP);
+        assert_eq!(tape.parser().position(), [787, 394, 0]);
+        assert!(
+            tape.line(6, "G1 X0", |b| out.push(b)).is_err(),
+            "no feed after M2"
+        );
+        assert!(!tape.done());
     }
 }
