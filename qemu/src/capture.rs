@@ -86,6 +86,9 @@ pub struct CaptureSpec {
     pub gpio_ports: Vec<u32>,
     /// The port whose pins are reported.
     pub pin_port: u32,
+    /// Set to stop the run (`serve`): QEMU gets SIGTERM, shuts down cleanly (the plugin writes its
+    /// log) and the capture is what ran until then. No timeout applies while this is given.
+    pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 impl CaptureSpec {
@@ -100,6 +103,7 @@ impl CaptureSpec {
             timeout: Duration::from_secs(120),
             gpio_ports: LM3S6965_GPIO_BASES.to_vec(),
             pin_port: PORT_B,
+            stop: None,
         }
     }
 }
@@ -342,9 +346,19 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
     let out = reader(child.stdout.take().context("stdout")?);
     let err = reader(child.stderr.take().context("stderr")?);
     let start = Instant::now();
+    let mut stopping = false;
     let status = loop {
         if let Some(s) = child.try_wait()? {
             break s;
+        }
+        if let Some(stop) = &spec.stop {
+            if !stopping && stop.load(std::sync::atomic::Ordering::SeqCst) {
+                stopping = true;
+                // SAFETY: kill(2) with the child's pid and SIGTERM: no memory is touched.
+                unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+            }
+            std::thread::sleep(Duration::from_millis(10));
+            continue;
         }
         if start.elapsed() > spec.timeout {
             let _ = child.kill();

@@ -27,6 +27,7 @@ pub mod fault;
 pub mod firmware;
 pub mod plugin;
 pub mod runner;
+pub mod serve;
 pub mod sigrok;
 pub mod tools;
 pub mod vcd;

@@ -54,6 +54,24 @@ enum Cmd {
     },
     /// Check a VCD capture against a program (no QEMU); writes a summary to stdout.
     Analyse { capture: PathBuf, program: PathBuf },
+    /// Run the firmware in serial mode with its UART on a TCP port for a G-code sender, until
+    /// SIGINT or SIGTERM; then write DIR/capture.vcd and DIR/summary.json.
+    Serve {
+        /// Address of the serial port (a grbl sender connects here; `socat` gives serial-only
+        /// senders a pty in front of it).
+        #[arg(long, default_value = millac_qemu::serve::DEFAULT_TCP)]
+        tcp: String,
+        #[arg(long, default_value = "out/serve")]
+        out: PathBuf,
+        /// QEMU -icount shift (virtual time = instructions * 2^N ns).
+        #[arg(long, default_value_t = 4)]
+        shift: u32,
+        /// No simulated ADC and no adaptive control.
+        #[arg(long)]
+        nc_only: bool,
+        #[command(flatten)]
+        cut: CutArgs,
+    },
 }
 
 /// The simulated cutting process.
@@ -98,6 +116,13 @@ fn main() {
             run(text, &out, shift, (!nc_only).then_some(&cut))
         }),
         Some(Cmd::Analyse { capture, program }) => analyse_file(&capture, &program),
+        Some(Cmd::Serve {
+            tcp,
+            out,
+            shift,
+            nc_only,
+            cut,
+        }) => serve(&tcp, &out, shift, (!nc_only).then_some(&cut)),
         Some(Cmd::Host { program, out, cut }) => match program {
             Some(p) => with_program(&p, &out, |text| host(text, &out, &cut)),
             None => host(DEMO, &out, &cut),
@@ -164,6 +189,54 @@ fn analyse_file(capture: &Path, program: &Path) -> Result<bool> {
     let summary = runner::summary_json(&prog, &report);
     println!("{}", serde_json::to_string_pretty(&summary)?);
     Ok(runner::checks_pass(&report))
+}
+
+/// Set by SIGINT and SIGTERM (an atomic store is async-signal-safe).
+static STOP: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+extern "C" fn on_signal(_: libc::c_int) {
+    STOP.store(true, std::sync::atomic::Ordering::SeqCst);
+}
+
+fn serve(tcp: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> Result<bool> {
+    use std::sync::atomic::Ordering;
+    let ac = match cut {
+        Some(c) => Some(runner::AcRun {
+            cut: cut_setup("", c)?,
+            ac: !c.no_ac,
+            faults: c.faults.clone(),
+        }),
+        None => None,
+    };
+    let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+    // SAFETY: installs a handler that only stores an atomic.
+    unsafe {
+        libc::signal(libc::SIGINT, handler);
+        libc::signal(libc::SIGTERM, handler);
+    }
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let relay = {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            while !STOP.load(Ordering::SeqCst) {
+                std::thread::sleep(std::time::Duration::from_millis(50));
+            }
+            stop.store(true, Ordering::SeqCst);
+        })
+    };
+    println!(
+        "millac serve: the machine's serial port (grbl 1.1) is on tcp://{tcp}; point a sender there \
+         (serial-only senders: socat pty,raw,echo=0,link=/tmp/millac-tty tcp:{tcp}). Ctrl-C ends the \
+         session and writes {}/capture.vcd and summary.json.",
+        out.display()
+    );
+    let served = millac_qemu::serve::serve(out, tcp, shift, ac.as_ref(), stop)?;
+    drop(relay);
+    println!(
+        "{}",
+        serde_json::to_string_pretty(&served.summary).unwrap_or_default()
+    );
+    Ok(true)
 }
 
 fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {

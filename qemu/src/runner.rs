@@ -124,6 +124,31 @@ impl cosim::Plant for ProcessPlant {
     }
 }
 
+/// The cutting process of `a` as the firmware's simulated ADC, with `a`'s faults injected (the
+/// same code as the host's `--fault`), keeping the true force and torque of every sample in `truth`.
+pub fn plant_with_truth(
+    a: &AcRun,
+    truth: std::sync::Arc<std::sync::Mutex<Vec<(f64, f64)>>>,
+) -> Result<Box<dyn cosim::Plant + Send>> {
+    let plant = ProcessPlant {
+        process: a.cut.process()?,
+        truth,
+    };
+    let acs = millac::ac::AcSettings::default();
+    let zero = acs.cal.map(|c| f64::from(c.offset));
+    Ok(Box::new(crate::fault::Faulty::new(
+        plant,
+        &a.faults,
+        zero,
+        acs.sample_hz,
+    )))
+}
+
+/// [`plant_with_truth`] without the record of the truth.
+pub fn process_plant(a: &AcRun) -> Result<Box<dyn cosim::Plant + Send>> {
+    plant_with_truth(a, Default::default())
+}
+
 /// A program rejected before anything ran: the 1-based line and the message (`line N: ...`).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Rejected {
@@ -196,14 +221,8 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
     let (cap, exchanges) = match ac {
         None => (execute(text, out, shift)?, Vec::new()),
         Some(a) => {
-            let plant = ProcessPlant {
-                process: a.cut.process()?,
-                truth: truth.clone(),
-            };
-            let acs = millac::ac::AcSettings::default();
-            let zero = acs.cal.map(|c| f64::from(c.offset));
-            let plant = crate::fault::Faulty::new(plant, &a.faults, zero, acs.sample_hz);
-            execute_with_plant(text, out, shift, Box::new(plant), a.ac)?
+            let plant = plant_with_truth(a, truth.clone())?;
+            execute_with_plant(text, out, shift, plant, a.ac)?
         }
     };
     // A hold the firmware reported is a result (the run did not complete), anything else that

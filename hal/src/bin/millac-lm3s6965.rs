@@ -91,6 +91,7 @@ mod app {
     use millac_hal::actask::{AcTask, Sampled, Sampler, SAMPLE_QUEUE};
     use millac_hal::lm3s6965 as board;
     use millac_hal::simadc::{LogFile, SimAdc};
+    use millac_hal::uart::TX_QUEUE;
 
     use super::{exit, fail, Out};
 
@@ -102,6 +103,8 @@ mod app {
 
     /// Queue slots (a heapless spsc queue holds one less: 15 blocks).
     const QUEUE: usize = 16;
+    /// Received serial bytes between the UART0 task and the loader (holds one less).
+    const RX_QUEUE: usize = 256;
     /// Semihosting read size.
     const CHUNK: usize = 256;
 
@@ -120,11 +123,19 @@ mod app {
         ceiling: Option<FeedCeiling>,
         sampler: Option<Sampler>,
         ac: Option<AcTask>,
+        /// UART0 task's ends: received bytes in, bytes to send out.
+        uart_rx: Producer<'static, u8, RX_QUEUE>,
+        uart_tx: Consumer<'static, u8, TX_QUEUE>,
+        /// The loader's ends (serial mode).
+        rx: Consumer<'static, u8, RX_QUEUE>,
+        tx: Producer<'static, u8, TX_QUEUE>,
     }
 
     #[init(local = [
         queue: Queue<Block, QUEUE> = Queue::new(),
         samples: Queue<Codes, SAMPLE_QUEUE> = Queue::new(),
+        serial_rx: Queue<u8, RX_QUEUE> = Queue::new(),
+        serial_tx: Queue<u8, TX_QUEUE> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let settings = Settings::default();
@@ -165,9 +176,16 @@ mod app {
             board::sample_timer_start(B::reload(clocks_for_hz(B::TIMER_HZ, ac_settings.sample_hz)));
         }
 
+        let (uart_rx, rx) = cx.local.serial_rx.split();
+        let (tx, uart_tx) = cx.local.serial_tx.split();
+
         (
             Shared {},
             Local {
+                uart_rx,
+                uart_tx,
+                rx,
+                tx,
                 frame: FrameTask::new(Frame::new(FrameConfig::from_settings(&settings)), reloads),
                 consumer,
                 producer,
@@ -200,6 +218,20 @@ mod app {
             // The value is dropped unread: only the head index moves.
             let _ = self.0.dequeue();
         }
+    }
+
+    /// UART0 (serial mode only: its interrupts are enabled by the loader): received bytes to the
+    /// loader, queued bytes out. Priority 2, below the frame.
+    #[task(binds = UART0, priority = 2, local = [uart_rx, uart_tx])]
+    fn uart0(cx: uart0::Context) {
+        let rx = cx.local.uart_rx;
+        millac_hal::uart::on_interrupt(cx.local.uart_tx, |b| {
+            // A full queue drops nothing silently: the byte is counted (character-counting
+            // senders never send more than the protocol's 128-byte buffer ahead).
+            if rx.enqueue(b).is_err() {
+                STATUS.rx_overflow.fetch_add(1, Relaxed);
+            }
+        });
     }
 
     /// The pulse-end ISR: same priority as the frame, so it runs after the frame has finished.
@@ -261,14 +293,23 @@ mod app {
     }
 
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
-    #[idle(local = [producer, settings, ceiling])]
+    #[idle(local = [producer, settings, ceiling, rx, tx])]
     fn idle(cx: idle::Context) -> ! {
         let producer = cx.local.producer;
         let mut out = Out::open();
         let ok = match load(producer, cx.local.settings, *cx.local.ceiling, &mut out) {
             Loaded::All => true,
             Loaded::Error => false,
-            Loaded::NoFile => exit(false),
+            // No program file: the operator streams G-code over the serial line.
+            Loaded::NoFile => millac_hal::serial::run(
+                producer,
+                *cx.local.settings,
+                *cx.local.ceiling,
+                cx.local.rx,
+                cx.local.tx,
+                &STATUS,
+                B::TIMER_HZ,
+            ),
         };
 
         // Every accepted block runs to completion, also after an error.
@@ -296,7 +337,7 @@ mod app {
         All,
         /// A line was refused or the file could not be read (printed); the blocks before it run.
         Error,
-        /// No `program.nc` (printed): nothing to run, nothing to report.
+        /// No `program.nc`: serial mode.
         NoFile,
     }
 
@@ -312,7 +353,6 @@ mod app {
         // SAFETY: SYS_OPEN with a NUL-terminated name, its length without the NUL, mode "r".
         let fd = unsafe { syscall!(OPEN, path.as_ptr(), nr::open::R, path.len() - 1) } as isize;
         if fd == -1 {
-            out.line(format_args!("error: cannot open program.nc"));
             return Loaded::NoFile;
         }
 

@@ -1,0 +1,127 @@
+//! UART0 of the LM3S6965 (an ARM PL011; QEMU routes it with `-serial`): the operator's serial line
+//! for a G-code sender. RX and TX by interrupt (the UART0 hardware task, a priority below the
+//! frame): every received byte goes to the caller's sink at once (the protocol takes realtime
+//! bytes out there); bytes to send wait in a lock-free queue that the interrupt drains while the
+//! transmit FIFO has room. `init` from init or the loader; `on_interrupt` from the UART0 task;
+//! [`Tx::write`] from the loader.
+//!
+//! Registers (LM3S6965 datasheet, PL011): DR 0x000, FR 0x018 (RXFE bit 4, TXFF bit 5), IBRD 0x024,
+//! FBRD 0x028, LCRH 0x02C, CTL 0x030, IM 0x038, MIS 0x040, ICR 0x044; clock gate RCGC1 bit 0.
+use heapless::spsc::{Consumer, Producer};
+
+const SYSCTL_RCGC1: usize = 0x400F_E104;
+const RCGC1_UART0: u32 = 1;
+const UART0: usize = 0x4000_C000;
+const DR: usize = 0x000;
+const FR: usize = 0x018;
+const IBRD: usize = 0x024;
+const FBRD: usize = 0x028;
+const LCRH: usize = 0x02C;
+const CTL: usize = 0x030;
+const IM: usize = 0x038;
+const MIS: usize = 0x040;
+const ICR: usize = 0x044;
+const FR_RXFE: u32 = 1 << 4;
+const FR_TXFF: u32 = 1 << 5;
+/// 8 data bits, FIFOs on.
+const LCRH_8N1_FIFO: u32 = (0b11 << 5) | (1 << 4);
+const CTL_UARTEN: u32 = 1;
+const CTL_TXE: u32 = 1 << 8;
+const CTL_RXE: u32 = 1 << 9;
+const INT_RX: u32 = 1 << 4;
+const INT_TX: u32 = 1 << 5;
+const INT_RT: u32 = 1 << 6;
+
+/// Transmit queue slots (holds one less): a status report and a few replies.
+pub const TX_QUEUE: usize = 512;
+
+#[inline(always)]
+fn write(addr: usize, value: u32) {
+    // SAFETY: only called with the UART0 and SYSCTL register addresses above, all valid, aligned
+    // 32-bit device registers of the LM3S6965; stores to them have no effect on Rust-visible memory.
+    unsafe { core::ptr::write_volatile(addr as *mut u32, value) }
+}
+
+#[inline(always)]
+fn read(addr: usize) -> u32 {
+    // SAFETY: as for `write`.
+    unsafe { core::ptr::read_volatile(addr as *const u32) }
+}
+
+/// Ungates UART0 and sets it up for 115200 baud, 8N1, FIFOs, receive and receive-timeout
+/// interrupts on (the transmit interrupt is enabled while bytes wait). `clock_hz` is the UART's
+/// clock. Loader or init context, before the UART0 task can run.
+pub fn init(clock_hz: u32) {
+    write(SYSCTL_RCGC1, read(SYSCTL_RCGC1) | RCGC1_UART0);
+    let _ = read(SYSCTL_RCGC1);
+    write(UART0 + CTL, 0);
+    // Divisor = clock / (16 * baud) as 16.6 fixed point (datasheet formula), rounded.
+    let div64 = ((u64::from(clock_hz) * 4) + 115_200 / 2) / 115_200;
+    write(UART0 + IBRD, (div64 >> 6) as u32);
+    write(UART0 + FBRD, (div64 & 0x3F) as u32);
+    write(UART0 + LCRH, LCRH_8N1_FIFO);
+    write(UART0 + ICR, 0x7FF);
+    write(UART0 + IM, INT_RX | INT_RT);
+    write(UART0 + CTL, CTL_UARTEN | CTL_TXE | CTL_RXE);
+}
+
+/// The UART0 interrupt: every received byte to `rx` (in order), then as many queued bytes as the
+/// transmit FIFO takes; the transmit interrupt stays enabled only while bytes wait. UART0 task.
+pub fn on_interrupt<const N: usize>(tx: &mut Consumer<'static, u8, N>, mut rx: impl FnMut(u8)) {
+    let _ = read(UART0 + MIS);
+    write(UART0 + ICR, INT_RX | INT_RT | INT_TX);
+    while read(UART0 + FR) & FR_RXFE == 0 {
+        rx(read(UART0 + DR) as u8);
+    }
+    drain(tx);
+}
+
+/// Moves queued bytes into the transmit FIFO while it has room; enables the transmit interrupt
+/// when bytes are left. UART0 task (and the writer's first kick, see [`Tx::write`]).
+fn drain<const N: usize>(tx: &mut Consumer<'static, u8, N>) {
+    while read(UART0 + FR) & FR_TXFF == 0 {
+        match tx.dequeue() {
+            Some(b) => write(UART0 + DR, u32::from(b)),
+            None => break,
+        }
+    }
+    let im = read(UART0 + IM);
+    if tx.ready() {
+        write(UART0 + IM, im | INT_TX);
+    } else {
+        write(UART0 + IM, im & !INT_TX);
+    }
+}
+
+/// The writer's end of the transmit queue. Loader task.
+pub struct Tx<'a, const N: usize> {
+    queue: &'a mut Producer<'static, u8, N>,
+}
+
+impl<'a, const N: usize> Tx<'a, N> {
+    pub fn new(queue: &'a mut Producer<'static, u8, N>) -> Self {
+        Tx { queue }
+    }
+
+    /// Queues `bytes`, waiting while the queue is full (the interrupt drains it), and pends the
+    /// UART0 interrupt so that it starts sending. Loader task.
+    pub fn write(&mut self, bytes: &[u8], pend: impl Fn()) {
+        for &b in bytes {
+            while self.queue.enqueue(b).is_err() {
+                pend();
+                cortex_m::asm::nop();
+            }
+        }
+        pend();
+    }
+}
+
+impl<const N: usize> core::fmt::Write for Tx<'_, N> {
+    /// Queues the text (for `write!`); pends the UART0 interrupt through NVIC.
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        self.write(s.as_bytes(), || {
+            cortex_m::peripheral::NVIC::pend(lm3s6965::Interrupt::UART0)
+        });
+        Ok(())
+    }
+}
