@@ -11,6 +11,7 @@ pub fn debian_package(program: &str) -> Option<&'static str> {
         "qemu-system-arm" => Some("qemu-system-arm"),
         "sigrok-cli" => Some("sigrok-cli"),
         "cc" | "gcc" => Some("gcc"),
+        "socat" => Some("socat"),
         _ => None,
     }
 }
@@ -164,6 +165,65 @@ pub fn ensure_rust_target_with(
         );
     }
     Ok(true)
+}
+
+/// The third-party grbl sender the end-to-end tests drive `serve` with: pygrbl-streamer 1.0.5
+/// (PyPI; it streams with character counting against grbl's 128-byte buffer) and pyserial, in a
+/// virtual environment under `dir` that is created (once) with `python3 -m venv` and pip. Returns
+/// the environment's python.
+pub fn ensure_python_sender(dir: &std::path::Path) -> Result<PathBuf> {
+    let python = dir.join("bin").join("python");
+    let has = |py: &std::path::Path| {
+        Command::new(py)
+            .args(["-c", "import pygrbl_streamer, serial"])
+            .output()
+            .map(|o| o.status.success())
+            .unwrap_or(false)
+    };
+    if has(&python) {
+        return Ok(python);
+    }
+    static INSTALL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = INSTALL.lock().unwrap_or_else(|e| e.into_inner());
+    if has(&python) {
+        return Ok(python);
+    }
+    let sys = find_on_path("python3").context("python3 not found on PATH")?;
+    eprintln!(
+        "millac: creating a Python environment in {} with pygrbl-streamer 1.0.5",
+        dir.display()
+    );
+    let ok = Command::new(&sys)
+        .args(["-m", "venv"])
+        .arg(dir)
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false);
+    if !ok {
+        bail!(
+            "`python3 -m venv {}` failed (Debian: apt-get install python3-venv)",
+            dir.display()
+        );
+    }
+    let ok = Command::new(&python)
+        .args([
+            "-m",
+            "pip",
+            "install",
+            "-q",
+            "pygrbl-streamer==1.0.5",
+            "pyserial",
+        ])
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false);
+    if !ok || !has(&python) {
+        bail!(
+            "installing pygrbl-streamer 1.0.5 and pyserial into {} failed",
+            dir.display()
+        );
+    }
+    Ok(python)
 }
 
 #[cfg(test)]

@@ -111,3 +111,85 @@ fn a_sender_streams_lines_over_tcp_and_the_capture_ends_where_they_programmed() 
     assert!(out.join("capture.vcd").exists());
     assert!(served.summary["frames"].as_u64().unwrap() > 0);
 }
+
+/// A real third-party sender, pygrbl-streamer 1.0.5 (PyPI), streams the Fig. 1 program with
+/// character counting to `serve` through a pty (socat in front of the TCP port, as for any
+/// serial-only sender), waits for Idle, and the capture's blocks end exactly on the program's end
+/// points.
+#[test]
+fn pygrbl_streamer_streams_the_fig1_program() {
+    use millac::Settings;
+    use millac_qemu::{analysis, tools};
+    use std::process::{Command, Stdio};
+    let ws = millac_qemu::firmware::workspace();
+    let python = tools::ensure_python_sender(&ws.join("target").join("py-sender")).expect("sender");
+    let socat = tools::ensure_tool("socat").expect("socat");
+    let out = std::env::temp_dir().join(format!("millac-serve-py-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(&out).unwrap();
+    let port = free_port();
+    let addr = format!("127.0.0.1:{port}");
+    let stop = Arc::new(AtomicBool::new(false));
+    let server = {
+        let (out, addr, stop) = (out.clone(), addr.clone(), stop.clone());
+        std::thread::spawn(move || serve::serve(&out, &addr, 4, None, stop))
+    };
+    // Wait for the port, then put a pty in front of it.
+    drop(connect(&addr));
+    let tty = out.join("tty");
+    let mut relay = Command::new(socat)
+        .arg(format!("pty,raw,echo=0,link={}", tty.display()))
+        .arg(format!("tcp:{addr}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("socat");
+    let t0 = Instant::now();
+    while !tty.exists() {
+        assert!(t0.elapsed() < Duration::from_secs(10), "no pty from socat");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let program = ws.join("qemu").join("programs").join("fig1-cavity.nc");
+    let script = "import sys\n\
+        from pygrbl_streamer import GrblStreamer\n\
+        g = GrblStreamer(sys.argv[1], auto_unlock=False)\n\
+        g.connect()\n\
+        ok = g.send_file(sys.argv[2], completion_timeout=600)\n\
+        print('state', g.last_status.get('raw'))\n\
+        g.disconnect()\n\
+        sys.exit(0 if ok else 1)\n";
+    let sender = Command::new(&python)
+        .args(["-c", script])
+        .arg(&tty)
+        .arg(&program)
+        .output()
+        .expect("run the sender");
+    let _ = relay.kill();
+    let _ = relay.wait();
+    stop.store(true, Ordering::SeqCst);
+    let served = server.join().unwrap().expect("serve");
+    let said = String::from_utf8_lossy(&sender.stdout);
+    assert!(
+        sender.status.success(),
+        "sender failed: {said}{}",
+        String::from_utf8_lossy(&sender.stderr)
+    );
+    assert!(said.contains("<Idle|MPos:0.000,0.000,2.540"), "{said}");
+    let settings = Settings::default();
+    let text = std::fs::read_to_string(&program).unwrap();
+    let prog = analysis::load_program(&text, &settings).unwrap();
+    let report = analysis::analyse(&prog, &settings, 0, &served.capture.pins);
+    assert!(report.counts_match, "pulse counts");
+    for (k, b) in report.blocks.iter().enumerate() {
+        assert!(
+            b.end_exact,
+            "block {k} does not end on its end point: {b:?}"
+        );
+    }
+    let p = &served.summary["final_position_blu"];
+    let end = prog.last().unwrap().end;
+    assert_eq!(
+        [p["x"].as_i64(), p["y"].as_i64(), p["z"].as_i64()],
+        end.map(|v| Some(i64::from(v)))
+    );
+}
