@@ -41,7 +41,7 @@ impl Default for ReportSettings {
 
 /// Adaptive-control strategy (`$251`). Only the paper's exists; the number is reserved for more.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Strategy {
+pub enum AcStrategy {
     /// Tlusty, Koren and McNeil's FRC (with millac's anti-windup and held peak). Code 0.
     Paper,
 }
@@ -53,7 +53,7 @@ pub struct MachineSettings {
     pub ac: AcSettings,
     /// `$250`: adaptive control on. Default true.
     pub ac_enabled: bool,
-    pub strategy: Strategy,
+    pub strategy: AcStrategy,
     pub report: ReportSettings,
 }
 
@@ -63,7 +63,7 @@ impl Default for MachineSettings {
             nc: Settings::default(),
             ac: AcSettings::default(),
             ac_enabled: true,
-            strategy: Strategy::Paper,
+            strategy: AcStrategy::Paper,
             report: ReportSettings::default(),
         }
     }
@@ -262,8 +262,16 @@ macro_rules! mirror {
 }
 
 /// Every setting, in the order `$$` lists them. grbl's numbers where the meaning is grbl's,
-/// millac's own from `$200` (NC) and `$250` (adaptive control).
+/// millac's own from `$200` (NC) and `$250` (adaptive control). `$200` (the BLU) comes first: the
+/// settings listed in mm are kept in BLU, so a listing restored line by line onto the defaults
+/// changes the BLU before it sets them.
 pub static TABLE: [Entry; 53] = [
+    Entry {
+        number: 200,
+        name: "BLU",
+        unit: "mm",
+        kind: Kind::Blu,
+    },
     int!(
         0,
         "step pulse time",
@@ -353,12 +361,6 @@ pub static TABLE: [Entry; 53] = [
         false,
         nc.soft_max[2]
     ),
-    Entry {
-        number: 200,
-        name: "BLU",
-        unit: "mm",
-        kind: Kind::Blu,
-    },
     int!(
         201,
         "frame rate W0",
@@ -462,11 +464,11 @@ pub static TABLE: [Entry; 53] = [
         251,
         "AC strategy (0 paper)",
         |m| match m.strategy {
-            Strategy::Paper => 0,
+            AcStrategy::Paper => 0,
         },
         |m, v| {
             choice(v, 1)?;
-            m.strategy = Strategy::Paper;
+            m.strategy = AcStrategy::Paper;
             Some(())
         }
     ),

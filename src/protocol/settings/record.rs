@@ -19,7 +19,7 @@
 //! dependency. CRC-32 detects every error burst up to 32 bits, so every single-bit flip; the exact
 //! length check detects every truncation.
 
-use super::{Invalid, MachineSettings, ReportSettings, SetError, Strategy};
+use super::{AcStrategy, Invalid, MachineSettings, ReportSettings, SetError};
 use crate::ac::settings::{AcSettings, Calibration, FeedCeiling, Pick};
 use crate::gcode::number::Decimal;
 use crate::ports::SettingsStorage;
@@ -28,7 +28,7 @@ use crate::settings::{Blu, Settings};
 pub const MAGIC: [u8; 4] = *b"MLST";
 pub const VERSION: u16 = 1;
 pub const HEADER_LEN: usize = 8;
-pub const PAYLOAD_LEN: usize = 174;
+pub const PAYLOAD_LEN: usize = 175;
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF): the
@@ -199,7 +199,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     n.accel_blu_s2.into_iter().for_each(|v| p.u32(v));
     p.u8(s.ac_enabled as u8);
     p.u8(match s.strategy {
-        Strategy::Paper => 0,
+        AcStrategy::Paper => 0,
     });
     let a = &s.ac;
     p.u32(a.sample_hz);
@@ -300,7 +300,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let accel_blu_s2 = [t.u32()?, t.u32()?, t.u32()?];
     let ac_enabled = t.bool()?;
     let strategy = match t.u8()? {
-        0 => Some(Strategy::Paper),
+        0 => Some(AcStrategy::Paper),
         _ => None,
     };
     let (sample_hz, period_ms) = (t.u32()?, t.u32()?);
