@@ -1,6 +1,7 @@
-//! Machine settings (units, frame rate, feed DDA, rapid, pulse timing, soft limits) and their
-//! validation. Read by the host tool, the G-code parser (task) and, once validated, by the frame (ISR)
-//! through [`crate::nc::FrameConfig`].
+//! Machine settings (units, frame rate, feed DDA, rapid, pulse timing, soft limits, acceleration)
+//! and their validation. Read by the host tool, the G-code parser (task) and, once validated, by the
+//! frame (ISR) through [`crate::nc::FrameConfig`]; listed and set through
+//! [`crate::protocol::settings`].
 
 /// The basic length unit: one pulse moves one BLU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -688,8 +688,10 @@ fn rescale(v: i64, from: Blu, to: Blu, inward: bool) -> Option<i64> {
     i64::try_from(r).ok()
 }
 
-/// Reads `$N=value` (the `$` may be left out; spaces around the value are ignored).
+/// Reads `$N=value` (the `$` may be left out; spaces around the number and the value are
+/// ignored).
 pub fn parse_assignment(stmt: &str) -> Result<(u16, Decimal), SetError> {
+    let stmt = stmt.trim();
     let stmt = stmt.strip_prefix('$').unwrap_or(stmt);
     let (n, v) = stmt.split_once('=').ok_or(SetError::Unsupported)?;
     let n = n.trim();
@@ -769,14 +771,17 @@ impl MachineSettings {
                 if value.is_negative() {
                     return Err(SetError::Negative);
                 }
-                // value x 10^6 must be a whole number of nm.
+                // value x 10^6 must be exactly a whole number of nm, 2540 or 1000.
                 let nm = value.mul_ratio_round(1_000_000, 1).ok_or(range)?;
-                let back = crate::gcode::number::pow10(value.scale as u32)
-                    .and_then(|p| nm.checked_mul(p))
-                    .ok_or(range)?;
-                let to = match (value.mantissa.checked_mul(1_000_000), nm) {
-                    (Some(m), 2540) if m == back => Blu::TenthMil,
-                    (Some(m), 1000) if m == back => Blu::Micron,
+                let back =
+                    crate::gcode::number::pow10(value.scale as u32).and_then(|p| nm.checked_mul(p));
+                let exact = matches!(
+                    (back, value.mantissa.checked_mul(1_000_000)),
+                    (Some(a), Some(b)) if a == b
+                );
+                let to = match nm {
+                    2540 if exact => Blu::TenthMil,
+                    1000 if exact => Blu::Micron,
                     _ => return Err(range),
                 };
                 self.change_blu(to).ok_or(range)

@@ -96,8 +96,7 @@ fn grbl_settings_take_grbl_units() {
             inches: true
         }
     );
-    set(&mut m, " $206 = 12.5 ").unwrap_err();
-    set(&mut m, "$206= 12.5").unwrap();
+    set(&mut m, " $206 = 12.5 ").unwrap();
     assert_eq!(m.nc.decel_tau_us, 12_500);
     set(&mut m, "$207=1.25").unwrap();
     assert_eq!(m.nc.sign_setup_ns, 1_250);
@@ -156,7 +155,7 @@ fn refused_sets_give_grbl_errors_and_change_nothing() {
     use crate::ac::settings::AcSettingsError as A;
     use crate::settings::SettingsError as N;
     let r = SetError::Invalid(Invalid::Range);
-    let cases: [(&str, SetError); 34] = [
+    let cases: [(&str, SetError); 35] = [
         ("$1=25", SetError::Unsupported),
         ("$2=0", SetError::Unsupported),
         ("$100=250", SetError::Unsupported),
@@ -192,6 +191,7 @@ fn refused_sets_give_grbl_errors_and_change_nothing() {
         ("$250=2", r),
         ("$251=1", r),
         ("$200=0.002", r),
+        ("$200=0.0025401", r),
         ("$254=0.0000001", r),
         ("$201=99999999999999999999999", r),
     ];
