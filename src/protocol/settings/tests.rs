@@ -3,7 +3,7 @@
 extern crate std;
 use super::record::{self, LoadStatus, RecordError, RECORD_LEN};
 use super::*;
-use crate::ac::settings::Calibration;
+use crate::ac::settings::{Calibration, FeedCeiling, Pick};
 use crate::ports::SettingsStorage;
 use crate::settings::ACCEL_RANGE;
 use proptest::prelude::*;
