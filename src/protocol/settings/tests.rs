@@ -231,9 +231,11 @@ fn blu_change_keeps_the_mm_values() {
     assert!(l.contains("$130=254\r\n$131=254\r\n$132=101.6\r\n"), "{l}");
     assert!(l.contains("$110=4013.16\r\n"), "{l}");
     // Back: limits round inward, rates to the nearest.
-    set(&mut m, "$130=100.0009").unwrap();
+    set(&mut m, "$130=100.002").unwrap();
+    set(&mut m, "$230=-100.002").unwrap();
     set(&mut m, "$200=0.00254").unwrap();
-    assert_eq!(m.nc.soft_max[0], 39_370); // 100.001 mm = 39 370.5 BLU, inward
+    // 100.002 mm = 39 370.87 BLU: inward, not to the nearest.
+    assert_eq!((m.nc.soft_min[0], m.nc.soft_max[0]), (-39_370, 39_370));
     assert_eq!(m.nc.rapid_hz, 26_333);
     assert_eq!(m.nc.accel_blu_s2, [100_000; 3]);
 }
