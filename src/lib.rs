@@ -13,12 +13,15 @@
 //!   status words between the contexts and the timer arithmetic of init.
 //! - [`wire`]: the formats between the QEMU firmware and the host tool (lockstep ADC, `ac.log`).
 //! - [`settings`]: the machine settings and their validation (init, loader, host).
+//! - [`protocol`]: the operator's line protocol (loader task); `protocol::settings` is the `$$`
+//!   table and the persistent settings record (init loads it).
 #![cfg_attr(not(test), no_std)]
 
 pub mod ac;
 pub mod gcode;
 pub mod nc;
 pub mod ports;
+pub mod protocol;
 pub mod rt;
 pub mod settings;
 pub mod wire;

@@ -1,6 +1,7 @@
-//! Machine settings (units, frame rate, feed DDA, rapid, pulse timing, soft limits) and their
-//! validation. Read by the host tool, the G-code parser (task) and, once validated, by the frame (ISR)
-//! through [`crate::nc::FrameConfig`].
+//! Machine settings (units, frame rate, feed DDA, rapid, pulse timing, soft limits, acceleration)
+//! and their validation. Read by the host tool, the G-code parser (task) and, once validated, by the
+//! frame (ISR) through [`crate::nc::FrameConfig`]; listed and set through
+//! [`crate::protocol::settings`].
 
 /// The basic length unit: one pulse moves one BLU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -59,7 +60,13 @@ pub struct Settings {
     /// Soft limits, machine coordinates in BLU, per axis X, Y, Z (inclusive).
     pub soft_min: [i32; 3],
     pub soft_max: [i32; 3],
+    /// Acceleration limit per axis X, Y, Z in BLU/s^2, for the acceleration ramps (grbl's
+    /// `$120`..`$122`, listed in mm/s^2). Default 100 000 BLU/s^2 = 10 in/s^2 = 254 mm/s^2.
+    pub accel_blu_s2: [u32; 3],
 }
+
+/// Range of [`Settings::accel_blu_s2`] in BLU/s^2 (0.0254 to 25 400 mm/s^2 at 0.0001 in).
+pub const ACCEL_RANGE: core::ops::RangeInclusive<u32> = 100..=100_000_000;
 
 impl Default for Settings {
     fn default() -> Self {
@@ -74,6 +81,7 @@ impl Default for Settings {
             sign_setup_ns: 5_000,
             soft_min: [-100_000, -100_000, -40_000],
             soft_max: [100_000, 100_000, 40_000],
+            accel_blu_s2: [100_000; 3],
         }
     }
 }
@@ -88,6 +96,7 @@ pub enum SettingsError {
     DecelTau,
     PulseTiming,
     SoftLimits,
+    Acceleration,
 }
 
 impl SettingsError {
@@ -102,6 +111,7 @@ impl SettingsError {
                 "pulse width + sign setup must leave at least 25% of the rapid frame period for the frame"
             }
             SettingsError::SoftLimits => "soft limits must satisfy min <= 0 <= max on every axis",
+            SettingsError::Acceleration => "acceleration must be 100..=100000000 BLU/s^2 on every axis",
         }
     }
 }
@@ -136,6 +146,9 @@ impl Settings {
             if self.soft_min[k] > 0 || self.soft_max[k] < 0 {
                 return Err(SettingsError::SoftLimits);
             }
+        }
+        if !self.accel_blu_s2.iter().all(|a| ACCEL_RANGE.contains(a)) {
+            return Err(SettingsError::Acceleration);
         }
         Ok(())
     }

@@ -1,0 +1,2 @@
+//! The operator's line protocol (grbl 1.1 style), the loader task's work.
+pub mod settings;

@@ -1,0 +1,369 @@
+//! grbl-1.1-style settings: the table behind `$$` (list) and `$N=value` (set one, validated) over
+//! all of millac's settings ([`MachineSettings`]: NC, adaptive control, reports), and the persistent
+//! record ([`record`]). Called by the loader task (the line protocol), init (loading the record) and
+//! the host tests. No floats in the conversions of integer settings: values are exact decimals
+//! ([`Decimal`]) converted by rational arithmetic; the f32 settings of the AC take the f32 nearest
+//! the decimal (core's correctly rounded parser) and are listed as the shortest decimal that gives
+//! the same f32 back, so `$$` output set back line by line gives the same settings.
+//!
+//! Errors are grbl's numbers: 2 bad number (also a fraction where a whole number is needed), 3
+//! unknown or unsupported setting (or no `=`), 4 negative value for a setting without a sign, 52
+//! (grblHAL's "value out of range") a value outside the setting's range or settings that then fail
+//! validation, 7 the record could not be stored. A refused set changes nothing.
+
+use core::fmt::{self, Write};
+
+use crate::ac::settings::{AcSettings, AcSettingsError};
+use crate::gcode::number::{parse_decimal, Decimal, NumError};
+use crate::settings::{Blu, Settings, SettingsError};
+
+pub mod record;
+mod table;
+#[cfg(test)]
+mod tests;
+
+pub use table::{entry, Entry, TABLE};
+use table::{Kind, Unit};
+
+/// Report settings (grbl's `$10`, `$13`), kept for the status reports of the protocol.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReportSettings {
+    /// `$10`: bit 0 = machine position (MPos, else WPos), bit 1 = buffer state. 0..=3, default 1.
+    pub status_mask: u8,
+    /// `$13`: positions and rates reported in inches. Default false (mm, as grbl).
+    pub inches: bool,
+}
+
+impl Default for ReportSettings {
+    fn default() -> Self {
+        ReportSettings {
+            status_mask: 1,
+            inches: false,
+        }
+    }
+}
+
+/// Adaptive-control strategy (`$251`). Only the paper's exists; the number is reserved for more.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AcStrategy {
+    /// Tlusty, Koren and McNeil's FRC (with millac's anti-windup and held peak). Code 0.
+    Paper,
+}
+
+/// Everything the settings table and the persistent record hold.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MachineSettings {
+    pub nc: Settings,
+    pub ac: AcSettings,
+    /// `$250`: adaptive control on. Default true.
+    pub ac_enabled: bool,
+    pub strategy: AcStrategy,
+    pub report: ReportSettings,
+}
+
+impl Default for MachineSettings {
+    fn default() -> Self {
+        MachineSettings {
+            nc: Settings::default(),
+            ac: AcSettings::default(),
+            ac_enabled: true,
+            strategy: AcStrategy::Paper,
+            report: ReportSettings::default(),
+        }
+    }
+}
+
+/// Why settings are invalid (grbl error 52).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Invalid {
+    /// Outside the setting's own range: does not fit its type, not one of its choices, `$111`/
+    /// `$112` different from `$110`, an f32 not 0 and not within 1e-6..=1e12 in magnitude.
+    Range,
+    /// [`Settings::validate`] refused.
+    Nc(SettingsError),
+    /// [`AcSettings::validate`] refused.
+    Ac(AcSettingsError),
+}
+
+impl Invalid {
+    pub const fn message(self) -> &'static str {
+        match self {
+            Invalid::Range => "value out of the setting's range",
+            Invalid::Nc(e) => e.message(),
+            Invalid::Ac(e) => e.message(),
+        }
+    }
+}
+
+/// Why `$N=value` was refused; [`SetError::code`] is the grbl error number.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SetError {
+    /// 2: not a number, or a fraction for a setting that takes whole numbers.
+    BadNumber,
+    /// 3: not `$N=value`, or no setting N (also grbl's `$1`..`$6`, which millac does not have).
+    Unsupported,
+    /// 4: a negative value for a setting that has no sign.
+    Negative,
+    /// 52: out of range, or the settings with the new value fail validation.
+    Invalid(Invalid),
+    /// 7: the storage refused the record (see [`record::set_persistent`]).
+    Storage,
+}
+
+impl SetError {
+    pub const fn code(self) -> u8 {
+        match self {
+            SetError::BadNumber => 2,
+            SetError::Unsupported => 3,
+            SetError::Negative => 4,
+            SetError::Invalid(_) => 52,
+            SetError::Storage => 7,
+        }
+    }
+
+    pub const fn message(self) -> &'static str {
+        match self {
+            SetError::BadNumber => "bad number format",
+            SetError::Unsupported => "unsupported setting or statement",
+            SetError::Negative => "negative value",
+            SetError::Invalid(i) => i.message(),
+            SetError::Storage => "settings could not be stored",
+        }
+    }
+}
+
+/// Whether an f32 setting can be listed and set back exactly (its shortest decimal has at most
+/// 13 integer digits and 15 decimals, inside what [`Decimal`] reads).
+fn representable(v: f32) -> bool {
+    v == 0.0 || (v.is_finite() && (1e-6..=1e12).contains(&v.abs()))
+}
+
+/// `internal x num / den` as an exact decimal (den divides 10^6 in every unit).
+fn exact(internal: i64, (num, den): (i128, i128)) -> Option<Decimal> {
+    let n = (internal as i128).checked_mul(num)?;
+    let mut p: i128 = 1;
+    for scale in 0..=18u8 {
+        let m = n.checked_mul(p)?;
+        if m % den == 0 {
+            return Some(Decimal {
+                mantissa: m / den,
+                scale,
+            });
+        }
+        p = p.checked_mul(10)?;
+    }
+    None
+}
+
+/// A fixed buffer for one listed line (or a number), no allocation.
+#[derive(Clone, Copy)]
+pub struct LineBuf {
+    bytes: [u8; 64],
+    len: usize,
+}
+
+impl LineBuf {
+    pub const fn new() -> Self {
+        LineBuf {
+            bytes: [0; 64],
+            len: 0,
+        }
+    }
+
+    pub fn as_str(&self) -> &str {
+        // Only whole &str are ever written.
+        core::str::from_utf8(self.bytes.get(..self.len).unwrap_or(&[])).unwrap_or("")
+    }
+}
+
+impl Default for LineBuf {
+    fn default() -> Self {
+        LineBuf::new()
+    }
+}
+
+impl Write for LineBuf {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        let end = self.len.checked_add(s.len()).ok_or(fmt::Error)?;
+        let dst = self.bytes.get_mut(self.len..end).ok_or(fmt::Error)?;
+        dst.copy_from_slice(s.as_bytes());
+        self.len = end;
+        Ok(())
+    }
+}
+
+/// The f32 nearest a decimal (core's parser rounds correctly).
+fn to_f32(value: Decimal) -> Option<f32> {
+    let mut b = LineBuf::new();
+    write!(b, "{value}").ok()?;
+    let v: f32 = b.as_str().parse().ok()?;
+    // -0 reads as 0.
+    Some(v + 0.0)
+}
+
+/// Length settings in BLU converted to another BLU: `round(v x from / to)`, toward zero when
+/// `inward` (soft limits stay inside the old ones).
+fn rescale(v: i64, from: Blu, to: Blu, inward: bool) -> Option<i64> {
+    let n = (v as i128).checked_mul(from.nm() as i128)?;
+    let d = to.nm() as i128;
+    let r = if inward {
+        n / d
+    } else {
+        crate::gcode::number::div_round(n, d)?
+    };
+    i64::try_from(r).ok()
+}
+
+/// Reads `$N=value` (the `$` may be left out; spaces around the number and the value are
+/// ignored).
+pub fn parse_assignment(stmt: &str) -> Result<(u16, Decimal), SetError> {
+    let stmt = stmt.trim();
+    let stmt = stmt.strip_prefix('$').unwrap_or(stmt);
+    let (n, v) = stmt.split_once('=').ok_or(SetError::Unsupported)?;
+    let n = n.trim();
+    if n.is_empty() || n.len() > 5 || !n.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(SetError::Unsupported);
+    }
+    let number: u16 = n.parse().map_err(|_| SetError::Unsupported)?;
+    let value = parse_decimal(v.trim()).map_err(|e| match e {
+        NumError::TooLarge => SetError::Invalid(Invalid::Range),
+        NumError::Malformed | NumError::TooManyDecimals => SetError::BadNumber,
+    })?;
+    Ok((number, value))
+}
+
+impl MachineSettings {
+    /// The validation the firmware runs at start-up and every set runs: [`Settings::validate`],
+    /// [`AcSettings::validate`], the report mask, and every f32 of the table listable exactly.
+    pub fn validate(&self) -> Result<(), Invalid> {
+        self.nc.validate().map_err(Invalid::Nc)?;
+        self.ac.validate().map_err(Invalid::Ac)?;
+        if self.report.status_mask > 3 {
+            return Err(Invalid::Range);
+        }
+        for e in TABLE.iter() {
+            if let Kind::Real { get, .. } = e.kind {
+                if !representable(get(self)) {
+                    return Err(Invalid::Range);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `$N=value`: sets one setting on a copy, validates the copy, and only then takes it.
+    /// Lengths and rates round to the nearest BLU, ns or us; `$200` (BLU) converts the settings
+    /// listed in mm so that they keep their mm values (soft limits rounded inward).
+    pub fn set(&mut self, number: u16, value: Decimal) -> Result<(), SetError> {
+        let e = entry(number).ok_or(SetError::Unsupported)?;
+        let mut new = *self;
+        new.assign(e, value)?;
+        new.validate().map_err(SetError::Invalid)?;
+        *self = new;
+        Ok(())
+    }
+
+    /// [`parse_assignment`] then [`MachineSettings::set`].
+    pub fn set_line(&mut self, stmt: &str) -> Result<(), SetError> {
+        let (n, v) = parse_assignment(stmt)?;
+        self.set(n, v)
+    }
+
+    fn assign(&mut self, e: &Entry, value: Decimal) -> Result<(), SetError> {
+        let range = SetError::Invalid(Invalid::Range);
+        match e.kind {
+            Kind::Int {
+                set, unit, signed, ..
+            } => {
+                if value.is_negative() && !signed {
+                    return Err(SetError::Negative);
+                }
+                if unit == Unit::One && value.as_integer().is_none() {
+                    return Err(SetError::BadNumber);
+                }
+                let (num, den) = unit.ratio(self.nc.blu);
+                let v = value.mul_ratio_round(den, num).ok_or(range)?;
+                let v = i64::try_from(v).map_err(|_| range)?;
+                set(self, v).ok_or(range)
+            }
+            Kind::Real { set, signed, .. } => {
+                if value.is_negative() && !signed {
+                    return Err(SetError::Negative);
+                }
+                let v = to_f32(value).filter(|v| representable(*v)).ok_or(range)?;
+                set(self, v).ok_or(range)
+            }
+            Kind::Blu => {
+                if value.is_negative() {
+                    return Err(SetError::Negative);
+                }
+                // value x 10^6 must be exactly a whole number of nm, 2540 or 1000.
+                let nm = value.mul_ratio_round(1_000_000, 1).ok_or(range)?;
+                let back =
+                    crate::gcode::number::pow10(value.scale as u32).and_then(|p| nm.checked_mul(p));
+                let exact = matches!(
+                    (back, value.mantissa.checked_mul(1_000_000)),
+                    (Some(a), Some(b)) if a == b
+                );
+                let to = match nm {
+                    2540 if exact => Blu::TenthMil,
+                    1000 if exact => Blu::Micron,
+                    _ => return Err(range),
+                };
+                self.change_blu(to).ok_or(range)
+            }
+        }
+    }
+
+    /// Converts the settings kept in BLU to a new BLU, keeping their mm values.
+    fn change_blu(&mut self, to: Blu) -> Option<()> {
+        let from = self.nc.blu;
+        if from == to {
+            return Some(());
+        }
+        let nc = &mut self.nc;
+        for k in 0..3 {
+            nc.soft_min[k] = i32::try_from(rescale(nc.soft_min[k] as i64, from, to, true)?).ok()?;
+            nc.soft_max[k] = i32::try_from(rescale(nc.soft_max[k] as i64, from, to, true)?).ok()?;
+            let a = rescale(nc.accel_blu_s2[k] as i64, from, to, false)?;
+            nc.accel_blu_s2[k] = u32::try_from(a).ok()?;
+        }
+        nc.rapid_hz = u32::try_from(rescale(nc.rapid_hz as i64, from, to, false)?).ok()?;
+        nc.blu = to;
+        Some(())
+    }
+
+    /// Writes the value of a table entry as listed (no `$N=`, no line end).
+    pub fn write_value<W: Write>(&self, e: &Entry, w: &mut W) -> fmt::Result {
+        match e.kind {
+            Kind::Int { get, unit, .. } => {
+                let d = exact(get(self), unit.ratio(self.nc.blu)).ok_or(fmt::Error)?;
+                write!(w, "{d}")
+            }
+            Kind::Real { get, .. } => write!(w, "{}", get(self)),
+            Kind::Blu => match self.nc.blu {
+                Blu::TenthMil => w.write_str("0.00254"),
+                Blu::Micron => w.write_str("0.001"),
+            },
+        }
+    }
+
+    /// Line `index` of `$$` (`$N=value`, no line end), or None past the end.
+    pub fn line(&self, index: usize) -> Option<LineBuf> {
+        let e = TABLE.get(index)?;
+        let mut b = LineBuf::new();
+        write!(b, "${}=", e.number).ok()?;
+        self.write_value(e, &mut b).ok()?;
+        Some(b)
+    }
+
+    /// The whole `$$` listing, every line ended by `\r\n` as grbl's.
+    pub fn list<W: Write>(&self, w: &mut W) -> fmt::Result {
+        for e in TABLE.iter() {
+            write!(w, "${}=", e.number)?;
+            self.write_value(e, w)?;
+            w.write_str("\r\n")?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,587 @@
+//! Host tests of the settings table (`$$` listing, `$N=value` errors and units, BLU change,
+//! round trips) and of the persistent record (CRC, bit flips, truncations, a storage double).
+extern crate std;
+use super::record::{self, LoadStatus, RecordError, RECORD_LEN};
+use super::*;
+use crate::ac::settings::{Calibration, FeedCeiling, Pick};
+use crate::ports::SettingsStorage;
+use crate::settings::ACCEL_RANGE;
+use proptest::prelude::*;
+use std::string::String;
+use std::vec::Vec;
+
+const DEFAULT_LIST: &str =
+    "$200=0.00254\r\n$0=5\r\n$10=1\r\n$13=0\r\n$20=1\r\n$110=4013.1492\r\n$111=4013.1492\r\n\
+$112=4013.1492\r\n$120=254\r\n$121=254\r\n$122=254\r\n$130=254\r\n$131=254\r\n$132=101.6\r\n\
+$201=5000\r\n$202=3000\r\n$203=400\r\n$204=100\r\n$205=25\r\n$206=20\r\n$207=5\r\n\
+$230=-254\r\n$231=-254\r\n$232=-101.6\r\n$250=1\r\n$251=0\r\n$252=1000\r\n$253=10\r\n$254=4000\r\n\
+$255=80\r\n$256=0.9\r\n$257=75000\r\n$258=100\r\n$259=3000\r\n$260=-0.1\r\n$261=0\r\n$262=3\r\n\
+$263=0\r\n$270=0.05\r\n$271=2.5\r\n$272=2.5\r\n$273=2048\r\n$274=2048\r\n$275=2048\r\n$280=20\r\n\
+$281=1500\r\n$282=1\r\n$283=50\r\n$284=6.35\r\n$285=0.6\r\n$286=1.4\r\n$287=5\r\n$288=5\r\n";
+
+/// The record of the defaults, version 1: a change of the layout must bump the version.
+const DEFAULT_IMAGE: &str = "4d4c53540100af000088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
+feff6079feffc063ffffa0860100a0860100409c0000a0860100a0860100a08601000100e80300000a000000cdcc4c\
+3d00000045000020400000004500002040000000450000007a450000a0426666663ff824010064000000b80b0000cd\
+ccccbd14000000dc050100320000003333cb409a99193f3333b33f0000a0400500000003000000000100f664603e";
+
+fn listing(m: &MachineSettings) -> String {
+    let mut s = String::new();
+    m.list(&mut s).unwrap();
+    s
+}
+
+fn set(m: &mut MachineSettings, stmt: &str) -> Result<(), SetError> {
+    m.set_line(stmt)
+}
+
+#[test]
+fn defaults_list_in_grbl_units_and_line_by_line() {
+    let m = MachineSettings::default();
+    assert_eq!(m.validate(), Ok(()));
+    assert_eq!(listing(&m), DEFAULT_LIST);
+    let lines: Vec<String> = (0..TABLE.len())
+        .map(|i| String::from(m.line(i).unwrap().as_str()))
+        .collect();
+    assert_eq!(lines.join("\r\n") + "\r\n", DEFAULT_LIST);
+    assert!(m.line(TABLE.len()).is_none());
+}
+
+#[test]
+fn table_lists_the_blu_first_then_ascending_numbers() {
+    assert_eq!(TABLE[0].number, 200);
+    for w in TABLE[1..].windows(2) {
+        assert!(
+            w[0].number < w[1].number,
+            "${} before ${}",
+            w[0].number,
+            w[1].number
+        );
+    }
+    for n in [0u16, 10, 13, 20, 110, 120, 130, 200, 250, 288] {
+        assert_eq!(entry(n).map(|e| e.number), Some(n));
+    }
+    for n in [1u16, 2, 3, 4, 5, 6, 11, 12, 21, 22, 100, 133, 299] {
+        assert!(entry(n).is_none(), "${n} is not millac's");
+    }
+}
+
+#[test]
+fn grbl_settings_take_grbl_units() {
+    let mut m = MachineSettings::default();
+    set(&mut m, "$0=10").unwrap();
+    assert_eq!(m.nc.pulse_width_ns, 10_000);
+    set(&mut m, "$0=2.5004").unwrap();
+    assert_eq!(m.nc.pulse_width_ns, 2_500, "rounded to the ns");
+    // 3000 mm/min = 50 mm/s = 19 685.04 BLU/s -> 19 685, listed exactly.
+    set(&mut m, "$110=3000").unwrap();
+    assert_eq!(m.nc.rapid_hz, 19_685);
+    assert_eq!(m.line(5).unwrap().as_str(), "$110=2999.994");
+    assert_eq!(m.line(6).unwrap().as_str(), "$111=2999.994");
+    set(&mut m, "$111=2999.994").unwrap();
+    set(&mut m, "$112=3000").unwrap(); // the same rate once rounded
+    set(&mut m, "$121=100").unwrap();
+    assert_eq!(m.nc.accel_blu_s2, [100_000, 39_370, 100_000]);
+    set(&mut m, "$130=200").unwrap();
+    assert_eq!(m.nc.soft_max[0], 78_740);
+    set(&mut m, "$232=-50.8").unwrap();
+    assert_eq!(m.nc.soft_min[2], -20_000);
+    set(&mut m, "$10=2").unwrap();
+    set(&mut m, "$13=1").unwrap();
+    set(&mut m, "$20=1").unwrap();
+    assert_eq!(
+        m.report,
+        ReportSettings {
+            status_mask: 2,
+            inches: true
+        }
+    );
+    set(&mut m, " $206 = 12.5 ").unwrap();
+    assert_eq!(m.nc.decel_tau_us, 12_500);
+    set(&mut m, "$207=1.25").unwrap();
+    assert_eq!(m.nc.sign_setup_ns, 1_250);
+}
+
+#[test]
+fn ac_settings_take_their_units_and_signs() {
+    let mut m = MachineSettings::default();
+    for stmt in [
+        "$250=0",
+        "$261=1",
+        "$263=1",
+        "$262=8",
+        "$253=20",
+        "$258=50",
+        "$259=2500",
+    ] {
+        set(&mut m, stmt).unwrap();
+    }
+    assert!(!m.ac_enabled);
+    assert_eq!((m.ac.pick, m.ac.ceiling), (Pick::Latest, FeedCeiling::Frm));
+    assert_eq!((m.ac.peak_windows, m.ac.period_ms), (8, 20));
+    assert_eq!((m.ac.f_min, m.ac.f_max), (50, 2500));
+    set(&mut m, "$260=-0.2").unwrap();
+    set(&mut m, "$270=-0.05").unwrap();
+    set(&mut m, "$256=0.95").unwrap();
+    set(&mut m, "$284=3.175").unwrap();
+    set(&mut m, "$274=2047.5").unwrap();
+    assert_eq!(m.ac.overload_e, -0.2f32);
+    assert_eq!(
+        m.ac.cal[0],
+        Calibration {
+            gain: -0.05,
+            offset: 2048.0
+        }
+    );
+    assert_eq!(m.ac.cal[1].offset, 2047.5);
+    assert_eq!(
+        (m.ac.optimal_fraction, m.ac.tool_radius_mm),
+        (0.95f32, 3.175f32)
+    );
+    let l = listing(&m);
+    for line in [
+        "$260=-0.2\r",
+        "$270=-0.05\r",
+        "$256=0.95\r",
+        "$284=3.175\r",
+        "$274=2047.5\r",
+    ] {
+        assert!(l.contains(line), "{line} in {l}");
+    }
+}
+
+#[test]
+fn refused_sets_give_grbl_errors_and_change_nothing() {
+    use crate::ac::settings::AcSettingsError as A;
+    use crate::settings::SettingsError as N;
+    let r = SetError::Invalid(Invalid::Range);
+    let cases: [(&str, SetError); 35] = [
+        ("$1=25", SetError::Unsupported),
+        ("$2=0", SetError::Unsupported),
+        ("$100=250", SetError::Unsupported),
+        ("$999=1", SetError::Unsupported),
+        ("$0", SetError::Unsupported),
+        ("$=5", SetError::Unsupported),
+        ("$x=5", SetError::Unsupported),
+        ("$123456=5", SetError::Unsupported),
+        ("$0=", SetError::BadNumber),
+        ("$0=abc", SetError::BadNumber),
+        ("$0=1.2.3", SetError::BadNumber),
+        ("$0=0.0000000000000000001", SetError::BadNumber),
+        ("$202=1.5", SetError::BadNumber),
+        ("$0=-5", SetError::Negative),
+        ("$201=-1", SetError::Negative),
+        ("$130=-1", SetError::Negative),
+        ("$254=-4000", SetError::Negative),
+        ("$201=50", SetError::Invalid(Invalid::Nc(N::FrameRate))),
+        ("$0=1000", SetError::Invalid(Invalid::Nc(N::PulseTiming))),
+        ("$120=0.01", SetError::Invalid(Invalid::Nc(N::Acceleration))),
+        ("$230=1", SetError::Invalid(Invalid::Nc(N::SoftLimits))),
+        ("$254=0", SetError::Invalid(Invalid::Ac(A::Limits))),
+        (
+            "$256=1.5",
+            SetError::Invalid(Invalid::Ac(A::OptimalFraction)),
+        ),
+        ("$258=5000", SetError::Invalid(Invalid::Ac(A::FeedRange))),
+        ("$282=1500", SetError::Invalid(Invalid::Ac(A::FrozenCodes))),
+        ("$20=0", r),
+        ("$111=1000", r),
+        ("$10=4", r),
+        ("$13=2", r),
+        ("$250=2", r),
+        ("$251=1", r),
+        ("$200=0.002", r),
+        ("$200=0.0025401", r),
+        ("$254=0.0000001", r),
+        ("$201=99999999999999999999999", r),
+    ];
+    let mut m = MachineSettings::default();
+    for (stmt, want) in cases {
+        assert_eq!(set(&mut m, stmt), Err(want), "{stmt}");
+        assert_eq!(m, MachineSettings::default(), "{stmt} changed the settings");
+    }
+    assert_eq!(SetError::BadNumber.code(), 2);
+    assert_eq!(SetError::Unsupported.code(), 3);
+    assert_eq!(SetError::Negative.code(), 4);
+    assert_eq!(r.code(), 52);
+    assert_eq!(SetError::Storage.code(), 7);
+    assert_eq!(
+        SetError::Invalid(Invalid::Nc(N::FrameRate)).message(),
+        N::FrameRate.message()
+    );
+}
+
+#[test]
+fn blu_change_keeps_the_mm_values() {
+    let mut m = MachineSettings::default();
+    set(&mut m, "$200=0.00254").unwrap();
+    assert_eq!(
+        m,
+        MachineSettings::default(),
+        "the same BLU changes nothing"
+    );
+    set(&mut m, "$200=0.0010").unwrap();
+    assert_eq!(m.nc.blu, Blu::Micron);
+    assert_eq!(m.nc.soft_max, [254_000, 254_000, 101_600]);
+    assert_eq!(m.nc.soft_min, [-254_000, -254_000, -101_600]);
+    assert_eq!(m.nc.accel_blu_s2, [254_000; 3]);
+    assert_eq!(m.nc.rapid_hz, 66_886); // 26 333 x 2.54 = 66 885.8
+    let l = listing(&m);
+    assert!(l.starts_with("$200=0.001\r\n"), "{l}");
+    assert!(l.contains("$130=254\r\n$131=254\r\n$132=101.6\r\n"), "{l}");
+    assert!(l.contains("$110=4013.16\r\n"), "{l}");
+    // Back: limits round inward, rates to the nearest.
+    set(&mut m, "$130=100.002").unwrap();
+    set(&mut m, "$230=-100.002").unwrap();
+    set(&mut m, "$200=0.00254").unwrap();
+    // 100.002 mm = 39 370.87 BLU: inward, not to the nearest.
+    assert_eq!((m.nc.soft_min[0], m.nc.soft_max[0]), (-39_370, 39_370));
+    assert_eq!(m.nc.rapid_hz, 26_333);
+    assert_eq!(m.nc.accel_blu_s2, [100_000; 3]);
+}
+
+#[test]
+fn acceleration_is_validated() {
+    let mut s = Settings::default();
+    assert_eq!(s.validate(), Ok(()));
+    for (a, ok) in [
+        (99, false),
+        (100, true),
+        (100_000_000, true),
+        (100_000_001, false),
+        (0, false),
+    ] {
+        s.accel_blu_s2 = [100_000, a, 100_000];
+        assert_eq!(s.validate().is_ok(), ok, "{a}");
+        assert_eq!(ACCEL_RANGE.contains(&a), ok);
+    }
+}
+
+fn real(lo: f32, hi: f32) -> impl Strategy<Value = f32> {
+    prop_oneof![
+        lo..=hi,
+        (1u32..=100_000).prop_map(move |k| (k as f32 / 1000.0).clamp(lo, hi))
+    ]
+}
+
+prop_compose! {
+    fn arb_nc()(blu in any::<bool>(), frame in 100u32..=100_000, extra in 0u32..=200_000,
+                q0 in 1u32..=1_000_000, pw in 1u64..=1000, ss in 0u64..=1000,
+                ptp in (1u32..1000, 1u32..1000, 1u32..1000), tau in 1_000u32..=10_000_000,
+                smin in prop::array::uniform3(-100_000_000i32..=0),
+                smax in prop::array::uniform3(0i32..=100_000_000),
+                accel in prop::array::uniform3(ACCEL_RANGE)) -> Settings {
+        let rapid = (frame + extra).min(200_000);
+        let half = (1_000_000_000 / rapid as u64) * 3 / 4 / 2;
+        Settings {
+            blu: if blu { Blu::Micron } else { Blu::TenthMil },
+            frame_hz: frame,
+            q0,
+            rapid_hz: rapid,
+            ptp_steps: [ptp.0 + ptp.1 + ptp.2, ptp.1 + ptp.2, ptp.2],
+            decel_tau_us: tau,
+            pulse_width_ns: (half * pw / 1000).max(1) as u32,
+            sign_setup_ns: (half * ss / 1000) as u32,
+            soft_min: smin,
+            soft_max: smax,
+            accel_blu_s2: accel,
+        }
+    }
+}
+
+prop_compose! {
+    fn arb_ac()(rates in (100u32..=100_000, 0u32..=1000, 1u32..=10_000_000),
+                gains in prop::array::uniform3((real(1e-6, 1e4), any::<bool>())),
+                offsets in prop::array::uniform3(prop_oneof![Just(0.0f32), real(1e-6, 4095.0)]),
+                picks in (any::<bool>(), any::<bool>()),
+                limits in (real(1e-6, 1e7), real(1e-6, 1e7), real(1e-6, 1.0), real(1e-6, 1.0)),
+                feeds in (1u32..=1_000_000, 1u32..=1_000_000),
+                counts in (0u32..=1_000_000, 1u16..=4095, 0u16..=100, 0u32..=1_000_000),
+                ft in (real(1e-6, 1000.0), real(1e-6, 100.0), real(1e-6, 100.0), real(1e-6, 1e7)),
+                ft_periods in 0u32..=100_000, peak_windows in 1u32..=8) -> AcSettings {
+        let (sample_hz, p, fdot_m) = rates;
+        let lo = 1000u32.div_ceil(sample_hz).max(1);
+        let cal = [0, 1, 2].map(|k| Calibration {
+            gain: if gains[k].1 { -gains[k].0 } else { gains[k].0 },
+            offset: offsets[k],
+        });
+        AcSettings {
+            sample_hz,
+            period_ms: lo + (1000 - lo) * p / 1000,
+            cal,
+            pick: if picks.0 { Pick::Latest } else { Pick::Peak },
+            force_limit_n: limits.0,
+            torque_limit_nm: limits.1,
+            optimal_fraction: limits.2,
+            fdot_m,
+            f_min: feeds.0.min(feeds.1),
+            f_max: feeds.0.max(feeds.1),
+            overload_e: -limits.3,
+            stuck_samples: counts.0,
+            jump_codes: counts.1,
+            frozen_codes: counts.2,
+            frozen_samples: counts.3,
+            tool_radius_mm: ft.0,
+            ft_ratio_min: ft.1.min(ft.2),
+            ft_ratio_max: ft.1.max(ft.2),
+            ft_floor_nm: ft.3,
+            ft_periods,
+            peak_windows,
+            ceiling: if picks.1 { FeedCeiling::Frm } else { FeedCeiling::Programmed },
+        }
+    }
+}
+
+prop_compose! {
+    fn arb_settings()(nc in arb_nc(), ac in arb_ac(), on in any::<bool>(), mask in 0u8..=3,
+                      inches in any::<bool>()) -> MachineSettings {
+        MachineSettings {
+            nc,
+            ac,
+            ac_enabled: on,
+            strategy: AcStrategy::Paper,
+            report: ReportSettings { status_mask: mask, inches },
+        }
+    }
+}
+
+fn lines(m: &MachineSettings) -> Vec<String> {
+    listing(m)
+        .split("\r\n")
+        .filter(|l| !l.is_empty())
+        .map(String::from)
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 512, max_global_rejects: 4096, ..ProptestConfig::default() })]
+
+    /// Every `$$` line set back gives exactly the same settings (and is accepted).
+    #[test]
+    fn listing_sets_back_to_the_same_settings(s in arb_settings()) {
+        prop_assume!(s.validate().is_ok());
+        let mut m = s;
+        for l in lines(&s) {
+            prop_assert_eq!(m.set_line(&l), Ok(()), "{}", l);
+        }
+        prop_assert_eq!(m, s);
+        prop_assert_eq!(record::encode(&m), record::encode(&s));
+    }
+
+    /// A `$$` listing restored onto the defaults (grbl GUIs' restore) gives the same settings; an
+    /// order-dependent set refused once (a range that crosses the current one) goes in a second
+    /// pass, and the BLU converts the mm settings set before it, set again in the second pass.
+    #[test]
+    fn listing_restores_onto_the_defaults(s in arb_settings()) {
+        prop_assume!(s.validate().is_ok());
+        let mut m = MachineSettings::default();
+        for _ in 0..3 {
+            for l in lines(&s) {
+                let _ = m.set_line(&l);
+            }
+        }
+        prop_assert_eq!(listing(&m), listing(&s));
+        prop_assert_eq!(m, s);
+    }
+
+    /// The record round-trips, and a random bit flip in it is refused.
+    #[test]
+    fn record_round_trips_and_flips_are_refused(s in arb_settings(), bit in 0usize..RECORD_LEN * 8) {
+        prop_assume!(s.validate().is_ok());
+        let img = record::encode(&s);
+        prop_assert_eq!(record::decode(&img), Ok(s));
+        let mut bad = img;
+        bad[bit / 8] ^= 1 << (bit % 8);
+        prop_assert!(record::decode(&bad).is_err());
+    }
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| std::format!("{x:02x}")).collect()
+}
+
+#[test]
+fn crc32_matches_the_standard_check_value() {
+    assert_eq!(record::crc32(b"123456789"), 0xCBF4_3926);
+    assert_eq!(record::crc32(b""), 0);
+}
+
+#[test]
+fn record_of_the_defaults_is_stable() {
+    let img = record::encode(&MachineSettings::default());
+    assert_eq!(img.len(), RECORD_LEN);
+    assert_eq!(hex(&img), DEFAULT_IMAGE);
+    assert_eq!(record::decode(&img), Ok(MachineSettings::default()));
+}
+
+#[test]
+fn every_single_bit_flip_is_refused() {
+    let img = record::encode(&MachineSettings::default());
+    for bit in 0..RECORD_LEN * 8 {
+        let mut bad = img;
+        bad[bit / 8] ^= 1 << (bit % 8);
+        let e = record::decode(&bad).unwrap_err();
+        let want: &[RecordError] = match bit / 8 {
+            0..4 => &[RecordError::Magic],
+            4..6 => &[RecordError::Checksum],
+            6..8 => &[RecordError::Truncated, RecordError::Length],
+            _ => &[RecordError::Checksum],
+        };
+        assert!(want.contains(&e), "bit {bit}: {e:?}");
+    }
+}
+
+#[test]
+fn every_truncation_and_extension_is_refused() {
+    let img = record::encode(&MachineSettings::default());
+    for n in 0..RECORD_LEN {
+        assert_eq!(
+            record::decode(&img[..n]),
+            Err(RecordError::Truncated),
+            "{n} bytes"
+        );
+    }
+    let mut long = img.to_vec();
+    long.push(0);
+    assert_eq!(record::decode(&long), Err(RecordError::Length));
+}
+
+/// Re-seals an image after an edit (a record with a valid CRC).
+fn reseal(img: &mut [u8]) {
+    let n = img.len() - 4;
+    let c = record::crc32(&img[..n]);
+    img[n..].copy_from_slice(&c.to_le_bytes());
+}
+
+#[test]
+fn a_sealed_record_with_bad_values_is_refused() {
+    let bad = MachineSettings {
+        nc: Settings {
+            frame_hz: 50,
+            ..Settings::default()
+        },
+        ..MachineSettings::default()
+    };
+    let img = record::encode(&bad);
+    assert_eq!(
+        record::decode(&img),
+        Err(RecordError::Invalid(Invalid::Nc(
+            crate::settings::SettingsError::FrameRate
+        )))
+    );
+    let nan = MachineSettings {
+        ac: AcSettings {
+            ft_floor_nm: f32::NAN,
+            ..AcSettings::default()
+        },
+        ..MachineSettings::default()
+    };
+    assert!(matches!(
+        record::decode(&record::encode(&nan)),
+        Err(RecordError::Invalid(_))
+    ));
+    let mut img = record::encode(&MachineSettings::default());
+    img[8] = 7; // BLU code
+    reseal(&mut img);
+    assert_eq!(record::decode(&img), Err(RecordError::Value));
+    let mut img = record::encode(&MachineSettings::default());
+    img[4] = 2; // version 2
+    reseal(&mut img);
+    assert_eq!(record::decode(&img), Err(RecordError::Version(2)));
+}
+
+/// A settings storage in memory (the host's test double of flash or EEPROM).
+#[derive(Default)]
+struct MemStorage {
+    image: Option<Vec<u8>>,
+    refuse: bool,
+    stores: usize,
+}
+
+impl SettingsStorage for MemStorage {
+    fn load(&mut self, buf: &mut [u8]) -> Option<usize> {
+        let img = self.image.as_ref()?;
+        let n = img.len().min(buf.len());
+        buf[..n].copy_from_slice(&img[..n]);
+        Some(img.len())
+    }
+
+    fn store(&mut self, image: &[u8]) -> bool {
+        if self.refuse {
+            return false;
+        }
+        self.stores += 1;
+        self.image = Some(image.to_vec());
+        true
+    }
+}
+
+#[test]
+fn load_gives_defaults_with_or_without_an_alarm() {
+    let d = MachineSettings::default();
+    let mut st = MemStorage::default();
+    let l = record::load(&mut st);
+    assert_eq!((l.settings, l.status), (d, LoadStatus::Missing));
+    assert!(!l.status.alarm());
+    st.image = Some(std::vec![0xFF; RECORD_LEN]);
+    assert_eq!(
+        record::load(&mut st).status,
+        LoadStatus::Missing,
+        "erased flash"
+    );
+    let img = record::encode(&d).to_vec();
+    let refused = [
+        (img[..100].to_vec(), RecordError::Truncated),
+        (std::vec![], RecordError::Truncated),
+        (std::vec![0u8; RECORD_LEN], RecordError::Magic),
+        (
+            [img.clone(), std::vec![0; 1000]].concat(),
+            RecordError::Length,
+        ),
+    ];
+    for (image, e) in refused {
+        st.image = Some(image);
+        let l = record::load(&mut st);
+        assert_eq!((l.settings, l.status), (d, LoadStatus::Refused(e)));
+        assert!(l.status.alarm());
+    }
+    assert_eq!(st.stores, 0, "load never writes");
+}
+
+#[test]
+fn persistent_sets_store_and_reload() {
+    let mut st = MemStorage::default();
+    let mut m = MachineSettings::default();
+    for stmt in ["$0=4", "$200=0.001", "$254=3500", "$13=1"] {
+        let (n, v) = parse_assignment(stmt).unwrap();
+        record::set_persistent(&mut m, &mut st, n, v).unwrap();
+    }
+    assert_eq!(st.stores, 4);
+    let l = record::load(&mut st);
+    assert_eq!((l.settings, l.status), (m, LoadStatus::Loaded));
+    assert_eq!(listing(&l.settings), listing(&m));
+    // A refused value stores nothing; a refused store changes nothing.
+    let (n, v) = parse_assignment("$201=1").unwrap();
+    assert!(record::set_persistent(&mut m, &mut st, n, v).is_err());
+    assert_eq!(st.stores, 4);
+    st.refuse = true;
+    let before = (m, st.image.clone());
+    let (n, v) = parse_assignment("$0=3").unwrap();
+    let e = record::set_persistent(&mut m, &mut st, n, v).unwrap_err();
+    assert_eq!((e, e.code()), (SetError::Storage, 7));
+    assert_eq!((m, st.image.clone()), before);
+    // Invalid settings are never stored.
+    st.refuse = false;
+    let bad = MachineSettings {
+        report: ReportSettings {
+            status_mask: 9,
+            inches: false,
+        },
+        ..m
+    };
+    assert_eq!(
+        record::store(&mut st, &bad),
+        Err(SetError::Invalid(Invalid::Range))
+    );
+    assert_eq!(st.stores, 4);
+}
