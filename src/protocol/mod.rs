@@ -55,6 +55,8 @@ mod tests_lines;
 mod tests_report;
 #[cfg(test)]
 mod tests_rx;
+#[cfg(test)]
+mod tests_util;
 
 use crate::gcode::number::parse_decimal;
 use crate::gcode::{Decimal, Modes};
