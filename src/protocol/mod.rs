@@ -240,7 +240,7 @@ impl<'a> Protocol<'a> {
         let state = self.state(data.state);
         let wco = self.wco_countdown == 0;
         self.wco_countdown = match (wco, state) {
-            (false, _) => self.wco_countdown - 1,
+            (false, _) => self.wco_countdown.saturating_sub(1),
             (true, State::Run | State::Hold { .. } | State::Jog) => 9,
             (true, _) => 29,
         };

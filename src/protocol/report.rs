@@ -105,11 +105,12 @@ impl AcReport {
 
     /// x / base in thousandths, rounded and saturated (NaN, negative or base <= 0 give 0).
     pub fn ratio_milli(x: f32, base: f32) -> u16 {
-        if !(base > 0.0) || !(x > 0.0) {
-            return 0;
+        if base > 0.0 && x > 0.0 {
+            // `as` saturates; +0.5 rounds a positive value.
+            (x / base * 1000.0 + 0.5) as u16
+        } else {
+            0 // also NaN
         }
-        // `as` saturates; +0.5 rounds a positive value.
-        (x / base * 1000.0 + 0.5) as u16
     }
 }
 
