@@ -12,6 +12,8 @@
 //! - [`rt`]: the run-time bodies over the ports (frame ISR, pulse-end ISR, sampler, AC period), the
 //!   status words between the contexts and the timer arithmetic of init.
 //! - [`wire`]: the formats between the QEMU firmware and the host tool (lockstep ADC, `ac.log`).
+//! - [`protocol`]: the grbl 1.1 serial protocol (RX interrupt: realtime bytes and the receive
+//!   ring; loader task: lines, `ok` / `error:N`, `$` commands, status reports).
 //! - [`settings`]: the machine settings and their validation (init, loader, host).
 //! - [`protocol`]: the operator's line protocol (loader task); `protocol::settings` is the `$$`
 //!   table and the persistent settings record (init loads it).

@@ -367,3 +367,81 @@ impl MachineSettings {
         Ok(())
     }
 }
+
+/// The `$` commands of the line protocol reach this table (`$$`, `$N=value`, `$N`), and the
+/// status report takes `$10` and `$13` from it.
+impl super::SettingsTable for MachineSettings {
+    fn list(&self, out: &mut dyn Write) -> fmt::Result {
+        let mut w = DynWrite(out);
+        MachineSettings::list(self, &mut w)
+    }
+
+    fn set(&mut self, n: u16, value: Decimal) -> Result<(), u8> {
+        MachineSettings::set(self, n, value).map_err(|e| e.code())
+    }
+
+    fn get(&self, n: u16, out: &mut dyn Write) -> Result<(), u8> {
+        let e = entry(n).ok_or(super::GrblError::INVALID_STATEMENT.0)?;
+        let mut w = DynWrite(out);
+        let r = write!(w, "${}=", e.number)
+            .and_then(|_| self.write_value(e, &mut w))
+            .and_then(|_| w.write_str("\r\n"));
+        r.map_err(|_| super::GrblError::INVALID_STATEMENT.0)
+    }
+
+    fn report_options(&self) -> super::report::ReportOptions {
+        super::report::ReportOptions {
+            status_mask: self.report.status_mask,
+            inches: self.report.inches,
+        }
+    }
+}
+
+/// A `&mut dyn Write` as a sized `Write` (the table's writers are generic).
+struct DynWrite<'a>(&'a mut dyn Write);
+
+impl Write for DynWrite<'_> {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        self.0.write_str(s)
+    }
+}
+
+#[cfg(test)]
+mod hook_tests {
+    extern crate std;
+    use super::super::SettingsTable;
+    use super::*;
+    use crate::gcode::number::parse_decimal;
+    use std::string::String;
+
+    /// The protocol's `$` hook on the real table: `$$` is the table's listing, `$N=value` is
+    /// validated (a refused value changes nothing and gives its grbl error), `$N` lists one line,
+    /// `$10`/`$13` reach the status report options.
+    #[test]
+    fn the_protocol_hook_is_the_table() {
+        let mut m = MachineSettings::default();
+        let (mut via_hook, mut direct) = (String::new(), String::new());
+        SettingsTable::list(&m, &mut via_hook).unwrap();
+        MachineSettings::list(&m, &mut direct).unwrap();
+        assert_eq!(via_hook, direct);
+        assert!(via_hook.contains("$0=5\r\n"), "{via_hook}");
+        let before = m;
+        assert_eq!(
+            SettingsTable::set(&mut m, 201, parse_decimal("50").unwrap()),
+            Err(52)
+        );
+        assert_eq!(m, before);
+        assert_eq!(
+            SettingsTable::set(&mut m, 999, parse_decimal("1").unwrap()),
+            Err(3)
+        );
+        SettingsTable::set(&mut m, 13, parse_decimal("1").unwrap()).unwrap();
+        SettingsTable::set(&mut m, 10, parse_decimal("3").unwrap()).unwrap();
+        let o = m.report_options();
+        assert!(o.inches && o.status_mask == 3);
+        let mut one = String::new();
+        SettingsTable::get(&m, 13, &mut one).unwrap();
+        assert_eq!(one, "$13=1\r\n");
+        assert_eq!(SettingsTable::get(&m, 999, &mut one), Err(3));
+    }
+}

@@ -1,0 +1,337 @@
+//! grbl 1.1 push messages formatted without floats or allocation (loader task, host tests): the
+//! banner, the status report `<...>` with millac's `AC:` field, `$G`, `$#`, `$I`, `ALARM:N`,
+//! `[MSG:...]`.
+//!
+//! Numbers: positions and rates are integers (BLU, BLU per minute) converted once by exact
+//! rational arithmetic and rounded half away from zero to grbl's decimals: positions 3 decimals
+//! in mm, 4 in inches; feed rates 0 decimals in mm/min, 1 in in/min; rpm 0 decimals. So 12345 BLU
+//! of 0.0001 in report as `31.356` mm (31.3563) or `1.2345` in. A value that rounds to zero
+//! prints without a sign (`0.000`, where grbl's printFloat could print `-0.000`).
+
+use super::rx::Overrides;
+use crate::gcode::number::div_round;
+use crate::gcode::{Distance, Modes, MotionMode, Units};
+use crate::nc::Plane;
+use crate::settings::{Blu, Settings};
+use core::fmt::{self, Write};
+
+/// The grbl version millac speaks.
+pub const GRBL_VERSION: &str = "1.1h";
+/// millac's version, from Cargo.
+pub const MILLAC_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// `$10` status report mask and `$13` report inches, as the settings table holds them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReportOptions {
+    /// `$10`: bit 0 set = `MPos`, clear = `WPos`; bit 1 set = `Bf:` buffer field.
+    pub status_mask: u8,
+    /// `$13`: report positions and rates in inches.
+    pub inches: bool,
+}
+
+impl ReportOptions {
+    /// grbl's defaults: `$10=1` (MPos, no buffer field), `$13=0` (mm).
+    pub const DEFAULT: ReportOptions = ReportOptions {
+        status_mask: 1,
+        inches: false,
+    };
+}
+
+/// Machine state as the status report names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum State {
+    Idle,
+    Run,
+    /// Feed hold: `complete` (`Hold:0`, stopped, ready to resume) or decelerating (`Hold:1`).
+    Hold {
+        complete: bool,
+    },
+    Jog,
+    Alarm,
+    Check,
+}
+
+impl State {
+    pub const fn name(self) -> &'static str {
+        match self {
+            State::Idle => "Idle",
+            State::Run => "Run",
+            State::Hold { complete: true } => "Hold:0",
+            State::Hold { complete: false } => "Hold:1",
+            State::Jog => "Jog",
+            State::Alarm => "Alarm",
+            State::Check => "Check",
+        }
+    }
+}
+
+/// The adaptive controller's state in the `AC:` field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AcState {
+    /// Adapting the feed (`run`).
+    Run,
+    /// Feed held by the controller, with the `ALARM:N` number of its reason (`hold:N`, see
+    /// [`super::codes::alarm`]).
+    Hold(u8),
+}
+
+/// millac's extra status field `AC:feed_share,F/F0,T/T0,state`, e.g. `AC:87,0.968,0.412,run`:
+/// - `feed_share`: the feed the controller allows as a percentage of the programmed feed, 0..=100
+///   (100: the programmed feed binds, 0: held), see [`AcReport::feed_share`];
+/// - `F/F0`, `T/T0`: measured force and torque over their optimal values F0, T0, 3 decimals
+///   (1.000 = at the set point; the permissible limit is 1/0.9 = 1.111 at the defaults);
+/// - `state`: `run` or `hold:N` with N the hold's alarm number.
+///
+/// The field is present only when the controller is enabled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AcReport {
+    pub feed_share_pct: u8,
+    /// F/F0 in thousandths.
+    pub f_ratio_milli: u16,
+    /// T/T0 in thousandths.
+    pub t_ratio_milli: u16,
+    pub state: AcState,
+}
+
+impl AcReport {
+    /// min(cap, programmed) / programmed in percent, rounded (feed numbers; no feed = 100).
+    pub fn feed_share(cap: u32, programmed: u32) -> u8 {
+        if programmed == 0 {
+            return 100;
+        }
+        let share = div_round(cap.min(programmed) as i128 * 100, programmed as i128);
+        share.unwrap_or(0) as u8
+    }
+
+    /// x / base in thousandths, rounded and saturated (NaN, negative or base <= 0 give 0).
+    pub fn ratio_milli(x: f32, base: f32) -> u16 {
+        if base > 0.0 && x > 0.0 {
+            // `as` saturates; +0.5 rounds a positive value.
+            (x / base * 1000.0 + 0.5) as u16
+        } else {
+            0 // also NaN
+        }
+    }
+}
+
+/// What the caller knows about the machine for one status report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StatusData {
+    pub state: State,
+    /// Machine position X, Y, Z in BLU.
+    pub position: [i32; 3],
+    /// Current feed along the path in BLU per minute (see [`feed_blu_per_min`]).
+    pub feed_blu_per_min: u32,
+    pub spindle_rpm: u32,
+    /// Free blocks in the block queue (the `Bf:` field's first value).
+    pub blocks_free: u16,
+    /// The `AC:` field, when the adaptive control is enabled.
+    pub ac: Option<AcReport>,
+}
+
+/// The feed of feed number `f` in BLU per minute: f * W0 * 60 / q0, rounded.
+pub fn feed_blu_per_min(machine: &Settings, f: u32) -> u32 {
+    let n = f as i128 * machine.frame_hz as i128 * 60;
+    div_round(n, machine.q0.max(1) as i128).unwrap_or(0) as u32
+}
+
+/// Writes `v / 10^decimals` with exactly `decimals` decimals (no sign for zero).
+pub fn write_fixed(out: &mut dyn Write, v: i64, decimals: u32) -> fmt::Result {
+    let p = 10u64.pow(decimals);
+    let a = v.unsigned_abs();
+    if v < 0 {
+        out.write_char('-')?;
+    }
+    write!(out, "{}", a / p)?;
+    if decimals > 0 {
+        write!(out, ".{:0w$}", a % p, w = decimals as usize)?;
+    }
+    Ok(())
+}
+
+/// A length in BLU in report units: (scaled value, decimals).
+fn length(blu: i32, unit: Blu, inches: bool) -> (i64, u32) {
+    let nm = unit.nm() as i128;
+    // mm: thousandths = nm / 1000; inch: ten-thousandths = nm / 2540.
+    let (den, d) = if inches { (2540, 4) } else { (1000, 3) };
+    (div_round(blu as i128 * nm, den).unwrap_or(0) as i64, d)
+}
+
+/// Writes a length in BLU in mm (3 decimals) or inches (4 decimals).
+pub fn write_length(out: &mut dyn Write, blu: i32, unit: Blu, inches: bool) -> fmt::Result {
+    let (v, d) = length(blu, unit, inches);
+    write_fixed(out, v, d)
+}
+
+/// Writes a rate in BLU/min in mm/min (0 decimals) or in/min (1 decimal).
+pub fn write_rate(out: &mut dyn Write, blu_per_min: u32, unit: Blu, inches: bool) -> fmt::Result {
+    let nm = unit.nm() as i128;
+    let (den, d) = if inches {
+        (2_540_000, 1)
+    } else {
+        (1_000_000, 0)
+    };
+    let v = div_round(blu_per_min as i128 * nm, den).unwrap_or(0) as i64;
+    write_fixed(out, v, d)
+}
+
+fn write_axes(out: &mut dyn Write, p: [i32; 3], unit: Blu, inches: bool) -> fmt::Result {
+    for (k, v) in p.iter().enumerate() {
+        if k > 0 {
+            out.write_char(',')?;
+        }
+        write_length(out, *v, unit, inches)?;
+    }
+    Ok(())
+}
+
+/// The welcome banner after power-up and every reset: `Grbl 1.1h ['$' for help]` and a line
+/// naming millac and its version.
+pub fn write_banner(out: &mut dyn Write) -> fmt::Result {
+    write!(
+        out,
+        "\r\nGrbl {GRBL_VERSION} ['$' for help]\r\n[MSG:millac {MILLAC_VERSION} NC + adaptive control]\r\n"
+    )
+}
+
+/// Everything a status report needs besides the caller's [`StatusData`].
+pub struct StatusContext {
+    pub options: ReportOptions,
+    pub unit: Blu,
+    pub overrides: Overrides,
+    /// Free bytes in the receive ring.
+    pub rx_free: usize,
+    /// Include `WCO:` (first report after a reset, then every 10th while busy / 30th idle).
+    pub wco: bool,
+}
+
+/// `<State|MPos:x,y,z|Bf:b,r|FS:f,s|WCO:..|Ov:f,r,s|AC:..>` and its line end.
+pub fn write_status(out: &mut dyn Write, d: &StatusData, cx: &StatusContext) -> fmt::Result {
+    let inches = cx.options.inches;
+    write!(out, "<{}", d.state.name())?;
+    // millac has no work offsets: WPos = MPos, so only the label follows $10.
+    let label = if cx.options.status_mask & 1 != 0 {
+        "MPos"
+    } else {
+        "WPos"
+    };
+    write!(out, "|{label}:")?;
+    write_axes(out, d.position, cx.unit, inches)?;
+    if cx.options.status_mask & 2 != 0 {
+        write!(out, "|Bf:{},{}", d.blocks_free, cx.rx_free)?;
+    }
+    out.write_str("|FS:")?;
+    write_rate(out, d.feed_blu_per_min, cx.unit, inches)?;
+    write!(out, ",{}", d.spindle_rpm)?;
+    if cx.wco {
+        out.write_str("|WCO:")?;
+        write_axes(out, [0; 3], cx.unit, inches)?;
+    }
+    let o = cx.overrides;
+    write!(out, "|Ov:{},{},{}", o.feed, o.rapid, o.spindle)?;
+    if let Some(ac) = d.ac {
+        write!(out, "|AC:{},", ac.feed_share_pct)?;
+        write_fixed(out, ac.f_ratio_milli as i64, 3)?;
+        out.write_char(',')?;
+        write_fixed(out, ac.t_ratio_milli as i64, 3)?;
+        match ac.state {
+            AcState::Run => out.write_str(",run")?,
+            AcState::Hold(n) => write!(out, ",hold:{n}")?,
+        }
+    }
+    out.write_str(">\r\n")
+}
+
+/// `$G`: `[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]`. The parser does not keep the spindle
+/// and coolant words (accepted, no effect), so M5 M9 always; T0 (no tool changer); F is the
+/// modal feed as the machine runs it (the feed number, so clamped to FRM) in `$13` units.
+pub fn write_modes(
+    out: &mut dyn Write,
+    m: &Modes,
+    machine: &Settings,
+    inches: bool,
+) -> fmt::Result {
+    let motion = match m.motion {
+        MotionMode::Rapid => 0,
+        MotionMode::Linear => 1,
+        MotionMode::ArcCw => 2,
+        MotionMode::ArcCcw => 3,
+    };
+    let plane = match m.plane {
+        Plane::XY => 17,
+        Plane::ZX => 18,
+        Plane::YZ => 19,
+    };
+    let units = match m.units {
+        Units::Inch => 20,
+        Units::Mm => 21,
+    };
+    let distance = match m.distance {
+        Distance::Absolute => 90,
+        Distance::Incremental => 91,
+    };
+    write!(
+        out,
+        "[GC:G{motion} G54 G{plane} G{units} G{distance} G94 M5 M9 T0 F"
+    )?;
+    write_rate(out, feed_blu_per_min(machine, m.feed), machine.blu, inches)?;
+    write!(out, " S{}]\r\n", m.spindle_rpm)
+}
+
+/// `$#`: every offset is zero, because millac has no work offsets, G28/G30 positions, G92 or tool
+/// length offsets yet (and no probe).
+pub fn write_offsets(out: &mut dyn Write, unit: Blu, inches: bool) -> fmt::Result {
+    for name in [
+        "G54", "G55", "G56", "G57", "G58", "G59", "G28", "G30", "G92",
+    ] {
+        write!(out, "[{name}:")?;
+        write_axes(out, [0; 3], unit, inches)?;
+        out.write_str("]\r\n")?;
+    }
+    out.write_str("[TLO:")?;
+    write_length(out, 0, unit, inches)?;
+    out.write_str("]\r\n[PRB:")?;
+    write_axes(out, [0; 3], unit, inches)?;
+    out.write_str(":0]\r\n")
+}
+
+/// `$I`: `[VER:1.1h.millac:]` and `[OPT:V,<blocks>,<rx bytes>]` (V: the S word is kept, so the
+/// status report has `FS:`).
+pub fn write_build_info(out: &mut dyn Write, blocks: u16, rx: usize) -> fmt::Result {
+    write!(
+        out,
+        "[VER:{GRBL_VERSION}.millac:]\r\n[OPT:V,{blocks},{rx}]\r\n"
+    )
+}
+
+/// `[HLP:...]`, the commands millac implements.
+pub fn write_help(out: &mut dyn Write) -> fmt::Result {
+    out.write_str("[HLP:$$ $# $G $I $N $x=val $J=line $C $X $H ~ ! ? ctrl-x]\r\n")
+}
+
+/// `ALARM:N`.
+pub fn write_alarm(out: &mut dyn Write, code: u8) -> fmt::Result {
+    write!(out, "ALARM:{code}\r\n")
+}
+
+/// `[MSG:text]`: line ends in the text become spaces and `]` becomes `)`, so the message stays
+/// one well-formed line.
+pub fn write_message(out: &mut dyn Write, text: fmt::Arguments<'_>) -> fmt::Result {
+    struct Clean<'w>(&'w mut dyn Write);
+    impl Write for Clean<'_> {
+        fn write_str(&mut self, s: &str) -> fmt::Result {
+            for c in s.chars() {
+                let c = match c {
+                    '\r' | '\n' => ' ',
+                    ']' => ')',
+                    c => c,
+                };
+                self.0.write_char(c)?;
+            }
+            Ok(())
+        }
+    }
+    out.write_str("[MSG:")?;
+    Clean(out).write_fmt(text)?;
+    out.write_str("]\r\n")
+}

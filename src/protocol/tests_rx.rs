@@ -1,0 +1,287 @@
+//! Host tests of the receive side: the 128-byte ring and the character-counting contract, bytes
+//! refused by a full ring, soft reset at its place in the stream, realtime bytes anywhere in a
+//! line, override arithmetic.
+
+extern crate std;
+use super::rx::byte;
+use super::tests_util::{Ev, Rig};
+use super::*;
+use proptest::prelude::*;
+use std::string::String;
+use std::vec::Vec;
+
+fn gcode(events: &[Ev]) -> Vec<String> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            Ev::Gcode(l, _) => Some(l.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+/// 128 bytes are accepted with nothing read; the 129th is refused, counted and reported, never
+/// silently dropped; realtime bytes still pass while the ring is full.
+#[test]
+fn exactly_128_bytes_then_refused_and_reported() {
+    let mut r = Rig::new();
+    let line = b"G0 X0.001\n"; // 10 bytes
+    let mut sent = Vec::new();
+    while sent.len() + line.len() <= RX_BUFFER_SIZE {
+        sent.extend_from_slice(line);
+    }
+    sent.extend_from_slice(&b"M5\r\nM5 X"[..RX_BUFFER_SIZE - sent.len()]);
+    assert_eq!(sent.len(), 128);
+    assert!(r.push(&sent).iter().all(|p| *p == Push::Stored));
+    assert_eq!(r.p.rx_available(), 0);
+    assert_eq!(r.isr.push_byte(b'1'), Push::Refused);
+    // The loader reads a line and makes room, but the ring stays poisoned: a later byte is
+    // refused too, so the bytes stored are always an unbroken prefix of the stream.
+    assert_eq!(r.poll(), Some(Ev::Gcode("G0 X0.001".into(), false)));
+    assert!(r.p.rx_available() > 0);
+    assert_eq!(r.isr.push_byte(b'\n'), Push::Refused);
+    assert_eq!(r.isr.push_byte(b'?'), Push::Realtime(b'?'));
+    let ev = r.run();
+    assert_eq!(ev[0], Ev::Realtime(Pending(Pending::STATUS)));
+    // The 12 complete lines and M5 ran; the partial "M5 X" lost its tail and is refused at its end.
+    assert_eq!(gcode(&ev).len(), 12);
+    assert_eq!(ev.last(), Some(&Ev::Overflow(2)));
+    assert_eq!(r.responses().len(), 13);
+    assert_eq!(r.p.rx_available(), RX_BUFFER_SIZE);
+    assert_eq!(r.feed(b"0.5\nG0 X0.002\n").len(), 2);
+    assert_eq!(r.responses(), ["error:11", "ok"]);
+}
+
+/// A sender that keeps the character-counting contract (at most 128 bytes of unanswered lines in
+/// flight) is never refused, whatever the loader's timing, and gets one answer per line in order.
+#[test]
+fn character_counting_sender_is_never_refused() {
+    let lines: Vec<String> = (0..300)
+        .map(|i| match i % 4 {
+            0 => std::format!("G1 X{}.{} F20", i % 7, i),
+            1 => String::new(),
+            2 => std::format!("G0 Y0.{i} (a comment of some length to fill the ring)"),
+            _ => std::format!("G1 X0 Y0 Z-0.0{} F{}", i % 10, 5 + i % 20),
+        })
+        .collect();
+    let mut r = Rig::new();
+    let mut in_flight: std::collections::VecDeque<usize> = Default::default();
+    let (mut next, mut answers, mut polls) = (0, 0, 0u64);
+    while answers < lines.len() {
+        // Send as many whole lines as fit.
+        while next < lines.len() {
+            let n = lines[next].len() + 1;
+            if in_flight.iter().sum::<usize>() + n > RX_BUFFER_SIZE {
+                break;
+            }
+            let mut bytes = lines[next].clone().into_bytes();
+            bytes.push(b'\n');
+            assert!(r.push(&bytes).iter().all(|p| *p == Push::Stored));
+            in_flight.push_back(n);
+            next += 1;
+        }
+        // The loader reads a little (one poll every other round).
+        polls += 1;
+        if polls % 2 == 0 {
+            r.poll();
+        }
+        for resp in r.responses() {
+            assert_eq!(resp, "ok", "line {answers}: {}", lines[answers]);
+            in_flight.pop_front().expect("an answer per line sent");
+            answers += 1;
+        }
+    }
+    assert!(in_flight.is_empty());
+}
+
+/// A soft reset discards the lines before it (unanswered, as grbl), sends the banner, and the
+/// bytes after it belong to the new session, even when they were already in the ring.
+#[test]
+fn reset_cuts_the_stream_at_its_place() {
+    let mut r = Rig::new();
+    r.push(b"G21\nG0 X1\nG0 Y");
+    r.push(&[byte::RESET]);
+    r.push(b"G0 Z-0.1\n");
+    let ev = r.run();
+    assert_eq!(ev[0], Ev::Reset);
+    assert_eq!(gcode(&ev), ["G0 Z-0.1"]);
+    let out = r.take();
+    assert!(
+        out.starts_with("\r\nGrbl 1.1h ['$' for help]\r\n[MSG:millac "),
+        "{out}"
+    );
+    assert!(
+        out.ends_with("ok\r\n") && out.matches("ok").count() == 1,
+        "{out}"
+    );
+    // A reset arriving while a line is half read: the half line is gone.
+    r.push(b"G0 X");
+    r.poll();
+    r.push(&[byte::RESET]);
+    r.push(b"1\nM5\n");
+    let ev = r.run();
+    assert_eq!(ev[0], Ev::Reset);
+    assert_eq!(gcode(&ev), ["1", "M5"]);
+    // Two resets: two banners, nothing before the second survives.
+    r.take();
+    r.push(b"G0 X1\n\x18G0 Y1\n\x18M5\n");
+    let ev = r.run();
+    assert_eq!(ev.iter().filter(|e| **e == Ev::Reset).count(), 2);
+    assert_eq!(gcode(&ev), ["M5"]);
+    assert_eq!(r.take().matches("Grbl 1.1h").count(), 2);
+}
+
+/// A reset into a full ring flushes everything received so far, and the ring works again.
+#[test]
+fn reset_into_a_full_ring_flushes_it() {
+    let mut r = Rig::new();
+    r.push(&[b'X'; RX_BUFFER_SIZE]);
+    assert_eq!(r.isr.push_byte(byte::RESET), Push::Realtime(byte::RESET));
+    assert_eq!(r.isr.push_byte(b'Y'), Push::Refused);
+    assert_eq!(r.run(), [Ev::Reset]);
+    assert_eq!(r.p.rx_available(), RX_BUFFER_SIZE);
+    assert_eq!(gcode(&r.feed(b"M5\n")), ["M5"]);
+}
+
+fn ov_model(mut o: Overrides, b: u8) -> Overrides {
+    let clamp = |v: i32| v.clamp(10, 200) as u8;
+    match b {
+        0x90 => o.feed = 100,
+        0x91 => o.feed = clamp(o.feed as i32 + 10),
+        0x92 => o.feed = clamp(o.feed as i32 - 10),
+        0x93 => o.feed = clamp(o.feed as i32 + 1),
+        0x94 => o.feed = clamp(o.feed as i32 - 1),
+        0x95 => o.rapid = 100,
+        0x96 => o.rapid = 50,
+        0x97 => o.rapid = 25,
+        0x99 => o.spindle = 100,
+        0x9A => o.spindle = clamp(o.spindle as i32 + 10),
+        0x9B => o.spindle = clamp(o.spindle as i32 - 10),
+        0x9C => o.spindle = clamp(o.spindle as i32 + 1),
+        0x9D => o.spindle = clamp(o.spindle as i32 - 1),
+        byte::RESET => o = Overrides::NONE,
+        _ => {}
+    }
+    o
+}
+
+#[test]
+fn overrides_step_and_clamp() {
+    let mut r = Rig::new();
+    r.push(&[0x91; 15]);
+    assert_eq!(r.p.overrides().feed, 200);
+    r.push(&[0x92; 25]);
+    assert_eq!(r.p.overrides().feed, 10);
+    r.push(&[0x93, 0x93, 0x94]);
+    assert_eq!(r.p.overrides().feed, 11);
+    r.push(&[0x96]);
+    assert_eq!(r.p.overrides().rapid, 50);
+    r.push(&[0x97]);
+    assert_eq!(r.p.overrides().rapid, 25);
+    r.push(&[0x9B, 0x9D]);
+    assert_eq!(r.p.overrides().spindle, 89);
+    assert_eq!(r.run()[0], Ev::Realtime(Pending(Pending::OVERRIDES)));
+    // No change, no flag.
+    r.push(&[0x97]);
+    assert_eq!(r.run(), []);
+    r.push(&[0x92]);
+    assert_eq!(r.p.overrides().feed, 10);
+    assert_eq!(r.run(), [Ev::Realtime(Pending(Pending::OVERRIDES))]);
+    r.push(&[0x92, 0x94]);
+    assert_eq!(r.run(), []);
+    r.push(&[0x90]);
+    assert_eq!(r.p.overrides().feed, 100);
+    // A soft reset restores 100 %.
+    r.push(&[byte::RESET]);
+    assert_eq!(r.p.overrides(), Overrides::NONE);
+}
+
+/// Every realtime byte at every position of a line (and between the bytes of a CRLF): taken out,
+/// the line arrives intact, the request is raised.
+#[test]
+fn every_realtime_byte_at_every_position() {
+    let line = b"G1 X0.5 Y-0.25 F12 (comment)\r\n";
+    let rts: Vec<u8> = (0..=255u8).filter(|&b| byte::is_realtime(b)).collect();
+    assert_eq!(rts.len(), 22);
+    for &rt in &rts {
+        for pos in 0..=line.len() {
+            let mut r = Rig::new();
+            let mut bytes = line.to_vec();
+            bytes.insert(pos, rt);
+            let pushes = r.push(&bytes);
+            assert_eq!(
+                pushes.iter().filter(|p| **p == Push::Realtime(rt)).count(),
+                1
+            );
+            let ev = r.run();
+            if rt == byte::RESET {
+                // The part before the reset is discarded; after it, the rest of the line is one
+                // line of its own (or nothing, if the reset came after the CR).
+                assert_eq!(ev[0], Ev::Reset, "{pos}");
+                continue;
+            }
+            assert_eq!(
+                gcode(&ev),
+                ["G1 X0.5 Y-0.25 F12 (comment)"],
+                "{rt:#x} at {pos}"
+            );
+            assert_eq!(r.responses(), ["ok"], "{rt:#x} at {pos}");
+        }
+    }
+}
+
+proptest! {
+    /// Random lines with random realtime bytes strewn anywhere: the lines arrive exactly as sent
+    /// without them, one answer each, the flags are the union of the requests, and the
+    /// overrides follow the model.
+    #[test]
+    fn realtime_bytes_anywhere(
+        lines in prop::collection::vec("[A-Za-z0-9 .()-]{0,40}", 1..6),
+        inserts in prop::collection::vec((any::<prop::sample::Index>(), prop::sample::select(
+            (0..=255u8).filter(|&b| byte::is_realtime(b) && b != byte::RESET).collect::<Vec<_>>()
+        )), 0..20),
+    ) {
+        let mut clean = Vec::new();
+        for l in &lines {
+            clean.extend_from_slice(l.as_bytes());
+            clean.push(b'\n');
+        }
+        let mut bytes = clean.clone();
+        for (at, rt) in &inserts {
+            bytes.insert(at.index(bytes.len() + 1), *rt);
+        }
+        // The model, in the order the bytes arrive.
+        let mut want_flags = 0u8;
+        let mut ov = Overrides::NONE;
+        for &b in bytes.iter().filter(|b| byte::is_realtime(**b)) {
+            want_flags |= match b {
+                b'?' => Pending::STATUS,
+                b'!' => Pending::HOLD,
+                b'~' => Pending::RESUME,
+                0x85 => Pending::JOG_CANCEL,
+                0x84 => Pending::DOOR,
+                _ => 0,
+            };
+            let next = ov_model(ov, b);
+            if next != ov {
+                want_flags |= Pending::OVERRIDES;
+            }
+            ov = next;
+        }
+        let mut r = Rig::new();
+        let ev = r.feed(&bytes);
+        let got_flags = ev.iter().fold(0u8, |f, e| match e {
+            Ev::Realtime(p) => f | p.0,
+            _ => f,
+        });
+        prop_assert_eq!(got_flags, want_flags);
+        prop_assert_eq!(r.p.overrides(), ov);
+        let handed: Vec<String> = ev.iter().filter_map(|e| match e {
+            Ev::Gcode(l, _) => Some(l.clone()),
+            _ => None,
+        }).collect();
+        let nonempty: Vec<String> = lines.iter().filter(|l| !l.trim().is_empty()).cloned().collect();
+        prop_assert_eq!(handed, nonempty);
+        prop_assert_eq!(r.responses().len(), lines.len());
+    }
+}
