@@ -1,117 +1,127 @@
 //! The loader in serial mode (idle task): G-code streamed by a sender over UART0 instead of the
-//! semihosting program file. Sends the banner, splits the received bytes into lines (CR, LF,
-//! CRLF), runs each through the tape (`Tape::line`: an error refuses that line only) into the
-//! block queue and answers every line with `ok` or `error:N`. The look-ahead's held block runs
-//! when no next line has come and the machine would otherwise stop.
+//! semihosting program file, through the grbl 1.1 protocol core (`millac::protocol`): the banner,
+//! one `ok` or `error:N` per line (grbl's numbers), `$` commands and settings (`$$`, `$N=value`
+//! on the in-memory table), `?` status reports, `$C` check mode, `$X`. Each G-code line runs
+//! through the tape (`Tape::line`: an error refuses that line only) into the block queue; the
+//! look-ahead's held block runs as soon as no next line has come and the machine would otherwise
+//! stop. The RX interrupt (the app's UART0 task) pushes every byte into the protocol's ring
+//! (`RxIsr::push_byte`), which takes the realtime bytes out at once.
 //!
-//! Interim: this is the transport and the line loop; the grbl protocol core (realtime bytes other
-//! than `?`, `$` commands and settings, grbl's error numbers, the full status report) replaces the
-//! line handling here when it lands (issue 7). Until then `?` anywhere in the stream gets a short
-//! status report and every refused line gets `error:20` after a `[MSG:...]` with millac's reason.
-use core::fmt::Write as _;
+//! Not yet (issue 7): feed hold and resume, overrides on the feed, jogging (`$J=` is refused with
+//! `error:20` because the parser cannot yet follow a jog's position), soft reset during motion
+//! (the queued blocks still run), settings persistence, resume after an AC hold.
 use core::sync::atomic::Ordering::Relaxed;
 
-use heapless::spsc::{Consumer, Producer};
+use heapless::spsc::Producer;
 use millac::ac::FeedCeiling;
-use millac::gcode::lines::Lines;
 use millac::gcode::tape::Tape;
-use millac::nc::Block;
+use millac::nc::{Block, Motion};
+use millac::protocol::codes::GrblError;
+use millac::protocol::report::{feed_blu_per_min, State, StatusData};
+use millac::protocol::settings::MachineSettings;
+use millac::protocol::{Context, Event, Protocol, SettingsTable};
 use millac::rt::Status;
 use millac::Settings;
 
 use crate::uart::Tx;
 
 /// Loader task: never returns (the operator ends the session by resetting the machine).
-pub fn run<const Q: usize, const R: usize, const T: usize>(
+pub fn run<const Q: usize, const T: usize>(
     blocks: &mut Producer<'static, Block, Q>,
     settings: Settings,
     ceiling: Option<FeedCeiling>,
-    rx: &mut Consumer<'static, u8, R>,
+    proto: &mut Protocol<'static>,
     tx: &mut Producer<'static, u8, T>,
     status: &Status,
     uart_clock_hz: u32,
 ) -> ! {
     crate::uart::init(uart_clock_hz);
     let mut out = Tx::new(tx);
-    banner(&mut out);
+    proto.start(&mut out);
+    let mut table = MachineSettings {
+        nc: settings,
+        ..MachineSettings::default()
+    };
     let mut tape = match ceiling {
         Some(c) => Tape::with_ac_ceiling(settings, c),
         None => Tape::new(settings),
     };
-    let mut lines = Lines::new();
+    let mut line_no = 0u32;
+    // The programmed feed of the block the loader queued last (the status report's feed).
+    let mut last_feed = 0u32;
     loop {
-        let mut got = false;
-        while let Some(b) = rx.dequeue() {
-            got = true;
-            if b == b'?' {
-                status_report(&mut out, status, blocks.len() == 0);
-                continue;
-            }
-            // Soft reset (interim: only the banner, which senders wait for after sending it; a
-            // sender that connects after the first banner gets it this way).
-            if b == 0x18 {
-                banner(&mut out);
-                continue;
-            }
-            lines.feed(&[b], |n, text| {
-                let result = match text {
-                    Ok(t) => tape
-                        .line(n, t, |blk| enqueue(blocks, blk))
-                        .map_err(|e| (e.line(), e)),
-                    Err(e) => Err((
-                        n,
-                        millac::gcode::tape::TapeError::Line { line: n, error: e },
-                    )),
-                };
-                match result {
-                    Ok(()) => {
-                        let _ = out.write_str("ok\r\n");
-                    }
-                    Err((_, e)) => {
-                        let _ = write!(out, "[MSG:{}]\r\nerror:20\r\n", e);
-                    }
+        let idle = blocks.len() == 0 && status.idle.load(Relaxed);
+        let state = if idle { State::Idle } else { State::Run };
+        let mut cx = Context {
+            table: &mut table,
+            modes: tape.parser().modes(),
+            machine: &settings,
+            state,
+        };
+        match proto.poll(&mut out, &mut cx) {
+            Event::None => {
+                // Nothing more has come: let the held block run once the machine would stop.
+                if idle && tape.holds_a_block() {
+                    tape.flush(|b| enqueue(blocks, b, &mut last_feed));
                 }
-                true
-            });
-        }
-        // Nothing more has come: let the held block run once the machine would stop.
-        if !got && tape.holds_a_block() && blocks.len() == 0 && status.idle.load(Relaxed) {
-            tape.flush(|blk| enqueue(blocks, blk));
+            }
+            Event::Gcode { line, check } => {
+                line_no = line_no.wrapping_add(1);
+                let result = if check {
+                    // `$C`: parse and validate on a copy; nothing is queued.
+                    let mut probe = tape.parser().clone();
+                    probe
+                        .line(line_no, line)
+                        .map(|_| ())
+                        .map_err(GrblError::from)
+                } else {
+                    tape.line(line_no, line, |b| enqueue(blocks, b, &mut last_feed))
+                        .map_err(GrblError::from)
+                };
+                proto.reply(result, &mut out);
+            }
+            Event::Jog(_) => {
+                proto.reply(Err(GrblError(20)), &mut out);
+            }
+            Event::Realtime(p) => {
+                if p.status() {
+                    let options = table.report_options();
+                    let data = StatusData {
+                        state,
+                        position: status.encoder(),
+                        feed_blu_per_min: if idle {
+                            0
+                        } else {
+                            feed_blu_per_min(&settings, last_feed)
+                        },
+                        spindle_rpm: tape.parser().spindle_rpm(),
+                        blocks_free: (Q - 1 - blocks.len()) as u16,
+                        ac: None,
+                    };
+                    proto.status_report(&data, options, settings.blu, &mut out);
+                }
+            }
+            Event::Reset => {
+                // Modes back to power-up; the position stays the machine's (the held block is
+                // queued first: during motion the queued blocks still run, not yet stopped).
+                tape.reset(|b| enqueue(blocks, b, &mut last_feed));
+            }
+            Event::RxOverflow { .. } => {
+                proto.alarm(millac::protocol::codes::alarm::RX_OVERFLOW, &mut out);
+            }
+            Event::Replied | Event::Unlock | Event::CheckMode(_) => {}
         }
     }
 }
 
-/// The grbl banner senders wait for, and millac's name and version.
-fn banner<const T: usize>(out: &mut Tx<'_, T>) {
-    let _ = write!(
-        out,
-        "\r\nGrbl 1.1h ['$' for help]\r\n[MSG:millac {} serial line]\r\n",
-        env!("CARGO_PKG_VERSION")
-    );
-}
-
-/// Queues a block, waiting while the queue is full (the frame drains it).
-fn enqueue<const Q: usize>(blocks: &mut Producer<'static, Block, Q>, b: Block) {
+/// Queues a block, waiting while the queue is full (the frame drains it); remembers its feed.
+fn enqueue<const Q: usize>(blocks: &mut Producer<'static, Block, Q>, b: Block, feed: &mut u32) {
+    *feed = match b.motion {
+        Motion::Linear(l) => l.f,
+        Motion::Arc(a) => a.f,
+        _ => *feed,
+    };
     while blocks.enqueue(b).is_err() {
         cortex_m::asm::nop();
     }
-}
-
-/// `<Idle|MPos:x,y,z|FS:0,0>` or `<Run|...>`: the position the frame published, in mm.
-fn status_report<const T: usize>(out: &mut Tx<'_, T>, status: &Status, queue_empty: bool) {
-    let state = if queue_empty && status.idle.load(Relaxed) {
-        "Idle"
-    } else {
-        "Run"
-    };
-    let _ = write!(out, "<{state}|MPos:");
-    for (k, blu) in status.encoder().iter().enumerate() {
-        // 0.0001 in = 0.00254 mm: blu * 254 in 1e-5 mm, rounded to 1e-3 mm.
-        let v = i64::from(*blu) * 254;
-        let r = (v.abs() + 50) / 100;
-        let sign = if v < 0 && r != 0 { "-" } else { "" };
-        let sep = if k < 2 { "," } else { "" };
-        let _ = write!(out, "{sign}{}.{:03}{sep}", r / 1000, r % 1000);
-    }
-    let _ = out.write_str("|FS:0,0>\r\n");
 }

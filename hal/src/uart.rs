@@ -63,6 +63,11 @@ pub fn init(clock_hz: u32) {
     write(UART0 + ICR, 0x7FF);
     write(UART0 + IM, INT_RX | INT_RT);
     write(UART0 + CTL, CTL_UARTEN | CTL_TXE | CTL_RXE);
+    // Bytes that arrived before the interrupts were on (their interrupt was cleared above): let
+    // the UART0 task take them now.
+    if read(UART0 + FR) & FR_RXFE == 0 {
+        cortex_m::peripheral::NVIC::pend(lm3s6965::Interrupt::UART0);
+    }
 }
 
 /// The UART0 interrupt: every received byte to `rx` (in order), then as many queued bytes as the

@@ -177,6 +177,13 @@ impl Tape {
         }
     }
 
+    /// Soft reset of a streamed program: the held block is emitted (the blocks already queued
+    /// run as well) and the modes return to power-up; the position stays. Loader task.
+    pub fn reset(&mut self, emit: impl FnMut(Block)) {
+        self.flush(emit);
+        self.parser.end_program();
+    }
+
     /// True when a block is held by the look-ahead (see [`Tape::flush`]).
     pub fn holds_a_block(&self) -> bool {
         self.lookahead.holds()

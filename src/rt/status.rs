@@ -35,9 +35,6 @@ pub struct Status {
     pub ac_missed: AtomicU32,
     /// Samples the sampler could not queue for the AC task (queue full).
     pub samples_dropped: AtomicU32,
-    /// Serial bytes the receive interrupt could not queue for the loader (a sender that ignores
-    /// flow control); counted, never silently lost.
-    pub rx_overflow: AtomicU32,
 }
 
 impl Default for Status {
@@ -58,7 +55,6 @@ impl Status {
             samples: AtomicU32::new(0),
             ac_missed: AtomicU32::new(0),
             samples_dropped: AtomicU32::new(0),
-            rx_overflow: AtomicU32::new(0),
         }
     }
 

@@ -84,6 +84,8 @@ mod app {
     use millac::gcode::tape::Tape;
     use millac::nc::{Block, Frame, FrameConfig};
     use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
+    use millac::protocol::rx::{RxIsr, RxShared};
+    use millac::protocol::Protocol;
     use millac::rt::ac::AcPeriod;
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
     use millac::wire::FLAG_AC_ENABLED;
@@ -103,8 +105,6 @@ mod app {
 
     /// Queue slots (a heapless spsc queue holds one less: 15 blocks).
     const QUEUE: usize = 16;
-    /// Received serial bytes between the UART0 task and the loader (holds one less).
-    const RX_QUEUE: usize = 256;
     /// Semihosting read size.
     const CHUNK: usize = 256;
 
@@ -123,18 +123,19 @@ mod app {
         ceiling: Option<FeedCeiling>,
         sampler: Option<Sampler>,
         ac: Option<AcTask>,
-        /// UART0 task's ends: received bytes in, bytes to send out.
-        uart_rx: Producer<'static, u8, RX_QUEUE>,
+        /// UART0 task's ends: received bytes into the protocol's ring (realtime bytes taken out
+        /// there), bytes to send out.
+        uart_rx: RxIsr<'static>,
         uart_tx: Consumer<'static, u8, TX_QUEUE>,
-        /// The loader's ends (serial mode).
-        rx: Consumer<'static, u8, RX_QUEUE>,
+        /// The loader's ends (serial mode): the protocol, the transmit queue.
+        proto: Protocol<'static>,
         tx: Producer<'static, u8, TX_QUEUE>,
     }
 
     #[init(local = [
         queue: Queue<Block, QUEUE> = Queue::new(),
         samples: Queue<Codes, SAMPLE_QUEUE> = Queue::new(),
-        serial_rx: Queue<u8, RX_QUEUE> = Queue::new(),
+        serial_rx: RxShared = RxShared::new(),
         serial_tx: Queue<u8, TX_QUEUE> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
@@ -177,6 +178,7 @@ mod app {
         }
 
         let (uart_rx, rx) = cx.local.serial_rx.split();
+        let proto = Protocol::new(rx, (QUEUE - 1) as u16);
         let (tx, uart_tx) = cx.local.serial_tx.split();
 
         (
@@ -184,7 +186,7 @@ mod app {
             Local {
                 uart_rx,
                 uart_tx,
-                rx,
+                proto,
                 tx,
                 frame: FrameTask::new(Frame::new(FrameConfig::from_settings(&settings)), reloads),
                 consumer,
@@ -225,12 +227,9 @@ mod app {
     #[task(binds = UART0, priority = 2, local = [uart_rx, uart_tx])]
     fn uart0(cx: uart0::Context) {
         let rx = cx.local.uart_rx;
+        // A byte the ring cannot take is counted there; the loader raises the overflow alarm.
         millac_hal::uart::on_interrupt(cx.local.uart_tx, |b| {
-            // A full queue drops nothing silently: the byte is counted (character-counting
-            // senders never send more than the protocol's 128-byte buffer ahead).
-            if rx.enqueue(b).is_err() {
-                STATUS.rx_overflow.fetch_add(1, Relaxed);
-            }
+            let _ = rx.push_byte(b);
         });
     }
 
@@ -293,7 +292,7 @@ mod app {
     }
 
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
-    #[idle(local = [producer, settings, ceiling, rx, tx])]
+    #[idle(local = [producer, settings, ceiling, proto, tx])]
     fn idle(cx: idle::Context) -> ! {
         let producer = cx.local.producer;
         let mut out = Out::open();
@@ -305,7 +304,7 @@ mod app {
                 producer,
                 *cx.local.settings,
                 *cx.local.ceiling,
-                cx.local.rx,
+                cx.local.proto,
                 cx.local.tx,
                 &STATUS,
                 B::TIMER_HZ,
