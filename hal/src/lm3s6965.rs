@@ -60,17 +60,18 @@ const TAMR_PERIODIC: u32 = 2;
 const CTL_TAEN: u32 = 1;
 const TATO: u32 = 1;
 
-/// One 32-bit volatile store to a peripheral register.
+/// One 32-bit volatile store to a peripheral register (this module's and `uart`'s).
 #[inline(always)]
-fn write(addr: usize, value: u32) {
-    // SAFETY: only called with the register addresses above, all valid, aligned 32-bit device
-    // registers of the LM3S6965; stores to them have no effect on Rust-visible memory.
+pub(crate) fn write(addr: usize, value: u32) {
+    // SAFETY: only called with LM3S6965 register addresses (the constants of this module and of
+    // `uart`), all valid, aligned 32-bit device registers; stores to them have no effect on
+    // Rust-visible memory.
     unsafe { core::ptr::write_volatile(addr as *mut u32, value) }
 }
 
-/// One 32-bit volatile load from a peripheral register.
+/// One 32-bit volatile load from a peripheral register (this module's and `uart`'s).
 #[inline(always)]
-fn read(addr: usize) -> u32 {
+pub(crate) fn read(addr: usize) -> u32 {
     // SAFETY: as for `write`.
     unsafe { core::ptr::read_volatile(addr as *const u32) }
 }

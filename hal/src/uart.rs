@@ -9,6 +9,8 @@
 //! FBRD 0x028, LCRH 0x02C, CTL 0x030, IM 0x038, MIS 0x040, ICR 0x044; clock gate RCGC1 bit 0.
 use heapless::spsc::{Consumer, Producer};
 
+use crate::lm3s6965::{read, write};
+
 const SYSCTL_RCGC1: usize = 0x400F_E104;
 const RCGC1_UART0: u32 = 1;
 const UART0: usize = 0x4000_C000;
@@ -34,19 +36,6 @@ const INT_RT: u32 = 1 << 6;
 
 /// Transmit queue slots (holds one less): a status report and a few replies.
 pub const TX_QUEUE: usize = 512;
-
-#[inline(always)]
-fn write(addr: usize, value: u32) {
-    // SAFETY: only called with the UART0 and SYSCTL register addresses above, all valid, aligned
-    // 32-bit device registers of the LM3S6965; stores to them have no effect on Rust-visible memory.
-    unsafe { core::ptr::write_volatile(addr as *mut u32, value) }
-}
-
-#[inline(always)]
-fn read(addr: usize) -> u32 {
-    // SAFETY: as for `write`.
-    unsafe { core::ptr::read_volatile(addr as *const u32) }
-}
 
 /// Ungates UART0 and sets it up for 115200 baud, 8N1, FIFOs, receive and receive-timeout
 /// interrupts on (the transmit interrupt is enabled while bytes wait). `clock_hz` is the UART's

@@ -89,9 +89,16 @@ fn banner(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> Vec<String> {
     }
 }
 
-#[test]
-fn a_sender_streams_lines_over_tcp_and_the_capture_ends_where_they_programmed() {
-    let out = std::env::temp_dir().join(format!("millac-serve-{}", std::process::id()));
+/// A `serve` session (NC only) on its own port and directory, in a thread until `stop`.
+struct Session {
+    out: std::path::PathBuf,
+    addr: String,
+    stop: Arc<AtomicBool>,
+    server: std::thread::JoinHandle<anyhow::Result<serve::Served>>,
+}
+
+fn start(tag: &str) -> Session {
+    let out = std::env::temp_dir().join(format!("millac-serve-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     let addr = format!("127.0.0.1:{}", free_port());
     let stop = Arc::new(AtomicBool::new(false));
@@ -99,6 +106,22 @@ fn a_sender_streams_lines_over_tcp_and_the_capture_ends_where_they_programmed() 
         let (out, addr, stop) = (out.clone(), addr.clone(), stop.clone());
         std::thread::spawn(move || serve::serve(&out, &addr, 4, None, stop))
     };
+    Session {
+        out,
+        addr,
+        stop,
+        server,
+    }
+}
+
+#[test]
+fn a_sender_streams_lines_over_tcp_and_the_capture_ends_where_they_programmed() {
+    let Session {
+        out,
+        addr,
+        stop,
+        server,
+    } = start("lines");
     let stream = connect(&addr);
     let mut w = stream.try_clone().unwrap();
     let mut r = BufReader::new(stream);
@@ -176,16 +199,13 @@ fn pygrbl_streamer_streams_the_fig1_program() {
     let ws = millac_qemu::firmware::workspace();
     let python = tools::ensure_python_sender(&ws.join("target").join("py-sender")).expect("sender");
     let socat = tools::ensure_tool("socat").expect("socat");
-    let out = std::env::temp_dir().join(format!("millac-serve-py-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
+    let Session {
+        out,
+        addr,
+        stop,
+        server,
+    } = start("py");
     std::fs::create_dir_all(&out).unwrap();
-    let port = free_port();
-    let addr = format!("127.0.0.1:{port}");
-    let stop = Arc::new(AtomicBool::new(false));
-    let server = {
-        let (out, addr, stop) = (out.clone(), addr.clone(), stop.clone());
-        std::thread::spawn(move || serve::serve(&out, &addr, 4, None, stop))
-    };
     // Wait until the firmware answers (it may still be starting under load), then put a pty in
     // front of the port for the sender.
     {
