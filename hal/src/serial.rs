@@ -7,15 +7,17 @@
 //! stop. The RX interrupt (the app's UART0 task) pushes every byte into the protocol's ring
 //! (`RxIsr::push_byte`), which takes the realtime bytes out at once.
 //!
-//! Not yet (issue 7): feed hold and resume, overrides on the feed, jogging (`$J=` is refused with
-//! `error:20` because the parser cannot yet follow a jog's position), soft reset during motion
-//! (the queued blocks still run), settings persistence, resume after an AC hold.
+//! `$J=` jogs run as their own block (no look-ahead, no AC ceiling); the parser then stands at the
+//! jog's end with its modes unchanged; the state is `Jog` until the machine is idle.
+//!
+//! Not yet (issue 7): feed hold and resume, overrides on the feed, jog cancel (0x85), soft reset
+//! during motion (the queued blocks still run), settings persistence, resume after an AC hold.
 use core::sync::atomic::Ordering::Relaxed;
 
 use heapless::spsc::Producer;
 use millac::ac::FeedCeiling;
-use millac::gcode::tape::Tape;
-use millac::nc::{Block, Motion};
+use millac::gcode::tape::{finish_block, Tape};
+use millac::nc::{Block, FrameConfig, Motion};
 use millac::protocol::codes::GrblError;
 use millac::protocol::report::{feed_blu_per_min, State, StatusData};
 use millac::protocol::settings::MachineSettings;
@@ -49,9 +51,19 @@ pub fn run<const Q: usize, const T: usize>(
     let mut line_no = 0u32;
     // The programmed feed of the block the loader queued last (the status report's feed).
     let mut last_feed = 0u32;
+    let cfg = FrameConfig::from_settings(&settings);
+    // A jog is queued and has not finished yet (the state is Jog until the machine is idle).
+    let mut jogging = false;
     loop {
         let idle = blocks.len() == 0 && status.idle.load(Relaxed);
-        let state = if idle { State::Idle } else { State::Run };
+        if idle {
+            jogging = false;
+        }
+        let state = match (idle, jogging) {
+            (true, _) => State::Idle,
+            (false, true) => State::Jog,
+            (false, false) => State::Run,
+        };
         let mut cx = Context {
             table: &mut table,
             modes: tape.parser().modes(),
@@ -80,8 +92,23 @@ pub fn run<const Q: usize, const T: usize>(
                 };
                 proto.reply(result, &mut out);
             }
-            Event::Jog(_) => {
-                proto.reply(Err(GrblError(20)), &mut out);
+            Event::Jog(jog) => {
+                // Planned on a copy of the parser (validated like any block, soft limits
+                // included); queued as it is (no AC ceiling: a jog is the operator's feed); the
+                // parser then stands at its end, its modes unchanged.
+                let result = jog.plan(tape.parser()).map(|plan| {
+                    if let Some(b) = plan.block {
+                        let signs = match b.motion {
+                            Motion::Linear(l) => l.signs,
+                            _ => tape.parser().signs(),
+                        };
+                        let b = finish_block(b, None, &cfg, settings.q0);
+                        enqueue(blocks, b, &mut last_feed);
+                        tape.jogged_to(plan.end, signs);
+                        jogging = true;
+                    }
+                });
+                proto.reply(result, &mut out);
             }
             Event::Realtime(p) => {
                 if p.status() {

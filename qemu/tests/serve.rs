@@ -159,29 +159,56 @@ fn a_sender_streams_lines_over_tcp_and_the_capture_ends_where_they_programmed() 
         }
     }
     assert_eq!(answers, ["ok", "ok", "error:20", "ok", "ok", "ok"]);
-    // `?` until idle (the last line ran after the look-ahead found no next line).
-    let t0 = Instant::now();
-    let last = loop {
-        w.write_all(b"?").unwrap();
-        let got = read_until(&mut r, |s| s.starts_with('<'));
-        let s = got.last().unwrap().clone();
-        if s.starts_with("<Idle") {
-            break s;
+    // `?` until idle (the last line ran after the look-ahead found no next line); the states
+    // seen on the way.
+    let mut until_idle = |w: &mut TcpStream, r: &mut BufReader<TcpStream>| {
+        let t0 = Instant::now();
+        let mut seen = Vec::new();
+        loop {
+            w.write_all(b"?").unwrap();
+            let got = read_until(r, |s| s.starts_with('<'));
+            let s = got.last().unwrap().clone();
+            if s.starts_with("<Idle") {
+                return (s, seen);
+            }
+            seen.push(s.clone());
+            assert!(t0.elapsed() < Duration::from_secs(120), "never idle: {s}");
+            std::thread::sleep(Duration::from_millis(20));
         }
-        assert!(t0.elapsed() < Duration::from_secs(120), "never idle: {s}");
-        std::thread::sleep(Duration::from_millis(100));
     };
+    let (last, _) = until_idle(&mut w, &mut r);
     // 0.029 in = 0.7366 mm, 0.004 in = 0.1016 mm.
     assert!(
         last.starts_with("<Idle|MPos:0.737,0.102,0.000|FS:0,0|"),
         "{last}"
     );
+    // A jog of +2.54 mm in X (1000 BLU) at 500 mm/min: `Jog` while it runs, then idle at its end;
+    // the parser follows it, so an absolute move afterwards starts from there.
+    w.write_all(b"$J=G91 G21 X2.54 F500\n").unwrap();
+    assert_eq!(
+        read_until(&mut r, |s| s == "ok" || s.starts_with("error:"))
+            .last()
+            .unwrap(),
+        "ok"
+    );
+    let (last, seen) = until_idle(&mut w, &mut r);
+    assert!(seen.iter().all(|s| s.starts_with("<Jog|")), "{seen:?}");
+    assert!(last.starts_with("<Idle|MPos:3.277,0.102,0.000|"), "{last}");
+    w.write_all(b"G90 G0 Y0\n").unwrap();
+    assert_eq!(
+        read_until(&mut r, |s| s == "ok" || s.starts_with("error:"))
+            .last()
+            .unwrap(),
+        "ok"
+    );
+    let (last, _) = until_idle(&mut w, &mut r);
+    assert!(last.starts_with("<Idle|MPos:3.277,0.000,0.000|"), "{last}");
     stop.store(true, Ordering::SeqCst);
     let served = server.join().unwrap().expect("serve");
     let p = &served.summary["final_position_blu"];
     assert_eq!(
         (p["x"].as_i64(), p["y"].as_i64(), p["z"].as_i64()),
-        (Some(290), Some(40), Some(0))
+        (Some(1290), Some(0), Some(0))
     );
     assert!(out.join("capture.vcd").exists());
     assert!(served.summary["frames"].as_u64().unwrap() > 0);

@@ -52,6 +52,12 @@ fn fine_to_blu(st: &Settings, fine: i128) -> Option<i32> {
     i32::try_from(super::number::div_round(n, d)?).ok()
 }
 
+/// The fine position of a machine coordinate: exact (1 BLU = 2.54e16 or 1e16 fine units).
+pub fn fine_of_blu(st: &Settings, blu: i32) -> i128 {
+    let (num, den) = st.blu.per_mm();
+    blu as i128 * FINE_PER_MM * den as i128 / num as i128
+}
+
 fn check_soft(st: &Settings, target: [i32; 3]) -> Result<(), ErrorKind> {
     for (k, ((&t, &min), &max)) in target
         .iter()

@@ -193,6 +193,16 @@ impl Parser {
         self.modes = Modes::POWER_UP;
     }
 
+    /// A jog (grbl's `$J=`, planned on a copy of this parser) moved the machine to `end` (BLU):
+    /// the machine and the programmed position follow it exactly (a BLU is a whole number of the
+    /// fine units); the modes stay as they were, as grbl leaves them after a jog; the SIGN lines
+    /// follow `signs`, the jog block's. Loader task.
+    pub fn jogged_to(&mut self, end: [i32; 3], signs: u8) {
+        self.position = end;
+        self.programmed = end.map(|b| exec::fine_of_blu(&self.settings, b));
+        self.signs = signs;
+    }
+
     /// SIGN lines after the last accepted block (bit k set = axis k positive).
     pub fn signs(&self) -> u8 {
         self.signs

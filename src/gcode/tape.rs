@@ -184,6 +184,12 @@ impl Tape {
         self.parser.end_program();
     }
 
+    /// A jog planned on a copy of the parser ran to `end` with the SIGN lines `signs`: the
+    /// parser follows it (see `Parser::jogged_to`). Loader task.
+    pub fn jogged_to(&mut self, end: [i32; 3], signs: u8) {
+        self.parser.jogged_to(end, signs);
+    }
+
     /// True when a block is held by the look-ahead (see [`Tape::flush`]).
     pub fn holds_a_block(&self) -> bool {
         self.lookahead.holds()
@@ -279,5 +285,34 @@ mod tests {
             "no feed after M2"
         );
         assert!(!tape.done());
+    }
+
+    /// After a jog the parser stands where the jog ended, exactly: an absolute move starts from
+    /// there, increments add to it, and the modes are the program's (a jog changes none).
+    #[test]
+    fn the_parser_follows_a_jog() {
+        let mut tape = Tape::new(Settings::default());
+        let mut out: Vec<Block> = Vec::new();
+        tape.line(1, "G21 G91 G1 F100 X1", |b| out.push(b)).unwrap();
+        tape.flush(|b| out.push(b));
+        let modes = tape.parser().modes();
+        // A jog (planned elsewhere) to X = 1000 BLU, Y = -5 BLU.
+        tape.jogged_to([1000, -5, 0], 0b001);
+        assert_eq!(tape.parser().position(), [1000, -5, 0]);
+        assert_eq!(tape.parser().modes(), modes);
+        tape.line(2, "X0.0254", |b| out.push(b)).unwrap();
+        tape.line(3, "G90 X0 Y0", |b| out.push(b)).unwrap();
+        tape.flush(|b| out.push(b));
+        let steps: Vec<([u32; 3], u8)> = out[1..]
+            .iter()
+            .map(|b| match b.motion {
+                Motion::Linear(l) => (l.steps, l.signs),
+                m => panic!("{m:?}"),
+            })
+            .collect();
+        // +0.0254 mm = +10 BLU from the jog's end, then back to 0: 1010 BLU in X, 5 in Y.
+        assert_eq!(steps[0].0, [10, 0, 0]);
+        assert_eq!(steps[1].0, [1010, 5, 0]);
+        assert_eq!(steps[1].1 & 0b011, 0b010);
     }
 }
