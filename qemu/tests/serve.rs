@@ -161,7 +161,7 @@ fn a_sender_streams_lines_over_tcp_and_the_capture_ends_where_they_programmed() 
     assert_eq!(answers, ["ok", "ok", "error:20", "ok", "ok", "ok"]);
     // `?` until idle (the last line ran after the look-ahead found no next line); the states
     // seen on the way.
-    let mut until_idle = |w: &mut TcpStream, r: &mut BufReader<TcpStream>| {
+    let until_idle = |w: &mut TcpStream, r: &mut BufReader<TcpStream>| {
         let t0 = Instant::now();
         let mut seen = Vec::new();
         loop {
