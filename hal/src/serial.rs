@@ -141,13 +141,18 @@ pub fn run<const Q: usize, const T: usize>(
     }
 }
 
-/// Queues a block, waiting while the queue is full (the frame drains it); remembers its feed.
+/// [`enqueue_block`], remembering the block's programmed feed (for the status report).
 fn enqueue<const Q: usize>(blocks: &mut Producer<'static, Block, Q>, b: Block, feed: &mut u32) {
     *feed = match b.motion {
         Motion::Linear(l) => l.f,
         Motion::Arc(a) => a.f,
         _ => *feed,
     };
+    enqueue_block(blocks, b);
+}
+
+/// Queues a block, waiting while the queue is full (the frame drains it). Loader task, both modes.
+pub fn enqueue_block<const Q: usize>(blocks: &mut Producer<'static, Block, Q>, b: Block) {
     while blocks.enqueue(b).is_err() {
         cortex_m::asm::nop();
     }

@@ -71,7 +71,7 @@ pub fn on_interrupt<const N: usize>(tx: &mut Consumer<'static, u8, N>, mut rx: i
 }
 
 /// Moves queued bytes into the transmit FIFO while it has room; enables the transmit interrupt
-/// when bytes are left. UART0 task (and the writer's first kick, see [`Tx::write`]).
+/// when bytes are left. UART0 task ([`Tx::write`] pends it to start sending).
 fn drain<const N: usize>(tx: &mut Consumer<'static, u8, N>) {
     while read(UART0 + FR) & FR_TXFF == 0 {
         match tx.dequeue() {
@@ -99,7 +99,8 @@ impl<'a, const N: usize> Tx<'a, N> {
 
     /// Queues `bytes`, waiting while the queue is full (the interrupt drains it), and pends the
     /// UART0 interrupt so that it starts sending. Loader task.
-    pub fn write(&mut self, bytes: &[u8], pend: impl Fn()) {
+    pub fn write(&mut self, bytes: &[u8]) {
+        let pend = || cortex_m::peripheral::NVIC::pend(lm3s6965::Interrupt::UART0);
         for &b in bytes {
             while self.queue.enqueue(b).is_err() {
                 pend();
@@ -111,11 +112,9 @@ impl<'a, const N: usize> Tx<'a, N> {
 }
 
 impl<const N: usize> core::fmt::Write for Tx<'_, N> {
-    /// Queues the text (for `write!`); pends the UART0 interrupt through NVIC.
+    /// Queues the text (for `write!`).
     fn write_str(&mut self, s: &str) -> core::fmt::Result {
-        self.write(s.as_bytes(), || {
-            cortex_m::peripheral::NVIC::pend(lm3s6965::Interrupt::UART0)
-        });
+        self.write(s.as_bytes());
         Ok(())
     }
 }

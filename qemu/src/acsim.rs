@@ -120,12 +120,9 @@ impl HostAdc {
     }
 }
 
-/// What the host ADC answers: Some(codes), or None for a dropout sample.
-type HostCodes = Option<[u16; 3]>;
-
 /// The sampler body of the firmware (`millac::rt::ac::sample`) over the host ADC: the codes the
 /// controller gets (None for a missed conversion) and the AC period due, if any.
-fn sample(adc: &mut HostAdc, status: &Status, per_period: u32) -> (HostCodes, Option<u32>) {
+fn sample(adc: &mut HostAdc, status: &Status, per_period: u32) -> (Option<[u16; 3]>, Option<u32>) {
     match rt_ac::sample(adc, status, per_period) {
         rt_ac::Sampled::Codes { codes, due } => (codes, due),
         // Not reached: the host ADC never goes away.
@@ -236,7 +233,7 @@ pub fn run_with_faults(
         sample_hz: acs.sample_hz,
         truth: Vec::new(),
     };
-    let per_period = (acs.sample_hz * acs.period_ms / 1000).max(1);
+    let per_period = acs.samples_per_period();
     let sample_ns = 1_000_000_000 / acs.sample_hz as u64;
     let mut out = HostRun::default();
     let (mut t, mut next_sample) = (0u64, sample_ns);

@@ -257,7 +257,7 @@ pub fn replay(
     nc: &millac::Settings,
     acs: millac::ac::AcSettings,
 ) -> Result<Vec<millac::ac::AcOutput>> {
-    let per = (acs.sample_hz * acs.period_ms / 1000).max(1) as usize;
+    let per = acs.samples_per_period() as usize;
     let mut ctl =
         millac::ac::AcController::new(acs).map_err(|e| anyhow::anyhow!("{}", e.message()))?;
     let mut last = [0i64; 3];

@@ -310,7 +310,7 @@ pub fn ac_rows(
     records: &[cosim::AcRecord],
     truth: &[(f64, f64)],
 ) -> Vec<crate::acsim::AcRow> {
-    let per = (acs.sample_hz * acs.period_ms / 1000).max(1) as usize;
+    let per = acs.samples_per_period() as usize;
     let mut prev = [0i64; 3];
     records
         .iter()

@@ -324,6 +324,13 @@ impl AcSettings {
         self.optimal_fraction * self.torque_limit_nm
     }
 
+    /// Samples per AC period, sample_hz x period_ms / 1000 (at least 1; validation asks for 1):
+    /// period k holds samples k N .. (k + 1) N, in the firmware, the host simulation and the
+    /// replay of a co-simulation.
+    pub fn samples_per_period(&self) -> u32 {
+        (self.sample_hz.saturating_mul(self.period_ms) / 1000).max(1)
+    }
+
     /// fdot_m x dt: the largest feed change of one AC period, in feed numbers (750 at defaults).
     /// The product is formed in u64 and converted once, so host and target get the same f32.
     pub fn step_per_period(&self) -> f32 {

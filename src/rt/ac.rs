@@ -123,8 +123,7 @@ impl AcPeriod {
 
     /// Samples per AC period.
     pub fn per_period(&self) -> u32 {
-        let s = self.ctl.settings();
-        (s.sample_hz * s.period_ms / 1000).max(1)
+        self.ctl.settings().samples_per_period()
     }
 
     /// One conversion into the controller's window. AC task (from the sampler's queue) or host.

@@ -347,7 +347,7 @@ mod app {
         ceiling: Option<FeedCeiling>,
         out: &mut Out,
     ) -> Loaded {
-        let mut enqueue = |b: Block| enqueue(producer, b);
+        let mut enqueue = |b: Block| millac_hal::serial::enqueue_block(producer, b);
         let path = b"program.nc\0";
         // SAFETY: SYS_OPEN with a NUL-terminated name, its length without the NUL, mode "r".
         let fd = unsafe { syscall!(OPEN, path.as_ptr(), nr::open::R, path.len() - 1) } as isize;
@@ -392,13 +392,6 @@ mod app {
             Loaded::All
         } else {
             Loaded::Error
-        }
-    }
-
-    /// Queues a block, waiting while the queue is full (the frame drains it).
-    fn enqueue(producer: &mut Producer<'static, Block, QUEUE>, b: Block) {
-        while producer.enqueue(b).is_err() {
-            cortex_m::asm::nop();
         }
     }
 }
