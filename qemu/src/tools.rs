@@ -240,10 +240,69 @@ mod tests {
         assert!(ensure_tool("sh").is_ok() || find_on_path("sh").is_none());
     }
 
+    /// Writes an executable shell script at `path` from a child process, so that this process
+    /// never holds the file open for writing: a test running in parallel that forks while we
+    /// held it would pass our descriptor to its child until that child execs, and executing the
+    /// script then fails with ETXTBSY ("Text file busy"; CI failed once on exactly that).
+    fn write_script(path: &Path, body: &str) {
+        use std::io::Write;
+        let mut child = Command::new("sh")
+            .args(["-c", "cat > \"$1\" && chmod 755 \"$1\"", "sh"])
+            .arg(path)
+            .stdin(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stdin = child.stdin.take().unwrap();
+        stdin
+            .write_all(format!("#!/bin/sh\n{body}").as_bytes())
+            .unwrap();
+        drop(stdin);
+        assert!(
+            child.wait().unwrap().success(),
+            "writing {}",
+            path.display()
+        );
+    }
+
+    #[test]
+    fn scripts_run_at_once_while_other_threads_fork() {
+        let dir = std::env::temp_dir().join(format!("millac-tools-{}-busy", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let forkers: Vec<_> = (0..2)
+            .map(|_| {
+                let stop = stop.clone();
+                std::thread::spawn(move || {
+                    while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                        let _ = Command::new("true").status();
+                    }
+                })
+            })
+            .collect();
+        let mut busy = 0;
+        for i in 0..200 {
+            let p = dir.join(format!("s{i}"));
+            write_script(&p, "exit 0\n");
+            match Command::new(&p).status() {
+                Ok(s) => assert!(s.success()),
+                Err(e) => {
+                    busy += 1;
+                    eprintln!("{}: {e}", p.display());
+                }
+            }
+        }
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        for f in forkers {
+            f.join().unwrap();
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+        assert_eq!(busy, 0, "scripts that could not be executed at once");
+    }
+
     /// A scratch directory with a fake `rustc` that prints `sysroot` for `--print sysroot` and
     /// a fake `rustup` that appends its arguments to `rustup.log` and installs the target dir.
     fn fake_toolchain(name: &str) -> (PathBuf, PathBuf, PathBuf, PathBuf) {
-        use std::os::unix::fs::PermissionsExt;
         let dir = std::env::temp_dir().join(format!("millac-tools-{}-{name}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let sysroot = dir.join("sysroot");
@@ -251,8 +310,7 @@ mod tests {
         let log = dir.join("rustup.log");
         let script = |name: &str, body: String| {
             let p = dir.join(name);
-            std::fs::write(&p, format!("#!/bin/sh\n{body}")).unwrap();
-            std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
+            write_script(&p, &body);
             p
         };
         let rustc = script(
