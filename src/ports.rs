@@ -36,12 +36,30 @@ pub trait BlockSource {
 pub trait FeedCap {
     /// Feed number cap: u32::MAX = no cap, 0 = feed hold.
     fn feed_cap(&self) -> u32;
+    /// The operator's word (see [`crate::nc::operator`]): feed override, rapid override, hold,
+    /// abort. Read once per frame. Default: run at 100 %.
+    #[inline(always)]
+    fn operator(&self) -> u32 {
+        crate::nc::operator::RUN
+    }
 }
 
 impl FeedCap for u32 {
     #[inline(always)]
     fn feed_cap(&self) -> u32 {
         *self
+    }
+}
+
+/// (AC feed cap, operator word): a host test's or simulation's fixed inputs.
+impl FeedCap for (u32, u32) {
+    #[inline(always)]
+    fn feed_cap(&self) -> u32 {
+        self.0
+    }
+    #[inline(always)]
+    fn operator(&self) -> u32 {
+        self.1
     }
 }
 

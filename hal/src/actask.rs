@@ -21,6 +21,9 @@ use crate::simadc::{LogFile, SimAdc};
 
 /// Sample queue slots (holds one less): three periods of samples at the defaults.
 pub const SAMPLE_QUEUE: usize = 32;
+/// Alarm queue slots from the AC task to the serial loader (holds one less; an alarm that does not
+/// fit is still in ac.log and in the AC state word).
+pub const ALARM_QUEUE: usize = 4;
 
 /// The sampler's state: the ADC, the queue to the AC task.
 pub struct Sampler {
@@ -77,6 +80,7 @@ pub struct AcTask {
     status: &'static Status,
     period: AcPeriod,
     samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
+    alarms: Producer<'static, Alarm, ALARM_QUEUE>,
     log: LogFile,
     per_period: u32,
     sample_hz: u32,
@@ -97,6 +101,7 @@ impl AcTask {
         status: &'static Status,
         period: AcPeriod,
         samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
+        alarms: Producer<'static, Alarm, ALARM_QUEUE>,
         mut log: LogFile,
     ) -> Self {
         log.write(AC_LOG_HEADER.as_bytes());
@@ -106,6 +111,7 @@ impl AcTask {
             per_period: period.per_period(),
             period,
             samples,
+            alarms,
             log,
             sample_hz,
             late: 0,
@@ -143,6 +149,10 @@ impl AcTask {
         let mut text: heapless::String<192> = heapless::String::new();
         let _ = line.emit(&mut text);
         self.log.write(text.as_bytes());
+        if let Some(a) = p.out.alarm {
+            // For the serial loader's `[MSG:...]`; nobody reads it in batch mode.
+            let _ = self.alarms.enqueue(a);
+        }
         Period {
             alarm: p.out.alarm,
             halt: p.halt,

@@ -10,30 +10,51 @@
 //! `$J=` jogs run as their own block (no look-ahead, no AC ceiling); the parser then stands at the
 //! jog's end with its modes unchanged; the state is `Jog` until the machine is idle.
 //!
-//! Not yet (issue 7): feed hold and resume, overrides on the feed, jog cancel (0x85), soft reset
-//! during motion (the queued blocks still run), settings persistence, resume after an AC hold.
+//! Operator actions (the loader is the only writer of `Status::operator`, the frame's one word
+//! for them, see `millac::nc::operator`):
+//! - `!` (and the safety door 0x84) holds the feed: the frame ramps to a stop at the
+//!   acceleration (`Hold:1`, then `Hold:0` once `Status::stopped`); `~` resumes the same block.
+//! - 0x90..0x94 and 0x95..0x97 set the feed and rapid overrides; the frame ramps to them.
+//! - 0x18 soft reset: the frame stops at once and drops the queue (the abort bit), the held block
+//!   is dropped, the parser stands where the machine stopped; a reset during motion raises
+//!   `ALARM:3` (as grbl; the position is exact nonetheless and reported).
+//! - 0x85 jog cancel: a running jog is held to a stop, then dropped like a reset (no alarm).
+//! - An AC hold: an overload is a feed hold (`Hold`, `[MSG:...]` with F, T and the limits; `~`
+//!   resumes the AC from f_min); a sensor fault is an alarm (`ALARM:10x`, `$X` resumes).
+//!
+//! The loader never blocks: while the block queue has no room for a line's blocks it polls the
+//! realtime requests only (`Protocol::poll_realtime`), so `?`, `!`, `~` and a reset are served at
+//! once whatever the queue holds, and a hold with a full queue cannot stall it.
 use core::sync::atomic::Ordering::Relaxed;
 
-use heapless::spsc::Producer;
-use millac::ac::FeedCeiling;
+use heapless::spsc::{Consumer, Producer};
+use millac::ac::{Alarm, FeedCeiling};
 use millac::gcode::tape::{finish_block, Tape};
-use millac::nc::{Block, FrameConfig, Motion};
-use millac::protocol::codes::GrblError;
-use millac::protocol::report::{feed_blu_per_min, State, StatusData};
+use millac::nc::{operator, Block, FrameConfig, Motion};
+use millac::protocol::codes::{ac_alarm, GrblError};
+use millac::protocol::report::{feed_blu_per_min, AcReport, AcState, State, StatusData};
+use millac::protocol::rx::Overrides;
 use millac::protocol::settings::MachineSettings;
 use millac::protocol::{Context, Event, Protocol, SettingsTable};
+use millac::rt::ac::AC_RUN;
 use millac::rt::Status;
 use millac::Settings;
 
 use crate::uart::Tx;
 
+/// Free queue slots a line needs before the loader takes it: the look-ahead's held block and the
+/// line's own (a line emits at most two blocks).
+const ROOM_PER_LINE: usize = 2;
+
 /// Loader task: never returns (the operator ends the session by resetting the machine).
-pub fn run<const Q: usize, const T: usize>(
+#[allow(clippy::too_many_arguments)]
+pub fn run<const Q: usize, const T: usize, const A: usize>(
     blocks: &mut Producer<'static, Block, Q>,
     settings: Settings,
     ceiling: Option<FeedCeiling>,
     proto: &mut Protocol<'static>,
     tx: &mut Producer<'static, u8, T>,
+    ac_alarms: &mut Consumer<'static, Alarm, A>,
     status: &Status,
     uart_clock_hz: u32,
 ) -> ! {
@@ -49,31 +70,69 @@ pub fn run<const Q: usize, const T: usize>(
         None => Tape::new(settings),
     };
     let mut line_no = 0u32;
-    // The programmed feed of the block the loader queued last (the status report's feed).
+    // The programmed feed of the block the loader queued last (the AC field's feed share).
     let mut last_feed = 0u32;
     let cfg = FrameConfig::from_settings(&settings);
     // A jog is queued and has not finished yet (the state is Jog until the machine is idle).
     let mut jogging = false;
+    // The operator's feed hold, and a jog cancel waiting for the jog to stop.
+    let mut hold = false;
+    let mut cancel_jog = false;
+    let mut overrides = proto.overrides();
+    let publish = |hold: bool, ov: Overrides| {
+        status
+            .operator
+            .store(operator::word(ov.feed, ov.rapid, hold, false), Relaxed);
+    };
+    publish(hold, overrides);
     loop {
+        // AC holds: said once each, as they come.
+        while let Some(a) = ac_alarms.dequeue() {
+            proto.message(&mut out, format_args!("AC hold: {}", a));
+            if !matches!(a, Alarm::Overload { .. }) {
+                proto.alarm(ac_alarm(&a), &mut out);
+            }
+        }
         let idle = blocks.len() == 0 && status.idle.load(Relaxed);
         if idle {
             jogging = false;
         }
-        let state = match (idle, jogging) {
-            (true, _) => State::Idle,
-            (false, true) => State::Jog,
-            (false, false) => State::Run,
+        let ac_held = status.ac_state.load(Relaxed) > AC_RUN;
+        if cancel_jog && status.stopped() {
+            // The jog has stopped: drop it (and anything queued behind it) like a reset.
+            abort(blocks, status, &mut tape);
+            cancel_jog = false;
+            jogging = false;
+            hold = false;
+            publish(hold, overrides);
+        }
+        let state = if hold || ac_held {
+            State::Hold {
+                complete: status.stopped(),
+            }
+        } else {
+            match (idle, jogging) {
+                (true, _) => State::Idle,
+                (false, true) => State::Jog,
+                (false, false) => State::Run,
+            }
         };
+        let room = Q - 1 - blocks.len() >= ROOM_PER_LINE;
         let mut cx = Context {
             table: &mut table,
             modes: tape.parser().modes(),
             machine: &settings,
             state,
         };
-        match proto.poll(&mut out, &mut cx) {
+        let event = if room {
+            proto.poll(&mut out, &mut cx)
+        } else {
+            proto.poll_realtime(&mut out)
+        };
+        match event {
             Event::None => {
                 // Nothing more has come: let the held block run once the machine would stop.
-                if idle && tape.holds_a_block() {
+                if room && idle && tape.holds_a_block() {
                     tape.flush(|b| enqueue(blocks, b, &mut last_feed));
                 }
             }
@@ -111,34 +170,106 @@ pub fn run<const Q: usize, const T: usize>(
                 proto.reply(result, &mut out);
             }
             Event::Realtime(p) => {
+                if p.hold() || p.door() {
+                    hold = true;
+                }
+                if p.resume() {
+                    hold = false;
+                    if ac_held && proto.alarm_code().is_none() {
+                        status.ac_resume.store(true, Relaxed);
+                    }
+                }
+                if p.jog_cancel() && jogging {
+                    hold = true;
+                    cancel_jog = true;
+                }
+                if p.overrides() {
+                    overrides = proto.overrides();
+                }
+                publish(hold, overrides);
                 if p.status() {
                     let options = table.report_options();
+                    let v = status.velocity_q8.load(Relaxed);
+                    let ac = match status.ac_state.load(Relaxed) {
+                        0 => None,
+                        n => {
+                            let (f, t) = status.ac_ratios_milli();
+                            Some(AcReport {
+                                feed_share_pct: AcReport::feed_share(
+                                    status.feed_cap.load(Relaxed),
+                                    last_feed,
+                                ),
+                                f_ratio_milli: f,
+                                t_ratio_milli: t,
+                                state: if n > AC_RUN {
+                                    AcState::Hold(n)
+                                } else {
+                                    AcState::Run
+                                },
+                            })
+                        }
+                    };
                     let data = StatusData {
                         state,
                         position: status.encoder(),
                         feed_blu_per_min: if idle {
                             0
                         } else {
-                            feed_blu_per_min(&settings, last_feed)
+                            feed_blu_per_min(&settings, v >> 8)
                         },
                         spindle_rpm: tape.parser().spindle_rpm(),
                         blocks_free: (Q - 1 - blocks.len()) as u16,
-                        ac: None,
+                        ac,
                     };
                     proto.status_report(&data, options, settings.blu, &mut out);
                 }
             }
             Event::Reset => {
-                // Modes back to power-up; the position stays the machine's (the held block is
-                // queued first: during motion the queued blocks still run, not yet stopped).
-                tape.reset(|b| enqueue(blocks, b, &mut last_feed));
+                // Stop at once, drop the queue and the held block; the parser stands where the
+                // machine stopped. A reset during motion is an alarm, as in grbl (the position
+                // is exact here, and reported).
+                let moving = !idle && !status.stopped();
+                abort(blocks, status, &mut tape);
+                hold = false;
+                cancel_jog = false;
+                jogging = false;
+                overrides = proto.overrides();
+                publish(hold, overrides);
+                if moving {
+                    proto.alarm(millac::protocol::codes::alarm::ABORT_CYCLE, &mut out);
+                }
+            }
+            Event::Unlock => {
+                // `$X` also clears an AC sensor hold: the AC resumes from f_min.
+                if ac_held {
+                    status.ac_resume.store(true, Relaxed);
+                }
             }
             Event::RxOverflow { .. } => {
                 proto.alarm(millac::protocol::codes::alarm::RX_OVERFLOW, &mut out);
             }
-            Event::Replied | Event::Unlock | Event::CheckMode(_) => {}
+            Event::Replied | Event::CheckMode(_) => {}
         }
     }
+}
+
+/// Soft reset or jog cancel: the frame stops at once and drops every queued block (the abort
+/// bit, one block per frame), then the operator's word is restored by the caller. The tape drops
+/// its held block and the parser stands at the machine's position. Loader task.
+fn abort<const Q: usize>(
+    blocks: &mut Producer<'static, Block, Q>,
+    status: &Status,
+    tape: &mut Tape,
+) {
+    let word = status.operator.load(Relaxed);
+    status.operator.store(word | operator::ABORT, Relaxed);
+    // The frame pops one block per frame and publishes idle and the position in the frames
+    // without pulses: wait for both.
+    while blocks.len() != 0 || !status.idle.load(Relaxed) {
+        cortex_m::asm::nop();
+    }
+    status.operator.store(word & !operator::ABORT, Relaxed);
+    tape.abort(status.position(), status.next_signs.load(Relaxed));
 }
 
 /// [`enqueue_block`], remembering the block's programmed feed (for the status report).

@@ -1,8 +1,8 @@
 //! Frame ISR budget benchmark: runs the firmware under QEMU on one small program per block type and
 //! prints min / median / max instructions (entry to return, inclusive) of the frame ISR (TIMER_0A)
-//! and of the pulse-end ISR (TIMER_1A). Budget: the frame ISR takes fewer than 180 instructions
-//! (150 before chained lines: the frame that ends a line and starts the next one is the worst case,
-//! see the README's budget table).
+//! and of the pulse-end ISR (TIMER_1A). Budget: the frame ISR takes fewer than 200 instructions
+//! (150 before chained lines, 179 before the acceleration ramps and the operator's word: the frame
+//! that ends a line and starts the next one is the worst case, see the README's budget table).
 //!
 //! It builds nothing: build the firmware first, then pass the ELF:
 //!
@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// Frame ISR budget in instructions (the worst case must stay below it).
-const BUDGET: u64 = 179;
+const BUDGET: u64 = 199;
 
 /// (name, program). Each runs for well under a second of virtual time.
 const PROGRAMS: &[(&str, &str)] = &[

@@ -214,7 +214,7 @@ pub fn run_with_faults(
     let acs = ac.unwrap_or_default();
     // The firmware's sampler and AC period (`millac::rt::ac`) over a host status and ADC.
     let status = Status::new();
-    status.feed_cap.store(u32::MAX, Relaxed);
+    status.start();
     let mut period = match ac {
         Some(s) => {
             let ctl = AcController::new(s).map_err(|e| anyhow!("AC settings: {}", e.message()))?;

@@ -274,7 +274,7 @@ pub fn analyse_until(
             last_frame = Some(frame);
         }
         let end_exact = pos == pb.end.map(|v| v as i64);
-        let (kind, dev, feed) = measure(pb, &pts, blu_per_unit, frm_ipm, k_decel, settings.q0);
+        let (kind, dev, feed) = measure(pb, &pts, blu_per_unit, frm_ipm, k_decel, settings);
         reports.push(BlockReport {
             line: pb.block.line,
             kind,
@@ -320,8 +320,19 @@ fn measure(
     blu_per_unit: f64,
     frm_ipm: f64,
     k_decel: f64,
-    q0: u32,
+    settings: &Settings,
 ) -> (&'static str, f64, Option<(f64, f64)>) {
+    let q0 = settings.q0;
+    // The acceleration head: the path a ramp from a stop to feed number f takes at the block's
+    // ramp (Q8 feed numbers per frame): v = W0 f / q0 BLU/s, a = ramp W0^2 / (256 q0) BLU/s^2,
+    // v^2 / 2a BLU. Left out of the feed window like the deceleration tail (a chained line that
+    // starts at speed loses a little of its window, nothing else).
+    let head = |f: u32, ramp: u32| {
+        let w0 = settings.frame_hz as f64;
+        let v = w0 * f as f64 / q0 as f64;
+        let a = ramp.max(1) as f64 * w0 * w0 / (256.0 * q0 as f64);
+        v * v / (2.0 * a) + 2.0
+    };
     let s = pb.start.map(|v| v as f64);
     let e = pb.end.map(|v| v as f64);
     let f_of = |f: u32| f as f64 * frm_ipm / q0 as f64;
@@ -350,7 +361,13 @@ fn measure(
             };
             let dist_left =
                 |p: &[i64; 3]| ((0..3).map(|k| (e[k] - p[k] as f64).powi(2)).sum::<f64>()).sqrt();
-            let win: Vec<_> = pts.iter().filter(|(_, p)| dist_left(p) >= tail).collect();
+            let from_start =
+                |p: &[i64; 3]| ((0..3).map(|k| (p[k] as f64 - s[k]).powi(2)).sum::<f64>()).sqrt();
+            let head = head(l.f, l.ramp);
+            let win: Vec<_> = pts
+                .iter()
+                .filter(|(_, p)| dist_left(p) >= tail && from_start(p) >= head)
+                .collect();
             let feed = match (win.first(), win.last()) {
                 (Some(a), Some(b)) if len >= FEED_MIN_PATH_BLU && b.0 > a.0 => {
                     let path = ((0..3)
@@ -397,8 +414,9 @@ fn measure(
             } else {
                 0.0
             };
+            let head = head(c.f, c.ramp);
             let idx: Vec<usize> = (0..pts.len())
-                .filter(|&i| total - arc_len[i] >= tail)
+                .filter(|&i| total - arc_len[i] >= tail && arc_len[i] >= head)
                 .collect();
             let feed = match (idx.first(), idx.last()) {
                 (Some(&i), Some(&j)) if pts[j].0 > pts[i].0 => {

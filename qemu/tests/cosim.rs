@@ -3,6 +3,7 @@
 //! enough here: the force is proportional to the feed (the distance moved over the last 10
 //! samples); the real cutting model lives in the `millac-plant` crate (qemu/plant).
 use millac::ac::AcSettings;
+use millac::Settings;
 use millac_qemu::analysis;
 use millac_qemu::cosim::{self, AcRecord, Exchange, Plant};
 use millac_qemu::runner;
@@ -262,10 +263,23 @@ fn a_lost_adc_holds_and_reports_like_any_hold() {
     assert_eq!(r.records.last().unwrap().pos_blu, vcd);
     assert!(vcd[0] > 0 && vcd[0] < END_X, "{vcd:?}");
     assert_eq!(hold.blocks_done, 0);
-    // Held at the first period without samples, nothing moved afterwards.
+    // Held at the first period without samples; the feed ramps down at the acceleration (at most
+    // from q0, the highest feed number: q0 / (a q0 / W0^2) = W0^2 / a frames), nothing moves
+    // after that.
     let first = r.records.iter().position(|x| x.hold.is_some()).unwrap();
     assert!(r.records[first].t_ms <= 320, "{:?}", r.records[first]);
-    assert!(r.records[first + 1..].iter().all(|x| x.pos_blu == vcd));
+    let s = Settings::default();
+    let ramp_ms = (s.frame_hz as u64 * 1000).div_ceil(s.accel_blu_s2[0] as u64);
+    let stopped = r
+        .records
+        .iter()
+        .position(|x| x.t_ms >= r.records[first].t_ms + ramp_ms + 10)
+        .unwrap();
+    assert!(r.records[stopped..].iter().all(|x| x.pos_blu == vcd));
+    assert!(
+        r.records[first].pos_blu != vcd,
+        "it ramped down, not a stop at once"
+    );
 }
 
 #[test]

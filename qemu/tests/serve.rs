@@ -216,8 +216,10 @@ fn a_sender_streams_lines_over_tcp_and_the_capture_ends_where_they_programmed() 
 
 /// A real third-party sender, pygrbl-streamer 1.0.5 (PyPI), streams the Fig. 1 program with
 /// character counting to `serve` through a pty (socat in front of the TCP port, as for any
-/// serial-only sender), waits for Idle, and the capture's blocks end exactly on the program's end
-/// points.
+/// serial-only sender). While it streams, its `realtime` API polls `?` at 5 Hz, its `pause` /
+/// `resume` hold the feed mid-program (`Hold:0` with the position standing still, then the same
+/// block goes on) and the feed override goes to 120 % and back. It waits for Idle, and the
+/// capture's blocks end exactly on the program's end points.
 #[test]
 fn pygrbl_streamer_streams_the_fig1_program() {
     use millac::Settings;
@@ -255,14 +257,51 @@ fn pygrbl_streamer_streams_the_fig1_program() {
         std::thread::sleep(Duration::from_millis(20));
     }
     let program = ws.join("qemu").join("programs").join("fig1-cavity.nc");
-    let script = "import sys\n\
-        from pygrbl_streamer import GrblStreamer\n\
-        g = GrblStreamer(sys.argv[1], auto_unlock=False)\n\
-        g.connect()\n\
-        ok = g.send_file(sys.argv[2], completion_timeout=600)\n\
-        print('state', g.last_status.get('raw'))\n\
-        g.disconnect()\n\
-        sys.exit(0 if ok else 1)\n";
+    let script = r#"
+import sys, threading, time, json
+from pygrbl_streamer import GrblStreamer
+reports = []
+class Sender(GrblStreamer):
+    def receive_callback(self, line):
+        if line.startswith('<'):
+            reports.append(line)
+g = Sender(sys.argv[1], auto_unlock=False)
+g.connect()
+result = {}
+job = threading.Thread(target=lambda: result.setdefault('ok', g.send_file(sys.argv[2], completion_timeout=600)))
+job.start()
+def poll(pred, timeout):
+    # '?' at 5 Hz until the newest report satisfies pred
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        g.realtime(b'?')
+        time.sleep(0.2)
+        if reports and pred(reports[-1]):
+            return reports[-1]
+    return None
+obs = {'run': poll(lambda s: s.startswith('<Run'), 120)}
+poll(lambda s: False, 2.0)
+g.pause()
+obs['stopped'] = poll(lambda s: s.startswith('<Hold:0'), 30)
+n = len(reports)
+poll(lambda s: False, 1.0)
+obs['held'] = reports[n:]
+g.resume()
+g.realtime(b'')
+g.realtime(b'')
+obs['over'] = poll(lambda s: s.startswith('<Run') and 'Ov:120,' in s, 30)
+poll(lambda s: False, 1.0)
+g.realtime(b'')
+obs['back'] = poll(lambda s: 'Ov:100,' in s, 30)
+while job.is_alive():
+    poll(lambda s: True, 0.2)
+job.join()
+obs['ok'] = result.get('ok')
+obs['states'] = sorted(set(r[1:].split('|')[0] for r in reports))
+obs['last'] = g.last_status.get('raw')
+g.disconnect()
+print(json.dumps(obs))
+"#;
     let sender = Command::new(&python)
         .args(["-c", script])
         .arg(&tty)
@@ -279,7 +318,49 @@ fn pygrbl_streamer_streams_the_fig1_program() {
         "sender failed: {said}{}",
         String::from_utf8_lossy(&sender.stderr)
     );
-    assert!(said.contains("<Idle|MPos:0.000,0.000,2.540"), "{said}");
+    let obs: serde_json::Value = serde_json::from_str(said.trim()).expect("the sender's JSON");
+    assert_eq!(obs["ok"], true, "{obs:#}");
+    assert!(
+        obs["last"]
+            .as_str()
+            .unwrap()
+            .starts_with("<Idle|MPos:0.000,0.000,2.540"),
+        "{obs:#}"
+    );
+    // The hold stopped the machine mid-program and it stood still until the resume.
+    let mpos = |s: &str| s.split('|').nth(1).unwrap_or("").to_string();
+    let stopped = obs["stopped"].as_str().expect("Hold:0 after pause");
+    let held: Vec<&str> = obs["held"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    assert!(held.len() >= 3, "{obs:#}");
+    for h in &held {
+        assert!(h.starts_with("<Hold:0|"), "{obs:#}");
+        assert_eq!(mpos(h), mpos(stopped), "moved during the hold: {obs:#}");
+    }
+    assert_ne!(
+        mpos(stopped),
+        "MPos:0.000,0.000,2.540",
+        "held at the end? {obs:#}"
+    );
+    assert!(obs["over"].is_string(), "no Run at 120 %: {obs:#}");
+    assert!(
+        obs["back"].is_string(),
+        "override not back at 100 %: {obs:#}"
+    );
+    let states: Vec<&str> = obs["states"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    assert!(
+        states.contains(&"Run") && states.contains(&"Hold:0"),
+        "{states:?}"
+    );
     let settings = Settings::default();
     let text = std::fs::read_to_string(&program).unwrap();
     let prog = analysis::load_program(&text, &settings).unwrap();

@@ -276,6 +276,7 @@ pub fn plan(
         decel: false,
         f_floor: 0,
         decel_below: 0,
+        ramp: 0,
         length: length as u32,
     })
 }

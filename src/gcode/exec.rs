@@ -351,6 +351,7 @@ fn line_motion(
         decel: false,
         f_floor: 0,
         decel_below: 0,
+        ramp: 0,
         dir: [1; 3],
     })))
 }

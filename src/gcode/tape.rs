@@ -184,6 +184,15 @@ impl Tape {
         self.parser.end_program();
     }
 
+    /// Soft reset during motion: the frame stopped at `at` (BLU) with the SIGN lines `signs` and
+    /// dropped the queued blocks; the held block is dropped too, the modes return to power-up and
+    /// the parser stands where the machine stands. Loader task.
+    pub fn abort(&mut self, at: [i32; 3], signs: u8) {
+        self.flush(|_| {});
+        self.parser.end_program();
+        self.parser.jogged_to(at, signs);
+    }
+
     /// A jog planned on a copy of the parser ran to `end` with the SIGN lines `signs`: the
     /// parser follows it (see `Parser::jogged_to`). Loader task.
     pub fn jogged_to(&mut self, end: [i32; 3], signs: u8) {
@@ -314,5 +323,30 @@ mod tests {
         assert_eq!(steps[0].0, [10, 0, 0]);
         assert_eq!(steps[1].0, [1010, 5, 0]);
         assert_eq!(steps[1].1 & 0b011, 0b010);
+    }
+
+    /// A soft reset during motion drops the held block (it never runs), returns the modes to
+    /// power-up and leaves the parser where the machine stopped, so the next absolute move is
+    /// planned from there.
+    #[test]
+    fn abort_drops_the_held_block_and_stands_where_the_machine_stopped() {
+        let mut tape = Tape::new(Settings::default());
+        let mut out: Vec<Block> = Vec::new();
+        tape.line(1, "G20 G91 G1 F10 X1", |b| out.push(b)).unwrap();
+        tape.line(2, "X1", |b| out.push(b)).unwrap();
+        assert_eq!(out.len(), 1);
+        assert!(tape.holds_a_block());
+        tape.abort([4321, 0, 0], 0b001);
+        assert!(!tape.holds_a_block());
+        assert_eq!(tape.parser().position(), [4321, 0, 0]);
+        // Power-up modes: G90 G21 and no feed; a move needs its F again.
+        assert!(tape.line(3, "G1 X0", |b| out.push(b)).is_err());
+        tape.line(4, "G1 X0 F100", |b| out.push(b)).unwrap();
+        tape.flush(|b| out.push(b));
+        assert_eq!(out.len(), 2);
+        let Motion::Linear(l) = out[1].motion else {
+            panic!("{:?}", out[1].motion)
+        };
+        assert_eq!((l.steps, l.signs & 1), ([4321, 0, 0], 0));
     }
 }

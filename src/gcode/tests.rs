@@ -338,6 +338,7 @@ fn lin(line: u32, v: [i64; 3]) -> Block {
             decel: false,
             f_floor: 0,
             decel_below: 0,
+            ramp: 0,
             dir: [1; 3],
         }),
     }

@@ -56,12 +56,20 @@ pub struct Linear {
     /// Derived from f and decel by [`Block::seal`]: the deceleration floor and threshold.
     pub f_floor: u32,
     pub decel_below: u32,
+    /// Derived from the direction by [`Block::seal`]: the acceleration ramp, the most the frame's
+    /// velocity (a feed number in Q8) changes per frame, so that no axis exceeds its limit.
+    pub ramp: u32,
     /// Derived from signs by [`Block::seal`]: the negated position step per pulse, -1 or +1.
     pub dir: [i32; 3],
     pub signs: u8,
     /// Decelerate exponentially to 20 % of f near the end of the block.
     pub decel: bool,
 }
+
+/// Largest ramp: above any velocity the frame can reach (q0 <= 10^6 times a factor <= 512, in Q8,
+/// is below 2^30), so a ramp this large changes the velocity at once, and velocity + ramp never
+/// overflows.
+pub const RAMP_MAX: u32 = 1 << 30;
 
 /// Most quadrant segments an arc can have (a full circle from a point off the axes).
 pub const MAX_SEGMENTS: usize = 5;
@@ -89,6 +97,9 @@ pub struct Arc {
     /// Derived from f and decel by [`Block::seal`]: the deceleration floor and threshold.
     pub f_floor: u32,
     pub decel_below: u32,
+    /// Derived by [`Block::seal`]: the acceleration ramp (see [`Linear::ramp`]), from the
+    /// smaller limit of the plane's two axes.
+    pub ramp: u32,
 }
 
 /// G4: wait a number of frames.
@@ -122,7 +133,13 @@ impl Block {
     ///   floor(256 f / K) + 1 (u32::MAX when K is 0 or 256 f overflows); 0 when the block does not
     ///   decelerate. Below it, K * remaining <= 256 f fits 32 bits, so the frame's product does.
     ///
-    /// An unsealed block (both 0) runs at its feed without deceleration.
+    /// - `ramp`: the path acceleration in Q8 feed numbers per frame that keeps every axis within
+    ///   its limit: a line moves axis k by |d_k| / q of the path, so the path may accelerate at
+    ///   min over the moving axes of a_k q / |d_k|; an arc at the smaller limit of its plane's
+    ///   axes (its centripetal acceleration is not limited). At least 1.
+    ///
+    /// An unsealed block (all 0) runs at its feed without deceleration, and never starts: its
+    /// ramp is 0 (every block the tape emits is sealed).
     pub fn seal(&mut self, cfg: &super::FrameConfig) {
         let k = cfg.decel_gain_q8;
         let regs = |f: u32, decel: bool| {
@@ -137,12 +154,24 @@ impl Block {
             };
             (floor, below)
         };
+        let a = cfg.accel_q8;
         match &mut self.motion {
             Motion::Linear(l) => {
                 (l.f_floor, l.decel_below) = regs(l.f, l.decel);
                 l.dir = super::frame::dirs(l.signs);
+                let mut ramp = u64::MAX;
+                for (ak, &dk) in a.iter().zip(l.steps.iter()) {
+                    if dk != 0 {
+                        ramp = ramp.min(*ak as u64 * l.q as u64 / dk as u64);
+                    }
+                }
+                l.ramp = ramp.clamp(1, RAMP_MAX as u64) as u32;
             }
-            Motion::Arc(a) => (a.f_floor, a.decel_below) = regs(a.f, a.decel),
+            Motion::Arc(c) => {
+                (c.f_floor, c.decel_below) = regs(c.f, c.decel);
+                let (x, y) = c.plane.axes();
+                c.ramp = a[x].min(a[y]).clamp(1, RAMP_MAX);
+            }
             Motion::Rapid(_) | Motion::Dwell(_) => {}
         }
     }

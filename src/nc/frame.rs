@@ -9,9 +9,16 @@
 //!   of its move an axis pulses only every 2nd, 4th, 8th rapid frame: the paper's three-step
 //!   deceleration, mirrored as a three-step acceleration at the start (beyond the paper, so that
 //!   stepper drives do not stall).
-//! - Feed: r0 += f; an overflow of q0 is one interpolation command, so commands come at W0 f / q0.
-//!   A block flagged for deceleration runs at f_eff = max(f / 5, min(f, K * remaining / 256)):
-//!   velocity proportional to the remaining path, i.e. an exponential approach to 20 % of f.
+//! - Operator (beyond the paper): the operator's word (see [`super::operator`]) is read once per
+//!   frame: its abort bit stops at once and drops the queue one block per frame; a hold (factor 0)
+//!   keeps the Initiator from starting a block, stops a dwell's clock, ramps a feed block to 0 and
+//!   walks a rapid down its ladder; the rapid override masks rapid frames.
+//! - Feed: r0 += v; an overflow of q0 is one interpolation command, so commands come at W0 v / q0
+//!   (r0, v and q0 in Q8). The velocity v follows min(f, AC cap) x the operator's factor by at most
+//!   the block's acceleration ramp per frame (from 0 when the block starts from a stop; a chained
+//!   line keeps it). A block flagged for deceleration caps v at once at f_eff = max(f / 5,
+//!   min(f, K * remaining / 256)): velocity proportional to the remaining path, i.e. an
+//!   exponential approach to 20 % of f (the paper's rule, not ramped).
 //! - Interpolator: per command one DDA cycle. Linear: r_k += |d_k|, overflow past q = L -> pulse.
 //!   Circular: r_a += |j|, r_b += |i|, overflow past q = R -> pulse, and the pulse moves i or j
 //!   (the registers are incremented as the other axis steps). The arc runs segment by segment
@@ -32,24 +39,49 @@
 //!   starting it only sets the remainders, the command count and the feed registers. Arcs, rapids
 //!   and dwells still load in a frame of their own.
 use super::block::{Block, Linear, Motion};
+use super::operator;
 use crate::ports::{BlockSource, FeedCap};
 use crate::settings::Settings;
 
 /// The frame's share of the settings, precomputed in task context.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FrameConfig {
-    pub q0: u32,
+    /// q0 in Q8: the feed DDA runs on velocities in Q8 (see [`Frame`]'s `v`).
+    pub q0_q8: u32,
     pub decel_gain_q8: u32,
     pub ptp_steps: [u32; 3],
+    /// Acceleration limit per axis as a velocity change per frame, in Q8 feed numbers:
+    /// a_k q0 256 / W0^2 (a feed number f is W0 f / q0 BLU/s), at least 1.
+    pub accel_q8: [u32; 3],
 }
 
 impl FrameConfig {
     pub const fn from_settings(s: &Settings) -> Self {
         FrameConfig {
-            q0: s.q0,
+            q0_q8: s.q0 << 8,
             decel_gain_q8: s.decel_gain_q8(),
             ptp_steps: s.ptp_steps,
+            accel_q8: [
+                accel_q8(s, s.accel_blu_s2[0]),
+                accel_q8(s, s.accel_blu_s2[1]),
+                accel_q8(s, s.accel_blu_s2[2]),
+            ],
         }
+    }
+}
+
+/// An acceleration of `a` BLU/s^2 as a velocity change per frame in Q8 feed numbers, rounded, at
+/// least 1 (the ramp's resolution is 1/256 of a feed number per frame), at most
+/// [`super::block::RAMP_MAX`] (no limit).
+const fn accel_q8(s: &Settings, a: u32) -> u32 {
+    let w2 = s.frame_hz as u64 * s.frame_hz as u64;
+    let v = (a as u64 * s.q0 as u64 * 256 + w2 / 2) / w2;
+    if v == 0 {
+        1
+    } else if v > super::block::RAMP_MAX as u64 {
+        super::block::RAMP_MAX
+    } else {
+        v as u32
     }
 }
 
@@ -80,7 +112,7 @@ enum Mode {
 /// The NC state: DDA registers, counters, position. One instance lives in the frame ISR's locals.
 pub struct Frame {
     /// The registers of arcs and PTP, in a line's layout (lines read theirs in place from the
-    /// queue, see the module doc). Arcs use q, f, f_floor, decel_below and dir; PTP uses `steps`
+    /// queue, see the module doc). Arcs use q, f, f_floor, decel_below, ramp and dir; PTP uses `steps`
     /// as n_k + 1 (n_k + 1 - count[k] is the pulses done + 1, for the acceleration steps) and dir.
     /// `dir` is the negated position step per pulse and axis, -1 or +1 (see [`dirs`]), meaningful
     /// for the axes that move. f_floor = max(f / 5, 1) is the deceleration floor; K * remaining /
@@ -90,8 +122,18 @@ pub struct Frame {
     regs: Linear,
     /// DDA r registers (accumulators). Arc: [r_a, r_b, _].
     acc: [u32; 3],
-    /// Feed DDA accumulator and commands left (for deceleration).
+    /// Feed DDA accumulator (Q8) and commands left (for deceleration).
     r0: u32,
+    /// The feed velocity: the feed number (Q8) added to r0 in this frame. It follows the target
+    /// (the programmed feed capped by the AC, times the operator's factor) at most `ramp` per frame
+    /// up or down, and falls at once to the paper's deceleration curve. 0 at the start of a block
+    /// that starts from a stop; carried over into a chained line.
+    v: u32,
+    /// PTP hold ladder: a cap on the pulses-done-or-left figure that picks the ladder's level. It
+    /// counts down by one per pulse of the ladder's own level while the operator holds (0: stopped),
+    /// and back up to ptp_steps[0] + 1 (no effect) once the hold is released, so a rapid stops and
+    /// restarts on the same three steps as at its ends.
+    ptp_m: u32,
     remaining: u32,
     cfg: FrameConfig,
     mode: Mode,
@@ -132,12 +174,15 @@ impl Frame {
                 f: 0,
                 f_floor: 1,
                 decel_below: 0,
+                ramp: 0,
                 dir: [1; 3],
                 signs: 0,
                 decel: false,
             },
             acc: [0; 3],
             r0: 0,
+            v: 0,
+            ptp_m: 0,
             remaining: 0,
             ticks: 0,
             bit_a: 1,
@@ -162,9 +207,26 @@ impl Frame {
     /// segment) runs no DDA cycle and emits no pulse; only the loaded block's sign lines change.
     #[inline]
     pub fn tick(&mut self, src: &mut impl BlockSource, feed_cap: impl FeedCap) -> Pulses {
+        let op = feed_cap.operator();
+        if op & operator::ABORT != 0 {
+            // Soft reset: stop at once (the pulses computed before stay counted and go out), drop
+            // one queued block per frame (bounded work) until the loader lifts the abort.
+            self.mode = Mode::Idle;
+            self.v = 0;
+            if src.front().is_some() {
+                src.pop();
+            }
+            return Pulses {
+                steps: 0,
+                signs: self.signs,
+            };
+        }
         if self.mode == Mode::Idle {
-            if let Some(b) = src.front() {
-                self.initiate(b);
+            // A hold keeps the next block from starting.
+            if op & operator::FEED_MASK != 0 {
+                if let Some(b) = src.front() {
+                    self.initiate(b);
+                }
             }
             return Pulses {
                 steps: 0,
@@ -180,7 +242,7 @@ impl Frame {
                     self.done(src);
                 } else {
                     // The ladder moves the position counters itself.
-                    let steps = self.ptp();
+                    let steps = self.ptp(op);
                     return Pulses {
                         steps,
                         signs: self.signs,
@@ -198,7 +260,7 @@ impl Frame {
                         ..
                     }) => {
                         let cap = feed_cap.feed_cap();
-                        if !self.feed(cap, l.f, l.f_floor, l.decel_below) {
+                        if !self.feed(cap, op, l.f, l.f_floor, l.decel_below, l.ramp) {
                             return Pulses {
                                 steps: 0,
                                 signs: self.signs,
@@ -242,9 +304,11 @@ impl Frame {
                     }
                 } else if self.feed(
                     feed_cap.feed_cap(),
+                    op,
                     self.regs.f,
                     self.regs.f_floor,
                     self.regs.decel_below,
+                    self.regs.ramp,
                 ) {
                     let steps = self.circular();
                     let dir = self.regs.dir;
@@ -256,7 +320,10 @@ impl Frame {
                 }
             }
             Mode::Dwell => {
-                self.ticks = self.ticks.saturating_sub(1);
+                // A hold stops the dwell's clock too.
+                if op & operator::FEED_MASK != 0 {
+                    self.ticks = self.ticks.saturating_sub(1);
+                }
                 if self.ticks == 0 {
                     self.done(src);
                 }
@@ -290,6 +357,26 @@ impl Frame {
         self.mode == Mode::Idle
     }
 
+    /// The feed velocity as a feed number in Q8: 0 in rapids and dwells, and when a feed hold has
+    /// stopped a feed block; after a feed block, its last velocity until the next block starts.
+    #[inline]
+    pub fn velocity_q8(&self) -> u32 {
+        self.v
+    }
+
+    /// The rapid's hold ladder: 0 when no rapid runs or a hold has stopped it.
+    #[inline]
+    pub fn ladder(&self) -> u32 {
+        self.ptp_m
+    }
+
+    /// True when nothing moves: idle, dwelling, a feed block at velocity 0 or a rapid stopped by
+    /// the hold ladder (a feed hold is complete: grbl's `Hold:0`). See [`stopped`].
+    #[inline]
+    pub fn stopped(&self) -> bool {
+        stopped(self.idle(), self.v, self.ptp_m)
+    }
+
     /// Blocks completed since power-up.
     #[inline]
     pub fn blocks_done(&self) -> u32 {
@@ -310,10 +397,17 @@ impl Frame {
                 ];
                 self.regs.dir = dirs(r.signs);
                 self.ticks = 0;
+                self.ptp_m = self.cfg.ptp_steps[0].saturating_add(1);
+                self.v = 0;
                 // The parser completed the byte (non-moving axes keep their line): write it as it is.
                 self.signs = r.signs;
             }
-            Motion::Linear(l) => self.load_linear(l),
+            Motion::Linear(l) => {
+                // From a stop: the ramp starts at 0. No rapid runs (see `stopped`).
+                self.v = 0;
+                self.ptp_m = 0;
+                self.load_linear(l);
+            }
             Motion::Arc(c) => {
                 self.mode = Mode::Arc;
                 let (a, b) = c.plane.axes();
@@ -327,6 +421,9 @@ impl Frame {
                 self.regs.f_floor = c.f_floor;
                 self.remaining = c.length;
                 self.regs.decel_below = c.decel_below;
+                self.regs.ramp = c.ramp;
+                self.v = 0;
+                self.ptp_m = 0;
                 self.n_seg = c.n_targets;
                 // No segment yet: the next frame loads segment 0 (seg wraps to 0), so loading the
                 // block and its first segment are two frames of bounded work.
@@ -336,6 +433,8 @@ impl Frame {
             }
             Motion::Dwell(d) => {
                 self.mode = Mode::Dwell;
+                self.v = 0;
+                self.ptp_m = 0;
                 self.ticks = d.frames;
             }
         }
@@ -417,23 +516,52 @@ impl Frame {
     }
 
     /// Feed-rate DDA: true when this frame produces an interpolation command.
+    ///
+    /// The velocity v (Q8) moves towards the target min(f, cap) * operator factor by at most the
+    /// block's ramp per frame, up or down (feed hold: target 0; resume: back to the target);
+    /// a block flagged for deceleration then caps it at once at max(f / 5, K * remaining / 256),
+    /// the paper's exponential approach (it is not ramped: it is the rule for those blocks).
     #[inline]
-    fn feed(&mut self, feed_cap: u32, f: u32, f_floor: u32, decel_below: u32) -> bool {
-        let mut f = f;
-        if self.remaining < decel_below {
-            // No overflow: see `Block::seal`.
-            let v = self.cfg.decel_gain_q8.wrapping_mul(self.remaining) >> 8;
-            let floor = f_floor;
-            if v < f {
-                f = if v < floor { floor } else { v };
+    #[allow(clippy::too_many_arguments)] // the block's registers, read in place
+    fn feed(
+        &mut self,
+        feed_cap: u32,
+        op: u32,
+        f: u32,
+        f_floor: u32,
+        decel_below: u32,
+        ramp: u32,
+    ) -> bool {
+        let lim = if feed_cap < f { feed_cap } else { f };
+        // f <= q0 <= 10^6 and the factor <= 512: the product fits 32 bits.
+        let target = lim.wrapping_mul(op & operator::FEED_MASK);
+        let mut v = self.v;
+        // Cruising (v at the target) is the common case: one compare.
+        if v != target {
+            if v < target {
+                v = v.wrapping_add(ramp);
+                if v > target {
+                    v = target;
+                }
+            } else if v.wrapping_sub(target) > ramp {
+                v = v.wrapping_sub(ramp);
+            } else {
+                v = target;
             }
         }
-        if feed_cap < f {
-            f = feed_cap;
+        if self.remaining < decel_below {
+            // No overflow: see `Block::seal`.
+            let d = self.cfg.decel_gain_q8.wrapping_mul(self.remaining) >> 8;
+            let d = if d < f_floor { f_floor } else { d };
+            let d = d << 8;
+            if v > d {
+                v = d;
+            }
         }
-        self.r0 = self.r0.wrapping_add(f);
-        if self.r0 >= self.cfg.q0 {
-            self.r0 -= self.cfg.q0;
+        self.v = v;
+        self.r0 = self.r0.wrapping_add(v);
+        if self.r0 >= self.cfg.q0_q8 {
+            self.r0 -= self.cfg.q0_q8;
             self.remaining = self.remaining.saturating_sub(1);
             true
         } else {
@@ -445,7 +573,7 @@ impl Frame {
     /// floor(q / 2) and |d_k| <= q = L, after n commands axis k has had floor((q / 2 + n |d_k|) / q)
     /// pulses: never more than |d_k| before the q-th command and exactly |d_k| after it, so the
     /// block ends after q commands and needs no per-axis counters.
-    #[inline]
+    #[inline(always)]
     #[allow(clippy::needless_range_loop)] // one index for acc and d: the measured codegen
     fn linear(&mut self, d: &[u32; 3], q: u32) -> u8 {
         let mut steps = 0u8;
@@ -501,11 +629,38 @@ impl Frame {
     }
 
     /// PTP: independent axes at the rapid rate, three steps of deceleration (and acceleration).
+    /// The operator's hold walks the same ladder down in time (`ptp_m`), the rapid override
+    /// skips frames (its mask bits).
     #[inline]
-    fn ptp(&mut self) -> u8 {
+    fn ptp(&mut self, op: u32) -> u8 {
         let ticks = self.ticks.wrapping_add(1);
         self.ticks = ticks;
         let [s1, s2, s3] = self.cfg.ptp_steps;
+        let level = |m: u32| {
+            if m > s1 {
+                0
+            } else if m > s2 {
+                1
+            } else if m > s3 {
+                3
+            } else {
+                7
+            }
+        };
+        // The hold ladder: one step per frame of its own level.
+        let pm = self.ptp_m;
+        let hold_mask = level(pm);
+        if ticks & hold_mask == 0 {
+            if op & operator::FEED_MASK == 0 {
+                self.ptp_m = pm.saturating_sub(1);
+            } else if pm <= s1 {
+                self.ptp_m = pm + 1;
+            }
+        }
+        if pm == 0 {
+            return 0;
+        }
+        let common = hold_mask | (op & operator::RAPID_MASK) >> operator::RAPID_SHIFT;
         let mut steps = 0u8;
         for k in 0..3 {
             let left = self.count[k];
@@ -513,16 +668,7 @@ impl Frame {
                 // Pulses done + 1 (exact in wrapping arithmetic: it is at most n_k).
                 let done = self.regs.steps[k].wrapping_sub(left);
                 let m = if done < left { done } else { left };
-                let mask = if m > s1 {
-                    0
-                } else if m > s2 {
-                    1
-                } else if m > s3 {
-                    3
-                } else {
-                    7
-                };
-                if ticks & mask == 0 {
+                if ticks & (level(m) | common) == 0 {
                     self.count[k] = left - 1;
                     self.position[k] = self.position[k].wrapping_sub(self.regs.dir[k]);
                     steps |= 1 << k;
@@ -542,6 +688,13 @@ impl Frame {
             }
         }
     }
+}
+
+/// Whether the machine stands still, from what the frame publishes: idle, or neither a feed velocity
+/// nor a rapid's hold ladder (each is 0 while the other kind of block runs, and in dwells).
+#[inline]
+pub const fn stopped(idle: bool, velocity_q8: u32, ladder: u32) -> bool {
+    idle || velocity_q8 | ladder == 0
 }
 
 /// Position step per pulse of each axis for the sign bits `signs`, negated: -1 (bit set, the

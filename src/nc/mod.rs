@@ -3,9 +3,12 @@
 
 pub mod block;
 pub mod frame;
+pub mod operator;
 pub mod sim;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_ops;
 
 pub use block::*;
 pub use frame::{Frame, FrameConfig, Pulses, Rate};

@@ -7,7 +7,18 @@ use super::sim::Sim;
 use crate::settings::Settings;
 use proptest::prelude::*;
 
+/// The paper's frame: no acceleration limit (the velocity reaches the feed in the first frame), so
+/// the timing tests below see the feed DDA alone. The ramps have their own tests, with
+/// [`cfg_accel`].
 fn cfg() -> FrameConfig {
+    FrameConfig {
+        accel_q8: [RAMP_MAX; 3],
+        ..cfg_accel()
+    }
+}
+
+/// The default settings' frame, acceleration limits included.
+fn cfg_accel() -> FrameConfig {
     FrameConfig::from_settings(&Settings::default())
 }
 
@@ -28,6 +39,7 @@ fn line(d: [i64; 3], f: u32, decel: bool) -> Block {
             decel,
             f_floor: 0,
             decel_below: 0,
+            ramp: 0,
             dir: [1; 3],
         }),
     };
@@ -97,6 +109,7 @@ fn arc(start: [i32; 2], r: f64, a0: f64, sweep: f64, f: u32) -> (Block, [i32; 2]
             decel: false,
             f_floor: 0,
             decel_below: 0,
+            ramp: 0,
             length,
         }),
     };
@@ -365,6 +378,7 @@ fn longest_line_pulses_on_every_command() {
             decel: false,
             f_floor: 0,
             decel_below: 0,
+            ramp: 0,
             dir: [1; 3],
         }),
     };

@@ -263,6 +263,21 @@ impl<'a> Protocol<'a> {
         out: &mut dyn Write,
         cx: &mut Context<'_, T>,
     ) -> Event<'s> {
+        match self.poll_realtime(out) {
+            Event::None => {}
+            e => return e,
+        }
+        if self.awaiting {
+            return Event::None;
+        }
+        self.poll_line(out, cx)
+    }
+
+    /// Takes a pending soft reset or realtime request only ([`Event::Reset`], [`Event::Realtime`]
+    /// or [`Event::None`]); received lines stay in the ring. The loader polls this way while its
+    /// block queue has no room for a line's blocks, so it never blocks and `?`, `!`, `~`, the
+    /// overrides and a reset are served at once whatever the queue holds.
+    pub fn poll_realtime(&mut self, out: &mut dyn Write) -> Event<'static> {
         if self.rx.resets_pending() {
             // Discard everything received before the reset: up to its marker, or all of it if
             // the marker did not fit.
@@ -286,9 +301,15 @@ impl<'a> Protocol<'a> {
         if pending.0 != 0 {
             return Event::Realtime(pending);
         }
-        if self.awaiting {
-            return Event::None;
-        }
+        Event::None
+    }
+
+    /// The next line (answered here, or handed to the caller), after [`Self::poll_realtime`].
+    fn poll_line<'s, T: SettingsTable + ?Sized>(
+        &'s mut self,
+        out: &mut dyn Write,
+        cx: &mut Context<'_, T>,
+    ) -> Event<'s> {
         loop {
             let Some(b) = self.rx.pop() else {
                 if self.rx.poisoned() {

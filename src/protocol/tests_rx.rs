@@ -285,3 +285,29 @@ proptest! {
         prop_assert_eq!(r.responses().len(), lines.len());
     }
 }
+
+/// `poll_realtime` (the loader's poll while its block queue is full) serves realtime requests and
+/// a reset at once and leaves every received line in the ring, in order, for the next `poll`.
+#[test]
+fn poll_realtime_serves_requests_and_leaves_the_lines() {
+    let mut r = Rig::new();
+    r.push(b"G1 X1 F10\nG1 ?X2\n!");
+    let ev = r.p.poll_realtime(&mut r.out);
+    let Event::Realtime(p) = ev else {
+        panic!("{ev:?}")
+    };
+    assert!(p.status() && p.hold());
+    assert!(matches!(r.p.poll_realtime(&mut r.out), Event::None));
+    assert_eq!(
+        r.p.rx_available(),
+        RX_BUFFER_SIZE - "G1 X1 F10\nG1 X2\n".len()
+    );
+    r.push(b"~");
+    assert!(matches!(r.p.poll_realtime(&mut r.out), Event::Realtime(p) if p.resume()));
+    let lines = gcode(&r.run());
+    assert_eq!(lines, ["G1 X1 F10", "G1 X2"]);
+    // A reset is served too; the lines before it are dropped.
+    r.push(b"G1 X3\n\x18G1 X4\n");
+    assert!(matches!(r.p.poll_realtime(&mut r.out), Event::Reset));
+    assert_eq!(gcode(&r.run()), ["G1 X4"]);
+}

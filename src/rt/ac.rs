@@ -30,10 +30,23 @@
 //!
 //! # End of a hold
 //!
-//! Resume is not wired to an operator command yet (`AcController::resume` exists; the protocol will
-//! call it), so after [`HOLD_EXIT_PERIODS`] periods in hold with the encoder unchanged (only when
-//! the AC is enabled: a measure-only run logs the hold and goes on) the period asks its caller to
-//! stop: the firmware reports its position and exits, the host simulation ends the run.
+//! With an operator (serial mode), `~` or `$X` sets `Status::ac_resume` and the next period calls
+//! `AcController::resume`: the FRC restarts from f_min (a fault or overload that persists holds
+//! again). Without one (batch runs), after [`HOLD_EXIT_PERIODS`] periods in hold with the encoder
+//! unchanged (only when the AC is enabled: a measure-only run logs the hold and goes on) the
+//! period asks its caller to stop: the firmware reports its position and exits, the host
+//! simulation ends the run. (The firmware ignores that request in serial mode.)
+//!
+//! # The operator's override
+//!
+//! The frame runs at min(programmed feed, AC cap) times the operator's factor, so the feed
+//! achieved over a period is the factor times what the AC asked for. The anti-windup input is
+//! divided by the factor: the AC works in programmed-feed units and its cap does not collapse
+//! under an override below 100 % (with the achieved feed as it is, an override of 50 % would
+//! pull the cap down to about twice one FRC step). In a cut where the force limit binds, the AC
+//! thus holds the force at its limit whatever the override (the override acts where the
+//! programmed feed binds, and in air); during a feed hold the achieved feed is 0 and the cap
+//! falls towards f_min, so a resume restarts the cut gently.
 use core::sync::atomic::Ordering::Relaxed;
 
 use super::status::Status;
@@ -43,6 +56,18 @@ use crate::settings::Settings;
 
 /// AC periods in hold with the encoder unchanged before a run stops (1 s at 10 ms).
 pub const HOLD_EXIT_PERIODS: u32 = 100;
+
+/// `Status::ac_state` while the AC runs (0: no period yet; a hold stores its `ALARM:N` number).
+pub const AC_RUN: u8 = 1;
+
+/// The achieved feed in programmed-feed units: divided by the operator's factor (Q8; 0, a feed
+/// hold, leaves it as it is). See the module doc.
+pub fn unscale_override(achieved: u32, factor_q8: u32) -> u32 {
+    if factor_q8 == 0 {
+        return achieved;
+    }
+    u32::try_from(u64::from(achieved) * 256 / u64::from(factor_q8)).unwrap_or(u32::MAX)
+}
 
 /// What one sample gave.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -135,12 +160,40 @@ impl AcPeriod {
     /// the feed cap (when enabled) and counts the periods held with nothing moving. AC task.
     pub fn run(&mut self, status: &Status) -> Period {
         let enc = status.encoder();
+        if status.ac_resume.swap(false, Relaxed) {
+            self.ctl.resume();
+            self.still = 0;
+        }
         if self.anti_windup {
             let d = [0, 1, 2].map(|k| i64::from(enc[k]) - i64::from(self.last[k]));
             let period_ms = self.ctl.settings().period_ms;
-            self.ctl.set_achieved(achieved_feed(d, &self.nc, period_ms));
+            let achieved = achieved_feed(d, &self.nc, period_ms);
+            let factor = status.operator.load(Relaxed) & crate::nc::operator::FEED_MASK;
+            self.ctl.set_achieved(unscale_override(achieved, factor));
         }
         let out = self.ctl.period();
+        status.ac_state.store(
+            match out.state {
+                AcState::Run => AC_RUN,
+                AcState::Hold(a) => crate::protocol::codes::ac_alarm(&a),
+            },
+            Relaxed,
+        );
+        let s = self.ctl.settings();
+        let milli = |x: f32, x0: f32| {
+            let r = if x0 > 0.0 { x / x0 * 1000.0 } else { 0.0 };
+            if r >= 65535.0 {
+                65535
+            } else if r > 0.0 {
+                (r + 0.5) as u32
+            } else {
+                0
+            }
+        };
+        status.ac_ratios.store(
+            milli(out.f_n, s.f0_n()) | milli(out.t_nm, s.t0_nm()) << 16,
+            Relaxed,
+        );
         if self.enabled {
             status.feed_cap.store(out.feed_cap, Relaxed);
         }
@@ -252,5 +305,95 @@ mod tests {
         assert_eq!(status.samples.load(Relaxed) % per, 0);
         // Held from period 2 on (the encoder never moved): the HOLD_EXIT_PERIODS-th held period.
         assert_eq!(halted, Some(2 + HOLD_EXIT_PERIODS - 1));
+    }
+
+    /// Runs `periods` AC periods on mid-scale codes with the encoder advancing as the frame would
+    /// at the AC's cap times the operator's factor; returns the last cap.
+    fn cap_under_override(factor_q8: u32, periods: u32) -> u32 {
+        let status = Status::new();
+        status.start();
+        status
+            .operator
+            .store(factor_q8 | crate::nc::operator::RUN & !0xFFFF, Relaxed);
+        let nc = Settings::default();
+        let ctl = AcController::new(AcSettings::default()).unwrap();
+        let mut period = AcPeriod::new(ctl, nc, true, &status);
+        let per = period.per_period();
+        let period_ms = period.ctl.settings().period_ms as u64;
+        let mut x = 0u64;
+        for _ in 0..periods {
+            for k in 0..per {
+                let d = [0, 3, 0, 5][k as usize % 4];
+                period.sample([2048 + d, 2048 - d, 2048 + d]);
+            }
+            let cap = status.feed_cap.load(Relaxed) as u64;
+            // BLU per period at feed number cap * factor: W0 f / q0 per second.
+            x += cap * factor_q8 as u64 / 256 * nc.frame_hz as u64 * period_ms
+                / (nc.q0 as u64 * 1000);
+            status.encoder[0].store(x as i32, Relaxed);
+            period.run(&status);
+        }
+        status.feed_cap.load(Relaxed)
+    }
+
+    /// The anti-windup input is taken in programmed-feed units: under a 50 % override the cap
+    /// climbs as it does at 100 % (with the achieved feed as it is it would stay near f_min).
+    #[test]
+    fn an_override_does_not_pull_the_ac_cap_down() {
+        let full = cap_under_override(256, 300);
+        let half = cap_under_override(128, 300);
+        let tenth = cap_under_override(26, 300);
+        let f_min = AcSettings::default().f_min;
+        assert!(full > 4 * f_min, "cap at 100 %: {full}");
+        for cap in [half, tenth] {
+            assert!(
+                cap.abs_diff(full) * 20 <= full,
+                "{cap} against {full} at 100 %"
+            );
+        }
+        assert_eq!(unscale_override(1000, 128), 2000);
+        assert_eq!(unscale_override(1000, 0), 1000);
+    }
+
+    /// The operator's resume (`Status::ac_resume`) takes the AC out of its hold at the next period,
+    /// from f_min; the status words say hold, then run.
+    #[test]
+    fn the_operator_resumes_an_ac_hold() {
+        let status = Status::new();
+        status.start();
+        let ctl = AcController::new(AcSettings::default()).unwrap();
+        let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+        let per = period.per_period();
+        // A period without samples holds.
+        let out = period.run(&status);
+        assert_eq!(out.out.state, AcState::Hold(Alarm::NoSamples));
+        assert_eq!(
+            status.ac_state.load(Relaxed),
+            crate::protocol::codes::alarm::AC_NO_SAMPLES
+        );
+        assert_eq!(status.feed_cap.load(Relaxed), 0);
+        let feed = |period: &mut AcPeriod| {
+            for k in 0..per {
+                let d = [0, 3, 0, 5][k as usize % 4];
+                period.sample([2048 + d, 2048 - d, 2048 + d]);
+            }
+        };
+        // Still held with samples again, until the operator resumes.
+        feed(&mut period);
+        assert!(matches!(period.run(&status).out.state, AcState::Hold(_)));
+        status.ac_resume.store(true, Relaxed);
+        feed(&mut period);
+        let out = period.run(&status);
+        assert_eq!(out.out.state, AcState::Run);
+        assert!(!status.ac_resume.load(Relaxed), "the request is taken");
+        assert_eq!(status.ac_state.load(Relaxed), AC_RUN);
+        let cap = status.feed_cap.load(Relaxed);
+        let s = AcSettings::default();
+        // From f_min, at most one FRC step up in this period.
+        let most = s.f_min as f32 + s.step_per_period() + 1.0;
+        assert!(
+            cap > 0 && cap as f32 <= most,
+            "resumed at {cap}, most {most}"
+        );
     }
 }

@@ -46,13 +46,18 @@ pub struct FrameTask {
     reloads: Reloads,
 }
 
-/// The AC's feed cap as the frame reads it: one load, only by the frames that feed.
+/// The AC's feed cap (one load, only by the frames that feed) and the operator's word (one load
+/// per frame) as the frame reads them.
 struct StatusCap<'a>(&'a Status);
 
 impl FeedCap for StatusCap<'_> {
     #[inline(always)]
     fn feed_cap(&self) -> u32 {
         self.0.feed_cap.load(Relaxed)
+    }
+    #[inline(always)]
+    fn operator(&self) -> u32 {
+        self.0.operator.load(Relaxed)
     }
 }
 
@@ -103,6 +108,8 @@ impl FrameTask {
             status.position[1].store(y, Relaxed);
             status.position[2].store(z, Relaxed);
             status.blocks_done.store(frame.blocks_done(), Relaxed);
+            status.velocity_q8.store(frame.velocity_q8(), Relaxed);
+            status.ladder.store(frame.ladder(), Relaxed);
         }
 
         // The rate and the idle flag change only when a block is loaded or done. They are
@@ -243,7 +250,7 @@ mod tests {
         let n_blocks = blocks.len() as u32;
         let mut src = Queue(blocks);
         let status = Status::new();
-        status.feed_cap.store(u32::MAX, Relaxed);
+        status.start();
         let reloads = Reloads {
             feed: 2500,
             rapid: 475,

@@ -1,6 +1,6 @@
 //! Single-word channels between the firmware's contexts: the frame ISR publishes its status
-//! (position, blocks done, idle) and reads the feed cap; the loader reads the status; the AC task
-//! writes the feed cap; the pulse-end ISR counts the encoder; the sampler counts samples. Relaxed
+//! (position, blocks done, idle, stopped, velocity) and reads the feed cap and the operator's word;
+//! the loader reads the status and writes the operator's word; the AC task writes the feed cap; the pulse-end ISR counts the encoder; the sampler counts samples. Relaxed
 //! atomics are enough: one core, and every word is meaningful on its own. Any context.
 use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicU8, Ordering::Relaxed};
 
@@ -11,6 +11,26 @@ pub struct Status {
     /// frame ISR (only in the frames that feed). Zero at reset: init stores `u32::MAX` (or the AC's
     /// first cap) before any interrupt is enabled.
     pub feed_cap: AtomicU32,
+    /// The operator's word (`millac::nc::operator`): feed and rapid override, feed hold, abort.
+    /// Written by the loader only (from the protocol's realtime requests); read by the frame ISR
+    /// once per frame. Zero at reset means held: init stores `operator::RUN` before any interrupt
+    /// is enabled.
+    pub operator: AtomicU32,
+    /// The frame's feed velocity (`Frame::velocity_q8`, a feed number in Q8) and the rapid's hold
+    /// ladder (`Frame::ladder`): both 0 = stopped (see [`Status::stopped`]). Written by the frame
+    /// ISR in the frames without pulses, like `position`.
+    pub velocity_q8: AtomicU32,
+    pub ladder: AtomicU32,
+    /// The AC's state for the status report: 0 = no AC period has run, 1 = run
+    /// (`rt::ac::AC_RUN`), else held with this `ALARM:N` number (100 and up). Written by the AC
+    /// task each period.
+    pub ac_state: AtomicU8,
+    /// F/F0 (low 16 bits) and T/T0 (high 16 bits) of the last AC period in thousandths,
+    /// saturated at 65535. Written by the AC task each period.
+    pub ac_ratios: AtomicU32,
+    /// The operator asks the AC to leave its hold (`~` or `$X`): set by the loader, taken (swapped
+    /// back to false) by the AC task at its next period.
+    pub ac_resume: AtomicBool,
     /// Absolute position per axis (X, Y, Z) in BLU, as counted by the frame. Written by the frame
     /// ISR in the frames without pulses (idle, dwell, hold, between feed commands), so the frames
     /// with pulses, the frame's worst case, do not pay for it; read at the end of a program and on
@@ -47,6 +67,12 @@ impl Status {
     pub const fn new() -> Self {
         Status {
             feed_cap: AtomicU32::new(0),
+            operator: AtomicU32::new(0),
+            velocity_q8: AtomicU32::new(0),
+            ladder: AtomicU32::new(0),
+            ac_state: AtomicU8::new(0),
+            ac_ratios: AtomicU32::new(0),
+            ac_resume: AtomicBool::new(false),
             position: [AtomicI32::new(0), AtomicI32::new(0), AtomicI32::new(0)],
             blocks_done: AtomicU32::new(0),
             idle: AtomicBool::new(true),
@@ -56,6 +82,28 @@ impl Status {
             ac_missed: AtomicU32::new(0),
             samples_dropped: AtomicU32::new(0),
         }
+    }
+
+    /// Init, before any interrupt is enabled: no AC cap, the operator's word at 100 % (both words
+    /// are zero at reset, which would hold the feed).
+    pub fn start(&self) {
+        self.feed_cap.store(u32::MAX, Relaxed);
+        self.operator.store(crate::nc::operator::RUN, Relaxed);
+    }
+
+    /// Nothing moves (a feed hold is complete), as last published by the frame.
+    pub fn stopped(&self) -> bool {
+        crate::nc::frame::stopped(
+            self.idle.load(Relaxed),
+            self.velocity_q8.load(Relaxed),
+            self.ladder.load(Relaxed),
+        )
+    }
+
+    /// The AC's last F/F0 and T/T0 in thousandths.
+    pub fn ac_ratios_milli(&self) -> (u16, u16) {
+        let r = self.ac_ratios.load(Relaxed);
+        (r as u16, (r >> 16) as u16)
     }
 
     /// The encoder counts X, Y, Z.

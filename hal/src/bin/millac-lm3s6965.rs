@@ -80,6 +80,7 @@ mod app {
 
     use cortex_m_semihosting::{nr, syscall};
     use heapless::spsc::{Consumer, Producer, Queue};
+    use millac::ac::Alarm;
     use millac::ac::{AcController, AcSettings, FeedCeiling};
     use millac::gcode::tape::Tape;
     use millac::nc::{Block, Frame, FrameConfig};
@@ -90,7 +91,7 @@ mod app {
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
     use millac::wire::FLAG_AC_ENABLED;
     use millac::Settings;
-    use millac_hal::actask::{AcTask, Sampled, Sampler, SAMPLE_QUEUE};
+    use millac_hal::actask::{AcTask, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use millac_hal::lm3s6965 as board;
     use millac_hal::simadc::{LogFile, SimAdc};
     use millac_hal::uart::TX_QUEUE;
@@ -102,6 +103,10 @@ mod app {
 
     /// The status words between the contexts (all zero at reset but `idle`).
     static STATUS: Status = Status::new();
+
+    /// The loader runs in serial mode: an operator can resume an AC hold, so a long hold does not
+    /// end the session. Written once by the loader.
+    static SERIAL: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
 
     /// Queue slots (a heapless spsc queue holds one less: 15 blocks).
     const QUEUE: usize = 16;
@@ -130,6 +135,8 @@ mod app {
         /// The loader's ends (serial mode): the protocol, the transmit queue.
         proto: Protocol<'static>,
         tx: Producer<'static, u8, TX_QUEUE>,
+        /// AC holds for the serial loader's messages.
+        ac_alarms: Consumer<'static, Alarm, ALARM_QUEUE>,
     }
 
     #[init(local = [
@@ -137,6 +144,7 @@ mod app {
         samples: Queue<Codes, SAMPLE_QUEUE> = Queue::new(),
         serial_rx: RxShared = RxShared::new(),
         serial_tx: Queue<u8, TX_QUEUE> = Queue::new(),
+        alarms: Queue<Alarm, ALARM_QUEUE> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let settings = Settings::default();
@@ -150,12 +158,13 @@ mod app {
             rapid: B::reload(clocks_for_hz(B::TIMER_HZ, settings.rapid_hz)),
         };
         let pulse = B::reload(clocks_for_ns(B::TIMER_HZ, settings.pulse_width_ns));
-        // No cap unless the AC says otherwise (before any interrupt is enabled).
-        STATUS.feed_cap.store(u32::MAX, Relaxed);
+        // No cap unless the AC says otherwise, 100 % feed (before any interrupt is enabled).
+        STATUS.start();
         B::init(reloads.feed, pulse);
 
         // The simulated ADC and the AC, if the host serves them (blocks until it is ready).
         let (mut sampler, mut ac, mut ceiling) = (None, None, None);
+        let (alarm_tx, ac_alarms) = cx.local.alarms.split();
         if let Some((adc, flags)) = SimAdc::open() {
             let ac_settings = AcSettings::default();
             let ctl = match AcController::new(ac_settings) {
@@ -171,7 +180,7 @@ mod app {
                 ceiling = Some(ac_settings.ceiling);
             }
             let period = AcPeriod::new(ctl, settings, enabled, &STATUS);
-            let task = AcTask::new(&STATUS, period, rx, log);
+            let task = AcTask::new(&STATUS, period, rx, alarm_tx, log);
             sampler = Some(Sampler::new(&STATUS, adc, tx, task.per_period()));
             ac = Some(task);
             board::sample_timer_start(B::reload(clocks_for_hz(B::TIMER_HZ, ac_settings.sample_hz)));
@@ -188,6 +197,7 @@ mod app {
                 uart_tx,
                 proto,
                 tx,
+                ac_alarms,
                 frame: FrameTask::new(Frame::new(FrameConfig::from_settings(&settings)), reloads),
                 consumer,
                 producer,
@@ -274,7 +284,7 @@ mod app {
         if let Some(a) = p.alarm {
             Out::open().line(format_args!("alarm: {}", a));
         }
-        if p.halt {
+        if p.halt && !SERIAL.load(Relaxed) {
             let [x, y, z] = [
                 STATUS.position[0].load(Relaxed),
                 STATUS.position[1].load(Relaxed),
@@ -292,7 +302,7 @@ mod app {
     }
 
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
-    #[idle(local = [producer, settings, ceiling, proto, tx])]
+    #[idle(local = [producer, settings, ceiling, proto, tx, ac_alarms])]
     fn idle(cx: idle::Context) -> ! {
         let producer = cx.local.producer;
         let mut out = Out::open();
@@ -300,15 +310,19 @@ mod app {
             Loaded::All => true,
             Loaded::Error => false,
             // No program file: the operator streams G-code over the serial line.
-            Loaded::NoFile => millac_hal::serial::run(
-                producer,
-                *cx.local.settings,
-                *cx.local.ceiling,
-                cx.local.proto,
-                cx.local.tx,
-                &STATUS,
-                B::TIMER_HZ,
-            ),
+            Loaded::NoFile => {
+                SERIAL.store(true, Relaxed);
+                millac_hal::serial::run(
+                    producer,
+                    *cx.local.settings,
+                    *cx.local.ceiling,
+                    cx.local.proto,
+                    cx.local.tx,
+                    cx.local.ac_alarms,
+                    &STATUS,
+                    B::TIMER_HZ,
+                )
+            }
         };
 
         // Every accepted block runs to completion, also after an error.
