@@ -268,7 +268,9 @@ class Sender(GrblStreamer):
 g = Sender(sys.argv[1], auto_unlock=False)
 g.connect()
 result = {}
-job = threading.Thread(target=lambda: result.setdefault('ok', g.send_file(sys.argv[2], completion_timeout=600)))
+# A line is acknowledged once its blocks fit the queue (as in grbl), so an ack can wait for the
+# longest block of the program: far beyond the sender's default of 30 s on a loaded machine.
+job = threading.Thread(target=lambda: result.setdefault('ok', g.send_file(sys.argv[2], completion_timeout=600, ack_timeout=600)))
 job.start()
 def poll(pred, timeout):
     # '?' at 5 Hz until the newest report satisfies pred
@@ -287,11 +289,11 @@ n = len(reports)
 poll(lambda s: False, 1.0)
 obs['held'] = reports[n:]
 g.resume()
-g.realtime(b'')
-g.realtime(b'')
+g.realtime(b'\x91')
+g.realtime(b'\x91')
 obs['over'] = poll(lambda s: s.startswith('<Run') and 'Ov:120,' in s, 30)
 poll(lambda s: False, 1.0)
-g.realtime(b'')
+g.realtime(b'\x90')
 obs['back'] = poll(lambda s: 'Ov:100,' in s, 30)
 while job.is_alive():
     poll(lambda s: True, 0.2)
@@ -319,6 +321,7 @@ print(json.dumps(obs))
         String::from_utf8_lossy(&sender.stderr)
     );
     let obs: serde_json::Value = serde_json::from_str(said.trim()).expect("the sender's JSON");
+    eprintln!("sender saw: {obs:#}");
     assert_eq!(obs["ok"], true, "{obs:#}");
     assert!(
         obs["last"]
