@@ -29,10 +29,15 @@ pub const REQ_FILE: &str = "adc.req\0";
 pub const RESP_FILE: &str = "adc.resp\0";
 /// The AC log the firmware writes in the run directory.
 pub const AC_LOG_FILE: &str = "ac.log\0";
+/// The persistent settings record (`millac::protocol::settings::record`) in QEMU's working
+/// directory: init loads it, the serial loader stores it after every accepted `$N=value`. The host
+/// (`serve --settings FILE`) links it to the operator's file.
+pub const SETTINGS_FILE: &str = "settings.bin\0";
 /// The names without their NUL.
 pub const REQ_NAME: &str = strip_nul(REQ_FILE);
 pub const RESP_NAME: &str = strip_nul(RESP_FILE);
 pub const AC_LOG_NAME: &str = strip_nul(AC_LOG_FILE);
+pub const SETTINGS_NAME: &str = strip_nul(SETTINGS_FILE);
 
 /// `s` without a trailing NUL.
 const fn strip_nul(s: &str) -> &str {

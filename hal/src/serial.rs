@@ -1,7 +1,8 @@
 //! The loader in serial mode (idle task): G-code streamed by a sender over UART0 instead of the
 //! semihosting program file, through the grbl 1.1 protocol core (`millac::protocol`): the banner,
-//! one `ok` or `error:N` per line (grbl's numbers), `$` commands and settings (`$$`, `$N=value`
-//! on the in-memory table), `?` status reports, `$C` check mode, `$X`. Each G-code line runs
+//! one `ok` or `error:N` per line (grbl's numbers), `$` commands and settings (`$$`; `$N=value`
+//! stored at once through the settings storage, effective at the next start for the NC and AC
+//! settings), `?` status reports, `$C` check mode, `$X`. Each G-code line runs
 //! through the tape (`Tape::line`: an error refuses that line only) into the block queue; the
 //! look-ahead's held block runs as soon as no next line has come and the machine would otherwise
 //! stop. The RX interrupt (the app's UART0 task) pushes every byte into the protocol's ring
@@ -31,14 +32,14 @@ use heapless::spsc::{Consumer, Producer};
 use millac::ac::{Alarm, FeedCeiling};
 use millac::gcode::tape::{finish_block, Tape};
 use millac::nc::{operator, Block, FrameConfig, Motion};
+use millac::ports::SettingsStorage;
 use millac::protocol::codes::{ac_alarm, GrblError};
 use millac::protocol::report::{feed_blu_per_min, AcReport, AcState, State, StatusData};
 use millac::protocol::rx::Overrides;
-use millac::protocol::settings::MachineSettings;
+use millac::protocol::settings::Persistent;
 use millac::protocol::{Context, Event, Protocol, SettingsTable};
 use millac::rt::ac::AC_RUN;
 use millac::rt::Status;
-use millac::Settings;
 
 use crate::uart::Tx;
 
@@ -46,11 +47,12 @@ use crate::uart::Tx;
 /// line's own (a line emits at most two blocks).
 const ROOM_PER_LINE: usize = 2;
 
-/// Loader task: never returns (the operator ends the session by resetting the machine).
+/// Loader task: never returns (the operator ends the session by resetting the machine). `table`:
+/// the settings init loaded (and started the frame with) and their storage.
 #[allow(clippy::too_many_arguments)]
-pub fn run<const Q: usize, const T: usize, const A: usize>(
+pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
     blocks: &mut Producer<'static, Block, Q>,
-    settings: Settings,
+    table: &mut Persistent<S>,
     ceiling: Option<FeedCeiling>,
     proto: &mut Protocol<'static>,
     tx: &mut Producer<'static, u8, T>,
@@ -61,10 +63,9 @@ pub fn run<const Q: usize, const T: usize, const A: usize>(
     crate::uart::init(uart_clock_hz);
     let mut out = Tx::new(tx);
     proto.start(&mut out);
-    let mut table = MachineSettings {
-        nc: settings,
-        ..MachineSettings::default()
-    };
+    // The frame's configuration and the parser's, fixed at init: a `$N=value` the table stores
+    // (and `$$` lists) at once takes effect for the NC settings at the next start.
+    let settings = table.settings.nc;
     let mut tape = match ceiling {
         Some(c) => Tape::with_ac_ceiling(settings, c),
         None => Tape::new(settings),
@@ -119,7 +120,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize>(
         };
         let room = Q - 1 - blocks.len() >= ROOM_PER_LINE;
         let mut cx = Context {
-            table: &mut table,
+            table: &mut *table,
             modes: tape.parser().modes(),
             machine: &settings,
             state,

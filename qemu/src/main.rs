@@ -63,6 +63,10 @@ enum Cmd {
         tcp: String,
         #[arg(long, default_value = "out/serve")]
         out: PathBuf,
+        /// The machine's settings record: loaded at start, rewritten after every accepted
+        /// `$N=value`, kept across sessions [default: OUT/settings.bin].
+        #[arg(long)]
+        settings: Option<PathBuf>,
         /// QEMU -icount shift (virtual time = instructions * 2^N ns).
         #[arg(long, default_value_t = 4)]
         shift: u32,
@@ -119,10 +123,14 @@ fn main() {
         Some(Cmd::Serve {
             tcp,
             out,
+            settings,
             shift,
             nc_only,
             cut,
-        }) => serve(&tcp, &out, shift, (!nc_only).then_some(&cut)),
+        }) => {
+            let settings = settings.unwrap_or_else(|| millac_qemu::serve::default_settings(&out));
+            serve(&tcp, &out, &settings, shift, (!nc_only).then_some(&cut))
+        }
         Some(Cmd::Host { program, out, cut }) => match program {
             Some(p) => with_program(&p, &out, |text| host(text, &out, &cut)),
             None => host(DEMO, &out, &cut),
@@ -198,7 +206,13 @@ extern "C" fn on_signal(_: libc::c_int) {
     STOP.store(true, std::sync::atomic::Ordering::SeqCst);
 }
 
-fn serve(tcp: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> Result<bool> {
+fn serve(
+    tcp: &str,
+    out: &Path,
+    settings: &Path,
+    shift: u32,
+    cut: Option<&CutArgs>,
+) -> Result<bool> {
     use std::sync::atomic::Ordering;
     let ac = match cut {
         Some(c) => Some(runner::AcRun {
@@ -227,10 +241,11 @@ fn serve(tcp: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> Result<boo
     println!(
         "millac serve: the machine's serial port (grbl 1.1) is on tcp://{tcp}; point a sender there \
          (serial-only senders: socat pty,raw,echo=0,link=/tmp/millac-tty tcp:{tcp}). Ctrl-C ends the \
-         session and writes {}/capture.vcd and summary.json.",
-        out.display()
+         session and writes {}/capture.vcd and summary.json. Settings ($N=value) persist in {}.",
+        out.display(),
+        settings.display()
     );
-    let served = millac_qemu::serve::serve(out, tcp, shift, ac.as_ref(), stop)?;
+    let served = millac_qemu::serve::serve(out, settings, tcp, shift, ac.as_ref(), stop)?;
     drop(relay);
     println!(
         "{}",

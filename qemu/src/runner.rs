@@ -41,6 +41,15 @@ pub fn execute(text: &str, out: &Path, shift: u32) -> Result<Capture> {
 /// Builds the firmware, writes program.nc and returns the capture spec (handlers: TIMER_0A frame,
 /// TIMER_1A pulse end, TIMER_2A sampler, SSI0 the AC period's dispatcher).
 fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
+    // The firmware would run the program on a stored record (see `serve`), while the checks here
+    // assume the defaults: refuse rather than report false mismatches, and delete nothing.
+    let stored = out.join(millac::wire::SETTINGS_NAME);
+    if std::fs::symlink_metadata(&stored).is_ok() {
+        anyhow::bail!(
+            "{} holds serve's settings; runs check against the default settings: use another --out",
+            stored.display()
+        );
+    }
     let elf = firmware::build()?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     std::fs::write(out.join("program.nc"), text)?;

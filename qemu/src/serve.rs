@@ -6,12 +6,17 @@
 //! QEMU gets `-serial tcp:ADDR,server=on,wait=off` (a sender can connect, disconnect and reconnect
 //! while the machine runs) and `-monitor none`; stopping sends QEMU SIGTERM, which shuts it down
 //! cleanly, so the virtual logic analyser's log is complete.
+//!
+//! Settings persist in the operator's settings file (`--settings`, default `out/settings.bin`):
+//! the firmware opens `settings.bin` in its working directory (`out`), which [`link_settings`]
+//! makes that file, so the record the firmware stores after a `$N=value` lands there directly and
+//! the next session starts with it.
 use crate::capture::{run_capture, CaptureSpec, HandlerSpec};
 use crate::runner::{self, AcRun};
 use crate::{cosim, firmware, vcd};
 use anyhow::{Context, Result};
 use serde_json::{json, Value};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
@@ -24,11 +29,49 @@ pub struct Served {
     pub capture: crate::capture::Capture,
 }
 
+/// The settings file of a session in `out` when none is given: the firmware's own name there.
+pub fn default_settings(out: &Path) -> PathBuf {
+    out.join(millac::wire::SETTINGS_NAME)
+}
+
+/// Makes `out/settings.bin`, the file the firmware opens, the operator's settings file
+/// `settings` (which need not exist yet: the firmware's first store creates it): nothing to do
+/// when it is that file, otherwise a symbolic link to it (an earlier link is replaced). A file of
+/// its own there is refused, never deleted.
+pub fn link_settings(out: &Path, settings: &Path) -> Result<()> {
+    let name = out.join(millac::wire::SETTINGS_NAME);
+    let target = std::path::absolute(settings)
+        .with_context(|| format!("settings file {}", settings.display()))?;
+    if let Some(dir) = target.parent() {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if std::path::absolute(&name)? == target || same(&name, &target) {
+        return Ok(());
+    }
+    match std::fs::symlink_metadata(&name) {
+        Ok(m) if m.file_type().is_symlink() => std::fs::remove_file(&name)
+            .with_context(|| format!("removing the old link {}", name.display()))?,
+        Ok(_) => anyhow::bail!(
+            "{} holds settings of its own: move it, or pass it as --settings",
+            name.display()
+        ),
+        Err(_) => {}
+    }
+    std::os::unix::fs::symlink(&target, &name)
+        .with_context(|| format!("linking {} to {}", name.display(), target.display()))
+}
+
 /// Runs the firmware in serial mode with UART0 on `tcp` until `stop` is set; writes
-/// `out/capture.vcd` and `out/summary.json`. With `ac`, the simulated ADC serves the cutting
-/// process as in `run` (and `out/ac.log` is the firmware's AC log).
+/// `out/capture.vcd` and `out/summary.json`. The firmware loads and stores its settings in
+/// `settings` ([`link_settings`]). With `ac`, the simulated ADC serves the cutting process as in
+/// `run` (and `out/ac.log` is the firmware's AC log).
 pub fn serve(
     out: &Path,
+    settings: &Path,
     tcp: &str,
     shift: u32,
     ac: Option<&AcRun>,
@@ -41,6 +84,13 @@ pub fn serve(
     for f in [cosim::REQ, cosim::RESP, cosim::AC_LOG] {
         let _ = std::fs::remove_file(out.join(f));
     }
+    link_settings(out, settings)?;
+    // The settings the firmware will start with (the same checks; a refused record is the
+    // defaults there too): the simulated ADC's clock and whether the AC caps the feed.
+    let stored = std::fs::read(settings)
+        .ok()
+        .and_then(|b| millac::protocol::settings::record::decode(&b).ok())
+        .unwrap_or_default();
     let mut spec = CaptureSpec::new(&elf, out);
     spec.icount_shift = shift;
     spec.extra_args = vec![
@@ -58,8 +108,7 @@ pub fn serve(
         None => (run_capture(&spec)?, 0),
         Some(a) => {
             let plant = runner::process_plant(a)?;
-            let sample_hz = millac::ac::AcSettings::default().sample_hz;
-            let bridge = cosim::Bridge::start(out, plant, sample_hz, a.ac)?;
+            let bridge = cosim::Bridge::start(out, plant, stored.ac.sample_hz, a.ac)?;
             let cap = run_capture(&spec);
             let exchanges = bridge.finish().unwrap_or_default();
             (cap?, exchanges.len())
@@ -86,11 +135,50 @@ pub fn serve(
         "virtual_time_s": cap.end_ns as f64 * 1e-9,
     });
     if let Some(a) = ac {
-        summary["ac"] = json!({"enabled": a.ac, "samples": samples});
+        summary["ac"] = json!({"enabled": a.ac && stored.ac_enabled, "samples": samples});
     }
     runner::write_json(&out.join("summary.json"), &summary)?;
     Ok(Served {
         summary,
         capture: cap,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dir(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("millac-link-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    /// The default file is used as it is; another file is linked (and an older link replaced), so
+    /// what the firmware writes under its name lands in the operator's file; a file of its own
+    /// under the firmware's name is refused and kept.
+    #[test]
+    fn the_firmware_name_reaches_the_operators_file() {
+        let out = dir("out");
+        link_settings(&out, &default_settings(&out)).unwrap();
+        assert!(std::fs::symlink_metadata(default_settings(&out)).is_err());
+        let (a, b) = (dir("a").join("s.bin"), dir("b").join("s.bin"));
+        for target in [&a, &b] {
+            link_settings(&out, target).unwrap();
+            std::fs::write(default_settings(&out), target.to_string_lossy().as_bytes()).unwrap();
+        }
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), a.to_string_lossy());
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), b.to_string_lossy());
+        link_settings(&out, &b).unwrap();
+        std::fs::remove_file(default_settings(&out)).unwrap();
+        std::fs::write(default_settings(&out), b"own").unwrap();
+        let e = link_settings(&out, &a).unwrap_err();
+        assert!(e.to_string().contains("holds settings of its own"), "{e}");
+        assert_eq!(std::fs::read(default_settings(&out)).unwrap(), b"own");
+        // A batch run in that directory would check against the defaults: refused.
+        let e = crate::runner::execute("G0 X1\n", &out, 4).expect_err("refused");
+        assert!(e.to_string().contains("settings"), "{e}");
+        assert!(!out.join("program.nc").exists());
+    }
 }

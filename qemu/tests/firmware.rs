@@ -253,3 +253,38 @@ fn interrupts_have_no_calls_and_no_panic_path() {
     let reset = millac_qemu::elf::find_function(&elf, "Reset").unwrap();
     assert!(!reset.calls_and_traps.is_empty());
 }
+
+/// Program mode with a refused settings record (one flipped byte): the firmware says why and
+/// exits with failure before anything moves (there is no `$X` to acknowledge the defaults); with
+/// the same record intact it runs the program on the record's settings (step pulse 7 us).
+#[test]
+fn program_mode_refuses_a_corrupt_settings_record_and_runs_on_a_valid_one() {
+    use millac::protocol::settings::{record, MachineSettings};
+    use millac_qemu::capture::{run_capture, CaptureSpec};
+    let out = out_dir("settings-record");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("program.nc"), "G91 G1 F30 X0.01\nM2\n").unwrap();
+    let mut m = MachineSettings::default();
+    m.set_line("$0=7").unwrap();
+    let good = record::encode(&m);
+    let mut bad = good;
+    bad[30] ^= 0x04;
+    let spec = CaptureSpec::new(millac_qemu::firmware::build().unwrap(), &out);
+    let file = out.join(millac::wire::SETTINGS_NAME);
+    std::fs::write(&file, bad).unwrap();
+    let cap = run_capture(&spec).unwrap();
+    assert_eq!(cap.status, Some(1), "{}", cap.stdout);
+    assert!(
+        cap.stdout
+            .contains("error: settings: settings record checksum mismatch; nothing runs"),
+        "{}",
+        cap.stdout
+    );
+    assert!(cap.pins.is_empty(), "nothing moves");
+    std::fs::write(&file, good).unwrap();
+    let cap = run_capture(&spec).unwrap();
+    assert_eq!(cap.status, Some(0), "{}", cap.stdout);
+    let e = analysis::edges(0, &cap.pins);
+    assert_eq!(e.edges.len(), 100);
+    assert!((7000..9000).contains(&e.min_pulse_width_ns.unwrap()));
+}

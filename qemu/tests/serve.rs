@@ -1,6 +1,7 @@
 //! `serve` under QEMU (host): the firmware in serial mode with UART0 on a TCP port. A client
 //! connects, reads the grbl banner, streams G-code lines and gets one answer per line, polls `?`
 //! until the machine is idle, and after the stop the capture ends where the lines programmed.
+//! Settings set over the line persist into the next session; a corrupt record starts locked.
 use millac_qemu::serve;
 use std::io::{BufRead, BufReader, Write};
 use std::net::{TcpListener, TcpStream};
@@ -97,14 +98,26 @@ struct Session {
     server: std::thread::JoinHandle<anyhow::Result<serve::Served>>,
 }
 
+/// The temporary directory of `tag`, emptied.
+fn fresh(tag: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("millac-serve-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
 fn start(tag: &str) -> Session {
-    let out = std::env::temp_dir().join(format!("millac-serve-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
+    let out = fresh(tag);
+    let settings = serve::default_settings(&out);
+    start_in(out, settings)
+}
+
+/// A session in `out` (kept as it is) with the settings file `settings`.
+fn start_in(out: std::path::PathBuf, settings: std::path::PathBuf) -> Session {
     let addr = format!("127.0.0.1:{}", free_port());
     let stop = Arc::new(AtomicBool::new(false));
     let server = {
         let (out, addr, stop) = (out.clone(), addr.clone(), stop.clone());
-        std::thread::spawn(move || serve::serve(&out, &addr, 4, None, stop))
+        std::thread::spawn(move || serve::serve(&out, &settings, &addr, 4, None, stop))
     };
     Session {
         out,
@@ -381,4 +394,134 @@ print(json.dumps(obs))
         [p["x"].as_i64(), p["y"].as_i64(), p["z"].as_i64()],
         end.map(|v| Some(i64::from(v)))
     );
+}
+
+/// Sends `line` and reads to its `ok` / `error:N`; every line read.
+fn ask(w: &mut TcpStream, r: &mut BufReader<TcpStream>, line: &str) -> Vec<String> {
+    w.write_all(format!("{line}\n").as_bytes()).unwrap();
+    read_until(r, |s| s == "ok" || s.starts_with("error:"))
+}
+
+/// `$$` as the firmware lists it (its `$N=value` lines).
+fn listing(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> Vec<String> {
+    let got = ask(w, r, "$$");
+    assert_eq!(got.last().unwrap(), "ok", "{got:?}");
+    got.into_iter().filter(|l| l.starts_with('$')).collect()
+}
+
+/// `$$` of `m` as the core's table lists it.
+fn expected_listing(m: &millac::protocol::settings::MachineSettings) -> Vec<String> {
+    let mut s = String::new();
+    m.list(&mut s).unwrap();
+    s.lines().map(str::to_string).collect()
+}
+
+/// The first status report's state.
+fn state(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> String {
+    w.write_all(b"?").unwrap();
+    let s = read_until(r, |s| s.starts_with('<')).pop().unwrap();
+    s.trim_start_matches('<')
+        .split('|')
+        .next()
+        .unwrap()
+        .to_string()
+}
+
+/// `$0=7` (step pulse 7 us) set in one session is written to the settings file (kept outside the
+/// session's directory, so `serve` links it) and the next session, in a fresh directory with the
+/// same file, starts with it: no alarm, `$$` lists it, and the frame runs with it (the capture's
+/// pulses are 7 us wide, 5 us by default).
+#[test]
+fn a_setting_persists_into_the_next_session() {
+    use millac::protocol::settings::{record, MachineSettings};
+    let settings = fresh("state").join("settings.bin");
+    let mut want = MachineSettings::default();
+    want.set_line("$0=7").unwrap();
+    {
+        let Session {
+            addr, stop, server, ..
+        } = start_in(fresh("persist1"), settings.clone());
+        let stream = connect(&addr);
+        let mut w = stream.try_clone().unwrap();
+        let mut r = BufReader::new(stream);
+        banner(&mut w, &mut r);
+        assert_eq!(ask(&mut w, &mut r, "$0=7").last().unwrap(), "ok");
+        stop.store(true, Ordering::SeqCst);
+        server.join().unwrap().expect("serve");
+    }
+    let bytes = std::fs::read(&settings).expect("the settings file");
+    assert_eq!(record::decode(&bytes), Ok(want));
+    let Session {
+        addr, stop, server, ..
+    } = start_in(fresh("persist2"), settings.clone());
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    let b = banner(&mut w, &mut r);
+    assert!(!b.iter().any(|l| l.starts_with("ALARM")), "{b:?}");
+    assert_eq!(listing(&mut w, &mut r), expected_listing(&want));
+    assert_eq!(state(&mut w, &mut r), "Idle");
+    assert_eq!(
+        ask(&mut w, &mut r, "G91 G1 F30 X0.01").last().unwrap(),
+        "ok"
+    );
+    let t0 = Instant::now();
+    while state(&mut w, &mut r) != "Idle" || t0.elapsed() < Duration::from_millis(200) {
+        assert!(t0.elapsed() < Duration::from_secs(60), "never idle");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    stop.store(true, Ordering::SeqCst);
+    let served = server.join().unwrap().expect("serve");
+    let e = millac_qemu::analysis::edges(0, &served.capture.pins);
+    assert_eq!(e.edges.len(), 100, "0.01 in = 100 BLU");
+    let width = e.min_pulse_width_ns.unwrap();
+    assert!((7000..7000 + 2000).contains(&width), "{width} ns");
+}
+
+/// A settings file with one flipped byte: the banner is followed by `ALARM:120` and why, G-code
+/// is locked and the state is Alarm; `$X` unlocks and `$$` lists the defaults, not the record's
+/// values; the file is left as it was.
+#[test]
+fn a_corrupt_settings_record_starts_locked_on_the_defaults() {
+    use millac::protocol::codes::alarm::SETTINGS_DEFAULTS;
+    use millac::protocol::settings::{record, MachineSettings};
+    let out = fresh("corrupt");
+    std::fs::create_dir_all(&out).unwrap();
+    let mut m = MachineSettings::default();
+    m.set_line("$0=7").unwrap();
+    let mut bytes = record::encode(&m).to_vec();
+    bytes[20] ^= 0x10;
+    let file = serve::default_settings(&out);
+    std::fs::write(&file, &bytes).unwrap();
+    let Session {
+        addr, stop, server, ..
+    } = start_in(out, file.clone());
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    banner(&mut w, &mut r);
+    let told = read_until(&mut r, |s| s.starts_with("[MSG:'$H'|'$X'"));
+    assert_eq!(
+        told[..2],
+        [
+            format!("ALARM:{SETTINGS_DEFAULTS}"),
+            "[MSG:settings record checksum mismatch; defaults loaded]".to_string()
+        ],
+        "{told:?}"
+    );
+    assert_eq!(state(&mut w, &mut r), "Alarm");
+    assert_eq!(
+        ask(&mut w, &mut r, "G91 G1 F30 X0.01").last().unwrap(),
+        "error:9"
+    );
+    let unlock = ask(&mut w, &mut r, "$X");
+    assert_eq!(unlock, ["[MSG:Caution: Unlocked]", "ok"]);
+    assert_eq!(state(&mut w, &mut r), "Idle");
+    assert_eq!(
+        listing(&mut w, &mut r),
+        expected_listing(&MachineSettings::default())
+    );
+    stop.store(true, Ordering::SeqCst);
+    server.join().unwrap().expect("serve");
+    assert_eq!(std::fs::read(&file).unwrap(), bytes, "load never writes");
 }

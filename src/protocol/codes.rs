@@ -1,7 +1,7 @@
 //! grbl 1.1 error and alarm numbers, and the mapping from millac's reasons to them (loader task,
 //! host tests). grbl's numbers are used where one fits; millac's own alarms (adaptive-control
-//! holds, receive overflow) have their own range, 100 and up, clear of grbl's 1..=10 and of the
-//! extensions other grbl-compatible firmwares use below 100.
+//! holds, receive overflow, a refused settings record) have their own range, 100 and up, clear of
+//! grbl's 1..=10 and of the extensions other grbl-compatible firmwares use below 100.
 //!
 //! | millac reason | grbl error | grbl's meaning |
 //! | --- | --- | --- |
@@ -162,6 +162,11 @@ pub mod alarm {
     /// Serial receive overflow: a sender broke the character-counting contract and bytes were
     /// refused ([`super::super::Event::RxOverflow`]); its stream is out of step, reset required.
     pub const RX_OVERFLOW: u8 = 110;
+    /// The stored settings record was refused at start-up (truncated, corrupt, another version,
+    /// invalid values): the defaults are loaded and G-code is locked until `$X`, so nothing moves
+    /// with settings the operator did not choose ([`super::super::Protocol::settings_refused`]).
+    /// grbl itself answers a failed EEPROM read with `error:7` and goes on unlocked.
+    pub const SETTINGS_DEFAULTS: u8 = 120;
 }
 
 /// The `ALARM:N` number of an adaptive-control hold.

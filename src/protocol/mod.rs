@@ -147,6 +147,9 @@ pub struct Protocol<'a> {
     awaiting: bool,
     check: bool,
     alarm: Option<u8>,
+    /// Why the stored settings were refused at start-up ([`Protocol::settings_refused`]); told
+    /// after every banner until `$X`.
+    settings_refused: Option<settings::record::RecordError>,
     /// Status reports until the next `WCO:` field (0: in the next one).
     wco_countdown: u8,
     queue_blocks: u16,
@@ -163,6 +166,7 @@ impl<'a> Protocol<'a> {
             awaiting: false,
             check: false,
             alarm: None,
+            settings_refused: None,
             wco_countdown: 0,
             queue_blocks,
         }
@@ -171,6 +175,16 @@ impl<'a> Protocol<'a> {
     /// Sends the banner (call once after power-up).
     pub fn start(&mut self, out: &mut dyn Write) {
         self.banner(out);
+    }
+
+    /// The settings record was refused at start-up and the defaults replace it (init, before
+    /// [`Protocol::start`]): locks G-code with [`codes::alarm::SETTINGS_DEFAULTS`] until `$X`, so
+    /// nothing moves on settings the operator did not choose. Every banner until then (the first
+    /// one, and those of soft resets, which a sender connecting late sees) is followed by
+    /// `ALARM:120` and `[MSG:<why>; defaults loaded]`.
+    pub fn settings_refused(&mut self, why: settings::record::RecordError) {
+        self.alarm = Some(codes::alarm::SETTINGS_DEFAULTS);
+        self.settings_refused = Some(why);
     }
 
     /// The override values the realtime bytes set.
@@ -345,6 +359,12 @@ impl<'a> Protocol<'a> {
 
     fn banner(&mut self, out: &mut dyn Write) {
         let _ = report::write_banner(out);
+        if let (Some(code @ codes::alarm::SETTINGS_DEFAULTS), Some(why)) =
+            (self.alarm, self.settings_refused)
+        {
+            let _ = report::write_alarm(out, code);
+            let _ = report::write_message(out, format_args!("{}; defaults loaded", why.message()));
+        }
         if self.alarm.is_some() {
             let _ = out.write_str("[MSG:'$H'|'$X' to unlock]\r\n");
         }
@@ -419,6 +439,7 @@ impl<'a> Protocol<'a> {
             "$G" => sent(report::write_modes(out, &cx.modes, cx.machine, opts.inches)),
             "$X" => {
                 if self.alarm.take().is_some() {
+                    self.settings_refused = None;
                     let _ = out.write_str("[MSG:Caution: Unlocked]\r\n");
                     respond(out, Ok(()));
                     return Event::Unlock;

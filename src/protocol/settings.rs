@@ -1,10 +1,11 @@
 //! grbl-1.1-style settings: the table behind `$$` (list) and `$N=value` (set one, validated) over
-//! all of millac's settings ([`MachineSettings`]: NC, adaptive control, reports), and the persistent
-//! record ([`record`]). Called by the loader task (the line protocol), init (loading the record) and
-//! the host tests. No floats in the conversions of integer settings: values are exact decimals
-//! ([`Decimal`]) converted by rational arithmetic; the f32 settings of the AC take the f32 nearest
-//! the decimal (core's correctly rounded parser) and are listed as the shortest decimal that gives
-//! the same f32 back, so `$$` output set back line by line gives the same settings.
+//! all of millac's settings ([`MachineSettings`]: NC, adaptive control, reports), the persistent
+//! record ([`record`]) and the table with its storage ([`Persistent`], serial mode's `$` hook).
+//! Called by the loader task (the line protocol), init (loading the record) and the host tests.
+//! No floats in the conversions of integer settings: values are exact decimals ([`Decimal`])
+//! converted by rational arithmetic; the f32 settings of the AC take the f32 nearest the decimal
+//! (core's correctly rounded parser) and are listed as the shortest decimal that gives the same
+//! f32 back, so `$$` output set back line by line gives the same settings.
 //!
 //! Errors are grbl's numbers: 2 bad number (also a fraction where a whole number is needed), 3
 //! unknown or unsupported setting (or no `=`), 4 negative value for a setting without a sign, 52
@@ -17,11 +18,13 @@ use crate::ac::settings::{AcSettings, AcSettingsError};
 use crate::gcode::number::{parse_decimal, Decimal, NumError};
 use crate::settings::{Blu, Settings, SettingsError};
 
+mod persistent;
 pub mod record;
 mod table;
 #[cfg(test)]
 mod tests;
 
+pub use persistent::Persistent;
 pub use table::{entry, Entry, TABLE};
 use table::{Kind, Unit};
 

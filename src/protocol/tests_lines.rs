@@ -167,6 +167,41 @@ fn alarm_lock() {
     assert_eq!(r.responses(), ["error:9"]);
 }
 
+/// A settings record refused at start-up: the first banner and every banner of a soft reset until
+/// `$X` are followed by `ALARM:120` and why, G-code is locked (`error:9`), the state is Alarm;
+/// `$X` unlocks and the reason is not told again.
+#[test]
+fn a_refused_settings_record_locks_until_unlocked() {
+    use crate::protocol::settings::record::RecordError;
+    let mut r = Rig::new();
+    r.p.settings_refused(RecordError::Checksum);
+    r.p.start(&mut r.out);
+    let told = std::format!(
+        "ALARM:{}\r\n[MSG:settings record checksum mismatch; defaults loaded]\r\n\
+         [MSG:'$H'|'$X' to unlock]\r\n",
+        codes::alarm::SETTINGS_DEFAULTS
+    );
+    let first = r.take();
+    assert!(first.starts_with("\r\nGrbl 1.1h"), "{first}");
+    assert!(first.ends_with(&told), "{first}");
+    assert_eq!(r.p.alarm_code(), Some(120));
+    assert_eq!(r.p.state(State::Idle), State::Alarm);
+    assert!(gcode(&r.feed(b"G0 X1\n")).is_empty());
+    assert_eq!(r.responses(), ["error:9"]);
+    r.push(&[byte::RESET]);
+    assert_eq!(r.run(), [Ev::Reset]);
+    assert!(r.take().ends_with(&told));
+    let ev = r.feed(b"$X\nG0 X1\n");
+    assert_eq!(ev[0], Ev::Unlock);
+    assert_eq!(gcode(&ev), ["G0 X1"]);
+    assert_eq!(r.p.state(State::Idle), State::Idle);
+    r.take();
+    r.push(&[byte::RESET]);
+    assert_eq!(r.run(), [Ev::Reset]);
+    let after = r.take();
+    assert!(after.ends_with("adaptive control]\r\n"), "{after}");
+}
+
 /// `$C` check mode: lines come with `check`, the state reads Check; `$C` again disables it with
 /// a soft reset (grbl: `[MSG:Disabled]`, `ok`, banner).
 #[test]

@@ -1,7 +1,8 @@
-//! millac firmware for the lm3s6965evb (QEMU): the RTIC 2 app. `init` validates the settings and
-//! starts the board; the frame ISR (TIMER_0A) and the pulse-end ISR (TIMER_1A) drive the pins; the
-//! idle loop is the loader: it reads `program.nc` through semihosting, parses it and queues the
-//! blocks, then reports the final position and exits QEMU.
+//! millac firmware for the lm3s6965evb (QEMU): the RTIC 2 app. `init` loads the settings record
+//! (`settings.bin`, see "Settings" below), validates the settings and starts the board; the frame
+//! ISR (TIMER_0A) and the pulse-end ISR (TIMER_1A) drive the pins; the idle loop is the loader: it
+//! reads `program.nc` through semihosting, parses it and queues the blocks, then reports the final
+//! position and exits QEMU (without `program.nc`: the serial loader, `millac_hal::serial`).
 //!
 //! # Adaptive control (only when the host serves the simulated ADC, see `millac_hal::simadc`)
 //!
@@ -23,6 +24,19 @@
 //! 26.3 kHz rapid pulse rate come from one timer.
 //!
 //! No monotonic/SysTick: any that is added must have a priority below the frame's.
+//!
+//! # Settings
+//!
+//! init loads the persistent record through `millac_hal::storage::FileStorage` (`settings.bin` in
+//! QEMU's working directory): a valid record gives the frame and the parser its NC settings and
+//! the AC controller its AC settings (`$250=0` turns the AC's feed cap off even when the host
+//! enables it); no file gives the defaults, silently. A refused record (truncated, corrupt, of
+//! another version, invalid values) gives the defaults and:
+//! - serial mode: `ALARM:120` and `[MSG:<why>; defaults loaded]` after the banner, G-code locked
+//!   until `$X` (`Protocol::settings_refused`); `$RST=*` or any `$N=value` stores a new record;
+//! - program mode (`program.nc`): `error: settings: <why>; nothing runs` and exit with failure
+//!   before anything moves: a program run unattended must not run on settings the operator did
+//!   not choose, and there is no `$X` to acknowledge them.
 #![no_std]
 #![no_main]
 
@@ -81,11 +95,13 @@ mod app {
     use cortex_m_semihosting::{nr, syscall};
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::Alarm;
-    use millac::ac::{AcController, AcSettings, FeedCeiling};
+    use millac::ac::{AcController, FeedCeiling};
     use millac::gcode::tape::Tape;
     use millac::nc::{Block, Frame, FrameConfig};
     use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
     use millac::protocol::rx::{RxIsr, RxShared};
+    use millac::protocol::settings::record::{LoadStatus, RecordError};
+    use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
     use millac::rt::ac::AcPeriod;
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
@@ -94,6 +110,7 @@ mod app {
     use millac_hal::actask::{AcTask, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use millac_hal::lm3s6965 as board;
     use millac_hal::simadc::{LogFile, SimAdc};
+    use millac_hal::storage::FileStorage;
     use millac_hal::uart::TX_QUEUE;
 
     use super::{exit, fail, Out};
@@ -124,6 +141,10 @@ mod app {
         consumer: Consumer<'static, Block, QUEUE>,
         producer: Producer<'static, Block, QUEUE>,
         settings: Settings,
+        /// The settings table of serial mode (the loaded record) and its storage.
+        table: Persistent<FileStorage>,
+        /// Why the stored record was refused (program mode refuses to run).
+        refused: Option<RecordError>,
         /// The feed ceiling of an enabled AC, applied by the loader (None: programmed feeds).
         ceiling: Option<FeedCeiling>,
         sampler: Option<Sampler>,
@@ -147,7 +168,13 @@ mod app {
         alarms: Queue<Alarm, ALARM_QUEUE> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
-        let settings = Settings::default();
+        // The stored record (validated as a whole), or the defaults.
+        let (table, status) = Persistent::load(FileStorage);
+        let refused = match status {
+            LoadStatus::Refused(e) => Some(e),
+            LoadStatus::Loaded | LoadStatus::Missing => None,
+        };
+        let settings = table.settings.nc;
         if let Err(e) = settings.validate() {
             fail(format_args!("settings: {}", e.message()));
         }
@@ -166,7 +193,7 @@ mod app {
         let (mut sampler, mut ac, mut ceiling) = (None, None, None);
         let (alarm_tx, ac_alarms) = cx.local.alarms.split();
         if let Some((adc, flags)) = SimAdc::open() {
-            let ac_settings = AcSettings::default();
+            let ac_settings = table.settings.ac;
             let ctl = match AcController::new(ac_settings) {
                 Ok(c) => c,
                 Err(e) => fail(format_args!("AC settings: {}", e.message())),
@@ -175,7 +202,7 @@ mod app {
                 fail(format_args!("cannot create ac.log"));
             };
             let (tx, rx) = cx.local.samples.split();
-            let enabled = flags & FLAG_AC_ENABLED != 0;
+            let enabled = flags & FLAG_AC_ENABLED != 0 && table.settings.ac_enabled;
             if enabled {
                 ceiling = Some(ac_settings.ceiling);
             }
@@ -187,7 +214,10 @@ mod app {
         }
 
         let (uart_rx, rx) = cx.local.serial_rx.split();
-        let proto = Protocol::new(rx, (QUEUE - 1) as u16);
+        let mut proto = Protocol::new(rx, (QUEUE - 1) as u16);
+        if let Some(e) = refused {
+            proto.settings_refused(e);
+        }
         let (tx, uart_tx) = cx.local.serial_tx.split();
 
         (
@@ -202,6 +232,8 @@ mod app {
                 consumer,
                 producer,
                 settings,
+                table,
+                refused,
                 ceiling,
                 sampler,
                 ac,
@@ -302,11 +334,12 @@ mod app {
     }
 
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
-    #[idle(local = [producer, settings, ceiling, proto, tx, ac_alarms])]
+    #[idle(local = [producer, settings, table, refused, ceiling, proto, tx, ac_alarms])]
     fn idle(cx: idle::Context) -> ! {
         let producer = cx.local.producer;
         let mut out = Out::open();
-        let ok = match load(producer, cx.local.settings, *cx.local.ceiling, &mut out) {
+        let (settings, ceiling) = (cx.local.settings, *cx.local.ceiling);
+        let ok = match load(producer, settings, ceiling, *cx.local.refused, &mut out) {
             Loaded::All => true,
             Loaded::Error => false,
             // No program file: the operator streams G-code over the serial line.
@@ -314,8 +347,8 @@ mod app {
                 SERIAL.store(true, Relaxed);
                 millac_hal::serial::run(
                     producer,
-                    *cx.local.settings,
-                    *cx.local.ceiling,
+                    cx.local.table,
+                    ceiling,
                     cx.local.proto,
                     cx.local.tx,
                     cx.local.ac_alarms,
@@ -354,11 +387,13 @@ mod app {
         NoFile,
     }
 
-    /// Reads, parses and queues the program. Errors are printed here.
+    /// Reads, parses and queues the program. Errors are printed here. With a refused settings
+    /// record nothing runs (see "Settings" in the crate docs).
     fn load(
         producer: &mut Producer<'static, Block, QUEUE>,
         settings: &Settings,
         ceiling: Option<FeedCeiling>,
+        refused: Option<RecordError>,
         out: &mut Out,
     ) -> Loaded {
         let mut enqueue = |b: Block| millac_hal::serial::enqueue_block(producer, b);
@@ -367,6 +402,16 @@ mod app {
         let fd = unsafe { syscall!(OPEN, path.as_ptr(), nr::open::R, path.len() - 1) } as isize;
         if fd == -1 {
             return Loaded::NoFile;
+        }
+        if let Some(e) = refused {
+            out.line(format_args!(
+                "error: settings: {}; nothing runs (fix or remove {})",
+                e.message(),
+                millac::wire::SETTINGS_NAME
+            ));
+            // SAFETY: SYS_CLOSE of the handle opened above.
+            unsafe { syscall!(CLOSE, fd) };
+            return Loaded::Error;
         }
 
         // The tape finishes every block, with an enabled AC's feed ceiling.

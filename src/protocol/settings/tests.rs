@@ -585,3 +585,68 @@ fn persistent_sets_store_and_reload() {
     );
     assert_eq!(st.stores, 4);
 }
+
+/// Sends `line` to a protocol whose `$` table is `table`; the protocol's output.
+fn over_the_protocol(table: &mut Persistent<MemStorage>, line: &str) -> String {
+    use crate::protocol::{Context, Event, Protocol, RxShared, State};
+    let shared = std::boxed::Box::leak(std::boxed::Box::new(RxShared::new()));
+    let (mut isr, rx) = shared.split();
+    let mut p = Protocol::new(rx, 15);
+    for b in line.bytes().chain([b'\n']) {
+        isr.push_byte(b);
+    }
+    let machine = table.settings.nc;
+    let mut out = String::new();
+    let mut cx = Context {
+        table,
+        modes: crate::gcode::Parser::new(machine).modes(),
+        machine: &machine,
+        state: State::Idle,
+    };
+    while p.poll(&mut out, &mut cx) != Event::None {}
+    out
+}
+
+/// The serial loader's table: an accepted `$N=value` is stored before its `ok` and loads back at
+/// the next start; a refused value or a refused store changes neither the table nor the record
+/// (`error:52`, `error:7`); `$RST=*` stores the defaults; a corrupt record loads as the defaults
+/// with the refusal for the alarm.
+#[test]
+fn the_persistent_table_stores_each_set_before_its_ok() {
+    let (mut t, status) = Persistent::load(MemStorage::default());
+    assert_eq!(
+        (t.settings, status),
+        (MachineSettings::default(), LoadStatus::Missing)
+    );
+    assert_eq!(over_the_protocol(&mut t, "$0=7"), "ok\r\n");
+    assert_eq!(t.storage.stores, 1);
+    let (back, status) = Persistent::load(MemStorage {
+        image: t.storage.image.clone(),
+        ..MemStorage::default()
+    });
+    assert_eq!(status, LoadStatus::Loaded);
+    assert_eq!(back.settings.nc.pulse_width_ns, 7000);
+    assert_eq!(back.settings, t.settings);
+    assert!(over_the_protocol(&mut t, "$$").contains("$0=7\r\n"));
+    let before = (t.settings, t.storage.image.clone());
+    assert_eq!(over_the_protocol(&mut t, "$201=50"), "error:52\r\n");
+    t.storage.refuse = true;
+    assert_eq!(over_the_protocol(&mut t, "$0=8"), "error:7\r\n");
+    assert_eq!(over_the_protocol(&mut t, "$RST=*"), "error:7\r\n");
+    assert_eq!((t.settings, t.storage.image.clone()), before);
+    t.storage.refuse = false;
+    assert_eq!(over_the_protocol(&mut t, "$RST=#"), "error:3\r\n");
+    assert_eq!(over_the_protocol(&mut t, "$RST=$"), "ok\r\n");
+    assert_eq!(t.settings, MachineSettings::default());
+    let stored = t.storage.image.clone().unwrap();
+    assert_eq!(record::decode(&stored), Ok(MachineSettings::default()));
+    // One flipped byte: the defaults, refused for its checksum.
+    let mut bad = stored;
+    bad[20] ^= 0x01;
+    let (t, status) = Persistent::load(MemStorage {
+        image: Some(bad),
+        ..MemStorage::default()
+    });
+    assert_eq!(status, LoadStatus::Refused(RecordError::Checksum));
+    assert_eq!(t.settings, MachineSettings::default());
+}

@@ -1,0 +1,65 @@
+//! The QEMU board's settings storage: the persistent settings record
+//! (`millac::protocol::settings::record`) in a host file, [`wire::SETTINGS_FILE`] in QEMU's working
+//! directory, reached through semihosting. Init loads it; the loader task (serial mode) stores it
+//! after every accepted `$N=value` (through `millac::protocol::settings::Persistent`).
+//!
+//! The host (`millac-qemu serve --settings FILE`) makes that name a link to the operator's file,
+//! so the firmware reads and writes the real file. A store truncates the file and writes the whole
+//! image in one SYS_WRITE: QEMU stopped between the two leaves an empty or short file, which the
+//! record's length and CRC checks refuse at the next start (defaults and an alarm), never garbage.
+//! No rename-into-place: it would replace the host's link instead of writing through it.
+use cortex_m_semihosting::{nr, syscall};
+
+use millac::ports::SettingsStorage;
+use millac::wire;
+
+/// The settings file (a unit struct: the name is [`wire::SETTINGS_FILE`]).
+pub struct FileStorage;
+
+/// Opens the settings file with a semihosting open mode; None if the host refuses.
+fn open(mode: usize) -> Option<usize> {
+    let name = wire::SETTINGS_FILE.as_bytes();
+    // SAFETY: SYS_OPEN with a NUL-terminated name, its length without the NUL and a valid mode.
+    let fd = unsafe { syscall!(OPEN, name.as_ptr(), mode, name.len() - 1) } as isize;
+    (fd != -1).then_some(fd as usize)
+}
+
+fn close(fd: usize) -> bool {
+    // SAFETY: SYS_CLOSE of a handle opened by `open`.
+    unsafe { syscall!(CLOSE, fd) == 0 }
+}
+
+impl SettingsStorage for FileStorage {
+    /// The file's bytes, at most `buf.len()` (a longer file fills `buf`, and the record's length
+    /// check refuses it); None when there is no file (or the host cannot open it). A read error
+    /// gives the bytes read before it, which the record's checks refuse. Init.
+    fn load(&mut self, buf: &mut [u8]) -> Option<usize> {
+        let fd = open(nr::open::R_BINARY)?;
+        let mut n = 0;
+        while let Some(rest) = buf.get_mut(n..) {
+            if rest.is_empty() {
+                break;
+            }
+            // SAFETY: SYS_READ into a buffer we own, at most its length; returns the bytes NOT
+            // read (more than asked: an error).
+            let left = unsafe { syscall!(READ, fd, rest.as_mut_ptr(), rest.len()) };
+            match rest.len().checked_sub(left) {
+                Some(0) | None => break,
+                Some(got) => n += got,
+            }
+        }
+        close(fd);
+        Some(n)
+    }
+
+    /// Truncates the file and writes `image` in one call; false if the host refused any step.
+    /// Loader task.
+    fn store(&mut self, image: &[u8]) -> bool {
+        let Some(fd) = open(nr::open::W_TRUNC_BINARY) else {
+            return false;
+        };
+        // SAFETY: SYS_WRITE from a buffer we own, its length; returns the bytes NOT written.
+        let all = unsafe { syscall!(WRITE, fd, image.as_ptr(), image.len()) } == 0;
+        close(fd) && all
+    }
+}
