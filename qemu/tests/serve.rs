@@ -525,3 +525,168 @@ fn a_corrupt_settings_record_starts_locked_on_the_defaults() {
     server.join().unwrap().expect("serve");
     assert_eq!(std::fs::read(&file).unwrap(), bytes, "load never writes");
 }
+
+/// Writes `line`, returns its answer (`ok` or `error:N`), keeping every other line seen in `seen`.
+fn send_line(
+    w: &mut TcpStream,
+    r: &mut BufReader<TcpStream>,
+    line: &str,
+    seen: &mut Vec<String>,
+) -> String {
+    w.write_all(format!("{line}\n").as_bytes()).unwrap();
+    let got = read_until(r, |s| s == "ok" || s.starts_with("error:"));
+    let answer = got.last().unwrap().clone();
+    seen.extend(got);
+    answer
+}
+
+/// `?` until the report satisfies `done`; the reports on the way (the last one is `done`'s).
+fn poll_until(
+    w: &mut TcpStream,
+    r: &mut BufReader<TcpStream>,
+    seen: &mut Vec<String>,
+    done: impl Fn(&str) -> bool,
+) -> Vec<String> {
+    let t0 = Instant::now();
+    let mut reports = Vec::new();
+    loop {
+        w.write_all(b"?").unwrap();
+        let got = read_until(r, |s| s.starts_with('<'));
+        let report = got.last().unwrap().clone();
+        seen.extend(got);
+        reports.push(report.clone());
+        if done(&report) {
+            return reports;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(300),
+            "waited for too long; last {report}; seen {seen:?}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Feed hold and resume under the AC against the simulated cut, and the resume of an AC hold in
+/// `serve` (issue 7): a full-depth entry at F30 into steel overloads (issue 6's program); the
+/// firmware holds with `[MSG:AC hold: overload ...]`, reports `Hold` with the AC field's
+/// `hold:100`, and `~` resumes the AC from f_min: the cut goes on (holding again and resuming
+/// as often as it must). An operator's `!` in the cut stops with the position standing still,
+/// `~` goes on. At the end the capture's blocks end exactly on the program's end points and the
+/// position is exact; ac.log has the hold.
+#[test]
+fn ac_holds_and_operator_holds_resume_in_the_cut() {
+    use millac::Settings;
+    use millac_plant::{Material, Stock, Tool, Transducer};
+    use millac_qemu::acsim::Cut;
+    use millac_qemu::analysis;
+    use millac_qemu::runner::AcRun;
+    let out = fresh("ac");
+    let settings_file = serve::default_settings(&out);
+    let addr = format!("127.0.0.1:{}", free_port());
+    let stop = Arc::new(AtomicBool::new(false));
+    let server = {
+        let (out, addr, stop) = (out.clone(), addr.clone(), stop.clone());
+        std::thread::spawn(move || {
+            let ac = AcRun {
+                cut: Cut {
+                    stock: Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(),
+                    tool: Tool::default(),
+                    material: Material::STEEL,
+                    spindle_rpm: 600.0,
+                    seed: 7,
+                    transducer: Transducer::default(),
+                },
+                ac: true,
+                faults: Vec::new(),
+            };
+            serve::serve(&out, &settings_file, &addr, 4, Some(&ac), stop)
+        })
+    };
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    banner(&mut w, &mut r);
+    let program = "G20 G90\nG0 X-1 Y1.5\nG0 Z-0.3\nG1 X1 F30\nG0 Z0.1\n";
+    let mut seen = Vec::new();
+    for line in program.lines() {
+        assert_eq!(send_line(&mut w, &mut r, line, &mut seen), "ok", "{line}");
+    }
+    // The overload hold: said once, the state Hold with the AC's alarm number, standing still.
+    let reports = poll_until(&mut w, &mut r, &mut seen, |s| s.starts_with("<Hold:0"));
+    let msg = seen
+        .iter()
+        .find(|l| l.starts_with("[MSG:AC hold:"))
+        .unwrap_or_else(|| panic!("no AC hold message: {seen:?}"));
+    assert!(msg.contains("overload"), "{msg}");
+    let held = reports.last().unwrap().clone();
+    assert!(
+        held.contains(",hold:100>") || held.contains(",hold:100|"),
+        "{held}"
+    );
+    let mpos = |s: &str| s.split('|').nth(1).unwrap_or("").to_string();
+    for _ in 0..3 {
+        let again = poll_until(&mut w, &mut r, &mut seen, |_| true);
+        assert_eq!(
+            mpos(again.last().unwrap()),
+            mpos(&held),
+            "moved in the hold"
+        );
+    }
+    // `~`: the AC resumes from f_min and the cut goes on; an operator hold in it.
+    w.write_all(b"~").unwrap();
+    poll_until(&mut w, &mut r, &mut seen, |s| {
+        s.starts_with("<Run") && s.contains(",run>")
+    });
+    std::thread::sleep(Duration::from_millis(300));
+    w.write_all(b"!").unwrap();
+    let stopped = poll_until(&mut w, &mut r, &mut seen, |s| s.starts_with("<Hold:0"));
+    let at = mpos(stopped.last().unwrap());
+    std::thread::sleep(Duration::from_millis(500));
+    let still = poll_until(&mut w, &mut r, &mut seen, |_| true);
+    assert_eq!(
+        mpos(still.last().unwrap()),
+        at,
+        "moved in the operator's hold"
+    );
+    w.write_all(b"~").unwrap();
+    // To the end, resuming any further AC hold.
+    let t0 = Instant::now();
+    let mut resumes = 1;
+    loop {
+        let rep = poll_until(&mut w, &mut r, &mut seen, |_| true);
+        let s = rep.last().unwrap();
+        if s.starts_with("<Idle") {
+            break;
+        }
+        if s.starts_with("<Hold:0") {
+            w.write_all(b"~").unwrap();
+            resumes += 1;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(300), "{s}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    eprintln!(
+        "AC serve session: {resumes} resumes, hold at {}",
+        mpos(&held)
+    );
+    stop.store(true, Ordering::SeqCst);
+    let served = server.join().unwrap().expect("serve");
+    let settings = Settings::default();
+    let prog = analysis::load_program(&format!("{program}M2\n"), &settings).unwrap();
+    let report = analysis::analyse(&prog, &settings, 0, &served.capture.pins);
+    assert!(report.counts_match, "pulse counts");
+    for (k, b) in report.blocks.iter().enumerate() {
+        assert!(
+            b.end_exact,
+            "block {k} does not end on its end point: {b:?}"
+        );
+    }
+    let p = &served.summary["final_position_blu"];
+    let end = prog.last().unwrap().end;
+    assert_eq!(
+        [p["x"].as_i64(), p["y"].as_i64(), p["z"].as_i64()],
+        end.map(|v| Some(i64::from(v)))
+    );
+    let log = std::fs::read_to_string(out.join("ac.log")).unwrap();
+    assert!(log.contains("hold:"), "no hold in ac.log");
+}
