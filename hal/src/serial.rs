@@ -40,6 +40,7 @@ pub fn run<const Q: usize, const T: usize>(
     crate::uart::init(uart_clock_hz);
     let mut out = Tx::new(tx);
     proto.start(&mut out);
+    let mut log = crate::session::SessionLog::create();
     let mut table = MachineSettings {
         nc: settings,
         ..MachineSettings::default()
@@ -74,6 +75,7 @@ pub fn run<const Q: usize, const T: usize>(
             Event::None => {
                 // Nothing more has come: let the held block run once the machine would stop.
                 if idle && tape.holds_a_block() {
+                    log.flush();
                     tape.flush(|b| enqueue(blocks, b, &mut last_feed));
                 }
             }
@@ -88,6 +90,7 @@ pub fn run<const Q: usize, const T: usize>(
                         .map_err(GrblError::from)
                 } else {
                     tape.line(line_no, line, |b| enqueue(blocks, b, &mut last_feed))
+                        .map(|()| log.gcode(line))
                         .map_err(GrblError::from)
                 };
                 proto.reply(result, &mut out);
@@ -103,6 +106,7 @@ pub fn run<const Q: usize, const T: usize>(
                             _ => tape.parser().signs(),
                         };
                         let b = finish_block(b, None, &cfg, settings.q0);
+                        log.jog(&jog);
                         enqueue(blocks, b, &mut last_feed);
                         tape.jogged_to(plan.end, signs);
                         jogging = true;
@@ -131,11 +135,10 @@ pub fn run<const Q: usize, const T: usize>(
             Event::Reset => {
                 // Modes back to power-up; the position stays the machine's (the held block is
                 // queued first: during motion the queued blocks still run, not yet stopped).
+                log.reset();
                 tape.reset(|b| enqueue(blocks, b, &mut last_feed));
             }
-            Event::RxOverflow { .. } => {
-                proto.alarm(millac::protocol::codes::alarm::RX_OVERFLOW, &mut out);
-            }
+            Event::RxOverflow { lost } => proto.rx_overflow(lost, &mut out),
             Event::Replied | Event::Unlock | Event::CheckMode(_) => {}
         }
     }
