@@ -3,8 +3,8 @@
 //! held block and soft reset, in the order the loader fed its tape, so the host can replay the
 //! session into exactly the blocks the firmware queued (`millac serve` writes summary.json from
 //! it). Written by the loader task in serial mode ([`crate::serial`]). A semihosting write stops
-//! the emulator while it runs, so under `-icount` it costs no virtual time; without a host that
-//! takes the file (a real board) nothing is written.
+//! the emulator while it runs, so under `-icount` it costs no virtual time. Semihosting, like
+//! `program.nc` and `ac.log`: the QEMU board's; if the host refuses the file nothing is written.
 
 use millac::protocol::jog::JogRequest;
 use millac::wire::{SessionLine, SERVE_LOG_FILE};
