@@ -20,6 +20,13 @@
 //! # AC log
 //!
 //! Text: [`AC_LOG_HEADER`], then one [`AcLogLine`] per AC period.
+//!
+//! # Session log (serial mode)
+//!
+//! [`SERVE_LOG_FILE`], written by the loader in serial mode (`millac_hal::session`), read by the
+//! host after a `serve` session: one [`SessionLine`] per line, in the order the loader fed its
+//! tape. A G-code program (markers are comments), so `millac run serve.nc` accepts it; the host
+//! replays the markers too and gets exactly the blocks the firmware queued.
 use core::fmt;
 
 /// Request FIFO (firmware -> host). The names are NUL-terminated for the firmware's semihosting
@@ -33,11 +40,14 @@ pub const AC_LOG_FILE: &str = "ac.log\0";
 /// directory: init loads it, the serial loader stores it after every accepted `$N=value`. The host
 /// (`serve --settings FILE`) links it to the operator's file.
 pub const SETTINGS_FILE: &str = "settings.bin\0";
+/// The session log of the serial mode ([`SessionLine`]s).
+pub const SERVE_LOG_FILE: &str = "serve.nc\0";
 /// The names without their NUL.
 pub const REQ_NAME: &str = strip_nul(REQ_FILE);
 pub const RESP_NAME: &str = strip_nul(RESP_FILE);
 pub const AC_LOG_NAME: &str = strip_nul(AC_LOG_FILE);
 pub const SETTINGS_NAME: &str = strip_nul(SETTINGS_FILE);
+pub const SERVE_LOG_NAME: &str = strip_nul(SERVE_LOG_FILE);
 
 /// `s` without a trailing NUL.
 const fn strip_nul(s: &str) -> &str {
@@ -220,6 +230,59 @@ impl<'a> AcLogLine<'a> {
     }
 }
 
+/// One line of the session log.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SessionLine<'a> {
+    /// A G-code line the loader accepted (`Tape::line` took it), as received.
+    Gcode(&'a str),
+    /// A `$J=` jog the loader queued: its words as after `$J=`, e.g. `G91 G21 X2.54 F500`
+    /// (`(millac:jog G91 G21 X2.54 F500)`).
+    Jog(&'a str),
+    /// The loader let the look-ahead's held block run (`Tape::flush`): `(millac:flush)`.
+    Flush,
+    /// Soft reset (`Tape::reset`): `(millac:reset)`.
+    Reset,
+}
+
+const JOG_PREFIX: &str = "(millac:jog ";
+const FLUSH_LINE: &str = "(millac:flush)";
+const RESET_LINE: &str = "(millac:reset)";
+
+impl<'a> SessionLine<'a> {
+    /// The line (without its newline). A G-code line that reads as a marker is a comment with no
+    /// effect: the loader leaves it out of the log (see [`SessionLine::is_marker`]).
+    pub fn parse(line: &'a str) -> SessionLine<'a> {
+        if line == FLUSH_LINE {
+            SessionLine::Flush
+        } else if line == RESET_LINE {
+            SessionLine::Reset
+        } else if let Some(j) = line
+            .strip_prefix(JOG_PREFIX)
+            .and_then(|r| r.strip_suffix(')'))
+        {
+            SessionLine::Jog(j)
+        } else {
+            SessionLine::Gcode(line)
+        }
+    }
+
+    /// Whether a received G-code line would read back as a marker (then it is only a comment).
+    pub fn is_marker(line: &str) -> bool {
+        !matches!(SessionLine::parse(line), SessionLine::Gcode(_))
+    }
+
+    /// Writes the line with its newline.
+    pub fn emit(&self, w: &mut impl fmt::Write) -> fmt::Result {
+        match self {
+            SessionLine::Gcode(l) => w.write_str(l)?,
+            SessionLine::Jog(j) => write!(w, "{JOG_PREFIX}{j})")?,
+            SessionLine::Flush => w.write_str(FLUSH_LINE)?,
+            SessionLine::Reset => w.write_str(RESET_LINE)?,
+        }
+        w.write_char('\n')
+    }
+}
+
 #[cfg(test)]
 mod tests {
     extern crate std;
@@ -281,5 +344,40 @@ mod tests {
         assert_eq!(REQ_NAME, "adc.req");
         assert_eq!(RESP_NAME, "adc.resp");
         assert_eq!(AC_LOG_NAME, "ac.log");
+    }
+
+    proptest! {
+        /// Every session line reads back as written (G-code lines that look like markers are left
+        /// out of the log by the loader, see `SessionLine::is_marker`).
+        #[test]
+        fn session_lines_round_trip(line in "[ -~]{0,80}", kind in 0..4u8) {
+            let l = match kind {
+                0 => SessionLine::Gcode(&line),
+                1 => SessionLine::Jog(&line),
+                2 => SessionLine::Flush,
+                _ => SessionLine::Reset,
+            };
+            prop_assume!(!(kind == 0 && SessionLine::is_marker(&line)));
+            prop_assume!(!(kind == 1 && (line.contains(')') || line.contains('\n'))));
+            let mut s = String::new();
+            l.emit(&mut s).unwrap();
+            let body = s.strip_suffix('\n').unwrap();
+            prop_assert!(!body.contains('\n'));
+            prop_assert_eq!(SessionLine::parse(body), l);
+        }
+    }
+
+    #[test]
+    fn session_markers_are_comments() {
+        let mut s = String::new();
+        SessionLine::Jog("G91 X1 F100").emit(&mut s).unwrap();
+        SessionLine::Flush.emit(&mut s).unwrap();
+        SessionLine::Reset.emit(&mut s).unwrap();
+        assert_eq!(
+            s,
+            "(millac:jog G91 X1 F100)\n(millac:flush)\n(millac:reset)\n"
+        );
+        assert!(SessionLine::is_marker("(millac:flush)"));
+        assert!(!SessionLine::is_marker("G1 X1 (millac:flush)"));
     }
 }

@@ -66,6 +66,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
     // The frame's configuration and the parser's, fixed at init: a `$N=value` the table stores
     // (and `$$` lists) at once takes effect for the NC settings at the next start.
     let settings = table.settings.nc;
+    let mut log = crate::session::SessionLog::create();
     let mut tape = match ceiling {
         Some(c) => Tape::with_ac_ceiling(settings, c),
         None => Tape::new(settings),
@@ -134,6 +135,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
             Event::None => {
                 // Nothing more has come: let the held block run once the machine would stop.
                 if room && idle && tape.holds_a_block() {
+                    log.flush();
                     tape.flush(|b| enqueue(blocks, b, &mut last_feed));
                 }
             }
@@ -148,6 +150,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
                         .map_err(GrblError::from)
                 } else {
                     tape.line(line_no, line, |b| enqueue(blocks, b, &mut last_feed))
+                        .map(|()| log.gcode(line))
                         .map_err(GrblError::from)
                 };
                 proto.reply(result, &mut out);
@@ -163,6 +166,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
                             _ => tape.parser().signs(),
                         };
                         let b = finish_block(b, None, &cfg, settings.q0);
+                        log.jog(&jog);
                         enqueue(blocks, b, &mut last_feed);
                         tape.jogged_to(plan.end, signs);
                         jogging = true;
@@ -230,6 +234,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
                 // machine stopped. A reset during motion is an alarm, as in grbl (the position
                 // is exact here, and reported).
                 let moving = !idle && !status.stopped();
+                log.reset();
                 abort(blocks, status, &mut tape);
                 hold = false;
                 cancel_jog = false;
@@ -246,9 +251,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
                     status.ac_resume.store(true, Relaxed);
                 }
             }
-            Event::RxOverflow { .. } => {
-                proto.alarm(millac::protocol::codes::alarm::RX_OVERFLOW, &mut out);
-            }
+            Event::RxOverflow { lost } => proto.rx_overflow(lost, &mut out),
             Event::Replied | Event::CheckMode(_) => {}
         }
     }

@@ -26,8 +26,14 @@ pub fn load_program(text: &str, settings: &Settings) -> Result<Vec<ProgBlock>, T
     let mut push = |b: Block| blocks.push(b);
     tape.feed(text.as_bytes(), &mut push)?;
     tape.finish(&mut push)?;
+    Ok(program_of_blocks(blocks))
+}
+
+/// The blocks in the order the frame runs them, each with its start, end and pulses, from the
+/// machine origin (a program's, or a serial session's, see `serve::replay`).
+pub fn program_of_blocks(blocks: Vec<Block>) -> Vec<ProgBlock> {
     let mut pos = [0i32; 3];
-    Ok(blocks
+    blocks
         .into_iter()
         .map(|block| {
             let start = pos;
@@ -67,7 +73,7 @@ pub fn load_program(text: &str, settings: &Settings) -> Result<Vec<ProgBlock>, T
                 pulses,
             }
         })
-        .collect())
+        .collect()
 }
 
 /// The spindle speed the program sets (its last S word), 0 when it sets none.

@@ -246,59 +246,15 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
         );
     }
     vcd::write_vcd(&out.join("capture.vcd"), 0, &cap.pins, Some(cap.end_ns))?;
-    let done = hold.as_ref().map_or(prog.len(), |h| h.blocks_done);
-    let mut report = analysis::analyse_until(&prog, &settings, 0, &cap.pins, done);
-    let e = analysis::edges(0, &cap.pins);
-    let feed_capped = ac.is_some_and(|a| a.ac);
-    // With the feed cap applied the pulses follow the controller, not the programmed feeds.
-    report.pulses_match_host =
-        (!feed_capped).then(|| analysis::compare_with_host(&prog, &settings, &e.groups).is_none());
+    let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
+    let ac_in = ac.map(|a| AcInput {
+        run: a,
+        samples: exchanges.len(),
+        truth: &truth,
+    });
+    let (summary, report, records) =
+        summarise(&prog, &settings, &cap, out, shift, hold.as_ref(), ac_in)?;
     let fw = firmware_position(&cap.stdout);
-    let mut summary = summary_json(&prog, &report);
-    if feed_capped {
-        summary["max_feed_error_pct"] = Value::Null;
-    }
-    summary["frame_instructions"] = stats(&cap.handlers[0].1);
-    summary["pulse_end_instructions"] = stats(&cap.handlers[1].1);
-    summary["frames"] = json!(cap.handlers[0].1.len());
-    summary["firmware_position_blu"] = json!(fw.map(|p| json!({"x": p[0], "y": p[1], "z": p[2]})));
-    summary["icount_shift"] = json!(shift);
-    summary["completed"] = json!(hold.is_none());
-    if let Some(h) = &hold {
-        summary["hold"] = hold_json(&prog, h);
-        eprintln!("millac: {}", not_finished(&prog, h));
-    }
-    let mut records = Vec::new();
-    if let Some(a) = ac {
-        let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
-        let log = std::fs::read_to_string(out.join(cosim::AC_LOG)).unwrap_or_default();
-        records = cosim::parse_ac_log(&log)?;
-        let acs = millac::ac::AcSettings::default();
-        let rows = ac_rows(&settings, &acs, &records, &truth);
-        std::fs::write(out.join("ac.csv"), crate::acsim::csv(&rows))?;
-        crate::acreport::plot(
-            &out.join("ac.svg"),
-            &rows,
-            acs.f0_n() as f64,
-            acs.t0_nm() as f64,
-            1.0 / acs.optimal_fraction as f64,
-            crate::acsim::feed_ipm(&settings, settings.q0),
-        )?;
-        let load = crate::acsim::load_figures(
-            &truth,
-            &a.cut.tool,
-            acs.optimal_fraction as f64,
-            acs.sample_hz,
-        );
-        let cmp = crate::acreport::compare(&prog, &settings, &a.cut, &acs)?;
-        summary["ac"] = crate::acreport::ac_json(report.machining_time_s, &load, &cmp);
-        summary["ac"]["enabled"] = json!(a.ac);
-        summary["ac"]["samples"] = json!(exchanges.len());
-        summary["ac"]["holds"] = json!(records.iter().filter(|r| r.hold.is_some()).count());
-        summary["ac"]["overruns"] = json!(records.last().map_or(0, |r| r.overruns));
-        let why = hold.as_ref().map(|h| held_at(&prog, h));
-        crate::acreport::print_table(report.machining_time_s, &load, &cmp, why.as_deref());
-    }
     write_json(&out.join("summary.json"), &summary)?;
     let ok = checks_pass(&report) && fw == Some(report.final_position) && hold.is_none();
     Ok(Outcome {
@@ -309,6 +265,87 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
         exchanges,
         ac_log: records,
     })
+}
+
+/// What the AC side of a run adds to its summary: the run's cut, the samples exchanged and the
+/// true force and torque of every sample.
+pub struct AcInput<'a> {
+    pub run: &'a AcRun,
+    pub samples: usize,
+    pub truth: &'a [(f64, f64)],
+}
+
+/// Analyses the capture of `prog` and builds summary.json (the stable keys, README), and with
+/// `ac` writes `out/ac.csv` and `out/ac.svg` from `out/ac.log` and prints the comparison table.
+/// `run` and `serve` (a session replayed from its log) both report through it, so their keys
+/// are the same. Returns the summary, the report and the AC log's records.
+pub fn summarise(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cap: &Capture,
+    out: &Path,
+    shift: u32,
+    hold: Option<&Hold>,
+    ac: Option<AcInput>,
+) -> Result<(Value, Report, Vec<cosim::AcRecord>)> {
+    let done = hold.map_or(prog.len(), |h| h.blocks_done);
+    let mut report = analysis::analyse_until(prog, settings, 0, &cap.pins, done);
+    let e = analysis::edges(0, &cap.pins);
+    let feed_capped = ac.as_ref().is_some_and(|a| a.run.ac);
+    // With the feed cap applied the pulses follow the controller, not the programmed feeds.
+    report.pulses_match_host =
+        (!feed_capped).then(|| analysis::compare_with_host(prog, settings, &e.groups).is_none());
+    let fw = firmware_position(&cap.stdout);
+    let mut summary = summary_json(prog, &report);
+    if feed_capped {
+        summary["max_feed_error_pct"] = Value::Null;
+    }
+    let mut pulses = [0u64; 3];
+    for edge in &e.edges {
+        pulses[edge.axis] += 1;
+    }
+    summary["pulses"] = json!({"x": pulses[0], "y": pulses[1], "z": pulses[2]});
+    summary["frame_instructions"] = stats(&cap.handlers[0].1);
+    summary["pulse_end_instructions"] = stats(&cap.handlers[1].1);
+    summary["frames"] = json!(cap.handlers[0].1.len());
+    summary["firmware_position_blu"] = json!(fw.map(|p| json!({"x": p[0], "y": p[1], "z": p[2]})));
+    summary["icount_shift"] = json!(shift);
+    summary["completed"] = json!(hold.is_none());
+    if let Some(h) = hold {
+        summary["hold"] = hold_json(prog, h);
+        eprintln!("millac: {}", not_finished(prog, h));
+    }
+    let mut records = Vec::new();
+    if let Some(a) = ac {
+        let log = std::fs::read_to_string(out.join(cosim::AC_LOG)).unwrap_or_default();
+        records = cosim::parse_ac_log(&log)?;
+        let acs = millac::ac::AcSettings::default();
+        let rows = ac_rows(settings, &acs, &records, a.truth);
+        std::fs::write(out.join("ac.csv"), crate::acsim::csv(&rows))?;
+        crate::acreport::plot(
+            &out.join("ac.svg"),
+            &rows,
+            acs.f0_n() as f64,
+            acs.t0_nm() as f64,
+            1.0 / acs.optimal_fraction as f64,
+            crate::acsim::feed_ipm(settings, settings.q0),
+        )?;
+        let load = crate::acsim::load_figures(
+            a.truth,
+            &a.run.cut.tool,
+            acs.optimal_fraction as f64,
+            acs.sample_hz,
+        );
+        let cmp = crate::acreport::compare(prog, settings, &a.run.cut, &acs)?;
+        summary["ac"] = crate::acreport::ac_json(report.machining_time_s, &load, &cmp);
+        summary["ac"]["enabled"] = json!(a.run.ac);
+        summary["ac"]["samples"] = json!(a.samples);
+        summary["ac"]["holds"] = json!(records.iter().filter(|r| r.hold.is_some()).count());
+        summary["ac"]["overruns"] = json!(records.last().map_or(0, |r| r.overruns));
+        let why = hold.map(|h| held_at(prog, h));
+        crate::acreport::print_table(report.machining_time_s, &load, &cmp, why.as_deref());
+    }
+    Ok((summary, report, records))
 }
 
 /// ac.csv rows from the firmware's log (one record per AC period, encoder positions) and the true

@@ -1,7 +1,10 @@
 //! `serve` (host): the firmware under QEMU in serial mode (no program file), its UART0 on a TCP
 //! port for a G-code sender, optionally with the simulated cut and the AC live, until the caller
 //! stops it (the command: SIGINT or SIGTERM); then the capture and the report of the whole run in
-//! `out`: `capture.vcd` and `summary.json`.
+//! `out`: `capture.vcd`, `summary.json` with the keys of `run` (`runner::summarise`), and with
+//! the AC `ac.csv` and `ac.svg`. The session's program is the firmware's log `serve.nc` (every
+//! accepted line, jog, early run of a held block and soft reset; `millac::wire::SessionLine`),
+//! replayed here ([`replay`]) into exactly the blocks the firmware queued.
 //!
 //! QEMU gets `-serial tcp:ADDR,server=on,wait=off` (a sender can connect, disconnect and reconnect
 //! while the machine runs) and `-monitor none`; stopping sends QEMU SIGTERM, which shuts it down
@@ -13,8 +16,13 @@
 //! the next session starts with it.
 use crate::capture::{run_capture, CaptureSpec, HandlerSpec};
 use crate::runner::{self, AcRun};
-use crate::{cosim, firmware, vcd};
-use anyhow::{Context, Result};
+use crate::{analysis, cosim, firmware, vcd};
+use anyhow::{anyhow, Context, Result};
+use millac::gcode::tape::{finish_block, Tape};
+use millac::nc::{Block, FrameConfig, Motion};
+use millac::protocol::jog::JogRequest;
+use millac::wire::{self, SessionLine};
+use millac::Settings;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -66,9 +74,10 @@ pub fn link_settings(out: &Path, settings: &Path) -> Result<()> {
 }
 
 /// Runs the firmware in serial mode with UART0 on `tcp` until `stop` is set; writes
-/// `out/capture.vcd` and `out/summary.json`. The firmware loads and stores its settings in
-/// `settings` ([`link_settings`]). With `ac`, the simulated ADC serves the cutting process as in
-/// `run` (and `out/ac.log` is the firmware's AC log).
+/// `out/capture.vcd`, `out/serve.nc` (the firmware's session log) and `out/summary.json`. The
+/// firmware loads and stores its settings in `settings` ([`link_settings`]). With `ac`, the
+/// simulated ADC serves the cutting process as in `run` (`out/ac.log` is the firmware's AC log;
+/// `out/ac.csv` and `out/ac.svg` as in `run`).
 pub fn serve(
     out: &Path,
     settings: &Path,
@@ -81,7 +90,7 @@ pub fn serve(
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     // No program file: the firmware's loader takes the serial line.
     let _ = std::fs::remove_file(out.join("program.nc"));
-    for f in [cosim::REQ, cosim::RESP, cosim::AC_LOG] {
+    for f in [cosim::REQ, cosim::RESP, cosim::AC_LOG, wire::SERVE_LOG_NAME] {
         let _ = std::fs::remove_file(out.join(f));
     }
     link_settings(out, settings)?;
@@ -104,10 +113,11 @@ pub fn serve(
         HandlerSpec::from_elf(&elf, "TIMER_1A")?,
     ];
     spec.stop = Some(stop);
+    let truth = Arc::new(std::sync::Mutex::new(Vec::new()));
     let (cap, samples) = match ac {
         None => (run_capture(&spec)?, 0),
         Some(a) => {
-            let plant = runner::process_plant(a)?;
+            let plant = runner::plant_with_truth(a, truth.clone())?;
             let bridge = cosim::Bridge::start(out, plant, stored.ac.sample_hz, a.ac)?;
             let cap = run_capture(&spec);
             let exchanges = bridge.finish().unwrap_or_default();
@@ -115,33 +125,70 @@ pub fn serve(
         }
     };
     vcd::write_vcd(&out.join("capture.vcd"), 0, &cap.pins, Some(cap.end_ns))?;
-    let [x, y, z] = vcd::positions(0, &cap.pins);
-    let rises: Vec<u64> = crate::analysis::edges(0, &cap.pins)
-        .edges
-        .iter()
-        .map(|e| e.t_ns)
-        .collect();
-    let machining = match (rises.first(), rises.last()) {
-        (Some(a), Some(b)) => (b - a) as f64 * 1e-9,
-        _ => 0.0,
-    };
-    let mut summary = json!({
-        "final_position_blu": {"x": x, "y": y, "z": z},
-        "machining_time_s": (machining * 1e6).round() / 1e6,
-        "frame_instructions": runner::stats(&cap.handlers[0].1),
-        "pulse_end_instructions": runner::stats(&cap.handlers[1].1),
-        "frames": cap.handlers[0].1.len(),
-        "icount_shift": shift,
-        "virtual_time_s": cap.end_ns as f64 * 1e-9,
+    // The session as a program: the blocks the firmware queued, from its log, with the settings
+    // the firmware started with.
+    let settings: Settings = stored.nc;
+    let log_path = out.join(wire::SERVE_LOG_NAME);
+    let log = std::fs::read_to_string(&log_path).unwrap_or_default();
+    let prog = analysis::program_of_blocks(
+        replay(&log, &settings).with_context(|| format!("replaying {}", log_path.display()))?,
+    );
+    let hold = runner::firmware_hold(&cap.stdout);
+    let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
+    let ac_in = ac.map(|a| runner::AcInput {
+        run: a,
+        samples,
+        truth: &truth,
     });
+    let (mut summary, _, _) =
+        runner::summarise(&prog, &settings, &cap, out, shift, hold.as_ref(), ac_in)?;
+    // The end of the whole capture (in `run` the analysis' end equals it when the pulse counts
+    // match; here it stays the capture's even if the log missed a block).
+    let [x, y, z] = vcd::positions(0, &cap.pins);
+    summary["final_position_blu"] = json!({"x": x, "y": y, "z": z});
+    summary["virtual_time_s"] = json!(cap.end_ns as f64 * 1e-9);
     if let Some(a) = ac {
-        summary["ac"] = json!({"enabled": a.ac && stored.ac_enabled, "samples": samples});
+        summary["ac"]["enabled"] = json!(a.ac && stored.ac_enabled);
     }
     runner::write_json(&out.join("summary.json"), &summary)?;
     Ok(Served {
         summary,
         capture: cap,
     })
+}
+
+/// The blocks the firmware queued in a serial session, in order, from its log `serve.nc` (see
+/// `millac::wire::SessionLine`): the same tape, jog planning and block finishing as the loader in
+/// serial mode (`millac_hal::serial`), so the session is analysed like a `run` of its program.
+pub fn replay(log: &str, settings: &Settings) -> Result<Vec<Block>> {
+    let mut tape = Tape::new(*settings);
+    let cfg = FrameConfig::from_settings(settings);
+    let mut blocks = Vec::new();
+    for (i, text) in log.lines().enumerate() {
+        let n = u32::try_from(i + 1).unwrap_or(u32::MAX);
+        match SessionLine::parse(text) {
+            SessionLine::Gcode(l) => tape
+                .line(n, l, |b| blocks.push(b))
+                .map_err(|e| anyhow!("line {n}: {e}"))?,
+            SessionLine::Jog(words) => {
+                let words: String = words.chars().filter(|c| !c.is_whitespace()).collect();
+                let plan = JogRequest::parse(&words)
+                    .and_then(|j| j.plan(tape.parser()))
+                    .map_err(|e| anyhow!("line {n}: jog refused: error:{}", e.0))?;
+                if let Some(b) = plan.block {
+                    let signs = match b.motion {
+                        Motion::Linear(l) => l.signs,
+                        _ => tape.parser().signs(),
+                    };
+                    blocks.push(finish_block(b, None, &cfg, settings.q0));
+                    tape.jogged_to(plan.end, signs);
+                }
+            }
+            SessionLine::Flush => tape.flush(|b| blocks.push(b)),
+            SessionLine::Reset => tape.reset(|b| blocks.push(b)),
+        }
+    }
+    Ok(blocks)
 }
 
 #[cfg(test)]

@@ -32,7 +32,7 @@
 //!         Event::Jog(j) => proto.reply(queue_jog(j.plan(parser)), &mut uart),
 //!         Event::Realtime(p) => { if p.status() { proto.status_report(&data, opts, blu, &mut uart) } ... }
 //!         Event::Reset => { stop, flush the queue, new parser }
-//!         Event::RxOverflow { .. } => proto.alarm(codes::alarm::RX_OVERFLOW, &mut uart),
+//!         Event::RxOverflow { lost } => proto.rx_overflow(lost, &mut uart), // ALARM:110
 //!         Event::Replied | Event::Unlock | Event::CheckMode(_) => {}
 //!     }
 //! }
@@ -132,7 +132,9 @@ pub enum Event<'a> {
     CheckMode(bool),
     /// The receive ring refused `lost` bytes (a sender broke the character-counting contract).
     /// The line they belonged to gets `error:11`; whole lines among them get no answer, so the
-    /// sender is out of step: raise [`codes::alarm::RX_OVERFLOW`].
+    /// sender is out of step: raise [`codes::alarm::RX_OVERFLOW`] ([`Protocol::rx_overflow`]).
+    /// Also right after an [`Event::Reset`] whose marker did not fit, for the bytes refused after
+    /// the reset (the new session's first line lost its start).
     RxOverflow { lost: u32 },
 }
 
@@ -153,6 +155,9 @@ pub struct Protocol<'a> {
     /// Status reports until the next `WCO:` field (0: in the next one).
     wco_countdown: u8,
     queue_blocks: u16,
+    /// Data bytes refused after a soft reset whose marker did not fit, to report as
+    /// [`Event::RxOverflow`] right after the [`Event::Reset`].
+    lost_after_reset: u32,
 }
 
 impl<'a> Protocol<'a> {
@@ -169,6 +174,7 @@ impl<'a> Protocol<'a> {
             settings_refused: None,
             wco_countdown: 0,
             queue_blocks,
+            lost_after_reset: 0,
         }
     }
 
@@ -223,6 +229,13 @@ impl<'a> Protocol<'a> {
     pub fn alarm(&mut self, code: u8, out: &mut dyn Write) {
         self.alarm = Some(code);
         let _ = report::write_alarm(out, code);
+    }
+
+    /// Raises the receive overflow alarm for [`Event::RxOverflow`]: `ALARM:110`, then
+    /// `[MSG:receive overflow: N bytes lost]`, and locks G-code like [`Protocol::alarm`].
+    pub fn rx_overflow(&mut self, lost: u32, out: &mut dyn Write) {
+        self.alarm(codes::alarm::RX_OVERFLOW, out);
+        self.message(out, format_args!("receive overflow: {lost} bytes lost"));
     }
 
     /// Pushes `[MSG:...]`.
@@ -295,6 +308,7 @@ impl<'a> Protocol<'a> {
         if self.rx.resets_pending() {
             // Discard everything received before the reset: up to its marker, or all of it if
             // the marker did not fit.
+            let mut lost = 0;
             loop {
                 match self.rx.pop() {
                     Some(rx::byte::RESET) => {
@@ -303,13 +317,21 @@ impl<'a> Protocol<'a> {
                     }
                     Some(_) => {}
                     None => {
-                        self.rx.reset_flush();
+                        lost = self.rx.reset_flush();
                         break;
                     }
                 }
             }
             self.soft_reset(out);
+            // Bytes refused after the reset: the first line of the new session lost its start.
+            self.lost_after_reset = lost;
             return Event::Reset;
+        }
+        if self.lost_after_reset != 0 {
+            let lost = core::mem::take(&mut self.lost_after_reset);
+            self.damaged = true;
+            self.line.clear();
+            return Event::RxOverflow { lost };
         }
         let pending = self.rx.take_pending();
         if pending.0 != 0 {
@@ -377,6 +399,7 @@ impl<'a> Protocol<'a> {
         self.awaiting = false;
         self.check = false;
         self.wco_countdown = 0;
+        self.lost_after_reset = 0;
         self.banner(out);
     }
 

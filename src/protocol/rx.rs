@@ -9,7 +9,10 @@
 //! `push_byte` returns [`Push::Refused`], counts it, and *poisons* the ring: every later data
 //! byte is refused (and counted) too, until the loader has processed everything stored before
 //! the loss and reports [`super::Event::RxOverflow`]. So the bytes in the ring are always an
-//! unbroken prefix of what was sent, and the loss has one known position (after them).
+//! unbroken prefix of what was sent, and the loss has one known position (after them). A soft
+//! reset that finds no room for its marker flushes the ring; the data bytes refused after it are
+//! counted afresh and reported after the reset, so no line of the new session loses its start
+//! unnoticed.
 //! Realtime bytes are never stored and never refused.
 
 use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering::Relaxed};
@@ -217,7 +220,11 @@ impl RxIsr<'_> {
                     f.spindle.store(100, Relaxed);
                     if f.poisoned.load(Relaxed) || self.ring.enqueue(byte::RESET).is_err() {
                         // No room for the marker: the loader flushes the whole ring instead.
+                        // Bytes lost before the reset do not matter (their lines are discarded
+                        // with it); the count starts again, so the data bytes refused from now on,
+                        // the new session's, are reported after the flush.
                         f.poisoned.store(true, Relaxed);
+                        f.lost.store(0, Relaxed);
                     }
                 }
                 byte::STATUS => self.pend(Pending::STATUS),
@@ -318,13 +325,13 @@ impl RxTask<'_> {
         self.flags.resets.fetch_sub(1, Relaxed);
     }
 
-    /// A reset whose marker did not fit: everything up to now is flushed, every pending reset and
-    /// the loss are handled.
-    pub(crate) fn reset_flush(&mut self) {
+    /// A reset whose marker did not fit: everything up to now is flushed and every pending reset
+    /// handled. Returns the data bytes refused since the (last) reset: they belonged to the new
+    /// session, so the caller reports them like any loss (0: nothing was lost after it).
+    pub(crate) fn reset_flush(&mut self) -> u32 {
         while self.ring.dequeue().is_some() {}
         self.flags.resets.store(0, Relaxed);
-        self.flags.poisoned.store(false, Relaxed);
-        self.flags.lost.store(0, Relaxed);
+        self.clear_loss()
     }
 
     /// Whether the ring refused bytes (poisoned).

@@ -131,15 +131,69 @@ fn reset_cuts_the_stream_at_its_place() {
     assert_eq!(r.take().matches("Grbl 1.1h").count(), 2);
 }
 
-/// A reset into a full ring flushes everything received so far, and the ring works again.
+/// A reset into a full ring flushes everything received so far, and the ring works again. A byte
+/// refused after the reset belonged to the new session: it is reported after the reset and its
+/// line is refused.
 #[test]
 fn reset_into_a_full_ring_flushes_it() {
     let mut r = Rig::new();
     r.push(&[b'X'; RX_BUFFER_SIZE]);
     assert_eq!(r.isr.push_byte(byte::RESET), Push::Realtime(byte::RESET));
-    assert_eq!(r.isr.push_byte(b'Y'), Push::Refused);
     assert_eq!(r.run(), [Ev::Reset]);
     assert_eq!(r.p.rx_available(), RX_BUFFER_SIZE);
+    assert_eq!(gcode(&r.feed(b"M5\n")), ["M5"]);
+    r.push(&[b'X'; RX_BUFFER_SIZE]);
+    assert_eq!(r.isr.push_byte(byte::RESET), Push::Realtime(byte::RESET));
+    assert_eq!(r.isr.push_byte(b'Y'), Push::Refused);
+    assert_eq!(r.run(), [Ev::Reset, Ev::Overflow(1)]);
+    assert_eq!(r.p.rx_available(), RX_BUFFER_SIZE);
+    r.take();
+    assert_eq!(gcode(&r.feed(b"M5\nM5\n")), ["M5"]);
+    assert_eq!(r.responses(), ["error:11", "ok"]);
+}
+
+/// A sender floods the ring, then sends a soft reset and a line at once (recovering from its own
+/// overflow): the ring is still poisoned, so the line's first bytes are refused. They are
+/// reported (the alarm's count is theirs alone, not the flood's) and the line is refused whole,
+/// never run without its start: "G91 G0 X10" must not run as "G0 X10" (absolute), nor "$X" be
+/// dropped without an answer.
+#[test]
+fn bytes_refused_after_a_reset_are_reported_and_their_line_refused() {
+    let mut r = Rig::new();
+    r.push(&[b'X'; RX_BUFFER_SIZE]);
+    // The flood goes on: refused, counted.
+    assert!(r
+        .push(b"G0 Y1\nG0 Y2\n")
+        .iter()
+        .all(|p| *p == Push::Refused));
+    assert_eq!(r.isr.push_byte(byte::RESET), Push::Realtime(byte::RESET));
+    assert!(r.push(b"G91 ").iter().all(|p| *p == Push::Refused));
+    assert_eq!(r.run(), [Ev::Reset, Ev::Overflow(4)]);
+    r.take();
+    // The loader raises the alarm (what the firmware does with the event).
+    r.p.rx_overflow(4, &mut r.out);
+    assert_eq!(r.p.alarm_code(), Some(110));
+    assert_eq!(
+        r.take(),
+        "ALARM:110\r\n[MSG:receive overflow: 4 bytes lost]\r\n"
+    );
+    let ev = r.feed(b"G0 X10\n$X\n");
+    assert!(gcode(&ev).is_empty(), "{ev:?}");
+    assert_eq!(r.responses(), ["error:11", "ok"]);
+    // Only "$X" refused, alone after the reset: reported, and the sender gets an answer.
+    r.push(&[b'X'; RX_BUFFER_SIZE]);
+    r.push(&[byte::RESET]);
+    assert!(r.push(b"$X\n").iter().all(|p| *p == Push::Refused));
+    assert_eq!(r.run(), [Ev::Reset, Ev::Overflow(3)]);
+    r.take();
+    r.feed(b"\n");
+    assert_eq!(r.responses(), ["error:11"]);
+    // A second reset before the loader came discards the first one's loss with its lines.
+    r.push(&[b'X'; RX_BUFFER_SIZE]);
+    r.push(&[byte::RESET]);
+    r.push(b"G0 X1\n");
+    r.push(&[byte::RESET]);
+    assert_eq!(r.run(), [Ev::Reset]);
     assert_eq!(gcode(&r.feed(b"M5\n")), ["M5"]);
 }
 
