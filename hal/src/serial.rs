@@ -101,8 +101,10 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
         }
         let ac_held = status.ac_state.load(Relaxed) > AC_RUN;
         if cancel_jog && status.stopped() {
-            // The jog has stopped: drop it (and anything queued behind it) like a reset.
-            abort(blocks, status, &mut tape);
+            // The jog has stopped: drop it and any jog queued behind it. The parser keeps its
+            // modes (a jog changes none) and stands where the machine stopped.
+            let (at, signs) = abort(blocks, status);
+            tape.jogged_to(at, signs);
             cancel_jog = false;
             jogging = false;
             hold = false;
@@ -156,6 +158,12 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
                 proto.reply(result, &mut out);
             }
             Event::Jog(jog) => {
+                // The look-ahead's held block goes first (the parser already stands at its end,
+                // where the jog is planned from).
+                if tape.holds_a_block() {
+                    log.flush();
+                    tape.flush(|b| enqueue(blocks, b, &mut last_feed));
+                }
                 // Planned on a copy of the parser (validated like any block, soft limits
                 // included); queued as it is (no AC ceiling: a jog is the operator's feed); the
                 // parser then stands at its end, its modes unchanged.
@@ -235,7 +243,8 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
                 // is exact here, and reported).
                 let moving = !idle && !status.stopped();
                 log.reset();
-                abort(blocks, status, &mut tape);
+                let (at, signs) = abort(blocks, status);
+                tape.abort(at, signs);
                 hold = false;
                 cancel_jog = false;
                 jogging = false;
@@ -258,13 +267,12 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
 }
 
 /// Soft reset or jog cancel: the frame stops at once and drops every queued block (the abort
-/// bit, one block per frame), then the operator's word is restored by the caller. The tape drops
-/// its held block and the parser stands at the machine's position. Loader task.
+/// bit, one block per frame), then the operator's word is restored. Returns the position (BLU)
+/// and SIGN lines where the machine stopped, for the parser. Loader task.
 fn abort<const Q: usize>(
     blocks: &mut Producer<'static, Block, Q>,
     status: &Status,
-    tape: &mut Tape,
-) {
+) -> ([i32; 3], u8) {
     let word = status.operator.load(Relaxed);
     status.operator.store(word | operator::ABORT, Relaxed);
     // The frame pops one block per frame and publishes idle and the position in the frames
@@ -273,7 +281,7 @@ fn abort<const Q: usize>(
         cortex_m::asm::nop();
     }
     status.operator.store(word & !operator::ABORT, Relaxed);
-    tape.abort(status.position(), status.next_signs.load(Relaxed));
+    (status.position(), status.next_signs.load(Relaxed))
 }
 
 /// [`enqueue_block`], remembering the block's programmed feed (for the status report).

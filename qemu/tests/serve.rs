@@ -1021,3 +1021,88 @@ fn a_flood_is_refused_in_step_and_every_line_answered_ok_ran() {
         assert_eq!(s[k], run.summary[k], "{k}");
     }
 }
+
+/// X of a status report's `MPos:` in mm.
+fn mpos_x(report: &str) -> f64 {
+    report
+        .split('|')
+        .find_map(|f| f.strip_prefix("MPos:"))
+        .and_then(|p| p.split(',').next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("no MPos in {report}"))
+}
+
+/// A jog right behind a line runs after the line's block (review of issue 7: it was queued ahead
+/// of the look-ahead's held block, so the moves ran out of order and the jog's soft-limit check
+/// assumed the wrong start); 0x85 cancels a running jog, which stops short at the acceleration and
+/// the parser stands there; a soft reset while a line runs stops it at once with `ALARM:3`, the
+/// queue flushed and the position exact (the capture's end equals the last report).
+#[test]
+fn jogs_keep_their_order_and_jog_cancel_and_reset_stop_motion() {
+    let Session {
+        addr, stop, server, ..
+    } = start("stop");
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    banner(&mut w, &mut r);
+    // In one write: a line (held by the look-ahead) and a jog back right behind it.
+    w.write_all(b"G90 G21 G1 X2.54 F300\n$J=G90 G21 X0 F300\n")
+        .unwrap();
+    for _ in 0..2 {
+        let got = read_until(&mut r, |s| s == "ok" || s.starts_with("error:"));
+        assert_eq!(got.last().unwrap(), "ok", "{got:?}");
+    }
+    assert!(poll_idle(&mut w, &mut r).starts_with("<Idle|MPos:0.000,"));
+    // Jog cancel.
+    assert_eq!(
+        ask(&mut w, &mut r, "$J=G91 G21 X25.4 F600").last().unwrap(),
+        "ok"
+    );
+    let mut seen = Vec::new();
+    poll_until(&mut w, &mut r, &mut seen, |s| s.starts_with("<Jog"));
+    std::thread::sleep(Duration::from_millis(300));
+    w.write_all(&[0x85]).unwrap();
+    let idle = poll_idle(&mut w, &mut r);
+    let x = mpos_x(&idle);
+    assert!(x > 0.0 && x < 25.4, "jog cancel stopped at {x} mm");
+    // The parser stands where the jog stopped, its modes kept (G90 G21 from the first line): a
+    // move to X0 from there ends at 0.
+    assert_eq!(ask(&mut w, &mut r, "G0 X0").last().unwrap(), "ok");
+    assert!(poll_idle(&mut w, &mut r).starts_with("<Idle|MPos:0.000,"));
+    // Reset during motion.
+    assert_eq!(
+        ask(&mut w, &mut r, "G91 G21 G1 X25.4 F600").last().unwrap(),
+        "ok"
+    );
+    assert_eq!(ask(&mut w, &mut r, "G1 X25.4").last().unwrap(), "ok");
+    poll_until(&mut w, &mut r, &mut seen, |s| s.starts_with("<Run"));
+    std::thread::sleep(Duration::from_millis(300));
+    w.write_all(&[0x18]).unwrap();
+    let after = read_until(&mut r, |s| s.starts_with("ALARM:"));
+    assert_eq!(after.last().unwrap(), "ALARM:3", "{after:?}");
+    let alarm = poll_until(&mut w, &mut r, &mut seen, |_| true)
+        .pop()
+        .unwrap();
+    assert!(alarm.starts_with("<Alarm|"), "{alarm}");
+    let x = mpos_x(&alarm);
+    assert!(x > 0.0 && x < 25.4, "reset stopped at {x} mm");
+    std::thread::sleep(Duration::from_millis(300));
+    let still = poll_until(&mut w, &mut r, &mut seen, |_| true)
+        .pop()
+        .unwrap();
+    assert_eq!(mpos_x(&still), x, "moved after the reset: {still}");
+    assert_eq!(ask(&mut w, &mut r, "$X").last().unwrap(), "ok");
+    let idle = poll_idle(&mut w, &mut r);
+    assert_eq!(mpos_x(&idle), x);
+    stop.store(true, Ordering::SeqCst);
+    let served = server.join().unwrap().expect("serve");
+    // The first pulses are the line's (+X), not the jog's; the capture ends at the reported stop.
+    let edges = millac_qemu::analysis::edges(0, &served.capture.pins).edges;
+    assert_eq!((edges[0].axis, edges[0].dir), (0, 1), "{:?}", edges[0]);
+    let end_x = served.summary["final_position_blu"]["x"].as_i64().unwrap();
+    assert!(
+        (end_x as f64 * 0.00254 - x).abs() < 0.0006,
+        "capture ends at {end_x} BLU, reported {x} mm"
+    );
+}
