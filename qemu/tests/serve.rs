@@ -1095,6 +1095,13 @@ fn jogs_keep_their_order_and_jog_cancel_and_reset_stop_motion() {
     assert_eq!(ask(&mut w, &mut r, "$X").last().unwrap(), "ok");
     let idle = poll_idle(&mut w, &mut r);
     assert_eq!(mpos_x(&idle), x);
+    // A sender that disconnects and reconnects finds the machine as it left it (no reset sent).
+    drop((w, r));
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    let mpos = |s: &str| s.split('|').nth(1).unwrap_or("").to_string();
+    assert_eq!(mpos(&poll_idle(&mut w, &mut r)), mpos(&idle));
     stop.store(true, Ordering::SeqCst);
     let served = server.join().unwrap().expect("serve");
     // The first pulses are the line's (+X), not the jog's; the capture ends at the reported stop.
