@@ -61,7 +61,10 @@ pub struct Settings {
     pub soft_min: [i32; 3],
     pub soft_max: [i32; 3],
     /// Acceleration limit per axis X, Y, Z in BLU/s^2, for the acceleration ramps (grbl's
-    /// `$120`..`$122`, listed in mm/s^2). Default 100 000 BLU/s^2 = 10 in/s^2 = 254 mm/s^2.
+    /// `$120`..`$122`, listed in mm/s^2). Default 250 000 BLU/s^2 = 25 in/s^2 = 635 mm/s^2
+    /// (0.065 g, a servo-driven knee mill's feed drive): at 10 in/s^2 the ramps' lag made the
+    /// paper's FRC (with the firmware's 3-window held peak) cycle at the Fig. 1 cavity's first
+    /// full-slot entry (README, "Acceleration and the AC").
     pub accel_blu_s2: [u32; 3],
 }
 
@@ -81,7 +84,7 @@ impl Default for Settings {
             sign_setup_ns: 5_000,
             soft_min: [-100_000, -100_000, -40_000],
             soft_max: [100_000, 100_000, 40_000],
-            accel_blu_s2: [100_000; 3],
+            accel_blu_s2: [250_000; 3],
         }
     }
 }

@@ -127,6 +127,60 @@ fn start_in(out: std::path::PathBuf, settings: std::path::PathBuf) -> Session {
     }
 }
 
+/// The capture of a session that ran `prog` to its end: the pulse counts match, every block ends
+/// exactly on its end point, and the summary's final position is the program's end.
+fn check_capture_against(
+    prog: &[millac_qemu::analysis::ProgBlock],
+    settings: &millac::Settings,
+    served: &serve::Served,
+) {
+    let report = millac_qemu::analysis::analyse(prog, settings, 0, &served.capture.pins);
+    assert!(report.counts_match, "pulse counts");
+    for (k, b) in report.blocks.iter().enumerate() {
+        assert!(
+            b.end_exact,
+            "block {k} does not end on its end point: {b:?}"
+        );
+    }
+    let p = &served.summary["final_position_blu"];
+    let end = prog.last().unwrap().end;
+    assert_eq!(
+        [p["x"].as_i64(), p["y"].as_i64(), p["z"].as_i64()],
+        end.map(|v| Some(i64::from(v)))
+    );
+}
+
+/// A session with a pty from socat in front of its port, as for any serial-only sender: once the
+/// firmware answers on TCP (it may still be starting under load), socat takes the port. The
+/// session, the pty's path and the relay (kill it when done).
+fn start_with_pty(tag: &str) -> (Session, std::path::PathBuf, std::process::Child) {
+    use std::process::{Command, Stdio};
+    let socat = millac_qemu::tools::ensure_tool("socat").expect("socat");
+    let session = start(tag);
+    let (out, addr) = (&session.out, &session.addr);
+    std::fs::create_dir_all(out).unwrap();
+    {
+        let stream = connect(addr);
+        let mut w = stream.try_clone().unwrap();
+        let mut r = BufReader::new(stream);
+        banner(&mut w, &mut r);
+    }
+    let tty = out.join("tty");
+    let relay = Command::new(socat)
+        .arg(format!("pty,raw,echo=0,link={}", tty.display()))
+        .arg(format!("tcp:{addr}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("socat");
+    let t0 = Instant::now();
+    while !tty.exists() {
+        assert!(t0.elapsed() < Duration::from_secs(10), "no pty from socat");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    (session, tty, relay)
+}
+
 #[test]
 fn a_sender_streams_lines_over_tcp_and_the_capture_ends_where_they_programmed() {
     let Session {
@@ -251,36 +305,8 @@ fn a_sender_streams_lines_over_tcp_and_the_capture_ends_where_they_programmed() 
 /// for `$I`.
 #[test]
 fn a_pty_from_socat_speaks_grbl() {
-    use std::process::{Command, Stdio};
     use std::sync::mpsc;
-    let socat = millac_qemu::tools::ensure_tool("socat").expect("socat");
-    let Session {
-        out,
-        addr,
-        stop,
-        server,
-    } = start("pty");
-    std::fs::create_dir_all(&out).unwrap();
-    // The firmware answers on TCP first (it may still be starting); then socat takes the port.
-    {
-        let stream = connect(&addr);
-        let mut w = stream.try_clone().unwrap();
-        let mut r = BufReader::new(stream);
-        banner(&mut w, &mut r);
-    }
-    let tty = out.join("tty");
-    let mut relay = Command::new(socat)
-        .arg(format!("pty,raw,echo=0,link={}", tty.display()))
-        .arg(format!("tcp:{addr}"))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("socat");
-    let t0 = Instant::now();
-    while !tty.exists() {
-        assert!(t0.elapsed() < Duration::from_secs(10), "no pty from socat");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let (Session { stop, server, .. }, tty, mut relay) = start_with_pty("pty");
     let mut pty = std::fs::OpenOptions::new()
         .read(true)
         .write(true)
@@ -346,38 +372,10 @@ fn a_pty_from_socat_speaks_grbl() {
 fn pygrbl_streamer_streams_the_fig1_program() {
     use millac::Settings;
     use millac_qemu::{analysis, tools};
-    use std::process::{Command, Stdio};
+    use std::process::Command;
     let ws = millac_qemu::firmware::workspace();
     let python = tools::ensure_python_sender(&ws.join("target").join("py-sender")).expect("sender");
-    let socat = tools::ensure_tool("socat").expect("socat");
-    let Session {
-        out,
-        addr,
-        stop,
-        server,
-    } = start("py");
-    std::fs::create_dir_all(&out).unwrap();
-    // Wait until the firmware answers (it may still be starting under load), then put a pty in
-    // front of the port for the sender.
-    {
-        let stream = connect(&addr);
-        let mut w = stream.try_clone().unwrap();
-        let mut r = BufReader::new(stream);
-        banner(&mut w, &mut r);
-    }
-    let tty = out.join("tty");
-    let mut relay = Command::new(socat)
-        .arg(format!("pty,raw,echo=0,link={}", tty.display()))
-        .arg(format!("tcp:{addr}"))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("socat");
-    let t0 = Instant::now();
-    while !tty.exists() {
-        assert!(t0.elapsed() < Duration::from_secs(10), "no pty from socat");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let (Session { stop, server, .. }, tty, mut relay) = start_with_pty("py");
     let program = ws.join("qemu").join("programs").join("fig1-cavity.nc");
     let script = r#"
 import sys, threading, time, json
@@ -489,20 +487,7 @@ print(json.dumps(obs))
     let settings = Settings::default();
     let text = std::fs::read_to_string(&program).unwrap();
     let prog = analysis::load_program(&text, &settings).unwrap();
-    let report = analysis::analyse(&prog, &settings, 0, &served.capture.pins);
-    assert!(report.counts_match, "pulse counts");
-    for (k, b) in report.blocks.iter().enumerate() {
-        assert!(
-            b.end_exact,
-            "block {k} does not end on its end point: {b:?}"
-        );
-    }
-    let p = &served.summary["final_position_blu"];
-    let end = prog.last().unwrap().end;
-    assert_eq!(
-        [p["x"].as_i64(), p["y"].as_i64(), p["z"].as_i64()],
-        end.map(|v| Some(i64::from(v)))
-    );
+    check_capture_against(&prog, &settings, &served);
 }
 
 /// Sends `line` and reads to its `ok` / `error:N`; every line read.
@@ -782,20 +767,7 @@ fn ac_holds_and_operator_holds_resume_in_the_cut() {
     let served = server.join().unwrap().expect("serve");
     let settings = Settings::default();
     let prog = analysis::load_program(&format!("{program}M2\n"), &settings).unwrap();
-    let report = analysis::analyse(&prog, &settings, 0, &served.capture.pins);
-    assert!(report.counts_match, "pulse counts");
-    for (k, b) in report.blocks.iter().enumerate() {
-        assert!(
-            b.end_exact,
-            "block {k} does not end on its end point: {b:?}"
-        );
-    }
-    let p = &served.summary["final_position_blu"];
-    let end = prog.last().unwrap().end;
-    assert_eq!(
-        [p["x"].as_i64(), p["y"].as_i64(), p["z"].as_i64()],
-        end.map(|v| Some(i64::from(v)))
-    );
+    check_capture_against(&prog, &settings, &served);
     let log = std::fs::read_to_string(out.join("ac.log")).unwrap();
     assert!(log.contains("hold:"), "no hold in ac.log");
 }
