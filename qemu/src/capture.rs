@@ -336,7 +336,17 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
             std::fs::remove_file(f).with_context(|| format!("removing {}", f.display()))?;
         }
     }
-    let mut child = qemu_command(spec, &elf, &plugin, &log, &trace)
+    let mut cmd = qemu_command(spec, &elf, &plugin, &log, &trace);
+    // QEMU never outlives the thread that started it (a killed `serve`, a test that panics and
+    // ends its process): the kernel sends it SIGKILL when its parent goes.
+    // SAFETY: prctl(2) between fork and exec is async-signal-safe and touches no memory of ours.
+    unsafe {
+        std::os::unix::process::CommandExt::pre_exec(&mut cmd, || {
+            libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
+            Ok(())
+        });
+    }
+    let mut child = cmd
         .current_dir(&run_dir)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())

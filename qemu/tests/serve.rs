@@ -1085,3 +1085,62 @@ fn jogs_keep_their_order_and_jog_cancel_and_reset_stop_motion() {
         "capture ends at {end_x} BLU, reported {x} mm"
     );
 }
+
+/// The QEMU processes a process (thread) started, from /proc.
+fn qemu_children(pid: u32) -> Vec<u32> {
+    let mut found = Vec::new();
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
+        return found;
+    };
+    for t in tasks.flatten() {
+        let children = std::fs::read_to_string(t.path().join("children")).unwrap_or_default();
+        for c in children
+            .split_whitespace()
+            .filter_map(|c| c.parse::<u32>().ok())
+        {
+            let comm = std::fs::read_to_string(format!("/proc/{c}/comm")).unwrap_or_default();
+            if comm.trim() == "qemu-system-arm" {
+                found.push(c);
+            }
+        }
+    }
+    found
+}
+
+/// QEMU never outlives the host tool: a `serve` killed outright (SIGKILL, or a test that panics
+/// and ends its process) takes its QEMU with it (the child asks the kernel for SIGKILL when its
+/// parent dies). Before, the QEMU went on running, holding its port, until killed by hand.
+#[test]
+fn qemu_dies_with_the_tool_that_started_it() {
+    let out = fresh("orphan");
+    let addr = format!("127.0.0.1:{}", free_port());
+    let mut tool = std::process::Command::new(env!("CARGO_BIN_EXE_millac-qemu"))
+        .args(["serve", "--nc-only", "--tcp", &addr, "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("millac-qemu serve");
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    banner(&mut w, &mut r);
+    let qemu = qemu_children(tool.id());
+    assert_eq!(qemu.len(), 1, "{qemu:?}");
+    tool.kill().unwrap();
+    tool.wait().unwrap();
+    let t0 = Instant::now();
+    while std::path::Path::new(&format!("/proc/{}", qemu[0])).exists() {
+        // A zombie is dead too (reaped by init).
+        let state = std::fs::read_to_string(format!("/proc/{}/stat", qemu[0])).unwrap_or_default();
+        if state.split_whitespace().nth(2) == Some("Z") {
+            break;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "QEMU {} outlived its parent",
+            qemu[0]
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
