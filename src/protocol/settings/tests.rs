@@ -19,11 +19,12 @@ $255=80\r\n$256=0.9\r\n$257=75000\r\n$258=100\r\n$259=3000\r\n$260=-0.1\r\n$261=
 $263=0\r\n$270=0.05\r\n$271=2.5\r\n$272=2.5\r\n$273=2048\r\n$274=2048\r\n$275=2048\r\n$280=20\r\n\
 $281=1500\r\n$282=1\r\n$283=50\r\n$284=6.35\r\n$285=0.6\r\n$286=1.4\r\n$287=5\r\n$288=5\r\n";
 
-/// The record of the defaults, version 1: a change of the layout must bump the version.
+/// The record of the defaults, version 1 (its acceleration 250 000 BLU/s^2 since the ramps came,
+/// issue 7): a change of the layout must bump the version.
 const DEFAULT_IMAGE: &str = "4d4c53540100af000088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
-feff6079feffc063ffffa0860100a0860100409c0000a0860100a0860100a08601000100e80300000a000000cdcc4c\
+feff6079feffc063ffffa0860100a0860100409c000090d0030090d0030090d003000100e80300000a000000cdcc4c\
 3d00000045000020400000004500002040000000450000007a450000a0426666663ff824010064000000b80b0000cd\
-ccccbd14000000dc050100320000003333cb409a99193f3333b33f0000a0400500000003000000000100f664603e";
+ccccbd14000000dc050100320000003333cb409a99193f3333b33f0000a04005000000030000000001002003018b";
 
 fn listing(m: &MachineSettings) -> String {
     let mut s = String::new();
@@ -81,7 +82,8 @@ fn grbl_settings_take_grbl_units() {
     set(&mut m, "$111=2999.994").unwrap();
     set(&mut m, "$112=3000").unwrap(); // the same rate once rounded
     set(&mut m, "$121=100").unwrap();
-    assert_eq!(m.nc.accel_blu_s2, [100_000, 39_370, 100_000]);
+    let d = Settings::default().accel_blu_s2[0];
+    assert_eq!(m.nc.accel_blu_s2, [d, 39_370, d]);
     set(&mut m, "$130=200").unwrap();
     assert_eq!(m.nc.soft_max[0], 78_740);
     set(&mut m, "$232=-50.8").unwrap();
@@ -224,7 +226,11 @@ fn blu_change_keeps_the_mm_values() {
     assert_eq!(m.nc.blu, Blu::Micron);
     assert_eq!(m.nc.soft_max, [254_000, 254_000, 101_600]);
     assert_eq!(m.nc.soft_min, [-254_000, -254_000, -101_600]);
-    assert_eq!(m.nc.accel_blu_s2, [254_000; 3]);
+    // The default 25 in/s^2 = 635 mm/s^2 = 635 000 um/s^2.
+    assert_eq!(
+        m.nc.accel_blu_s2,
+        [Settings::default().accel_blu_s2[0] * 254 / 100; 3]
+    );
     assert_eq!(m.nc.rapid_hz, 66_886); // 26 333 x 2.54 = 66 885.8
     let l = listing(&m);
     assert!(l.starts_with("$200=0.001\r\n"), "{l}");
