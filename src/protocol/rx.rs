@@ -20,8 +20,12 @@ use heapless::spsc::{Consumer, Producer, Queue};
 
 /// Bytes of unacknowledged lines a sender may have in flight (grbl's RX_BUFFER_SIZE).
 pub const RX_BUFFER_SIZE: usize = 128;
+/// Reset markers the ring holds beside the 128 data bytes: a marker never takes the data's room,
+/// so a sender that counts 128 bytes from a banner while a second reset is still queued is not
+/// refused. A reset beyond these is handled as one whose marker did not fit (the ring is flushed).
+pub const MARKER_SLOTS: usize = 4;
 /// heapless' SPSC queue holds N - 1 elements.
-const RING: usize = RX_BUFFER_SIZE + 1;
+const RING: usize = RX_BUFFER_SIZE + MARKER_SLOTS + 1;
 
 /// The realtime command bytes of grbl 1.1.
 pub mod byte {
@@ -137,6 +141,10 @@ struct Flags {
     /// Soft resets received and not yet handled by the loader. Each stored reset is also a marker
     /// byte (0x18) in the ring at its position in the stream.
     resets: AtomicU8,
+    /// Reset markers in the ring (at most [`MARKER_SLOTS`]): incremented by the ISR when it stores
+    /// one, decremented by the loader when it takes one; the data bytes in the ring are its
+    /// length minus these.
+    markers: AtomicU8,
     /// A byte (or reset marker) did not fit: refuse data bytes until the loader clears it.
     poisoned: AtomicBool,
     /// Data bytes refused since the loader last looked.
@@ -167,6 +175,7 @@ impl RxShared {
             flags: Flags {
                 pending: AtomicU8::new(0),
                 resets: AtomicU8::new(0),
+                markers: AtomicU8::new(0),
                 poisoned: AtomicBool::new(false),
                 lost: AtomicU32::new(0),
                 feed: AtomicU8::new(100),
@@ -218,13 +227,19 @@ impl RxIsr<'_> {
                     f.feed.store(100, Relaxed);
                     f.rapid.store(100, Relaxed);
                     f.spindle.store(100, Relaxed);
-                    if f.poisoned.load(Relaxed) || self.ring.enqueue(byte::RESET).is_err() {
+                    let markers = f.markers.load(Relaxed);
+                    if f.poisoned.load(Relaxed)
+                        || markers as usize >= MARKER_SLOTS
+                        || self.ring.enqueue(byte::RESET).is_err()
+                    {
                         // No room for the marker: the loader flushes the whole ring instead.
                         // Bytes lost before the reset do not matter (their lines are discarded
                         // with it); the count starts again, so the data bytes refused from now on,
                         // the new session's, are reported after the flush.
                         f.poisoned.store(true, Relaxed);
                         f.lost.store(0, Relaxed);
+                    } else {
+                        f.markers.store(markers + 1, Relaxed);
                     }
                 }
                 byte::STATUS => self.pend(Pending::STATUS),
@@ -246,7 +261,13 @@ impl RxIsr<'_> {
             }
             return Push::Realtime(b);
         }
-        if f.poisoned.load(Relaxed) || self.ring.enqueue(b).is_err() {
+        // The data bytes in the ring: its length without the reset markers (the loader may have
+        // taken a marker and not yet counted it: then one byte more is let in, never fewer).
+        let data = self
+            .ring
+            .len()
+            .saturating_sub(f.markers.load(Relaxed) as usize);
+        if f.poisoned.load(Relaxed) || data >= RX_BUFFER_SIZE || self.ring.enqueue(b).is_err() {
             f.poisoned.store(true, Relaxed);
             f.lost
                 .store(f.lost.load(Relaxed).saturating_add(1), Relaxed);
@@ -308,7 +329,11 @@ impl RxTask<'_> {
 
     /// Free bytes in the ring (the `Bf:` field's second value).
     pub fn available(&self) -> usize {
-        RX_BUFFER_SIZE - self.ring.len()
+        let data = self
+            .ring
+            .len()
+            .saturating_sub(self.flags.markers.load(Relaxed) as usize);
+        RX_BUFFER_SIZE.saturating_sub(data)
     }
 
     pub(crate) fn take_pending(&self) -> Pending {
@@ -321,7 +346,8 @@ impl RxTask<'_> {
 
     /// One reset handled (its marker was found in the ring).
     pub(crate) fn reset_done(&self) {
-        // Only the ISR increments; this read-modify-write runs with the count above 0.
+        // Only the ISR increments; these read-modify-writes run with the counts above 0.
+        self.flags.markers.fetch_sub(1, Relaxed);
         self.flags.resets.fetch_sub(1, Relaxed);
     }
 
@@ -329,7 +355,10 @@ impl RxTask<'_> {
     /// handled. Returns the data bytes refused since the (last) reset: they belonged to the new
     /// session, so the caller reports them like any loss (0: nothing was lost after it).
     pub(crate) fn reset_flush(&mut self) -> u32 {
+        // The ring is poisoned here (the marker did not fit), so the ISR stores nothing, marker
+        // or data, until `clear_loss` lifts the poison.
         while self.ring.dequeue().is_some() {}
+        self.flags.markers.store(0, Relaxed);
         self.flags.resets.store(0, Relaxed);
         self.clear_loss()
     }

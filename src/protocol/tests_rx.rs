@@ -188,12 +188,14 @@ fn bytes_refused_after_a_reset_are_reported_and_their_line_refused() {
     r.take();
     r.feed(b"\n");
     assert_eq!(r.responses(), ["error:11"]);
-    // A second reset before the loader came discards the first one's loss with its lines.
+    // A second reset before the loader came discards the bytes lost after the first one with
+    // its lines: two resets, two banners (the first one's marker has a slot of its own beside
+    // the full data), and no overflow.
     r.push(&[b'X'; RX_BUFFER_SIZE]);
     r.push(&[byte::RESET]);
-    r.push(b"G0 X1\n");
+    assert!(r.push(b"G0 X1\n").iter().all(|p| *p == Push::Refused));
     r.push(&[byte::RESET]);
-    assert_eq!(r.run(), [Ev::Reset]);
+    assert_eq!(r.run(), [Ev::Reset, Ev::Reset]);
     assert_eq!(gcode(&r.feed(b"M5\n")), ["M5"]);
 }
 
@@ -364,4 +366,27 @@ fn poll_realtime_serves_requests_and_leaves_the_lines() {
     r.push(b"G1 X3\n\x18G1 X4\n");
     assert!(matches!(r.p.poll_realtime(&mut r.out), Event::Reset));
     assert_eq!(gcode(&r.run()), ["G1 X4"]);
+}
+
+/// A sender that sends 0x18 twice (a retry, as the serve tests' and many senders' connect does)
+/// starts counting 128 bytes at the first banner, while the second reset's marker still sits in
+/// the ring: markers must not take the data's room, so all 128 bytes are stored. (The marker took
+/// a slot of the 128: the 128th byte was refused and raised a receive overflow; the flood test
+/// saw that after a second banner.)
+#[test]
+fn reset_markers_do_not_take_the_128_bytes() {
+    let mut r = Rig::new();
+    r.push(&[byte::RESET, byte::RESET]);
+    // The loader handles the first reset (banner); the second one's marker is still queued.
+    assert_eq!(r.poll(), Some(Ev::Reset));
+    assert_eq!(r.p.rx_available(), RX_BUFFER_SIZE);
+    let data: Vec<u8> = b"G0 X0.001\n".iter().copied().cycle().take(RX_BUFFER_SIZE).collect();
+    let pushed = r.push(&data);
+    assert!(pushed.iter().all(|p| *p == Push::Stored), "{pushed:?}");
+    assert_eq!(r.p.rx_available(), 0);
+    assert_eq!(r.isr.push_byte(b'1'), Push::Refused);
+    // The second reset discards nothing after it: every whole line of the 128 bytes comes.
+    let ev = r.run();
+    assert_eq!(ev[0], Ev::Reset);
+    assert_eq!(gcode(&ev).len(), RX_BUFFER_SIZE / 10);
 }
