@@ -380,7 +380,12 @@ fn reset_markers_do_not_take_the_128_bytes() {
     // The loader handles the first reset (banner); the second one's marker is still queued.
     assert_eq!(r.poll(), Some(Ev::Reset));
     assert_eq!(r.p.rx_available(), RX_BUFFER_SIZE);
-    let data: Vec<u8> = b"G0 X0.001\n".iter().copied().cycle().take(RX_BUFFER_SIZE).collect();
+    let data: Vec<u8> = b"G0 X0.001\n"
+        .iter()
+        .copied()
+        .cycle()
+        .take(RX_BUFFER_SIZE)
+        .collect();
     let pushed = r.push(&data);
     assert!(pushed.iter().all(|p| *p == Push::Stored), "{pushed:?}");
     assert_eq!(r.p.rx_available(), 0);
