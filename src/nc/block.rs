@@ -71,6 +71,19 @@ pub struct Linear {
 /// overflows.
 pub const RAMP_MAX: u32 = 1 << 30;
 
+/// The highest feed number of an arc of radius `r` BLU whose centripetal acceleration stays within
+/// `accel_q8` (Q8 feed numbers per frame, see `FrameConfig::accel_q8`): v^2 / R <= a with
+/// v = W0 f / q0 and a = accel_q8 W0^2 / (256 q0) gives f^2 <= accel_q8 R q0 / 256, and with
+/// `q0_q8` = 256 q0 that is accel_q8 R q0_q8 / 65536. At least 1; u32::MAX when no feed could
+/// reach it.
+pub fn centripetal_feed(accel_q8: u32, r: u32, q0_q8: u32) -> u32 {
+    let f2 = accel_q8 as u128 * r as u128 * q0_q8 as u128 / 65_536;
+    match u64::try_from(f2) {
+        Ok(f2) => u32::try_from(super::isqrt(f2)).unwrap_or(u32::MAX).max(1),
+        Err(_) => u32::MAX,
+    }
+}
+
 /// Most quadrant segments an arc can have (a full circle from a point off the axes).
 pub const MAX_SEGMENTS: usize = 5;
 
@@ -135,8 +148,11 @@ impl Block {
     ///
     /// - `ramp`: the path acceleration in Q8 feed numbers per frame that keeps every axis within
     ///   its limit: a line moves axis k by |d_k| / q of the path, so the path may accelerate at
-    ///   min over the moving axes of a_k q / |d_k|; an arc at the smaller limit of its plane's
-    ///   axes (its centripetal acceleration is not limited). At least 1.
+    ///   min over the moving axes of a_k q / |d_k|; an arc at the smaller limit a of its plane's
+    ///   axes. At least 1.
+    /// - An arc's feed is capped so that its centripetal acceleration v^2 / R stays within that
+    ///   a (each axis of the plane sees a sinusoid of that amplitude; grbl limits arcs the same
+    ///   way): f <= sqrt(a R) q0 / W0, see [`centripetal_feed`].
     ///
     /// An unsealed block (all 0) runs at its feed without deceleration, and never starts: its
     /// ramp is 0 (every block the tape emits is sealed).
@@ -168,9 +184,11 @@ impl Block {
                 l.ramp = ramp.clamp(1, RAMP_MAX as u64) as u32;
             }
             Motion::Arc(c) => {
-                (c.f_floor, c.decel_below) = regs(c.f, c.decel);
                 let (x, y) = c.plane.axes();
-                c.ramp = a[x].min(a[y]).clamp(1, RAMP_MAX);
+                let a_arc = a[x].min(a[y]);
+                c.f = c.f.min(centripetal_feed(a_arc, c.r, cfg.q0_q8));
+                (c.f_floor, c.decel_below) = regs(c.f, c.decel);
+                c.ramp = a_arc.clamp(1, RAMP_MAX);
             }
             Motion::Rapid(_) | Motion::Dwell(_) => {}
         }

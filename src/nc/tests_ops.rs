@@ -433,3 +433,80 @@ fn abort_stops_at_once_and_drops_the_queue_keeping_the_position() {
     rig.finish(u32::MAX, RUN, 100_000);
     assert_eq!(rig.pulses[0], x - 100);
 }
+
+/// A full circle of radius R as one sealed block in the XY plane, starting at (R, 0).
+fn circle(r: i32, f: u32, cfg: &FrameConfig) -> Block {
+    let mut b = Block {
+        line: 1,
+        motion: Motion::Arc(Arc {
+            plane: Plane::XY,
+            ccw: true,
+            start: [r, 0],
+            r: r as u32,
+            targets: [[0, r], [-r, 0], [0, -r], [r, 0], [r, 0]],
+            n_targets: 4,
+            f,
+            decel: false,
+            length: (std::f64::consts::TAU * r as f64).round() as u32,
+            f_floor: 0,
+            decel_below: 0,
+            ramp: 0,
+        }),
+    };
+    b.seal(cfg);
+    b
+}
+
+/// An arc's feed is capped so that its centripetal acceleration v^2 / R stays within the axes'
+/// limit: a small circle at F30 runs at sqrt(a R), and the axes' accelerations measured from the
+/// pulses stay within the limit; a large circle keeps its feed. (Before, the ramp limited only
+/// the path's speed changes, and a 50-BLU circle at F30 asked 5 times the limit of each axis.)
+#[test]
+fn a_small_arc_runs_at_the_feed_its_centripetal_acceleration_allows() {
+    let s = settings();
+    let c = cfg();
+    let a = s.accel_blu_s2[0] as f64;
+    let w0 = s.frame_hz as f64;
+    let q0 = s.q0 as f64;
+    for (r, capped) in [(50i32, true), (5000, false)] {
+        let b = circle(r, 3000, &c);
+        let Motion::Arc(arc) = b.motion else {
+            unreachable!()
+        };
+        let v_max = (a * r as f64).sqrt();
+        let f_max = v_max * q0 / w0;
+        if capped {
+            assert!(
+                (arc.f as f64 - f_max).abs() <= 1.0,
+                "R {r}: f {} for sqrt(a R) = {f_max}",
+                arc.f
+            );
+        } else {
+            assert_eq!(arc.f, 3000, "R {r}");
+            continue;
+        }
+        let mut rig = Rig::new(c, &[b]);
+        rig.finish(u32::MAX, RUN, 1 << 22);
+        assert_eq!(rig.pulses, [0, 0, 0]);
+        // Axis velocity per 2 ms window and its change between windows: within the limit (with
+        // the pulse quantisation of a window: one pulse in 2 ms is 500 BLU/s).
+        let w = 10;
+        let dt = w as f64 / w0;
+        for k in 0..2 {
+            let vel: Vec<f64> = rig
+                .steps
+                .chunks(w)
+                .map(|ch| ch.iter().filter(|&&x| x & (1 << k) != 0).count() as f64 / dt)
+                .collect();
+            let smooth: Vec<f64> = vel.windows(5).map(|v| v.iter().sum::<f64>() / 5.0).collect();
+            let a_max = smooth
+                .windows(2)
+                .map(|p| (p[1] - p[0]).abs() / dt)
+                .fold(0.0f64, f64::max);
+            assert!(
+                a_max <= a * 1.5,
+                "R {r} axis {k}: {a_max:.0} BLU/s^2 against {a}"
+            );
+        }
+    }
+}
