@@ -498,7 +498,10 @@ fn a_small_arc_runs_at_the_feed_its_centripetal_acceleration_allows() {
                 .chunks(w)
                 .map(|ch| ch.iter().filter(|&&x| x & (1 << k) != 0).count() as f64 / dt)
                 .collect();
-            let smooth: Vec<f64> = vel.windows(5).map(|v| v.iter().sum::<f64>() / 5.0).collect();
+            let smooth: Vec<f64> = vel
+                .windows(5)
+                .map(|v| v.iter().sum::<f64>() / 5.0)
+                .collect();
             let a_max = smooth
                 .windows(2)
                 .map(|p| (p[1] - p[0]).abs() / dt)
