@@ -126,6 +126,7 @@ proptest! {
     ) {
         let mut p = parser();
         p.line(1, "F10").unwrap();
+        let mut signs_before = p.signs();
         for (feed, incremental, t) in moves {
             let before = p.position();
             let mode = if incremental { "G91" } else { "G90" };
@@ -138,7 +139,13 @@ proptest! {
             let got = p.line(5, &text).unwrap();
             let d = [t[0] - before[0] as i64, t[1] - before[1] as i64, t[2] - before[2] as i64];
             let steps = d.map(|x| x.unsigned_abs() as u32);
-            let signs = (0..3).filter(|&k| d[k] > 0).fold(0u8, |s, k| s | 1 << k);
+            // The moving axes' directions; an axis that does not move keeps its SIGN line (the
+            // parser completes the byte). The proptest found a rapid with Z standing after a
+            // move up: its Z bit stays set.
+            let before_signs = signs_before;
+            let moving = (0..3).filter(|&k| d[k] != 0).fold(0u8, |s, k| s | 1 << k);
+            let signs = (0..3).filter(|&k| d[k] > 0).fold(0u8, |s, k| s | 1 << k)
+                | (before_signs & !moving);
             match got {
                 Parsed::Nothing => prop_assert_eq!(d, [0, 0, 0]),
                 Parsed::Block(b) => {
@@ -161,6 +168,7 @@ proptest! {
                 Parsed::End => prop_assert!(false),
             }
             prop_assert_eq!(p.position(), [t[0] as i32, t[1] as i32, t[2] as i32]);
+            signs_before = p.signs();
         }
     }
 
@@ -315,4 +323,22 @@ fn unreachable_arc_ends_are_rare() {
         }
     }
     assert!(rejected * 100 <= total, "{rejected} of {total} rejected");
+}
+
+/// The case the proptest found (a rapid in Y with Z standing after a move up): the rapid keeps Z's
+/// SIGN line high, only Y's line goes low.
+#[test]
+fn a_rapid_keeps_the_sign_line_of_an_axis_that_stands() {
+    let mut p = parser();
+    p.line(1, "F10").unwrap();
+    let up = format!("G90 G0 X0 Y0 Z{}", inch(11918));
+    p.line(2, &up).unwrap();
+    let across = format!("G90 G0 X0 Y{} Z{}", inch(-1), inch(11918));
+    let Parsed::Block(b) = p.line(3, &across).unwrap() else {
+        panic!("no block for {across}")
+    };
+    let Motion::Rapid(r) = b.motion else {
+        panic!("{:?}", b.motion)
+    };
+    assert_eq!((r.steps, r.signs), ([0, 1, 0], 0b100));
 }
