@@ -18,6 +18,8 @@
 //! - [`protocol`]: the operator's line protocol (loader task); `protocol::settings` is the `$$`
 //!   table and the persistent settings record (init loads it).
 #![cfg_attr(not(test), no_std)]
+#[cfg(all(feature = "std", not(test)))]
+extern crate std;
 
 pub mod ac;
 pub mod gcode;

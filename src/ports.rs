@@ -30,6 +30,17 @@ pub trait BlockSource {
     fn pop(&mut self);
 }
 
+/// A host queue as the frame's block source (host tests and simulations; feature `std`).
+#[cfg(any(test, feature = "std"))]
+impl BlockSource for std::collections::VecDeque<Block> {
+    fn front(&mut self) -> Option<&Block> {
+        std::collections::VecDeque::front(self)
+    }
+    fn pop(&mut self) {
+        self.pop_front();
+    }
+}
+
 /// Where a frame gets the adaptive controller's feed cap. Frame ISR: only the frames that run the
 /// feed DDA (linear or circular feeding) read it. A `u32` is a fixed cap; the firmware passes a
 /// type that loads the AC task's atomic.

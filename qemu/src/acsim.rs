@@ -10,7 +10,7 @@ use anyhow::{anyhow, Result};
 use millac::ac::{AcController, AcSettings, AcState};
 use millac::gcode::tape::finish_block;
 use millac::nc::{Block, Frame, FrameConfig, Motion, Rate};
-use millac::ports::{BlockSource, Conversion, ForceTorqueAdc};
+use millac::ports::{Conversion, ForceTorqueAdc};
 use millac::rt::ac::{self as rt_ac, AcPeriod};
 use millac::rt::Status;
 use millac::Settings;
@@ -80,17 +80,6 @@ pub struct HostRun {
     pub blocks_done: usize,
     /// Per block: (index, first frame start, last frame end) in ns of virtual time.
     pub spans: Vec<(usize, u64, u64)>,
-}
-
-struct Queue(VecDeque<Block>);
-
-impl BlockSource for Queue {
-    fn front(&mut self) -> Option<&Block> {
-        self.0.front()
-    }
-    fn pop(&mut self) {
-        self.0.pop_front();
-    }
 }
 
 /// The programmed feed of a block in ipm (0 for rapids and dwells).
@@ -206,11 +195,10 @@ pub fn run_with_faults(
     // An enabled AC's feed ceiling, as the firmware's tape applies it (the same function).
     let cfg = FrameConfig::from_settings(settings);
     let ceiling = ac.map(|s| s.ceiling);
-    let mut queue = Queue(
-        prog.iter()
-            .map(|b| finish_block(b.block, ceiling, &cfg, settings.q0))
-            .collect(),
-    );
+    let mut queue: VecDeque<Block> = prog
+        .iter()
+        .map(|b| finish_block(b.block, ceiling, &cfg, settings.q0))
+        .collect();
     let acs = ac.unwrap_or_default();
     // The firmware's sampler and AC period (`millac::rt::ac`) over a host status and ADC.
     let status = Status::new();
@@ -244,7 +232,7 @@ pub fn run_with_faults(
     let mut block_feed = 0.0;
     loop {
         if frame.idle() {
-            match queue.0.front() {
+            match queue.front() {
                 None => break,
                 Some(b) => block_feed = programmed_ipm(settings, b),
             }
@@ -282,7 +270,7 @@ pub fn run_with_faults(
         }
         if chained {
             out.spans.push((out.spans.len(), t, t));
-            block_feed = queue.0.front().map_or(0.0, |b| programmed_ipm(settings, b));
+            block_feed = queue.front().map_or(0.0, |b| programmed_ipm(settings, b));
         }
         let mut halt = false;
         while t >= next_sample {

@@ -5,7 +5,6 @@ use super::block::*;
 use super::frame::{Frame, FrameConfig};
 use super::isqrt;
 use super::operator::{self, RUN};
-use crate::ports::BlockSource;
 use crate::settings::Settings;
 use std::collections::VecDeque;
 use std::vec::Vec;
@@ -50,22 +49,10 @@ fn rapid(d: [i64; 3]) -> Block {
     }
 }
 
-/// The queue as the frame sees it.
-struct Q(VecDeque<Block>);
-
-impl BlockSource for Q {
-    fn front(&mut self) -> Option<&Block> {
-        self.0.front()
-    }
-    fn pop(&mut self) {
-        self.0.pop_front();
-    }
-}
-
 /// A frame, its queue and a record of every frame's pulses.
 struct Rig {
     frame: Frame,
-    q: Q,
+    q: VecDeque<Block>,
     /// Per frame: the step bits.
     steps: Vec<u8>,
     /// Pulses per axis with their signs.
@@ -76,7 +63,7 @@ impl Rig {
     fn new(cfg: FrameConfig, blocks: &[Block]) -> Self {
         Rig {
             frame: Frame::new(cfg),
-            q: Q(blocks.iter().copied().collect()),
+            q: blocks.iter().copied().collect(),
             steps: Vec::new(),
             pulses: [0; 3],
         }
@@ -96,7 +83,7 @@ impl Rig {
     /// Runs until the queue is empty and the frame idle (at most `max` frames).
     fn finish(&mut self, cap: u32, op: u32, max: usize) {
         let mut n = 0;
-        while (!self.q.0.is_empty() || !self.frame.idle()) && n < max {
+        while (!self.q.is_empty() || !self.frame.idle()) && n < max {
             self.run(1, cap, op);
             n += 1;
         }
@@ -422,13 +409,13 @@ fn abort_stops_at_once_and_drops_the_queue_keeping_the_position() {
     let abort = operator::word(100, 100, false, true);
     rig.run(10, u32::MAX, abort);
     assert!(rig.frame.idle());
-    assert!(rig.q.0.is_empty(), "one block dropped per frame");
+    assert!(rig.q.is_empty(), "one block dropped per frame");
     assert_eq!(rig.pulsed(1000), 0, "no pulse after the abort");
     assert_eq!(rig.frame.position(), rig.pulses.map(|v| v as i32));
     assert!(rig.pulses[0] > 0 && rig.pulses[0] < 5000);
     assert_eq!(rig.frame.blocks_done(), 0);
     // A new block after the abort starts from a stop.
-    rig.q.0.push_back(line([-100, 0, 0], 3000, false, &c));
+    rig.q.push_back(line([-100, 0, 0], 3000, false, &c));
     let x = rig.pulses[0];
     rig.finish(u32::MAX, RUN, 100_000);
     assert_eq!(rig.pulses[0], x - 100);

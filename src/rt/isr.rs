@@ -156,7 +156,7 @@ mod tests {
     extern crate std;
     use super::*;
     use crate::gcode::tape::Tape;
-    use crate::nc::{Block, FrameConfig};
+    use crate::nc::FrameConfig;
     use crate::settings::Settings;
     use std::collections::VecDeque;
     use std::vec::Vec;
@@ -223,17 +223,6 @@ mod tests {
         }
     }
 
-    struct Queue(VecDeque<Block>);
-
-    impl BlockSource for Queue {
-        fn front(&mut self) -> Option<&Block> {
-            self.0.front()
-        }
-        fn pop(&mut self) {
-            self.0.pop_front();
-        }
-    }
-
     /// The frame and pulse-end bodies on software ports: a program with rapids, lines and arcs
     /// keeps the timing rule in every frame, the encoder counted from the pins ends where the
     /// frame's position counters do, the status says idle with the exact position, and the frame
@@ -248,7 +237,7 @@ mod tests {
         tape.feed(text.as_bytes(), |b| blocks.push_back(b)).unwrap();
         tape.finish(|b| blocks.push_back(b)).unwrap();
         let n_blocks = blocks.len() as u32;
-        let mut src = Queue(blocks);
+        let mut src = blocks;
         let status = Status::new();
         status.start();
         let reloads = Reloads {
@@ -263,7 +252,7 @@ mod tests {
             if oneshot.pulse_running {
                 pulse_end(&mut pins, &mut oneshot, &status);
             }
-            if status.idle.load(Relaxed) && src.0.is_empty() && task.frame.idle() {
+            if status.idle.load(Relaxed) && src.is_empty() && task.frame.idle() {
                 break;
             }
         }
