@@ -66,6 +66,8 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
     // The frame's configuration and the parser's, fixed at init: a `$N=value` the table stores
     // (and `$$` lists) at once takes effect for the NC settings at the next start.
     let settings = table.settings.nc;
+    // The AC's limits F0, T0 for the `AC:` field, as the AC task started with them.
+    let ac_settings = table.settings.ac;
     let mut log = crate::session::SessionLog::create();
     let mut tape = match ceiling {
         Some(c) => Tape::with_ac_ceiling(settings, c),
@@ -136,9 +138,8 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
         match event {
             Event::None => {
                 // Nothing more has come: let the held block run once the machine would stop.
-                if room && idle && tape.holds_a_block() {
-                    log.flush();
-                    tape.flush(|b| enqueue(blocks, b, &mut last_feed));
+                if room && idle {
+                    run_held(&mut tape, &mut log, blocks, &mut last_feed);
                 }
             }
             Event::Gcode { line, check } => {
@@ -160,10 +161,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
             Event::Jog(jog) => {
                 // The look-ahead's held block goes first (the parser already stands at its end,
                 // where the jog is planned from).
-                if tape.holds_a_block() {
-                    log.flush();
-                    tape.flush(|b| enqueue(blocks, b, &mut last_feed));
-                }
+                run_held(&mut tape, &mut log, blocks, &mut last_feed);
                 // Planned on a copy of the parser (validated like any block, soft limits
                 // included); queued as it is (no AC ceiling: a jog is the operator's feed); the
                 // parser then stands at its end, its modes unchanged.
@@ -206,14 +204,14 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
                     let ac = match status.ac_state.load(Relaxed) {
                         0 => None,
                         n => {
-                            let (f, t) = status.ac_ratios_milli();
+                            let (f, t) = status.ac_measured();
                             Some(AcReport {
                                 feed_share_pct: AcReport::feed_share(
                                     status.feed_cap.load(Relaxed),
                                     last_feed,
                                 ),
-                                f_ratio_milli: f,
-                                t_ratio_milli: t,
+                                f_ratio_milli: AcReport::ratio_milli(f, ac_settings.f0_n()),
+                                t_ratio_milli: AcReport::ratio_milli(t, ac_settings.t0_nm()),
                                 state: if n > AC_RUN {
                                     AcState::Hold(n)
                                 } else {
@@ -263,6 +261,20 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
             Event::RxOverflow { lost } => proto.rx_overflow(lost, &mut out),
             Event::Replied | Event::CheckMode(_) => {}
         }
+    }
+}
+
+/// Queues the look-ahead's held block, if there is one, before the next line has come (logged
+/// as such, so the host's replay flushes it at the same place). Loader task.
+fn run_held<const Q: usize>(
+    tape: &mut Tape,
+    log: &mut crate::session::SessionLog,
+    blocks: &mut Producer<'static, Block, Q>,
+    last_feed: &mut u32,
+) {
+    if tape.holds_a_block() {
+        log.flush();
+        tape.flush(|b| enqueue(blocks, b, last_feed));
     }
 }
 

@@ -223,7 +223,7 @@ impl Frame {
         }
         if self.mode == Mode::Idle {
             // A hold keeps the next block from starting.
-            if op & operator::FEED_MASK != 0 {
+            if !operator::held(op) {
                 if let Some(b) = src.front() {
                     self.initiate(b);
                 }
@@ -321,7 +321,7 @@ impl Frame {
             }
             Mode::Dwell => {
                 // A hold stops the dwell's clock too.
-                if op & operator::FEED_MASK != 0 {
+                if !operator::held(op) {
                     self.ticks = self.ticks.saturating_sub(1);
                 }
                 if self.ticks == 0 {
@@ -651,7 +651,7 @@ impl Frame {
         let pm = self.ptp_m;
         let hold_mask = level(pm);
         if ticks & hold_mask == 0 {
-            if op & operator::FEED_MASK == 0 {
+            if operator::held(op) {
                 self.ptp_m = pm.saturating_sub(1);
             } else if pm <= s1 {
                 self.ptp_m = pm + 1;

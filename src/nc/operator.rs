@@ -43,7 +43,8 @@ pub const fn word(feed_pct: u8, rapid_pct: u8, hold: bool, abort: bool) -> u32 {
     feed | rapid << RAPID_SHIFT | abort
 }
 
-/// Whether the word holds the feed (factor 0).
+/// Whether the word holds the feed (factor 0). Frame ISR.
+#[inline(always)]
 pub const fn held(word: u32) -> bool {
     word & FEED_MASK == 0
 }

@@ -179,21 +179,8 @@ impl AcPeriod {
             },
             Relaxed,
         );
-        let s = self.ctl.settings();
-        let milli = |x: f32, x0: f32| {
-            let r = if x0 > 0.0 { x / x0 * 1000.0 } else { 0.0 };
-            if r >= 65535.0 {
-                65535
-            } else if r > 0.0 {
-                (r + 0.5) as u32
-            } else {
-                0
-            }
-        };
-        status.ac_ratios.store(
-            milli(out.f_n, s.f0_n()) | milli(out.t_nm, s.t0_nm()) << 16,
-            Relaxed,
-        );
+        status.ac_force.store(out.f_n.to_bits(), Relaxed);
+        status.ac_torque.store(out.t_nm.to_bits(), Relaxed);
         if self.enabled {
             status.feed_cap.store(out.feed_cap, Relaxed);
         }
@@ -307,25 +294,27 @@ mod tests {
         assert_eq!(halted, Some(2 + HOLD_EXIT_PERIODS - 1));
     }
 
+    /// One period's window of mid-scale codes (as the `Adc` above converts).
+    fn mid_scale_window(period: &mut AcPeriod) {
+        for k in 0..period.per_period() {
+            let d = [0, 3, 0, 5][k as usize % 4];
+            period.sample([2048 + d, 2048 - d, 2048 + d]);
+        }
+    }
+
     /// Runs `periods` AC periods on mid-scale codes with the encoder advancing as the frame would
     /// at the AC's cap times the operator's factor; returns the last cap.
     fn cap_under_override(factor_q8: u32, periods: u32) -> u32 {
         let status = Status::new();
         status.start();
-        status
-            .operator
-            .store(factor_q8 | crate::nc::operator::RUN & !0xFFFF, Relaxed);
+        status.operator.store(factor_q8, Relaxed);
         let nc = Settings::default();
         let ctl = AcController::new(AcSettings::default()).unwrap();
         let mut period = AcPeriod::new(ctl, nc, true, &status);
-        let per = period.per_period();
         let period_ms = period.ctl.settings().period_ms as u64;
         let mut x = 0u64;
         for _ in 0..periods {
-            for k in 0..per {
-                let d = [0, 3, 0, 5][k as usize % 4];
-                period.sample([2048 + d, 2048 - d, 2048 + d]);
-            }
+            mid_scale_window(&mut period);
             let cap = status.feed_cap.load(Relaxed) as u64;
             // BLU per period at feed number cap * factor: W0 f / q0 per second.
             x += cap * factor_q8 as u64 / 256 * nc.frame_hz as u64 * period_ms
@@ -363,7 +352,6 @@ mod tests {
         status.start();
         let ctl = AcController::new(AcSettings::default()).unwrap();
         let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
-        let per = period.per_period();
         // A period without samples holds.
         let out = period.run(&status);
         assert_eq!(out.out.state, AcState::Hold(Alarm::NoSamples));
@@ -372,17 +360,11 @@ mod tests {
             crate::protocol::codes::alarm::AC_NO_SAMPLES
         );
         assert_eq!(status.feed_cap.load(Relaxed), 0);
-        let feed = |period: &mut AcPeriod| {
-            for k in 0..per {
-                let d = [0, 3, 0, 5][k as usize % 4];
-                period.sample([2048 + d, 2048 - d, 2048 + d]);
-            }
-        };
         // Still held with samples again, until the operator resumes.
-        feed(&mut period);
+        mid_scale_window(&mut period);
         assert!(matches!(period.run(&status).out.state, AcState::Hold(_)));
         status.ac_resume.store(true, Relaxed);
-        feed(&mut period);
+        mid_scale_window(&mut period);
         let out = period.run(&status);
         assert_eq!(out.out.state, AcState::Run);
         assert!(!status.ac_resume.load(Relaxed), "the request is taken");

@@ -25,9 +25,10 @@ pub struct Status {
     /// (`rt::ac::AC_RUN`), else held with this `ALARM:N` number (100 and up). Written by the AC
     /// task each period.
     pub ac_state: AtomicU8,
-    /// F/F0 (low 16 bits) and T/T0 (high 16 bits) of the last AC period in thousandths,
-    /// saturated at 65535. Written by the AC task each period.
-    pub ac_ratios: AtomicU32,
+    /// The force (N) and torque (N*m) the last AC period measured, as `f32` bits. Written by the
+    /// AC task each period; the loader turns them into F/F0 and T/T0 only for a status report.
+    pub ac_force: AtomicU32,
+    pub ac_torque: AtomicU32,
     /// The operator asks the AC to leave its hold (`~` or `$X`): set by the loader, taken (swapped
     /// back to false) by the AC task at its next period.
     pub ac_resume: AtomicBool,
@@ -71,7 +72,8 @@ impl Status {
             velocity_q8: AtomicU32::new(0),
             ladder: AtomicU32::new(0),
             ac_state: AtomicU8::new(0),
-            ac_ratios: AtomicU32::new(0),
+            ac_force: AtomicU32::new(0),
+            ac_torque: AtomicU32::new(0),
             ac_resume: AtomicBool::new(false),
             position: [AtomicI32::new(0), AtomicI32::new(0), AtomicI32::new(0)],
             blocks_done: AtomicU32::new(0),
@@ -100,10 +102,12 @@ impl Status {
         )
     }
 
-    /// The AC's last F/F0 and T/T0 in thousandths.
-    pub fn ac_ratios_milli(&self) -> (u16, u16) {
-        let r = self.ac_ratios.load(Relaxed);
-        (r as u16, (r >> 16) as u16)
+    /// The force (N) and torque (N*m) of the last AC period.
+    pub fn ac_measured(&self) -> (f32, f32) {
+        (
+            f32::from_bits(self.ac_force.load(Relaxed)),
+            f32::from_bits(self.ac_torque.load(Relaxed)),
+        )
     }
 
     /// The encoder counts X, Y, Z.
