@@ -15,29 +15,11 @@
 //! holds (`Alarm::NoSamples`), exactly as on a board whose converter stops. If a read or write
 //! fails (the host went away), the sampler stops its timer and the firmware exits with
 //! `error: simulated ADC lost` (without samples the AC cannot guard the cut).
-use cortex_m_semihosting::{nr, syscall};
+use cortex_m_semihosting::nr;
 
+use crate::semihost::{open, read_exact, write_all};
 use millac::ports::{Conversion, ForceTorqueAdc};
 use millac::wire::{self, Header, Request};
-
-/// Opens `name` (NUL-terminated) with a semihosting open mode; None if the host refuses.
-fn open(name: &[u8], mode: usize) -> Option<usize> {
-    // SAFETY: SYS_OPEN with a NUL-terminated name, its length without the NUL and a valid mode.
-    let fd = unsafe { syscall!(OPEN, name.as_ptr(), mode, name.len() - 1) } as isize;
-    (fd != -1).then_some(fd as usize)
-}
-
-/// Writes all of `bytes` to `fd`; false if the host did not take them all.
-fn write_all(fd: usize, bytes: &[u8]) -> bool {
-    // SAFETY: SYS_WRITE from a buffer we own, its length; returns the bytes NOT written.
-    unsafe { syscall!(WRITE, fd, bytes.as_ptr(), bytes.len()) == 0 }
-}
-
-/// Fills `buf` from `fd`; false on a short read (EOF or error).
-fn read_exact(fd: usize, buf: &mut [u8]) -> bool {
-    // SAFETY: SYS_READ into a buffer we own, at most its length; returns the bytes NOT read.
-    unsafe { syscall!(READ, fd, buf.as_mut_ptr(), buf.len()) == 0 }
-}
 
 /// The open simulated ADC: request and response handles.
 pub struct SimAdc {

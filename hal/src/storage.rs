@@ -8,8 +8,9 @@
 //! image in one SYS_WRITE: QEMU stopped between the two leaves an empty or short file, which the
 //! record's length and CRC checks refuse at the next start (defaults and an alarm), never garbage.
 //! No rename-into-place: it would replace the host's link instead of writing through it.
-use cortex_m_semihosting::{nr, syscall};
+use cortex_m_semihosting::nr;
 
+use crate::semihost::{close, read, write_all};
 use millac::ports::SettingsStorage;
 use millac::wire;
 
@@ -18,15 +19,7 @@ pub struct FileStorage;
 
 /// Opens the settings file with a semihosting open mode; None if the host refuses.
 fn open(mode: usize) -> Option<usize> {
-    let name = wire::SETTINGS_FILE.as_bytes();
-    // SAFETY: SYS_OPEN with a NUL-terminated name, its length without the NUL and a valid mode.
-    let fd = unsafe { syscall!(OPEN, name.as_ptr(), mode, name.len() - 1) } as isize;
-    (fd != -1).then_some(fd as usize)
-}
-
-fn close(fd: usize) -> bool {
-    // SAFETY: SYS_CLOSE of a handle opened by `open`.
-    unsafe { syscall!(CLOSE, fd) == 0 }
+    crate::semihost::open(wire::SETTINGS_FILE.as_bytes(), mode)
 }
 
 impl SettingsStorage for FileStorage {
@@ -40,10 +33,7 @@ impl SettingsStorage for FileStorage {
             if rest.is_empty() {
                 break;
             }
-            // SAFETY: SYS_READ into a buffer we own, at most its length; returns the bytes NOT
-            // read (more than asked: an error).
-            let left = unsafe { syscall!(READ, fd, rest.as_mut_ptr(), rest.len()) };
-            match rest.len().checked_sub(left) {
+            match read(fd, rest) {
                 Some(0) | None => break,
                 Some(got) => n += got,
             }
@@ -58,8 +48,7 @@ impl SettingsStorage for FileStorage {
         let Some(fd) = open(nr::open::W_TRUNC_BINARY) else {
             return false;
         };
-        // SAFETY: SYS_WRITE from a buffer we own, its length; returns the bytes NOT written.
-        let all = unsafe { syscall!(WRITE, fd, image.as_ptr(), image.len()) } == 0;
+        let all = write_all(fd, image);
         close(fd) && all
     }
 }

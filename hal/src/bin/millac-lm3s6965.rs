@@ -92,7 +92,7 @@ fn panic(info: &PanicInfo) -> ! {
 mod app {
     use core::sync::atomic::Ordering::Relaxed;
 
-    use cortex_m_semihosting::{nr, syscall};
+    use cortex_m_semihosting::nr;
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::Alarm;
     use millac::ac::{AcController, FeedCeiling};
@@ -109,6 +109,7 @@ mod app {
     use millac::Settings;
     use millac_hal::actask::{AcTask, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use millac_hal::lm3s6965 as board;
+    use millac_hal::semihost;
     use millac_hal::simadc::{LogFile, SimAdc};
     use millac_hal::storage::FileStorage;
     use millac_hal::uart::TX_QUEUE;
@@ -397,20 +398,16 @@ mod app {
         out: &mut Out,
     ) -> Loaded {
         let mut enqueue = |b: Block| millac_hal::serial::enqueue_block(producer, b);
-        let path = b"program.nc\0";
-        // SAFETY: SYS_OPEN with a NUL-terminated name, its length without the NUL, mode "r".
-        let fd = unsafe { syscall!(OPEN, path.as_ptr(), nr::open::R, path.len() - 1) } as isize;
-        if fd == -1 {
+        let Some(fd) = semihost::open(b"program.nc\0", nr::open::R) else {
             return Loaded::NoFile;
-        }
+        };
         if let Some(e) = refused {
             out.line(format_args!(
                 "error: settings: {}; nothing runs (fix or remove {})",
                 e.message(),
                 millac::wire::SETTINGS_NAME
             ));
-            // SAFETY: SYS_CLOSE of the handle opened above.
-            unsafe { syscall!(CLOSE, fd) };
+            semihost::close(fd);
             return Loaded::Error;
         }
 
@@ -422,9 +419,7 @@ mod app {
         let mut chunk = [0u8; CHUNK];
         let mut ok = true;
         loop {
-            // SAFETY: SYS_READ into a buffer we own, at most its length; returns the bytes NOT read.
-            let left = unsafe { syscall!(READ, fd, chunk.as_mut_ptr(), chunk.len()) };
-            let Some(n) = chunk.len().checked_sub(left) else {
+            let Some(n) = semihost::read(fd, &mut chunk) else {
                 out.line(format_args!("error: cannot read program.nc"));
                 ok = false;
                 // What was accepted still runs.
@@ -445,8 +440,7 @@ mod app {
                 break;
             }
         }
-        // SAFETY: SYS_CLOSE of the handle opened above.
-        unsafe { syscall!(CLOSE, fd) };
+        semihost::close(fd);
         if ok {
             Loaded::All
         } else {
