@@ -391,6 +391,17 @@ fn longest_line_pulses_on_every_command() {
     assert_eq!(out[1000].position[0], 1000);
 }
 
+/// Interpolation commands of the lines among `blocks` (q each).
+pub(super) fn line_commands(blocks: &[Block]) -> u64 {
+    blocks
+        .iter()
+        .map(|b| match b.motion {
+            Motion::Linear(l) => l.q as u64,
+            _ => 0,
+        })
+        .sum()
+}
+
 /// A chain of lines costs no load frame (issue 6, defect 7): 1000 lines of 10 BLU (or 1 BLU) at
 /// FRM take one frame per command plus the first block's load frame, so the path speed is the
 /// programmed feed; each line still ends exactly. (Loading in a frame of its own made 10-BLU blocks
@@ -404,13 +415,7 @@ fn chained_lines_run_at_the_programmed_feed() {
             _ => [-len, -len, 0],
         };
         let blocks: Vec<Block> = (0..1000).map(|k| line(d(k), f, false)).collect();
-        let commands: u64 = blocks
-            .iter()
-            .map(|b| match b.motion {
-                Motion::Linear(l) => l.q as u64,
-                _ => 0,
-            })
-            .sum();
+        let commands = line_commands(&blocks);
         let mut frame = Frame::new(cfg());
         let mut ends = Vec::new();
         // `block` counts the blocks done before a frame: when it moves, the frame before ended one.

@@ -208,13 +208,7 @@ fn chained_lines_keep_their_speed_at_the_junction() {
             )
         })
         .collect();
-    let commands: u64 = blocks
-        .iter()
-        .map(|b| match b.motion {
-            Motion::Linear(l) => l.q as u64,
-            _ => 0,
-        })
-        .sum();
+    let commands = super::tests::line_commands(&blocks);
     let mut rig = Rig::new(c, &blocks);
     rig.finish(u32::MAX, RUN, 1 << 20);
     let ramp_frames = 3000.0 / accel_feed_per_frame(settings().accel_blu_s2[0]);
