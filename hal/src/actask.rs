@@ -12,12 +12,10 @@ use core::sync::atomic::Ordering::Relaxed;
 
 use heapless::spsc::{Consumer, Producer};
 use millac::ac::{AcState, Alarm};
-use millac::ports::Codes;
+use millac::ports::{Codes, ForceTorqueAdc};
 use millac::rt::ac::{self as body, AcPeriod};
 use millac::rt::Status;
 use millac::wire::{AcLogLine, LogState, AC_LOG_HEADER};
-
-use crate::simadc::{LogFile, SimAdc};
 
 /// Sample queue slots (holds one less): three periods of samples at the defaults.
 pub const SAMPLE_QUEUE: usize = 32;
@@ -25,10 +23,21 @@ pub const SAMPLE_QUEUE: usize = 32;
 /// fit is still in ac.log and in the AC state word).
 pub const ALARM_QUEUE: usize = 4;
 
+/// Where the AC period writes its log lines (`millac::wire::AcLogLine`, one per period): the QEMU
+/// board's `ac.log`, a real board's debug log, or nothing. AC task. Must not block for long.
+pub trait LogSink {
+    fn write(&mut self, bytes: &[u8]);
+}
+
+/// No AC log.
+impl LogSink for () {
+    fn write(&mut self, _: &[u8]) {}
+}
+
 /// The sampler's state: the ADC, the queue to the AC task.
-pub struct Sampler {
+pub struct Sampler<D: ForceTorqueAdc> {
     status: &'static Status,
-    adc: SimAdc,
+    adc: D,
     queue: Producer<'static, Codes, SAMPLE_QUEUE>,
     per_period: u32,
 }
@@ -42,10 +51,10 @@ pub enum Sampled {
     Ok(Option<u32>),
 }
 
-impl Sampler {
+impl<D: ForceTorqueAdc> Sampler<D> {
     pub fn new(
         status: &'static Status,
-        adc: SimAdc,
+        adc: D,
         queue: Producer<'static, Codes, SAMPLE_QUEUE>,
         per_period: u32,
     ) -> Self {
@@ -76,12 +85,12 @@ impl Sampler {
 }
 
 /// The AC period's state.
-pub struct AcTask {
+pub struct AcTask<W: LogSink> {
     status: &'static Status,
     period: AcPeriod,
     samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
     alarms: Producer<'static, Alarm, ALARM_QUEUE>,
-    log: LogFile,
+    log: W,
     per_period: u32,
     sample_hz: u32,
     late: u32,
@@ -95,14 +104,14 @@ pub struct Period {
     pub halt: bool,
 }
 
-impl AcTask {
+impl<W: LogSink> AcTask<W> {
     /// Writes the log header. Init context.
     pub fn new(
         status: &'static Status,
         period: AcPeriod,
         samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
         alarms: Producer<'static, Alarm, ALARM_QUEUE>,
-        mut log: LogFile,
+        mut log: W,
     ) -> Self {
         log.write(AC_LOG_HEADER.as_bytes());
         let sample_hz = period.ctl.settings().sample_hz;

@@ -41,16 +41,83 @@ use millac::protocol::{Context, Event, Protocol, SettingsTable};
 use millac::rt::ac::AC_RUN;
 use millac::rt::Status;
 
-use crate::uart::Tx;
+use millac::protocol::jog::JogRequest;
 
 /// Free queue slots a line needs before the loader takes it: the look-ahead's held block and the
 /// line's own (a line emits at most two blocks).
 const ROOM_PER_LINE: usize = 2;
 
+/// The board's serial line as the loader drives it (register writes on a zero-sized board type,
+/// so `&self`). Loader task.
+pub trait SerialLine {
+    /// Sets up the line (115200 8N1, receive interrupts on) before the banner.
+    fn start(&self);
+    /// Pends the serial interrupt so that it moves queued bytes out (the writer calls it after
+    /// queueing, and while the transmit queue is full). Must not block.
+    fn kick(&self);
+}
+
+/// The session log of the serial mode: every accepted G-code line, jog, early run of the held
+/// block and soft reset, in the order the loader fed its tape (the QEMU board writes `serve.nc`,
+/// see `session`). `()` logs nothing. Loader task.
+pub trait SessionSink {
+    fn gcode(&mut self, line: &str);
+    fn jog(&mut self, jog: &JogRequest);
+    fn flush(&mut self);
+    fn reset(&mut self);
+}
+
+/// No session log (a real board: the sender has the program).
+impl SessionSink for () {
+    fn gcode(&mut self, _: &str) {}
+    fn jog(&mut self, _: &JogRequest) {}
+    fn flush(&mut self) {}
+    fn reset(&mut self) {}
+}
+
+/// The writer's end of the transmit queue. Loader task.
+pub struct Tx<'a, const N: usize, L: SerialLine> {
+    queue: &'a mut Producer<'static, u8, N>,
+    line: &'a L,
+}
+
+impl<'a, const N: usize, L: SerialLine> Tx<'a, N, L> {
+    pub fn new(queue: &'a mut Producer<'static, u8, N>, line: &'a L) -> Self {
+        Tx { queue, line }
+    }
+
+    /// Queues `bytes`, waiting while the queue is full (the serial interrupt drains it), and kicks
+    /// the serial interrupt so that it starts sending. Loader task.
+    pub fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            while self.queue.enqueue(b).is_err() {
+                self.line.kick();
+                cortex_m::asm::nop();
+            }
+        }
+        self.line.kick();
+    }
+}
+
+impl<const N: usize, L: SerialLine> core::fmt::Write for Tx<'_, N, L> {
+    /// Queues the text (for `write!`).
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        self.write(s.as_bytes());
+        Ok(())
+    }
+}
+
 /// Loader task: never returns (the operator ends the session by resetting the machine). `table`:
 /// the settings init loaded (and started the frame with) and their storage.
 #[allow(clippy::too_many_arguments)]
-pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
+pub fn run<
+    const Q: usize,
+    const T: usize,
+    const A: usize,
+    S: SettingsStorage,
+    L: SerialLine,
+    G: SessionSink,
+>(
     blocks: &mut Producer<'static, Block, Q>,
     table: &mut Persistent<S>,
     ceiling: Option<FeedCeiling>,
@@ -58,17 +125,17 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
     tx: &mut Producer<'static, u8, T>,
     ac_alarms: &mut Consumer<'static, Alarm, A>,
     status: &Status,
-    uart_clock_hz: u32,
+    line: &L,
+    log: &mut G,
 ) -> ! {
-    crate::uart::init(uart_clock_hz);
-    let mut out = Tx::new(tx);
+    line.start();
+    let mut out = Tx::new(tx, line);
     proto.start(&mut out);
     // The frame's configuration and the parser's, fixed at init: a `$N=value` the table stores
     // (and `$$` lists) at once takes effect for the NC settings at the next start.
     let settings = table.settings.nc;
     // The AC's limits F0, T0 for the `AC:` field, as the AC task started with them.
     let ac_settings = table.settings.ac;
-    let mut log = crate::session::SessionLog::create();
     let mut tape = match ceiling {
         Some(c) => Tape::with_ac_ceiling(settings, c),
         None => Tape::new(settings),
@@ -139,7 +206,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
             Event::None => {
                 // Nothing more has come: let the held block run once the machine would stop.
                 if room && idle {
-                    run_held(&mut tape, &mut log, blocks, &mut last_feed);
+                    run_held(&mut tape, log, blocks, &mut last_feed);
                 }
             }
             Event::Gcode { line, check } => {
@@ -161,7 +228,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
             Event::Jog(jog) => {
                 // The look-ahead's held block goes first (the parser already stands at its end,
                 // where the jog is planned from).
-                run_held(&mut tape, &mut log, blocks, &mut last_feed);
+                run_held(&mut tape, log, blocks, &mut last_feed);
                 // Planned on a copy of the parser (validated like any block, soft limits
                 // included); queued as it is (no AC ceiling: a jog is the operator's feed); the
                 // parser then stands at its end, its modes unchanged.
@@ -268,7 +335,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
 /// as such, so the host's replay flushes it at the same place). Loader task.
 fn run_held<const Q: usize>(
     tape: &mut Tape,
-    log: &mut crate::session::SessionLog,
+    log: &mut impl SessionSink,
     blocks: &mut Producer<'static, Block, Q>,
     last_feed: &mut u32,
 ) {

@@ -87,3 +87,9 @@ impl LogFile {
         let _ = write_all(self.0, bytes);
     }
 }
+
+impl crate::actask::LogSink for LogFile {
+    fn write(&mut self, bytes: &[u8]) {
+        LogFile::write(self, bytes);
+    }
+}

@@ -2,12 +2,12 @@
 //! for a G-code sender. RX and TX by interrupt (the UART0 hardware task, a priority below the
 //! frame): every received byte goes to the caller's sink at once (the protocol takes realtime
 //! bytes out there); bytes to send wait in a lock-free queue that the interrupt drains while the
-//! transmit FIFO has room. `init` from init or the loader; `on_interrupt` from the UART0 task;
-//! [`Tx::write`] from the loader.
+//! transmit FIFO has room. `init` from init or the loader (through [`Uart0`], the serial loader's
+//! `SerialLine`); `on_interrupt` from the UART0 task; `Uart0::kick` from the loader.
 //!
 //! Registers (LM3S6965 datasheet, PL011): DR 0x000, FR 0x018 (RXFE bit 4, TXFF bit 5), IBRD 0x024,
 //! FBRD 0x028, LCRH 0x02C, CTL 0x030, IM 0x038, MIS 0x040, ICR 0x044; clock gate RCGC1 bit 0.
-use heapless::spsc::{Consumer, Producer};
+use heapless::spsc::Consumer;
 
 use crate::lm3s6965::{read, write};
 
@@ -87,34 +87,17 @@ fn drain<const N: usize>(tx: &mut Consumer<'static, u8, N>) {
     }
 }
 
-/// The writer's end of the transmit queue. Loader task.
-pub struct Tx<'a, const N: usize> {
-    queue: &'a mut Producer<'static, u8, N>,
+/// UART0 as the serial loader's line (`init` with the board's UART clock; `kick` pends UART0).
+pub struct Uart0 {
+    pub clock_hz: u32,
 }
 
-impl<'a, const N: usize> Tx<'a, N> {
-    pub fn new(queue: &'a mut Producer<'static, u8, N>) -> Self {
-        Tx { queue }
+impl crate::serial::SerialLine for Uart0 {
+    fn start(&self) {
+        init(self.clock_hz);
     }
 
-    /// Queues `bytes`, waiting while the queue is full (the interrupt drains it), and pends the
-    /// UART0 interrupt so that it starts sending. Loader task.
-    pub fn write(&mut self, bytes: &[u8]) {
-        let pend = || cortex_m::peripheral::NVIC::pend(lm3s6965::Interrupt::UART0);
-        for &b in bytes {
-            while self.queue.enqueue(b).is_err() {
-                pend();
-                cortex_m::asm::nop();
-            }
-        }
-        pend();
-    }
-}
-
-impl<const N: usize> core::fmt::Write for Tx<'_, N> {
-    /// Queues the text (for `write!`).
-    fn write_str(&mut self, s: &str) -> core::fmt::Result {
-        self.write(s.as_bytes());
-        Ok(())
+    fn kick(&self) {
+        cortex_m::peripheral::NVIC::pend(lm3s6965::Interrupt::UART0);
     }
 }

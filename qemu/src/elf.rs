@@ -187,3 +187,44 @@ mod tests {
         assert!(!is_thumb32(0xBD80));
     }
 }
+
+/// What a firmware image takes of the chip: flash (everything loaded from flash: code, read-only
+/// data and the initial values of `.data`) and static RAM (`.data`, `.bss`, `.uninit`: what the
+/// stack does not get).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryUse {
+    pub flash: u64,
+    pub ram: u64,
+}
+
+/// Sums the allocated sections of ELF bytes by where they live: a section at or above
+/// `ram_origin` is RAM (and, if it has file contents, also flash: its initial values are copied
+/// from there at reset); one below is flash. Non-allocated sections (debug info, defmt's symbol
+/// table) take no space on the chip.
+pub fn memory_use_in(data: &[u8], ram_origin: u64) -> Result<MemoryUse> {
+    use object::{SectionFlags, SectionKind};
+    let file = object::File::parse(data).context("parsing ELF")?;
+    let mut m = MemoryUse { flash: 0, ram: 0 };
+    for s in file.sections() {
+        let alloc = match s.flags() {
+            SectionFlags::Elf { sh_flags } => sh_flags & u64::from(object::elf::SHF_ALLOC) != 0,
+            _ => false,
+        };
+        if !alloc || s.size() == 0 {
+            continue;
+        }
+        let in_file = !matches!(
+            s.kind(),
+            SectionKind::UninitializedData | SectionKind::UninitializedTls
+        ) && s.file_range().is_some();
+        if s.address() >= ram_origin {
+            m.ram += s.size();
+            if in_file {
+                m.flash += s.size();
+            }
+        } else {
+            m.flash += s.size();
+        }
+    }
+    Ok(m)
+}

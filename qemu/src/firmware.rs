@@ -1,6 +1,8 @@
-//! Builds the QEMU firmware (millac-hal for thumbv7m-none-eabi) from the workspace (host). A nested
-//! cargo with its own target directory, so it never waits on the lock of the cargo that runs us;
-//! the thumb target is added with rustup first when missing (see `tools::ensure_rust_target`).
+//! Builds the firmware from the workspace (host): the QEMU board (millac-hal for
+//! thumbv7m-none-eabi, [`build`]) and the real boards ([`build_board`], e.g. [`NUCLEO_F446RE`] for
+//! the CI checks of its size and its ISRs). A nested cargo with its own target directory, so it
+//! never waits on the lock of the cargo that runs us; the thumb target is added with rustup first
+//! when missing (see `tools::ensure_rust_target`).
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -8,6 +10,28 @@ use std::process::Command;
 /// The target and binary of the QEMU board.
 pub const TARGET: &str = "thumbv7m-none-eabi";
 pub const BIN: &str = "millac-lm3s6965";
+
+/// A firmware binary: its package, target and binary name.
+#[derive(Clone, Copy, Debug)]
+pub struct Board {
+    pub package: &'static str,
+    pub target: &'static str,
+    pub bin: &'static str,
+}
+
+/// The QEMU board.
+pub const LM3S6965: Board = Board {
+    package: "millac-hal",
+    target: TARGET,
+    bin: BIN,
+};
+
+/// The Nucleo-F446RE (links with flip-link, see .cargo/config.toml).
+pub const NUCLEO_F446RE: Board = Board {
+    package: "millac-nucleo-f446re",
+    target: "thumbv7em-none-eabihf",
+    bin: "millac-nucleo-f446re",
+};
 
 /// The workspace root (where Cargo.toml of `millac` lives).
 pub fn workspace() -> PathBuf {
@@ -17,12 +41,27 @@ pub fn workspace() -> PathBuf {
         .unwrap_or_default()
 }
 
-/// Builds the firmware in release mode and returns the ELF path. Installs the target with rustup
-/// first when the toolchain lacks it.
+/// Builds the QEMU firmware in release mode and returns the ELF path. Installs the target with
+/// rustup first when the toolchain lacks it.
 pub fn build() -> Result<PathBuf> {
+    build_board(&LM3S6965)
+}
+
+/// Builds a board's firmware in release mode and returns the ELF path (one target directory per
+/// board, so two tests building two boards do not wait on each other's lock).
+pub fn build_board(board: &Board) -> Result<PathBuf> {
+    let Board {
+        package,
+        target: tgt,
+        bin,
+    } = *board;
     let ws = workspace();
-    crate::tools::ensure_rust_target(TARGET, &ws)?;
-    let target_dir = ws.join("target").join("firmware");
+    crate::tools::ensure_rust_target(tgt, &ws)?;
+    let target_dir = if package == LM3S6965.package {
+        ws.join("target").join("firmware")
+    } else {
+        ws.join("target").join(format!("firmware-{bin}"))
+    };
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = Command::new(&cargo)
         .current_dir(&ws)
@@ -31,11 +70,11 @@ pub fn build() -> Result<PathBuf> {
             "--quiet",
             "--release",
             "-p",
-            "millac-hal",
+            package,
             "--target",
-            TARGET,
+            tgt,
             "--bin",
-            BIN,
+            bin,
         ])
         .env("CARGO_TARGET_DIR", &target_dir)
         .env_remove("RUSTFLAGS")
@@ -48,13 +87,15 @@ pub fn build() -> Result<PathBuf> {
         let hint = if err.contains("can't find crate for `core`")
             || err.contains("target may not be installed")
         {
-            format!("\nhint: install the target with `rustup target add {TARGET}`")
+            format!("\nhint: install the target with `rustup target add {tgt}`")
+        } else if err.contains("flip-link") {
+            "\nhint: install the linker wrapper with `cargo install flip-link`".to_string()
         } else {
             String::new()
         };
         bail!("building the firmware failed:\n{err}{hint}");
     }
-    let elf = target_dir.join(TARGET).join("release").join(BIN);
+    let elf = target_dir.join(tgt).join("release").join(bin);
     if !elf.exists() {
         bail!("firmware ELF missing after build: {}", elf.display());
     }

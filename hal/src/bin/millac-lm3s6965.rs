@@ -148,8 +148,8 @@ mod app {
         refused: Option<RecordError>,
         /// The feed ceiling of an enabled AC, applied by the loader (None: programmed feeds).
         ceiling: Option<FeedCeiling>,
-        sampler: Option<Sampler>,
-        ac: Option<AcTask>,
+        sampler: Option<Sampler<SimAdc>>,
+        ac: Option<AcTask<LogFile>>,
         /// UART0 task's ends: received bytes into the protocol's ring (realtime bytes taken out
         /// there), bytes to send out.
         uart_rx: RxIsr<'static>,
@@ -354,7 +354,10 @@ mod app {
                     cx.local.tx,
                     cx.local.ac_alarms,
                     &STATUS,
-                    B::TIMER_HZ,
+                    &millac_hal::uart::Uart0 {
+                        clock_hz: B::TIMER_HZ,
+                    },
+                    &mut millac_hal::session::SessionLog::create(),
                 )
             }
         };

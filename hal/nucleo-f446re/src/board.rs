@@ -1,0 +1,486 @@
+//! The Nucleo-F446RE board (STM32F446RE, Cortex-M4F at 180 MHz): the core's ports with one register
+//! access each, plus the set-up of the peripherals that need exact timing. `init` and the `*_start`
+//! functions run in `#[init]`; the port methods in the frame ISR (TIM2), the pulse-end ISR (TIM5),
+//! the sampler (TIM3) and the serial task (USART2), as each item says.
+//!
+//! # Pins and peripherals
+//!
+//! | role | pin / peripheral | Nucleo header |
+//! | --- | --- | --- |
+//! | X, Y, Z PULSE | PC4, PC5, PC6 (push-pull, one BSRR store for all three) | CN10 34, 6, 4 |
+//! | X, Y, Z SIGN | PC7, PC8, PC9 (one BSRR store for all three) | CN10 19 (D9), 2, 1 |
+//! | frame timer | TIM2, 32-bit, update interrupt at W0 (or the rapid rate) | |
+//! | pulse timer | TIM5, 32-bit, one-pulse mode, update interrupt = pulse end | |
+//! | sample clock | TIM3, update = sampler interrupt and TRGO = ADC trigger | |
+//! | T, Fu, Fv | ADC1 IN0 PA0, ADC2 IN1 PA1, ADC3 IN10 PC0, triple simultaneous, DMA2 stream 0 | A0, A1, A5 |
+//! | grbl serial | USART2 PA2 TX, PA3 RX (the ST-LINK virtual COM port), 115200 8N1 | USB |
+//! | watchdog | IWDG, ~100 ms | |
+//!
+//! Timers TIM2, TIM3 and TIM5 are on APB1: PCLK1 = 45 MHz, timer clock 2 x PCLK1 = 90 MHz
+//! ([`TIMER_HZ`]). The PULSE and SIGN lines are written with the GPIO port's bit set/reset
+//! register (BSRR): one store sets and clears any mix of pins atomically, so neither ISR needs a
+//! read-modify-write of ODR.
+//!
+//! Registers: RM0390 (STM32F446 reference manual), as raw volatile accesses at the addresses
+//! below: the frame path is one store per port call, with no proxy that the compiler might not
+//! inline (the no-call check of CI scans the built ISRs).
+use millac::ports::{
+    Codes, Conversion, ForceTorqueAdc, FrameTimer, PulseTimer, SampleClock, StepPort, TimerClock,
+};
+
+/// The board. Zero-sized: all state is in the peripherals.
+pub struct F446;
+
+/// Core clock (SYSCLK = HCLK) in Hz.
+pub const CORE_HZ: u32 = 180_000_000;
+/// PCLK1 (USART2) in Hz.
+pub const PCLK1_HZ: u32 = 45_000_000;
+/// APB1 timer clock (TIM2, TIM3, TIM5) in Hz.
+pub const TIMER_HZ: u32 = 2 * PCLK1_HZ;
+
+// GPIO port C (AHB1).
+const GPIOC: usize = 0x4002_0800;
+const GPIO_MODER: usize = 0x00;
+const GPIO_OSPEEDR: usize = 0x08;
+const GPIO_ODR: usize = 0x14;
+const GPIO_BSRR: usize = 0x18;
+/// First PULSE pin (PC4); the SIGN pins follow (PC7..PC9).
+const STEP_SHIFT: u32 = 4;
+const SIGN_SHIFT: u32 = 7;
+/// The six pins PC4..PC9.
+const PINS: u32 = 0b11_1111 << STEP_SHIFT;
+
+// RCC (AHB1).
+const RCC: usize = 0x4002_3800;
+const RCC_AHB1ENR: usize = RCC + 0x30;
+const RCC_APB1ENR: usize = RCC + 0x40;
+const RCC_APB2ENR: usize = RCC + 0x44;
+const RCC_CSR: usize = RCC + 0x74;
+const AHB1_GPIOA: u32 = 1 << 0;
+const AHB1_GPIOC: u32 = 1 << 2;
+const AHB1_DMA2: u32 = 1 << 22;
+const APB1_TIM2: u32 = 1 << 0;
+const APB1_TIM3: u32 = 1 << 1;
+const APB1_TIM5: u32 = 1 << 3;
+const APB1_USART2: u32 = 1 << 17;
+const APB2_ADC123: u32 = 0b111 << 8;
+const CSR_RMVF: u32 = 1 << 24;
+const CSR_IWDGRSTF: u32 = 1 << 29;
+
+// General-purpose timers (APB1).
+const TIM2: usize = 0x4000_0000;
+const TIM3: usize = 0x4000_0400;
+const TIM5: usize = 0x4000_0C00;
+const TIM_CR1: usize = 0x00;
+const TIM_CR2: usize = 0x04;
+const TIM_DIER: usize = 0x0C;
+const TIM_SR: usize = 0x10;
+const TIM_EGR: usize = 0x14;
+const TIM_CNT: usize = 0x24;
+const TIM_PSC: usize = 0x28;
+const TIM_ARR: usize = 0x2C;
+const CR1_CEN: u32 = 1 << 0;
+const CR1_URS: u32 = 1 << 2;
+const CR1_OPM: u32 = 1 << 3;
+const CR1_ARPE: u32 = 1 << 7;
+/// CR2 MMS = 010: the update event is the trigger output (TRGO).
+const CR2_MMS_UPDATE: u32 = 0b010 << 4;
+const DIER_UIE: u32 = 1;
+const EGR_UG: u32 = 1;
+
+// USART2 (APB1).
+const USART2: usize = 0x4000_4400;
+const US_SR: usize = 0x00;
+const US_DR: usize = 0x04;
+const US_BRR: usize = 0x08;
+const US_CR1: usize = 0x0C;
+const SR_ORE: u32 = 1 << 3;
+const SR_RXNE: u32 = 1 << 5;
+const SR_TXE: u32 = 1 << 7;
+const CR1_UE: u32 = 1 << 13;
+const CR1_TXEIE: u32 = 1 << 7;
+const CR1_RXNEIE: u32 = 1 << 5;
+const CR1_TE: u32 = 1 << 3;
+const CR1_RE: u32 = 1 << 2;
+
+// ADC1/2/3 and their common registers (APB2).
+const ADC1: usize = 0x4001_2000;
+const ADC2: usize = 0x4001_2100;
+const ADC3: usize = 0x4001_2200;
+const ADC_SR: usize = 0x00;
+const ADC_CR2: usize = 0x08;
+const ADC_SMPR1: usize = 0x0C;
+const ADC_SMPR2: usize = 0x10;
+const ADC_SQR1: usize = 0x2C;
+const ADC_SQR3: usize = 0x34;
+const ADC_CCR: usize = 0x4001_2304;
+const ADC_CDR: usize = 0x4001_2308;
+const ADC_SR_OVR: u32 = 1 << 5;
+const CR2_ADON: u32 = 1 << 0;
+/// EXTSEL = 1000: TIM3 TRGO; EXTEN = 01: rising edge.
+const CR2_TRIGGER_TIM3: u32 = (0b1000 << 24) | (0b01 << 28);
+/// CCR: MULTI = 10110 (triple, regular simultaneous only), DMA mode 1 (one half-word per request,
+/// ADC1, ADC2, ADC3 in turn), DDS (requests go on after each transfer), ADCPRE = /4 (22.5 MHz).
+const CCR_TRIPLE: u32 = 0b10110 | (0b01 << 14) | (1 << 13) | (0b01 << 16);
+/// Sample time 144 ADC clocks (6.4 us at 22.5 MHz): room for an amplifier's output impedance.
+const SMP_144: u32 = 0b110;
+
+// DMA2 stream 0, channel 0 (ADC1).
+const DMA2: usize = 0x4002_6400;
+const DMA_LISR: usize = DMA2;
+const DMA_LIFCR: usize = DMA2 + 0x08;
+const S0CR: usize = DMA2 + 0x10;
+const S0NDTR: usize = DMA2 + 0x14;
+const S0PAR: usize = DMA2 + 0x18;
+const S0M0AR: usize = DMA2 + 0x1C;
+/// Stream 0 flags in LISR/LIFCR: FEIF0, DMEIF0, TEIF0, HTIF0, TCIF0.
+const S0_FLAGS: u32 = 0b11_1101;
+const S0_TCIF: u32 = 1 << 5;
+const S0_TEIF: u32 = 1 << 3;
+/// Peripheral to memory, circular, memory increment, half-words both sides, high priority.
+const S0CR_ADC: u32 = (1 << 8) | (1 << 10) | (0b01 << 11) | (0b01 << 13) | (0b10 << 16);
+const DMA_EN: u32 = 1;
+
+// Independent watchdog.
+const IWDG_KR: usize = 0x4000_3000;
+const IWDG_PR: usize = 0x4000_3004;
+const IWDG_RLR: usize = 0x4000_3008;
+const KR_START: u32 = 0xCCCC;
+const KR_FEED: u32 = 0xAAAA;
+const KR_UNLOCK: u32 = 0x5555;
+
+/// One 32-bit volatile store to a peripheral register of this module.
+#[inline(always)]
+fn write(addr: usize, value: u32) {
+    // SAFETY: only called with the STM32F446 register addresses of this module, all valid,
+    // aligned 32-bit device registers; stores to them do not touch Rust-visible memory (the DMA
+    // target is the `ADC_CODES` static, which Rust reads only through volatile loads).
+    unsafe { core::ptr::write_volatile(addr as *mut u32, value) }
+}
+
+/// One 32-bit volatile load from a peripheral register of this module.
+#[inline(always)]
+fn read(addr: usize) -> u32 {
+    // SAFETY: as for `write`.
+    unsafe { core::ptr::read_volatile(addr as *const u32) }
+}
+
+/// Sets `bits` in a register (read-modify-write). Init only: not atomic against ISRs.
+fn set_bits(addr: usize, bits: u32) {
+    write(addr, read(addr) | bits);
+}
+
+/// TIM2, TIM3, TIM5 count ARR + 1 clocks per period.
+impl TimerClock for F446 {
+    const TIMER_HZ: u32 = TIMER_HZ;
+
+    fn reload(clocks: u32) -> u32 {
+        clocks.saturating_sub(1).max(1)
+    }
+}
+
+impl F446 {
+    /// Sets up the six lines (low, push-pull outputs, high speed), the frame timer TIM2 (periodic
+    /// with `frame_reload`, update interrupt, started) and the pulse timer TIM5 (one-pulse with
+    /// `pulse_reload`, update interrupt, stopped). The clock tree is already at 180 MHz (the
+    /// HAL's `freeze`). Init context, before the interrupts are unmasked.
+    pub fn init(frame_reload: u32, pulse_reload: u32) {
+        set_bits(RCC_AHB1ENR, AHB1_GPIOA | AHB1_GPIOC | AHB1_DMA2);
+        set_bits(RCC_APB1ENR, APB1_TIM2 | APB1_TIM3 | APB1_TIM5 | APB1_USART2);
+        set_bits(RCC_APB2ENR, APB2_ADC123);
+        // The clock gates take two bus clocks: the read-back waits for them.
+        let _ = read(RCC_APB2ENR);
+
+        // PC4..PC9: low, then output mode (01) and high speed (10) for each.
+        write(GPIOC + GPIO_BSRR, PINS << 16);
+        let mut moder = read(GPIOC + GPIO_MODER);
+        let mut speed = read(GPIOC + GPIO_OSPEEDR);
+        for pin in STEP_SHIFT..SIGN_SHIFT + 3 {
+            moder = (moder & !(0b11 << (2 * pin))) | (0b01 << (2 * pin));
+            speed = (speed & !(0b11 << (2 * pin))) | (0b10 << (2 * pin));
+        }
+        write(GPIOC + GPIO_OSPEEDR, speed);
+        write(GPIOC + GPIO_MODER, moder);
+
+        // Pulse timer: one-pulse mode, only a counter overflow sets UIF (URS), stopped. The UG
+        // event loads ARR and PSC; its UIF is cleared before the interrupt is enabled.
+        write(TIM5 + TIM_CR1, CR1_OPM | CR1_URS);
+        write(TIM5 + TIM_PSC, 0);
+        write(TIM5 + TIM_ARR, pulse_reload);
+        write(TIM5 + TIM_EGR, EGR_UG);
+        write(TIM5 + TIM_SR, 0);
+        write(TIM5 + TIM_CNT, 0);
+        write(TIM5 + TIM_DIER, DIER_UIE);
+
+        // Frame timer: periodic, ARR preloaded (a new period starts at the next update, as on
+        // the QEMU board), update interrupt, started.
+        write(TIM2 + TIM_CR1, CR1_ARPE | CR1_URS);
+        write(TIM2 + TIM_PSC, 0);
+        write(TIM2 + TIM_ARR, frame_reload);
+        write(TIM2 + TIM_EGR, EGR_UG);
+        write(TIM2 + TIM_SR, 0);
+        write(TIM2 + TIM_DIER, DIER_UIE);
+        write(TIM2 + TIM_CR1, CR1_ARPE | CR1_URS | CR1_CEN);
+    }
+
+    /// The reset was caused by the independent watchdog (read once at init; the flags are then
+    /// cleared so the next reset reports its own cause). Init context.
+    pub fn watchdog_reset() -> bool {
+        let csr = read(RCC_CSR);
+        write(RCC_CSR, csr | CSR_RMVF);
+        csr & CSR_IWDGRSTF != 0
+    }
+
+    /// Starts the independent watchdog: LSI (~32 kHz) / 32, reload 100: ~100 ms (70..190 ms over
+    /// the LSI's tolerance). Once started it cannot be stopped; a reset brings every pin back to
+    /// its reset state (input, floating), so the drives see no pulses and the spindle enable
+    /// line falls to its pull-down. Init context.
+    pub fn watchdog_start() {
+        write(IWDG_KR, KR_START);
+        write(IWDG_KR, KR_UNLOCK);
+        write(IWDG_PR, 0b011);
+        write(IWDG_RLR, 100);
+        write(IWDG_KR, KR_FEED);
+    }
+
+    /// Feeds the watchdog. Sampler task (only while the frame runs).
+    #[inline(always)]
+    pub fn watchdog_feed() {
+        write(IWDG_KR, KR_FEED);
+    }
+}
+
+impl FrameTimer for F446 {
+    #[inline(always)]
+    fn ack(&mut self) {
+        write(TIM2 + TIM_SR, 0);
+    }
+
+    /// ARR is preloaded: the new period starts at the next update event.
+    #[inline(always)]
+    fn set_reload(&mut self, reload: u32) {
+        write(TIM2 + TIM_ARR, reload);
+    }
+}
+
+impl PulseTimer for F446 {
+    /// One-pulse mode clears CEN at the overflow and leaves CNT at 0: setting CEN starts a new
+    /// pulse width.
+    #[inline(always)]
+    fn start(&mut self) {
+        write(TIM5 + TIM_CR1, CR1_OPM | CR1_URS | CR1_CEN);
+    }
+
+    #[inline(always)]
+    fn ack(&mut self) {
+        write(TIM5 + TIM_SR, 0);
+    }
+}
+
+impl StepPort for F446 {
+    /// One BSRR store: the set half raises the PULSE lines in `steps`, the reset half lowers the
+    /// others (of the three).
+    #[inline(always)]
+    fn write_steps(&mut self, steps: u8) {
+        let s = u32::from(steps) & 0b111;
+        write(
+            GPIOC + GPIO_BSRR,
+            (s << STEP_SHIFT) | ((!s & 0b111) << (STEP_SHIFT + 16)),
+        );
+    }
+
+    /// One BSRR store for the three SIGN lines.
+    #[inline(always)]
+    fn write_signs(&mut self, signs: u8) {
+        let s = u32::from(signs) & 0b111;
+        write(
+            GPIOC + GPIO_BSRR,
+            (s << SIGN_SHIFT) | ((!s & 0b111) << (SIGN_SHIFT + 16)),
+        );
+    }
+
+    /// The output data register: PULSE lines in bits 0..2, SIGN lines in bits 3..5.
+    #[inline(always)]
+    fn read_pins(&mut self) -> u8 {
+        ((read(GPIOC + GPIO_ODR) >> STEP_SHIFT) & 0b11_1111) as u8
+    }
+}
+
+/// The DMA target of the triple ADC: [T, Fu, Fv] of the last conversion (ADC1, ADC2, ADC3).
+struct Codes3(core::cell::UnsafeCell<[u16; 3]>);
+
+// SAFETY: written only by the DMA, read only by the sampler task through volatile loads.
+unsafe impl Sync for Codes3 {}
+
+static ADC_CODES: Codes3 = Codes3(core::cell::UnsafeCell::new([0; 3]));
+
+/// Starts the sample clock TIM3 at `sample_reload + 1` microseconds and the triple ADC it
+/// triggers: ADC1 converts T on PA0 (IN0), ADC2 Fu on PA1 (IN1), ADC3 Fv on PC0 (IN10), all three
+/// at the same instant (regular simultaneous mode), and DMA2 stream 0 moves the three results
+/// into [`ADC_CODES`] after every conversion. The TIM3 update interrupt is the sampler: it reads
+/// the conversion its previous update started (one sample period of delay). Init context.
+pub fn sample_start(sample_reload: u32) {
+    // Analog mode (11) on PA0, PA1 and PC0.
+    set_bits(0x4002_0000 + GPIO_MODER, 0b1111);
+    set_bits(GPIOC + GPIO_MODER, 0b11);
+
+    // One conversion of one channel on each converter.
+    for (adc, ch) in [(ADC1, 0u32), (ADC2, 1), (ADC3, 10)] {
+        write(adc + ADC_SQR1, 0);
+        write(adc + ADC_SQR3, ch);
+        if ch < 10 {
+            write(adc + ADC_SMPR2, SMP_144 << (3 * ch));
+        } else {
+            write(adc + ADC_SMPR1, SMP_144 << (3 * (ch - 10)));
+        }
+    }
+    write(ADC_CCR, CCR_TRIPLE);
+
+    // DMA: ADC_CDR (one half-word per request) into the three codes, circular.
+    write(S0CR, 0);
+    write(DMA_LIFCR, S0_FLAGS);
+    write(S0PAR, ADC_CDR as u32);
+    write(S0M0AR, ADC_CODES.0.get() as u32);
+    write(S0NDTR, 3);
+    write(S0CR, S0CR_ADC);
+    write(S0CR, S0CR_ADC | DMA_EN);
+
+    // ADC1 is the master: it takes the trigger; all three are on.
+    write(ADC2 + ADC_CR2, CR2_ADON);
+    write(ADC3 + ADC_CR2, CR2_ADON);
+    write(ADC1 + ADC_CR2, CR2_ADON | CR2_TRIGGER_TIM3);
+
+    // TIM3: 1 MHz count, update every sample_reload + 1 counts, update as TRGO, interrupt.
+    write(TIM3 + TIM_CR1, CR1_URS);
+    write(TIM3 + TIM_CR2, CR2_MMS_UPDATE);
+    write(TIM3 + TIM_PSC, TIMER_HZ / 1_000_000 - 1);
+    write(TIM3 + TIM_ARR, sample_reload);
+    write(TIM3 + TIM_EGR, EGR_UG);
+    write(TIM3 + TIM_SR, 0);
+    write(TIM3 + TIM_DIER, DIER_UIE);
+    write(TIM3 + TIM_CR1, CR1_URS | CR1_CEN);
+}
+
+/// TIM3 reload for a sample rate (1 MHz count): 1e6 / hz - 1. Init context.
+pub fn sample_reload(hz: u32) -> u32 {
+    (1_000_000 / hz.max(1)).saturating_sub(1).clamp(1, 0xFFFF)
+}
+
+/// TIM3, the sample clock. Sampler task.
+impl SampleClock for F446 {
+    #[inline(always)]
+    fn ack(&mut self) {
+        write(TIM3 + TIM_SR, 0);
+    }
+
+    fn stop(&mut self) {
+        write(TIM3 + TIM_CR1, 0);
+        write(TIM3 + TIM_DIER, 0);
+        write(TIM3 + TIM_SR, 0);
+    }
+}
+
+/// The triple ADC as the sampler reads it. Sampler task.
+pub struct TripleAdc;
+
+impl ForceTorqueAdc for TripleAdc {
+    /// The codes of the conversion the previous sample tick started: `Fresh` when the DMA has
+    /// completed a transfer since the last call, `Missed` otherwise (no conversion, an overrun,
+    /// a DMA error: the AC period that sees no fresh sample holds). An overrun or a transfer
+    /// error re-arms the ADC and the stream, so a single fault costs one sample. The encoder is
+    /// not needed by a real converter.
+    fn sample(&mut self, _index: u32, _encoder: [i32; 3]) -> Conversion {
+        let flags = read(DMA_LISR);
+        write(DMA_LIFCR, flags & S0_FLAGS);
+        let overrun = [ADC1, ADC2, ADC3]
+            .iter()
+            .any(|adc| read(adc + ADC_SR) & ADC_SR_OVR != 0);
+        if overrun || flags & S0_TEIF != 0 {
+            rearm();
+            return Conversion::Missed;
+        }
+        if flags & S0_TCIF == 0 {
+            return Conversion::Missed;
+        }
+        let p = ADC_CODES.0.get() as *const u16;
+        // SAFETY: `p` points to the three half-words of ADC_CODES; the DMA has finished writing
+        // them (TCIF) and the next conversion starts only at the next TIM3 update.
+        let codes: Codes = unsafe {
+            [
+                core::ptr::read_volatile(p),
+                core::ptr::read_volatile(p.add(1)),
+                core::ptr::read_volatile(p.add(2)),
+            ]
+        };
+        Conversion::Fresh(codes.map(|c| c & 0x0FFF))
+    }
+}
+
+/// After an overrun or a DMA error: stream off, flags and OVR cleared, three transfers again.
+fn rearm() {
+    write(S0CR, S0CR_ADC);
+    while read(S0CR) & DMA_EN != 0 {}
+    write(DMA_LIFCR, S0_FLAGS);
+    for adc in [ADC1, ADC2, ADC3] {
+        write(adc + ADC_SR, 0);
+    }
+    write(S0NDTR, 3);
+    write(S0CR, S0CR_ADC | DMA_EN);
+}
+
+/// USART2 at 115200 8N1 on PA2/PA3 (AF7), receive interrupt on (the transmit interrupt is on
+/// while bytes wait). Loader context, before the banner.
+pub fn usart2_start() {
+    // PA2, PA3: alternate function 7.
+    let gpioa = 0x4002_0000;
+    let moder = read(gpioa + GPIO_MODER) & !(0b1111 << 4);
+    write(gpioa + GPIO_MODER, moder | (0b1010 << 4));
+    let afrl = read(gpioa + 0x20) & !(0xFF << 8);
+    write(gpioa + 0x20, afrl | (0x77 << 8));
+    write(USART2 + US_CR1, 0);
+    // Oversampling by 16: BRR = PCLK1 / baud as 12.4 fixed point, rounded.
+    write(USART2 + US_BRR, (PCLK1_HZ + 115_200 / 2) / 115_200);
+    write(USART2 + US_CR1, CR1_UE | CR1_TE | CR1_RE | CR1_RXNEIE);
+}
+
+/// The USART2 interrupt: every received byte to `rx` (an overrun loses a byte the hardware could
+/// not keep; reading SR then DR clears it), then one queued byte out if the transmitter is empty;
+/// the transmit interrupt stays on only while bytes wait. Serial task.
+#[inline(always)]
+pub fn usart2_interrupt<const N: usize>(
+    tx: &mut heapless::spsc::Consumer<'static, u8, N>,
+    mut rx: impl FnMut(u8),
+) {
+    let mut sr = read(USART2 + US_SR);
+    while sr & (SR_RXNE | SR_ORE) != 0 {
+        let b = read(USART2 + US_DR) as u8;
+        if sr & SR_RXNE != 0 {
+            rx(b);
+        }
+        sr = read(USART2 + US_SR);
+    }
+    if sr & SR_TXE != 0 {
+        if let Some(b) = tx.dequeue() {
+            write(USART2 + US_DR, u32::from(b));
+        }
+    }
+    let cr1 = read(USART2 + US_CR1);
+    if tx.ready() {
+        write(USART2 + US_CR1, cr1 | CR1_TXEIE);
+    } else {
+        write(USART2 + US_CR1, cr1 & !CR1_TXEIE);
+    }
+}
+
+/// USART2 as the serial loader's line.
+pub struct Usart2;
+
+impl millac_hal::serial::SerialLine for Usart2 {
+    fn start(&self) {
+        usart2_start();
+    }
+
+    fn kick(&self) {
+        cortex_m::peripheral::NVIC::pend(stm32f4xx_hal::pac::Interrupt::USART2);
+    }
+}

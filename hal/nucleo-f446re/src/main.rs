@@ -1,0 +1,326 @@
+//! millac firmware for the Nucleo-F446RE: the RTIC 2 app. `init` brings the clock tree to 180 MHz
+//! (HSE bypass from the ST-LINK's 8 MHz), loads the settings record, validates it against the
+//! board's limits and starts the board; the frame ISR (TIM2) and the pulse-end ISR (TIM5) drive
+//! the pins with the core's bodies (`millac::rt`, the same code as on the QEMU board); the idle
+//! loop is the serial loader (`millac_hal::serial`: grbl 1.1 over USART2, the ST-LINK virtual COM
+//! port).
+//!
+//! Priorities: frame and pulse-end 3; the sampler (TIM3, `sample_hz`) and USART2 2; the AC period
+//! (software task, dispatcher SPI1) 1; the idle loader 0. Logs go through defmt over RTT (read by
+//! `probe-rs run`), never from the frame or pulse-end ISR (defmt's RTT logger takes a critical
+//! section).
+//!
+//! The frame measures itself with the DWT cycle counter: cycles from the first instruction of the
+//! handler to its last (the exception entry and return, 12 + ~10 cycles on a Cortex-M4 with zero
+//! wait states, come on top), min and max since reset.
+#![no_std]
+#![no_main]
+
+use defmt_rtt as _;
+use panic_probe as _;
+
+mod board;
+
+#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1])]
+mod app {
+    use core::sync::atomic::AtomicU32;
+    use core::sync::atomic::Ordering::Relaxed;
+
+    use cortex_m::peripheral::DWT;
+    use heapless::spsc::{Consumer, Producer, Queue};
+    use millac::ac::{AcController, Alarm};
+    use millac::nc::{Block, Frame, FrameConfig};
+    use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
+    use millac::protocol::rx::{RxIsr, RxShared};
+    use millac::protocol::settings::record::LoadStatus;
+    use millac::protocol::settings::Persistent;
+    use millac::protocol::Protocol;
+    use millac::rt::ac::AcPeriod;
+    use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
+    use millac_hal::actask::{AcTask, LogSink, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
+    use stm32f4xx_hal::prelude::*;
+    use stm32f4xx_hal::rcc::Config;
+
+    use crate::board::{self, TripleAdc, Usart2, F446};
+
+    /// The status words between the contexts.
+    static STATUS: Status = Status::new();
+    /// Frames since reset (the sampler feeds the watchdog only while it grows).
+    static FRAMES: AtomicU32 = AtomicU32::new(0);
+
+    /// Queue slots (a heapless spsc queue holds one less: 31 blocks).
+    const QUEUE: usize = 32;
+    /// Transmit queue slots.
+    const TX_QUEUE: usize = 512;
+
+    #[shared]
+    struct Shared {}
+
+    /// The frame's own measurement: min and max cycles since reset.
+    pub struct FrameCycles {
+        min: u32,
+        max: u32,
+    }
+
+    #[local]
+    struct Local {
+        frame: FrameTask,
+        consumer: Consumer<'static, Block, QUEUE>,
+        producer: Producer<'static, Block, QUEUE>,
+        table: Persistent<RamStorage>,
+        cycles: FrameCycles,
+        sampler: Option<Sampler<TripleAdc>>,
+        ac: Option<AcTask<DefmtLog>>,
+        frames_seen: u32,
+        uart_rx: RxIsr<'static>,
+        uart_tx: Consumer<'static, u8, TX_QUEUE>,
+        proto: Protocol<'static>,
+        tx: Producer<'static, u8, TX_QUEUE>,
+        ac_alarms: Consumer<'static, Alarm, ALARM_QUEUE>,
+    }
+
+    #[init(local = [
+        queue: Queue<Block, QUEUE> = Queue::new(),
+        samples: Queue<Codes, SAMPLE_QUEUE> = Queue::new(),
+        serial_rx: RxShared = RxShared::new(),
+        serial_tx: Queue<u8, TX_QUEUE> = Queue::new(),
+        alarms: Queue<Alarm, ALARM_QUEUE> = Queue::new(),
+    ])]
+    fn init(cx: init::Context) -> (Shared, Local) {
+        let mut core = cx.core;
+        let rcc = cx.device.RCC.freeze(
+            Config::hse(8.MHz())
+                .bypass_hse_oscillator()
+                .sysclk(board::CORE_HZ.Hz())
+                .pclk1(board::PCLK1_HZ.Hz())
+                .pclk2(90.MHz()),
+        );
+        let c = rcc.clocks;
+        if c.sysclk().raw() != board::CORE_HZ || c.timclk1().raw() != board::TIMER_HZ {
+            defmt::panic!(
+                "clock tree: sysclk {} Hz, APB1 timers {} Hz",
+                c.sysclk().raw(),
+                c.timclk1().raw()
+            );
+        }
+        core.DCB.enable_trace();
+        core.DWT.enable_cycle_counter();
+        let watchdog_reset = F446::watchdog_reset();
+
+        let (table, status) = Persistent::load(RamStorage);
+        if let LoadStatus::Refused(e) = status {
+            defmt::warn!("settings record refused: {}", e.message());
+        }
+        let settings = table.settings.nc;
+        if let Err(e) = settings.validate() {
+            defmt::panic!("settings: {}", e.message());
+        }
+        let (producer, consumer) = cx.local.queue.split();
+        let reloads = Reloads {
+            feed: F446::reload(clocks_for_hz(F446::TIMER_HZ, settings.frame_hz)),
+            rapid: F446::reload(clocks_for_hz(F446::TIMER_HZ, settings.rapid_hz)),
+        };
+        let pulse = F446::reload(clocks_for_ns(F446::TIMER_HZ, settings.pulse_width_ns));
+        STATUS.start();
+        F446::init(reloads.feed, pulse);
+
+        // The AC, when enabled by the settings ($250); the sampler runs always (it feeds the
+        // watchdog).
+        let ac_settings = table.settings.ac;
+        let (alarm_tx, ac_alarms) = cx.local.alarms.split();
+        let (sample_tx, sample_rx) = cx.local.samples.split();
+        let period_samples = ac_settings.samples_per_period();
+        let ac = if table.settings.ac_enabled {
+            match AcController::new(ac_settings) {
+                Ok(ctl) => {
+                    let period = AcPeriod::new(ctl, settings, true, &STATUS);
+                    Some(AcTask::new(&STATUS, period, sample_rx, alarm_tx, DefmtLog))
+                }
+                Err(e) => {
+                    defmt::warn!("AC settings: {}; the AC is off", e.message());
+                    None
+                }
+            }
+        } else {
+            None
+        };
+        let sampler = ac
+            .as_ref()
+            .map(|_| Sampler::new(&STATUS, TripleAdc, sample_tx, period_samples));
+        board::sample_start(board::sample_reload(ac_settings.sample_hz));
+
+        let (uart_rx, rx) = cx.local.serial_rx.split();
+        let proto = Protocol::new(rx, (QUEUE - 1) as u16);
+        let (tx, uart_tx) = cx.local.serial_tx.split();
+
+        F446::watchdog_start();
+        defmt::info!(
+            "millac on Nucleo-F446RE: W0 {} Hz, rapid {} Hz, pulse {} ns, AC {}{}",
+            settings.frame_hz,
+            settings.rapid_hz,
+            settings.pulse_width_ns,
+            if ac.is_some() { "on" } else { "off" },
+            if watchdog_reset {
+                "; reset by the watchdog"
+            } else {
+                ""
+            }
+        );
+
+        (
+            Shared {},
+            Local {
+                frame: FrameTask::new(Frame::new(FrameConfig::from_settings(&settings)), reloads),
+                consumer,
+                producer,
+                table,
+                cycles: FrameCycles {
+                    min: u32::MAX,
+                    max: 0,
+                },
+                sampler,
+                ac,
+                frames_seen: 0,
+                uart_rx,
+                uart_tx,
+                proto,
+                tx,
+                ac_alarms,
+            },
+        )
+    }
+
+    /// The frame ISR: highest priority (3). No locks, logging, allocation or panics. Measures its
+    /// own cycles with the DWT counter.
+    #[task(binds = TIM2, priority = 3, local = [frame, consumer, cycles])]
+    fn frame(cx: frame::Context) {
+        let t0 = DWT::cycle_count();
+        let src = &mut Source(cx.local.consumer);
+        cx.local
+            .frame
+            .run(&mut F446, &mut F446, &mut F446, src, &STATUS);
+        FRAMES.store(FRAMES.load(Relaxed).wrapping_add(1), Relaxed);
+        let dt = DWT::cycle_count().wrapping_sub(t0);
+        let c = cx.local.cycles;
+        if dt < c.min {
+            c.min = dt;
+            FRAME_CYCLES_MIN.store(dt, Relaxed);
+        }
+        if dt > c.max {
+            c.max = dt;
+            FRAME_CYCLES_MAX.store(dt, Relaxed);
+        }
+    }
+
+    static FRAME_CYCLES_MIN: AtomicU32 = AtomicU32::new(0);
+    static FRAME_CYCLES_MAX: AtomicU32 = AtomicU32::new(0);
+
+    /// The block queue as the frame's Initiator sees it.
+    struct Source<'a>(&'a mut Consumer<'static, Block, QUEUE>);
+
+    impl BlockSource for Source<'_> {
+        #[inline(always)]
+        fn front(&mut self) -> Option<&Block> {
+            self.0.peek()
+        }
+        #[inline(always)]
+        fn pop(&mut self) {
+            let _ = self.0.dequeue();
+        }
+    }
+
+    /// The pulse-end ISR: same priority as the frame.
+    #[task(binds = TIM5, priority = 3)]
+    fn pulse_end(_: pulse_end::Context) {
+        rt::pulse_end(&mut F446, &mut F446, &STATUS);
+    }
+
+    /// USART2: received bytes into the protocol's ring, queued bytes out. Priority 2.
+    #[task(binds = USART2, priority = 2, local = [uart_rx, uart_tx])]
+    fn usart2(cx: usart2::Context) {
+        let rx = cx.local.uart_rx;
+        board::usart2_interrupt(cx.local.uart_tx, |b| {
+            let _ = rx.push_byte(b);
+        });
+    }
+
+    /// The sampler (TIM3 update, `sample_hz`): one conversion of the triple ADC, the AC period
+    /// spawned every N samples; feeds the watchdog while the frame runs. Priority 2.
+    #[task(binds = TIM3, priority = 2, local = [sampler, frames_seen])]
+    fn sample(cx: sample::Context) {
+        SampleClock::ack(&mut F446);
+        let frames = FRAMES.load(Relaxed);
+        if frames != *cx.local.frames_seen {
+            *cx.local.frames_seen = frames;
+            F446::watchdog_feed();
+        }
+        let Some(s) = cx.local.sampler.as_mut() else {
+            return;
+        };
+        let due = match s.sample() {
+            Sampled::Lost(due) | Sampled::Ok(due) => due,
+        };
+        if let Some(due) = due {
+            if ac_period::spawn(due).is_err() {
+                STATUS.ac_missed.fetch_add(1, Relaxed);
+            }
+        }
+    }
+
+    /// The AC period: priority 1.
+    #[task(priority = 1, local = [ac])]
+    async fn ac_period(cx: ac_period::Context, due: u32) {
+        let Some(task) = cx.local.ac.as_mut() else {
+            return;
+        };
+        let p = task.run(due);
+        if let Some(a) = p.alarm {
+            defmt::warn!("AC hold: {}", defmt::Display2Format(&a));
+        }
+    }
+
+    /// The loader: the grbl protocol on USART2, forever.
+    #[idle(local = [producer, table, proto, tx, ac_alarms])]
+    fn idle(cx: idle::Context) -> ! {
+        let ceiling = cx
+            .local
+            .table
+            .settings
+            .ac_enabled
+            .then_some(cx.local.table.settings.ac.ceiling);
+        millac_hal::serial::run(
+            cx.local.producer,
+            cx.local.table,
+            ceiling,
+            cx.local.proto,
+            cx.local.tx,
+            cx.local.ac_alarms,
+            &STATUS,
+            &Usart2,
+            &mut (),
+        )
+    }
+
+    /// The AC log lines at defmt's debug level (`DEFMT_LOG=debug` to see them).
+    pub struct DefmtLog;
+
+    impl LogSink for DefmtLog {
+        fn write(&mut self, bytes: &[u8]) {
+            if let Ok(s) = core::str::from_utf8(bytes) {
+                defmt::debug!("{=str}", s.trim_end());
+            }
+        }
+    }
+
+    /// Placeholder settings storage (nothing persists) until the flash store is in.
+    pub struct RamStorage;
+
+    impl millac::ports::SettingsStorage for RamStorage {
+        fn load(&mut self, _: &mut [u8]) -> Option<usize> {
+            None
+        }
+        fn store(&mut self, _: &[u8]) -> bool {
+            false
+        }
+    }
+}
