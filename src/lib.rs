@@ -7,6 +7,8 @@
 //!   and the host tool's pre-check share the tape).
 //! - [`ac`]: the adaptive control (DRR, ECR, FRC, holds and alarms), the sampler's and AC task's
 //!   work.
+//! - [`flashstore`]: the settings record's wear-levelled log in a flash sector (init loads, loader
+//!   task stores) for the real boards.
 //! - [`ports`]: one trait per hardware role, with its context; boards (hal/) and the host
 //!   simulation implement them.
 //! - [`rt`]: the run-time bodies over the ports (frame ISR, pulse-end ISR, sampler, AC period), the
@@ -22,6 +24,7 @@
 extern crate std;
 
 pub mod ac;
+pub mod flashstore;
 pub mod gcode;
 pub mod nc;
 pub mod ports;
