@@ -14,7 +14,8 @@
 //! | sample clock | TIM3, update = sampler interrupt and TRGO = ADC trigger | |
 //! | T, Fu, Fv | ADC1 IN0 PA0, ADC2 IN1 PA1, ADC3 IN10 PC0, triple simultaneous, DMA2 stream 0 | A0, A1, A5 |
 //! | grbl serial | USART2 PA2 TX, PA3 RX (the ST-LINK virtual COM port), 115200 8N1 | USB |
-//! | watchdog | IWDG, ~100 ms | |
+//! | watchdog | IWDG, ~100 ms (~8 s around a flash sector erase) | |
+//! | settings | flash sector 7 (see `flash`) | |
 //!
 //! Timers TIM2, TIM3 and TIM5 are on APB1: PCLK1 = 45 MHz, timer clock 2 x PCLK1 = 90 MHz
 //! ([`TIMER_HZ`]). The PULSE and SIGN lines are written with the GPIO port's bit set/reset
@@ -145,6 +146,7 @@ const DMA_EN: u32 = 1;
 const IWDG_KR: usize = 0x4000_3000;
 const IWDG_PR: usize = 0x4000_3004;
 const IWDG_RLR: usize = 0x4000_3008;
+const IWDG_SR: usize = 0x4000_300C;
 const KR_START: u32 = 0xCCCC;
 const KR_FEED: u32 = 0xAAAA;
 const KR_UNLOCK: u32 = 0x5555;
@@ -240,6 +242,23 @@ impl F446 {
         write(IWDG_KR, KR_UNLOCK);
         write(IWDG_PR, 0b011);
         write(IWDG_RLR, 100);
+        write(IWDG_KR, KR_FEED);
+    }
+
+    /// Stretches the watchdog to ~8 s (LSI / 64, reload 4095) around a flash sector erase, which
+    /// stalls every fetch from flash for 1-2 s, and brings it back to ~100 ms after. Loader task
+    /// (the settings store), only while the machine stands.
+    pub fn watchdog_stretch(long: bool) {
+        write(IWDG_KR, KR_UNLOCK);
+        if long {
+            write(IWDG_PR, 0b100);
+            write(IWDG_RLR, 0xFFF);
+        } else {
+            write(IWDG_PR, 0b011);
+            write(IWDG_RLR, 100);
+        }
+        // The new values reach the LSI domain within a few LSI clocks (SR PVU, RVU clear).
+        while read(IWDG_SR) != 0 {}
         write(IWDG_KR, KR_FEED);
     }
 

@@ -20,6 +20,7 @@ use defmt_rtt as _;
 use panic_probe as _;
 
 mod board;
+mod flash;
 
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1])]
 mod app {
@@ -41,7 +42,10 @@ mod app {
     use stm32f4xx_hal::prelude::*;
     use stm32f4xx_hal::rcc::Config;
 
+    use millac::flashstore::FlashStore;
+
     use crate::board::{self, TripleAdc, Usart2, F446};
+    use crate::flash::Sector7;
 
     /// The status words between the contexts.
     static STATUS: Status = Status::new();
@@ -67,7 +71,7 @@ mod app {
         frame: FrameTask,
         consumer: Consumer<'static, Block, QUEUE>,
         producer: Producer<'static, Block, QUEUE>,
-        table: Persistent<RamStorage>,
+        table: Persistent<FlashStore<Sector7>>,
         cycles: FrameCycles,
         sampler: Option<Sampler<TripleAdc>>,
         ac: Option<AcTask<DefmtLog>>,
@@ -107,10 +111,14 @@ mod app {
         core.DWT.enable_cycle_counter();
         let watchdog_reset = F446::watchdog_reset();
 
-        let (table, status) = Persistent::load(RamStorage);
-        if let LoadStatus::Refused(e) = status {
-            defmt::warn!("settings record refused: {}", e.message());
-        }
+        let (table, status) = Persistent::load(FlashStore::new(Sector7));
+        let refused = match status {
+            LoadStatus::Refused(e) => {
+                defmt::warn!("settings record refused: {}; defaults loaded", e.message());
+                Some(e)
+            }
+            LoadStatus::Loaded | LoadStatus::Missing => None,
+        };
         let settings = table.settings.nc;
         if let Err(e) = settings.validate() {
             defmt::panic!("settings: {}", e.message());
@@ -150,7 +158,11 @@ mod app {
         board::sample_start(board::sample_reload(ac_settings.sample_hz));
 
         let (uart_rx, rx) = cx.local.serial_rx.split();
-        let proto = Protocol::new(rx, (QUEUE - 1) as u16);
+        let mut proto = Protocol::new(rx, (QUEUE - 1) as u16);
+        // ALARM:120 after the banner, G-code locked until `$X` (as on the QEMU board).
+        if let Some(e) = refused {
+            proto.settings_refused(e);
+        }
         let (tx, uart_tx) = cx.local.serial_tx.split();
 
         F446::watchdog_start();
@@ -309,18 +321,6 @@ mod app {
             if let Ok(s) = core::str::from_utf8(bytes) {
                 defmt::debug!("{=str}", s.trim_end());
             }
-        }
-    }
-
-    /// Placeholder settings storage (nothing persists) until the flash store is in.
-    pub struct RamStorage;
-
-    impl millac::ports::SettingsStorage for RamStorage {
-        fn load(&mut self, _: &mut [u8]) -> Option<usize> {
-            None
-        }
-        fn store(&mut self, _: &[u8]) -> bool {
-            false
         }
     }
 }
