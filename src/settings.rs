@@ -1,8 +1,8 @@
 //! Machine settings (units, frame rate, feed DDA, rapid, pulse timing, soft limits, acceleration)
 //! and their validation, generic ([`Settings::validate`]) or for a board's limits and measured ISR
-//! times ([`Settings::validate_for`], [`BoardLimits`]). Read by the host tool, the G-code parser (task) and, once validated, by the
-//! frame (ISR) through [`crate::nc::FrameConfig`]; listed and set through
-//! [`crate::protocol::settings`].
+//! times ([`Settings::validate_for`], [`BoardLimits`]). Read by the host tool, the G-code parser
+//! (task) and, once validated, by the frame (ISR) through [`crate::nc::FrameConfig`]; listed and
+//! set through [`crate::protocol::settings`].
 
 /// The basic length unit: one pulse moves one BLU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
