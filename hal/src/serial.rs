@@ -129,6 +129,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
             modes: tape.parser().modes(),
             machine: &settings,
             state,
+            frame_cycles: None,
         };
         let event = if room {
             proto.poll(&mut out, &mut cx)
@@ -231,6 +232,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage>(
                         spindle_rpm: tape.parser().spindle_rpm(),
                         blocks_free: (Q - 1 - blocks.len()) as u16,
                         ac,
+                        frame_cycles: None,
                     };
                     proto.status_report(&data, options, settings.blu, &mut out);
                 }
