@@ -16,6 +16,8 @@
 //! - [`wire`]: the formats between the QEMU firmware and the host tool (lockstep ADC, `ac.log`).
 //! - [`protocol`]: the grbl 1.1 serial protocol (RX interrupt: realtime bytes and the receive
 //!   ring; loader task: lines, `ok` / `error:N`, `$` commands, status reports).
+//! - [`inputs`]: debouncing of the operator's inputs, the feed hold / cycle start edges and the
+//!   e-stop / limit alarm latch (board's periodic input task, loader task).
 //! - [`settings`]: the machine settings and their validation (init, loader, host).
 //! - [`protocol`]: the operator's line protocol (loader task); `protocol::settings` is the `$$`
 //!   table and the persistent settings record (init loads it).
@@ -26,6 +28,7 @@ extern crate std;
 pub mod ac;
 pub mod flashstore;
 pub mod gcode;
+pub mod inputs;
 pub mod nc;
 pub mod ports;
 pub mod protocol;

@@ -157,7 +157,8 @@ pub trait SettingsStorage {
     fn store(&mut self, image: &[u8]) -> bool;
 }
 
-/// The operator's inputs, debounced by the board. Loader task (and the board's input interrupt).
+/// The operator's inputs, active = true: raw from [`OperatorInputs::read`], debounced by
+/// [`crate::inputs::Debouncer`]. Board's periodic input task, loader task.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Inputs {
     pub estop: bool,
@@ -167,7 +168,8 @@ pub struct Inputs {
     pub limits: u8,
 }
 
-/// Operator inputs (e-stop, feed hold, cycle start, limits). Loader task.
+/// Operator inputs (e-stop, feed hold, cycle start, limits), raw. The board's periodic input task,
+/// which passes each sample to [`crate::inputs::Debouncer::sample`].
 pub trait OperatorInputs {
     fn read(&mut self) -> Inputs;
 }
@@ -217,7 +219,7 @@ impl<S: embedded_hal::digital::OutputPin, D: embedded_hal::digital::OutputPin> S
 
 /// [`OperatorInputs`] over embedded-hal input pins, active low (switches to ground with pull-ups,
 /// the usual wiring; an e-stop is normally closed, so a broken wire reads as pressed). A pin that
-/// cannot be read counts as active (safe side). No debouncing here: the board samples it.
+/// cannot be read counts as active (safe side). No debouncing here: [`crate::inputs::Debouncer`] does it.
 pub struct PinInputs<P> {
     pub estop: P,
     pub feed_hold: P,

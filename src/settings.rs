@@ -1,7 +1,8 @@
 //! Machine settings (units, frame rate, feed DDA, rapid, pulse timing, soft limits, acceleration)
-//! and their validation. Read by the host tool, the G-code parser (task) and, once validated, by the
-//! frame (ISR) through [`crate::nc::FrameConfig`]; listed and set through
-//! [`crate::protocol::settings`].
+//! and their validation, generic ([`Settings::validate`]) or for a board's limits and measured ISR
+//! times ([`Settings::validate_for`], [`BoardLimits`]). Read by the host tool, the G-code parser
+//! (task) and, once validated, by the frame (ISR) through [`crate::nc::FrameConfig`]; listed and
+//! set through [`crate::protocol::settings`].
 
 /// The basic length unit: one pulse moves one BLU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -89,6 +90,56 @@ impl Default for Settings {
     }
 }
 
+/// What a board can do, for [`Settings::validate_for`]: its rate caps and the worst-case times of
+/// its frame and pulse-end ISRs (measured on the board, e.g. with the cycle counter, and stated as
+/// constants in its firmware). Init context (a `const` per board).
+///
+/// With measured ISR times the timing rule of [`crate::rt::isr`] is checked with real numbers at
+/// the rapid rate (the shortest frame period T):
+/// - the SIGN-to-rising-edge gap, at least T - max(pulse width, frame work) - pulse end, must be
+///   at least the sign setup time ([`SettingsError::SignSetup`]);
+/// - the two ISRs together take at most [`ISR_SHARE_PCT`] % of the CPU:
+///   (frame work + pulse end) * rapid_hz <= 0.5 s per second ([`SettingsError::IsrLoad`]), so the
+///   sampler, the AC task and the loader keep the other half.
+///
+/// Without them (`frame_work_ns == 0`, as [`BoardLimits::GENERIC`]) the generic rule applies
+/// instead: pulse width + sign setup <= 75 % of T, a quarter of T left for the frame's work.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BoardLimits {
+    /// Highest frame rate W0 (`frame_hz`) the board runs, Hz.
+    pub max_frame_hz: u32,
+    /// Highest rapid rate (`rapid_hz`) the board runs, Hz.
+    pub max_rapid_hz: u32,
+    /// Worst frame ISR time including interrupt entry and exit, ns; 0 = not measured.
+    pub frame_work_ns: u32,
+    /// Worst pulse-end ISR time including interrupt entry and exit, ns.
+    pub pulse_end_ns: u32,
+}
+
+impl BoardLimits {
+    /// The limits [`Settings::validate`] applies: the QEMU board and the host tools (W0 up to
+    /// 100 kHz, rapid up to 200 kHz, ISR times not measured: the 75 % rule).
+    pub const GENERIC: BoardLimits = BoardLimits {
+        max_frame_hz: 100_000,
+        max_rapid_hz: 200_000,
+        frame_work_ns: 0,
+        pulse_end_ns: 0,
+    };
+
+    /// The board states its ISR times (the timing rule is checked with them).
+    pub const fn measured(&self) -> bool {
+        self.frame_work_ns != 0
+    }
+}
+
+/// Highest frame rate any board may state (keeps the frame's arithmetic far from overflow).
+pub const FRAME_HZ_CEILING: u32 = 1_000_000;
+/// Highest rapid rate any board may state.
+pub const RAPID_HZ_CEILING: u32 = 1_000_000;
+/// Share of the CPU, in percent, the frame and pulse-end ISRs may take at the rapid rate on a
+/// board with measured ISR times.
+pub const ISR_SHARE_PCT: u64 = 50;
+
 /// Why a set of settings was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SettingsError {
@@ -100,14 +151,24 @@ pub enum SettingsError {
     PulseTiming,
     SoftLimits,
     Acceleration,
+    /// The board's measured ISR times leave less than the sign setup time between a SIGN change
+    /// and the next rising PULSE edge at the rapid rate.
+    SignSetup,
+    /// The frame and pulse-end ISRs would take more than [`ISR_SHARE_PCT`] % of the CPU at the
+    /// rapid rate.
+    IsrLoad,
 }
 
 impl SettingsError {
     pub const fn message(self) -> &'static str {
         match self {
-            SettingsError::FrameRate => "frame rate must be 100..=100000 Hz",
+            SettingsError::FrameRate => {
+                "frame rate must be 100..=100000 Hz, or up to the board's own maximum"
+            }
             SettingsError::Q0 => "q0 must be 1..=1000000",
-            SettingsError::RapidRate => "rapid rate must be at least the frame rate and at most 200000 Hz",
+            SettingsError::RapidRate => {
+                "rapid rate must be at least the frame rate and at most 200000 Hz, or the board's own maximum"
+            }
             SettingsError::PtpSteps => "PTP deceleration thresholds must be decreasing and non-zero",
             SettingsError::DecelTau => "deceleration time constant must be 1 ms..=10 s",
             SettingsError::PulseTiming => {
@@ -115,20 +176,37 @@ impl SettingsError {
             }
             SettingsError::SoftLimits => "soft limits must satisfy min <= 0 <= max on every axis",
             SettingsError::Acceleration => "acceleration must be 100..=100000000 BLU/s^2 on every axis",
+            SettingsError::SignSetup => {
+                "rapid period - max(pulse width, frame ISR) - pulse-end ISR must be at least the sign setup time on this board"
+            }
+            SettingsError::IsrLoad => {
+                "frame + pulse-end ISRs must take at most 50% of the CPU at the rapid rate on this board"
+            }
         }
     }
 }
 
 impl Settings {
-    /// Checks every setting; the frame relies on these bounds and does no checks of its own.
+    /// Checks every setting against the generic limits ([`BoardLimits::GENERIC`]: the QEMU
+    /// board, the host tools); the frame relies on these bounds and does no checks of its own.
     pub fn validate(&self) -> Result<(), SettingsError> {
-        if !(100..=100_000).contains(&self.frame_hz) {
+        self.validate_for(&BoardLimits::GENERIC)
+    }
+
+    /// Checks every setting for `board`: the generic ranges, with the frame and rapid rate caps
+    /// taken from the board (up to [`FRAME_HZ_CEILING`] / [`RAPID_HZ_CEILING`]), and the timing
+    /// rule of [`crate::rt::isr`] with the board's measured ISR times (see [`BoardLimits`]).
+    /// Init (before the frame timer starts), loader (`$n=`), host.
+    pub fn validate_for(&self, board: &BoardLimits) -> Result<(), SettingsError> {
+        let max_frame_hz = board.max_frame_hz.min(FRAME_HZ_CEILING);
+        if !(100..=max_frame_hz).contains(&self.frame_hz) {
             return Err(SettingsError::FrameRate);
         }
         if !(1..=1_000_000).contains(&self.q0) {
             return Err(SettingsError::Q0);
         }
-        if self.rapid_hz < self.frame_hz || self.rapid_hz > 200_000 {
+        let max_rapid_hz = board.max_rapid_hz.min(RAPID_HZ_CEILING);
+        if self.rapid_hz < self.frame_hz || self.rapid_hz > max_rapid_hz {
             return Err(SettingsError::RapidRate);
         }
         let [a, b, c] = self.ptp_steps;
@@ -138,11 +216,31 @@ impl Settings {
         if !(1_000..=10_000_000).contains(&self.decel_tau_us) {
             return Err(SettingsError::DecelTau);
         }
-        // The pulse must end and the sign must settle inside the shortest frame, with a quarter of
-        // the frame left for the frame's own work.
+        // The shortest frame period (rapid_hz >= frame_hz), rounded down: the check is on the
+        // safe side.
         let period_ns = 1_000_000_000u64 / self.rapid_hz as u64;
-        let need = self.pulse_width_ns as u64 + self.sign_setup_ns as u64;
-        if self.pulse_width_ns == 0 || need * 4 > period_ns * 3 {
+        let width = self.pulse_width_ns as u64;
+        let setup = self.sign_setup_ns as u64;
+        if width == 0 {
+            return Err(SettingsError::PulseTiming);
+        }
+        if board.measured() {
+            // The timing rule with the board's numbers: the SIGN lines change after the pulse
+            // end ISR, which runs after max(pulse width, frame work); the next rising edge comes
+            // one period after this one.
+            let frame = board.frame_work_ns as u64;
+            let pulse_end = board.pulse_end_ns as u64;
+            if period_ns < width.max(frame) + pulse_end + setup {
+                return Err(SettingsError::SignSetup);
+            }
+            // Both ISRs run once per rapid frame: their share of the CPU, in ns per second.
+            let busy = (frame + pulse_end) * self.rapid_hz as u64;
+            if busy * 100 > 1_000_000_000 * ISR_SHARE_PCT {
+                return Err(SettingsError::IsrLoad);
+            }
+        } else if (width + setup) * 4 > period_ns * 3 {
+            // Unmeasured ISR times: the pulse must end and the sign must settle inside the
+            // shortest frame, with a quarter of the frame left for the frame's own work.
             return Err(SettingsError::PulseTiming);
         }
         for k in 0..3 {
@@ -173,6 +271,246 @@ impl Settings {
             u16::MAX as u32
         } else {
             k as u32
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A Nucleo-F446RE-like board: W0 up to 250 kHz, measured ISR times.
+    const F446: BoardLimits = BoardLimits {
+        max_frame_hz: 250_000,
+        max_rapid_hz: 250_000,
+        frame_work_ns: 1500,
+        pulse_end_ns: 400,
+    };
+
+    /// 200 kHz contouring and rapid, 2 us pulse, 2 us sign setup.
+    fn fast() -> Settings {
+        Settings {
+            frame_hz: 200_000,
+            rapid_hz: 200_000,
+            pulse_width_ns: 2000,
+            sign_setup_ns: 2000,
+            ..Settings::default()
+        }
+    }
+
+    #[test]
+    fn a_fast_board_runs_200_khz_with_its_measured_isr_times() {
+        // Gap 5000 - max(2000, 1500) - 400 = 2600 >= 2000; load (1500 + 400) * 200k = 38 %.
+        assert_eq!(fast().validate_for(&F446), Ok(()));
+        // The generic limits refuse it (W0 above 100 kHz), and so would the 75 % rule.
+        assert_eq!(fast().validate(), Err(SettingsError::FrameRate));
+        let unmeasured = BoardLimits {
+            frame_work_ns: 0,
+            pulse_end_ns: 0,
+            ..F446
+        };
+        assert_eq!(
+            fast().validate_for(&unmeasured),
+            Err(SettingsError::PulseTiming)
+        );
+    }
+
+    #[test]
+    fn the_sign_setup_gap_uses_the_frame_work_and_the_pulse_end() {
+        let with = |frame_work_ns, pulse_end_ns| BoardLimits {
+            frame_work_ns,
+            pulse_end_ns,
+            ..F446
+        };
+        // The brief's board with more frame work: 5000 - 2700 - 400 = 1900 < 2000.
+        assert_eq!(
+            fast().validate_for(&with(2700, 400)),
+            Err(SettingsError::SignSetup)
+        );
+        // Frame work above the pulse width sets the falling edge (a 3 us sign setup keeps the
+        // ISR load below half): 5000 - 1600 - 400 = 3000.
+        let long_setup = Settings {
+            pulse_width_ns: 1000,
+            sign_setup_ns: 3000,
+            ..fast()
+        };
+        assert_eq!(long_setup.validate_for(&with(1600, 400)), Ok(()));
+        assert_eq!(
+            long_setup.validate_for(&with(1601, 400)),
+            Err(SettingsError::SignSetup)
+        );
+        // Below the pulse width it does not matter for the gap.
+        assert_eq!(long_setup.validate_for(&with(900, 400)), Ok(()));
+        // A longer pulse-end ISR eats the gap too: 5000 - 2000 - 1001 < 2000.
+        assert_eq!(
+            fast().validate_for(&with(1500, 1001)),
+            Err(SettingsError::SignSetup)
+        );
+        // A pulse longer than the frame work sets the falling edge: 5000 - 2500 - 400 = 2100.
+        let wide = Settings {
+            pulse_width_ns: 2500,
+            sign_setup_ns: 2100,
+            ..fast()
+        };
+        assert_eq!(wide.validate_for(&with(100, 400)), Ok(()));
+        assert_eq!(wide.validate_for(&with(2000, 400)), Ok(()));
+        assert_eq!(
+            wide.validate_for(&with(100, 401)),
+            Err(SettingsError::SignSetup)
+        );
+    }
+
+    #[test]
+    fn the_isrs_may_take_half_the_cpu_at_the_rapid_rate() {
+        let s = Settings {
+            pulse_width_ns: 1000,
+            sign_setup_ns: 1000,
+            ..fast()
+        };
+        let with = |frame_work_ns, pulse_end_ns| BoardLimits {
+            frame_work_ns,
+            pulse_end_ns,
+            ..F446
+        };
+        // (1900 + 600) ns * 200 kHz = 0.5 s per second: exactly half.
+        assert_eq!(s.validate_for(&with(1900, 600)), Ok(()));
+        // 2600 ns: 52 %, although the gap (5000 - 2000 - 600 = 2400) is fine.
+        assert_eq!(
+            s.validate_for(&with(2000, 600)),
+            Err(SettingsError::IsrLoad)
+        );
+        // The same board at a lower rapid rate is fine.
+        let slower = Settings {
+            frame_hz: 150_000,
+            rapid_hz: 150_000,
+            ..s
+        };
+        assert_eq!(slower.validate_for(&with(2000, 600)), Ok(()));
+    }
+
+    #[test]
+    fn the_board_caps_the_frame_and_rapid_rates() {
+        let at = |frame_hz, rapid_hz| Settings {
+            frame_hz,
+            rapid_hz,
+            pulse_width_ns: 1000,
+            sign_setup_ns: 1000,
+            ..Settings::default()
+        };
+        let roomy = BoardLimits {
+            frame_work_ns: 500,
+            pulse_end_ns: 100,
+            ..F446
+        };
+        assert_eq!(at(250_000, 250_000).validate_for(&roomy), Ok(()));
+        assert_eq!(
+            at(250_001, 250_001).validate_for(&roomy),
+            Err(SettingsError::FrameRate)
+        );
+        assert_eq!(
+            at(200_000, 250_001).validate_for(&roomy),
+            Err(SettingsError::RapidRate)
+        );
+        assert_eq!(
+            fast().validate_for(&BoardLimits {
+                max_frame_hz: 199_999,
+                ..F446
+            }),
+            Err(SettingsError::FrameRate)
+        );
+        // No board goes past the ceilings.
+        let unlimited = BoardLimits {
+            max_frame_hz: u32::MAX,
+            max_rapid_hz: u32::MAX,
+            frame_work_ns: 1,
+            pulse_end_ns: 1,
+        };
+        let ceiling = Settings {
+            pulse_width_ns: 100,
+            sign_setup_ns: 100,
+            ..at(FRAME_HZ_CEILING, RAPID_HZ_CEILING)
+        };
+        assert_eq!(ceiling.validate_for(&unlimited), Ok(()));
+        let above = Settings {
+            frame_hz: FRAME_HZ_CEILING + 1,
+            rapid_hz: FRAME_HZ_CEILING + 1,
+            ..ceiling
+        };
+        assert_eq!(
+            above.validate_for(&unlimited),
+            Err(SettingsError::FrameRate)
+        );
+    }
+
+    /// `Settings::validate` as it was before boards had limits of their own.
+    fn validate_before_boards(s: &Settings) -> Result<(), SettingsError> {
+        if !(100..=100_000).contains(&s.frame_hz) {
+            return Err(SettingsError::FrameRate);
+        }
+        if !(1..=1_000_000).contains(&s.q0) {
+            return Err(SettingsError::Q0);
+        }
+        if s.rapid_hz < s.frame_hz || s.rapid_hz > 200_000 {
+            return Err(SettingsError::RapidRate);
+        }
+        let [a, b, c] = s.ptp_steps;
+        if !(a > b && b > c && c > 0) {
+            return Err(SettingsError::PtpSteps);
+        }
+        if !(1_000..=10_000_000).contains(&s.decel_tau_us) {
+            return Err(SettingsError::DecelTau);
+        }
+        let period_ns = 1_000_000_000u64 / s.rapid_hz as u64;
+        let need = s.pulse_width_ns as u64 + s.sign_setup_ns as u64;
+        if s.pulse_width_ns == 0 || need * 4 > period_ns * 3 {
+            return Err(SettingsError::PulseTiming);
+        }
+        for k in 0..3 {
+            if s.soft_min[k] > 0 || s.soft_max[k] < 0 {
+                return Err(SettingsError::SoftLimits);
+            }
+        }
+        if !s.accel_blu_s2.iter().all(|a| ACCEL_RANGE.contains(a)) {
+            return Err(SettingsError::Acceleration);
+        }
+        Ok(())
+    }
+
+    fn around(edges: &'static [u32]) -> impl Strategy<Value = u32> {
+        prop_oneof![
+            proptest::sample::select(edges),
+            proptest::sample::select(edges).prop_map(|e| e.saturating_add(1)),
+            proptest::sample::select(edges).prop_map(|e| e.saturating_sub(1)),
+            any::<u32>(),
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn validate_is_unchanged_for_the_generic_board(
+            frame_hz in around(&[100, 5000, 100_000, 200_000]),
+            rapid_hz in around(&[100, 26_333, 100_000, 200_000, 250_000]),
+            q0 in around(&[1, 3000, 1_000_000]),
+            width in around(&[0, 1000, 2000, 5000, 10_000]),
+            setup in around(&[0, 1000, 2000, 5000, 10_000]),
+            tau in around(&[1000, 20_000, 10_000_000]),
+            min_x in -2i32..=2,
+            accel in around(&[100, 250_000, 100_000_000]),
+        ) {
+            let s = Settings {
+                frame_hz,
+                rapid_hz,
+                q0,
+                pulse_width_ns: width,
+                sign_setup_ns: setup,
+                decel_tau_us: tau,
+                soft_min: [min_x, -1, -1],
+                accel_blu_s2: [accel, 250_000, 250_000],
+                ..Settings::default()
+            };
+            prop_assert_eq!(s.validate(), validate_before_boards(&s));
+            prop_assert_eq!(s.validate_for(&BoardLimits::GENERIC), validate_before_boards(&s));
         }
     }
 }

@@ -196,6 +196,7 @@ pub fn run<
             modes: tape.parser().modes(),
             machine: &settings,
             state,
+            frame_cycles: None,
         };
         let event = if room {
             proto.poll(&mut out, &mut cx)
@@ -298,6 +299,7 @@ pub fn run<
                         spindle_rpm: tape.parser().spindle_rpm(),
                         blocks_free: (Q - 1 - blocks.len()) as u16,
                         ac,
+                        frame_cycles: None,
                     };
                     proto.status_report(&data, options, settings.blu, &mut out);
                 }

@@ -18,12 +18,17 @@
 //! - `$` commands (whitespace and comments removed, any case, as grbl): `$` help, `$$` and `$n`,
 //!   `$n=value` (through the [`SettingsTable`] hook), `$G`, `$#`, `$I`, `$N`, `$C`, `$X`, `$J=`,
 //!   `$H` (`error:5`: no homing), `$RST=` (the hook). Others: `error:3`.
-//! - Status report: [`report::write_status`], with millac's `AC:` field ([`report::AcReport`]).
+//! - Status report: [`report::write_status`], with millac's `AC:` field ([`report::AcReport`]) and,
+//!   on a board that measures its frame ISR, `FC:min,max` (cycles, [`StatusData::frame_cycles`]).
+//! - `$I` adds `[FRAME:min,max,budget]` on such a board: the frame's fewest and most cycles from
+//!   [`Context::frame_cycles`] and the budget, CPU cycles per rapid period, from the core clock
+//!   the board gives once at init ([`Protocol::set_core_hz`]) and `rapid_hz` of
+//!   [`Context::machine`]. grbl senders ignore unknown status fields and `[...]` lines.
 //!
 //! How the loader uses it:
 //! ```text
 //! loop {
-//!     match proto.poll(&mut uart, &mut Context { table, modes, machine, state }) {
+//!     match proto.poll(&mut uart, &mut Context { table, modes, machine, state, frame_cycles }) {
 //!         Event::None => break,                      // nothing more now
 //!         Event::Gcode { line, check } => {          // parse (and queue unless check)
 //!             let r = feed_line(line, check);        // Result<(), GrblError>
@@ -66,7 +71,7 @@ use core::fmt::{self, Write};
 
 pub use codes::GrblError;
 pub use jog::{JogPlan, JogRequest};
-pub use report::{AcReport, AcState, ReportOptions, State, StatusData};
+pub use report::{AcReport, AcState, FrameCycles, ReportOptions, State, StatusData};
 pub use rx::{Overrides, Pending, Push, RxIsr, RxShared, RxTask, RX_BUFFER_SIZE};
 
 /// Longest line in bytes, without its line end (as the tape reader's).
@@ -105,6 +110,9 @@ pub struct Context<'a, T: SettingsTable + ?Sized> {
     pub machine: &'a Settings,
     /// What the machine is doing (Idle, Run, Hold, Jog; Alarm and Check are the protocol's own).
     pub state: State,
+    /// The frame ISR's (fewest, most) cycles for `$I`, when the board measures them
+    /// ([`crate::rt::Status::frame_cycles`]); None: no `[FRAME:...]` line.
+    pub frame_cycles: Option<(u32, u32)>,
 }
 
 /// What [`Protocol::poll`] found.
@@ -155,6 +163,8 @@ pub struct Protocol<'a> {
     /// Status reports until the next `WCO:` field (0: in the next one).
     wco_countdown: u8,
     queue_blocks: u16,
+    /// The CPU clock in Hz for the `$I` frame budget (0: not known), [`Protocol::set_core_hz`].
+    core_hz: u32,
     /// Data bytes refused after a soft reset whose marker did not fit, to report as
     /// [`Event::RxOverflow`] right after the [`Event::Reset`].
     lost_after_reset: u32,
@@ -174,8 +184,16 @@ impl<'a> Protocol<'a> {
             settings_refused: None,
             wco_countdown: 0,
             queue_blocks,
+            core_hz: 0,
             lost_after_reset: 0,
         }
+    }
+
+    /// The CPU clock in Hz (init, on a board that measures its frame ISR in cycles): `$I`'s
+    /// `[FRAME:min,max,budget]` line gives budget = `hz / rapid_hz`, the cycles of the shortest
+    /// frame period. Without it the budget is 0.
+    pub fn set_core_hz(&mut self, hz: u32) {
+        self.core_hz = hz;
     }
 
     /// Sends the banner (call once after power-up).
@@ -506,11 +524,19 @@ impl<'a> Protocol<'a> {
             }
             _ if !idle_or_alarm => Err(GrblError::IDLE_ERROR),
             "$#" => sent(report::write_offsets(out, unit, opts.inches)),
-            "$I" => sent(report::write_build_info(
-                out,
-                self.queue_blocks,
-                RX_BUFFER_SIZE,
-            )),
+            "$I" => {
+                let frame = cx.frame_cycles.map(|(min, max)| FrameCycles {
+                    min,
+                    max,
+                    budget: self.core_hz.checked_div(cx.machine.rapid_hz).unwrap_or(0),
+                });
+                sent(report::write_build_info(
+                    out,
+                    self.queue_blocks,
+                    RX_BUFFER_SIZE,
+                    frame,
+                ))
+            }
             "$N" => sent(out.write_str("$N0=\r\n$N1=\r\n")),
             "$H" => Err(GrblError::SETTING_DISABLED),
             _ => {

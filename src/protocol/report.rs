@@ -1,6 +1,10 @@
 //! grbl 1.1 push messages formatted without floats or allocation (loader task, host tests): the
-//! banner, the status report `<...>` with millac's `AC:` field, `$G`, `$#`, `$I`, `ALARM:N`,
-//! `[MSG:...]`.
+//! banner, the status report `<...>` with millac's `AC:` and `FC:` fields, `$G`, `$#`, `$I` (with
+//! millac's `[FRAME:...]` line), `ALARM:N`, `[MSG:...]`.
+//!
+//! millac's additions are safe for grbl senders: grbl 1.1's interface document tells them to
+//! ignore status report fields and `[...]` push messages they do not know (UGS, CNCjs, bCNC and
+//! Candle do), so `AC:`, `FC:` and `[FRAME:...]` only inform the operators who look for them.
 //!
 //! Numbers: positions and rates are integers (BLU, BLU per minute) converted once by exact
 //! rational arithmetic and rounded half away from zero to grbl's decimals: positions 3 decimals
@@ -127,6 +131,9 @@ pub struct StatusData {
     pub blocks_free: u16,
     /// The `AC:` field, when the adaptive control is enabled.
     pub ac: Option<AcReport>,
+    /// The frame ISR's (fewest, most) CPU cycles for the `FC:` field, when the board measures
+    /// them ([`crate::rt::Status::frame_cycles`]).
+    pub frame_cycles: Option<(u32, u32)>,
 }
 
 /// The feed of feed number `f` in BLU per minute: f * W0 * 60 / q0, rounded.
@@ -205,7 +212,8 @@ pub struct StatusContext {
     pub wco: bool,
 }
 
-/// `<State|MPos:x,y,z|Bf:b,r|FS:f,s|WCO:..|Ov:f,r,s|AC:..>` and its line end.
+/// `<State|MPos:x,y,z|Bf:b,r|FS:f,s|WCO:..|Ov:f,r,s|AC:..|FC:min,max>` and its line end.
+/// `FC:min,max`: the frame ISR's fewest and most CPU cycles, only when measured.
 pub fn write_status(out: &mut dyn Write, d: &StatusData, cx: &StatusContext) -> fmt::Result {
     let inches = cx.options.inches;
     write!(out, "<{}", d.state.name())?;
@@ -238,6 +246,9 @@ pub fn write_status(out: &mut dyn Write, d: &StatusData, cx: &StatusContext) -> 
             AcState::Run => out.write_str(",run")?,
             AcState::Hold(n) => write!(out, ",hold:{n}")?,
         }
+    }
+    if let Some((min, max)) = d.frame_cycles {
+        write!(out, "|FC:{min},{max}")?;
     }
     out.write_str(">\r\n")
 }
@@ -295,13 +306,34 @@ pub fn write_offsets(out: &mut dyn Write, unit: Blu, inches: bool) -> fmt::Resul
     out.write_str(":0]\r\n")
 }
 
+/// The frame ISR's measured cost for `$I`, in CPU cycles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameCycles {
+    /// Fewest and most cycles of one frame.
+    pub min: u32,
+    pub max: u32,
+    /// Cycles per rapid period (core clock / rapid rate, the shortest frame period); 0 = the core
+    /// clock is not known.
+    pub budget: u32,
+}
+
 /// `$I`: `[VER:1.1h.millac:]` and `[OPT:V,<blocks>,<rx bytes>]` (V: the S word is kept, so the
-/// status report has `FS:`).
-pub fn write_build_info(out: &mut dyn Write, blocks: u16, rx: usize) -> fmt::Result {
+/// status report has `FS:`), then `[FRAME:min,max,budget]` when the frame is measured
+/// ([`FrameCycles`]).
+pub fn write_build_info(
+    out: &mut dyn Write,
+    blocks: u16,
+    rx: usize,
+    frame: Option<FrameCycles>,
+) -> fmt::Result {
     write!(
         out,
         "[VER:{GRBL_VERSION}.millac:]\r\n[OPT:V,{blocks},{rx}]\r\n"
-    )
+    )?;
+    if let Some(f) = frame {
+        write!(out, "[FRAME:{},{},{}]\r\n", f.min, f.max, f.budget)?;
+    }
+    Ok(())
 }
 
 /// `[HLP:...]`, the commands millac implements.

@@ -106,6 +106,27 @@ fn parser_state_offsets_and_build_info() {
 }
 
 #[test]
+fn build_info_has_the_frame_line_only_when_measured() {
+    let mut r = Rig::new();
+    let plain = "[VER:1.1h.millac:]\r\n[OPT:V,15,128]\r\nok\r\n";
+    r.p.set_core_hz(180_000_000);
+    assert_eq!(answer(&mut r, "$I"), plain);
+    // 180 MHz at a 200 kHz rapid rate: 900 cycles per rapid period.
+    r.machine.rapid_hz = 200_000;
+    r.frame_cycles = Some((96, 412));
+    assert_eq!(
+        answer(&mut r, "$I"),
+        "[VER:1.1h.millac:]\r\n[OPT:V,15,128]\r\n[FRAME:96,412,900]\r\nok\r\n"
+    );
+    // Without the core clock the budget is 0.
+    let mut r = Rig::new();
+    r.frame_cycles = Some((96, 412));
+    assert!(answer(&mut r, "$I").contains("\r\n[FRAME:96,412,0]\r\nok\r\n"));
+    r.frame_cycles = None;
+    assert_eq!(answer(&mut r, "$I"), plain);
+}
+
+#[test]
 fn banner_names_millac_and_its_version() {
     let mut r = Rig::new();
     r.p.start(&mut r.out);

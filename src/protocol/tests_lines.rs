@@ -115,6 +115,7 @@ fn exactly_one_answer_per_line() {
         modes: r.parser.modes(),
         machine: &r.machine,
         state: State::Idle,
+        frame_cycles: None,
     };
     let mut out = String::new();
     assert_eq!(

@@ -16,6 +16,7 @@ fn data() -> StatusData {
         spindle_rpm: 0,
         blocks_free: 15,
         ac: None,
+        frame_cycles: None,
     }
 }
 
@@ -169,4 +170,49 @@ fn ac_helpers_alarms_and_messages() {
         r.take(),
         "ALARM:105\r\n[MSG:sensor hold: no fresh samples in an AC period]\r\n[MSG:a)b  c]\r\n"
     );
+}
+
+#[test]
+fn the_frame_cycles_field_appears_only_when_measured() {
+    let mut r = Rig::new();
+    status(&mut r, &data());
+    assert!(!status(&mut r, &data()).contains("FC:"));
+    let d = StatusData {
+        frame_cycles: Some((96, 1234)),
+        ..data()
+    };
+    assert_eq!(
+        status(&mut r, &d),
+        "<Idle|MPos:31.356,-0.003,0.000|FS:0,0|Ov:100,100,100|FC:96,1234>\r\n"
+    );
+    // After the AC field, the last one.
+    let d = StatusData {
+        ac: Some(AcReport {
+            feed_share_pct: 100,
+            f_ratio_milli: 500,
+            t_ratio_milli: 250,
+            state: AcState::Run,
+        }),
+        ..d
+    };
+    assert!(status(&mut r, &d).ends_with("|AC:100,0.500,0.250,run|FC:96,1234>\r\n"));
+}
+
+#[test]
+fn status_frame_cycles_are_none_until_both_are_written() {
+    use crate::rt::Status;
+    use core::sync::atomic::Ordering::Relaxed;
+    // The wrapper may write either word first: a report between the two stores shows nothing.
+    for min_first in [true, false] {
+        let s = Status::new();
+        assert_eq!(s.frame_cycles(), None);
+        let (first, second) = match min_first {
+            true => ((&s.frame_cycles_min, 96), (&s.frame_cycles_max, 1234)),
+            false => ((&s.frame_cycles_max, 1234), (&s.frame_cycles_min, 96)),
+        };
+        first.0.store(first.1, Relaxed);
+        assert_eq!(s.frame_cycles(), None, "{min_first}");
+        second.0.store(second.1, Relaxed);
+        assert_eq!(s.frame_cycles(), Some((96, 1234)));
+    }
 }

@@ -67,6 +67,8 @@ pub struct Rig {
     pub parser: Parser,
     pub state: State,
     pub line_no: u32,
+    /// What the loader passes as [`Context::frame_cycles`].
+    pub frame_cycles: Option<(u32, u32)>,
 }
 
 impl Rig {
@@ -86,6 +88,7 @@ impl Rig {
             parser: Parser::new(machine),
             state: State::Idle,
             line_no: 0,
+            frame_cycles: None,
         }
     }
 
@@ -102,6 +105,7 @@ impl Rig {
             modes: self.parser.modes(),
             machine: &self.machine,
             state: self.state,
+            frame_cycles: self.frame_cycles,
         };
         let ev = match self.p.poll(&mut self.out, &mut cx) {
             Event::None => return None,

@@ -1,7 +1,9 @@
 //! Single-word channels between the firmware's contexts: the frame ISR publishes its status
 //! (position, blocks done, idle, stopped, velocity) and reads the feed cap and the operator's word;
-//! the loader reads the status and writes the operator's word; the AC task writes the feed cap; the pulse-end ISR counts the encoder; the sampler counts samples. Relaxed
-//! atomics are enough: one core, and every word is meaningful on its own. Any context.
+//! the loader reads the status and writes the operator's word; the AC task writes the feed cap;
+//! the pulse-end ISR counts the encoder; the sampler counts samples; the board's frame wrapper
+//! publishes the frame's cycle counts. Relaxed atomics are enough: one core, and every word is
+//! meaningful on its own. Any context.
 use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicU8, Ordering::Relaxed};
 
 /// The status words. The firmware has one `static` (all zero-initialised, so it sits in .bss and
@@ -56,6 +58,12 @@ pub struct Status {
     pub ac_missed: AtomicU32,
     /// Samples the sampler could not queue for the AC task (queue full).
     pub samples_dropped: AtomicU32,
+    /// The frame ISR's fewest and most CPU cycles (its body, as the board's frame wrapper measures
+    /// it, e.g. with the cycle counter), for the status report's `FC:` field and `$I`. 0 = not
+    /// measured (the QEMU board). One writer, the board's frame wrapper (plain load and store);
+    /// read by the loader through [`Status::frame_cycles`].
+    pub frame_cycles_min: AtomicU32,
+    pub frame_cycles_max: AtomicU32,
 }
 
 impl Default for Status {
@@ -83,6 +91,8 @@ impl Status {
             samples: AtomicU32::new(0),
             ac_missed: AtomicU32::new(0),
             samples_dropped: AtomicU32::new(0),
+            frame_cycles_min: AtomicU32::new(0),
+            frame_cycles_max: AtomicU32::new(0),
         }
     }
 
@@ -108,6 +118,14 @@ impl Status {
             f32::from_bits(self.ac_force.load(Relaxed)),
             f32::from_bits(self.ac_torque.load(Relaxed)),
         )
+    }
+
+    /// The frame ISR's (fewest, most) cycles, or None while not measured (either word 0: the
+    /// wrapper has not written both yet, or the board does not measure).
+    pub fn frame_cycles(&self) -> Option<(u32, u32)> {
+        let min = self.frame_cycles_min.load(Relaxed);
+        let max = self.frame_cycles_max.load(Relaxed);
+        (min != 0 && max != 0).then_some((min, max))
     }
 
     /// The encoder counts X, Y, Z.

@@ -608,6 +608,7 @@ fn over_the_protocol(table: &mut Persistent<MemStorage>, line: &str) -> String {
         modes: crate::gcode::Parser::new(machine).modes(),
         machine: &machine,
         state: State::Idle,
+        frame_cycles: None,
     };
     while p.poll(&mut out, &mut cx) != Event::None {}
     out

@@ -1,0 +1,354 @@
+//! Debouncing of the operator's inputs (e-stop, feed hold, cycle start, limit switches) and the
+//! events the loader acts on. [`Debouncer::sample`] is called by the board's periodic input task
+//! (e.g. every 1 ms, with [`crate::ports::OperatorInputs::read`]); the loader task takes the
+//! events ([`Debouncer::take`]) and acknowledges the alarm latch ([`Debouncer::acknowledge`], on
+//! `$X` or a soft reset). Both contexts share one `Debouncer` (an RTIC shared resource: each call
+//! is a few dozen instructions, so the loader's lock is short). Pure logic, host-tested.
+//!
+//! # Rules
+//!
+//! - **Debounce.** A line changes its debounced state only after `samples` consecutive raw
+//!   samples that agree on the new state (any sample equal to the current debounced state starts
+//!   the count again). With `samples` = [`DEBOUNCE_SAMPLES`] = 10 and a 1 ms task, a line settles
+//!   10 ms after its last bounce.
+//! - **Safety first.** E-stop and the limit switches go active on the FIRST active raw sample:
+//!   no debounce delay between a switch closing (or an e-stop wire breaking) and the alarm. Only
+//!   their release is debounced. A bounce on a safety line can therefore trip the alarm, never
+//!   delay it; a spurious trip costs the operator an `$X`, a delayed one could cost the machine.
+//! - **Edges.** Feed hold and cycle start act on their debounced rising edge (pressed) only, so
+//!   a held button acts once; releasing does nothing. Edges are kept until the loader takes them,
+//!   so a loader slower than the input task misses none (several presses between two takes count
+//!   as one).
+//! - **Alarm latch.** An active e-stop or limit switch latches an alarm ([`Trip`]: which lines
+//!   tripped it, accumulated while latched). It stays latched after the line is released, until
+//!   the loader acknowledges it; the acknowledgement is refused while any e-stop or limit line is
+//!   still active (debounced, so also during the release's bounce).
+//! - At start every line is inactive: an e-stop or limit active at power-up trips at the first
+//!   sample; a button held at power-up acts once `samples` samples later.
+use crate::ports::Inputs;
+
+/// Default debounce length in samples (10 ms with a 1 ms input task).
+pub const DEBOUNCE_SAMPLES: u8 = 10;
+
+/// Bit positions of the lines in the internal masks.
+const ESTOP: u16 = 1 << 0;
+const FEED_HOLD: u16 = 1 << 1;
+const CYCLE_START: u16 = 1 << 2;
+const LIMITS_SHIFT: u32 = 3;
+/// Lines that trip at once and latch the alarm: e-stop and all eight limit bits.
+const SAFETY: u16 = ESTOP | (0xff << LIMITS_SHIFT);
+const LINES: usize = 3 + 8;
+
+fn bits(i: Inputs) -> u16 {
+    (i.estop as u16)
+        | (i.feed_hold as u16) << 1
+        | (i.cycle_start as u16) << 2
+        | (i.limits as u16) << LIMITS_SHIFT
+}
+
+fn inputs(b: u16) -> Inputs {
+    Inputs {
+        estop: b & ESTOP != 0,
+        feed_hold: b & FEED_HOLD != 0,
+        cycle_start: b & CYCLE_START != 0,
+        limits: (b >> LIMITS_SHIFT) as u8,
+    }
+}
+
+/// What latched the alarm: the e-stop and the limit switches (bit k = axis k) seen active since
+/// the latch was set.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Trip {
+    pub estop: bool,
+    pub limits: u8,
+}
+
+/// The events since the loader's last [`Debouncer::take`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Events {
+    /// Feed hold was pressed (debounced rising edge).
+    pub feed_hold: bool,
+    /// Cycle start was pressed (debounced rising edge).
+    pub cycle_start: bool,
+    /// The alarm latch was set (it was clear): stop, flush, raise the alarm. Which lines:
+    /// [`Debouncer::latched`].
+    pub tripped: bool,
+}
+
+/// The debouncer of the operator's inputs, with the feed hold / cycle start edges and the alarm
+/// latch (see the module doc for the rules).
+#[derive(Clone, Debug)]
+pub struct Debouncer {
+    samples: u8,
+    /// Debounced state, bit per line.
+    stable: u16,
+    /// Consecutive raw samples that differ from `stable`, per line.
+    count: [u8; LINES],
+    /// Pending events for the loader.
+    events: Events,
+    /// The alarm latch: the safety lines seen active since it was set (0: clear).
+    latch: u16,
+}
+
+impl Default for Debouncer {
+    fn default() -> Self {
+        Self::new(DEBOUNCE_SAMPLES)
+    }
+}
+
+impl Debouncer {
+    /// A debouncer that needs `samples` consecutive equal samples to change a line (0 counts as
+    /// 1: no debouncing). Every line starts inactive, the latch clear.
+    pub const fn new(samples: u8) -> Self {
+        Debouncer {
+            samples: if samples == 0 { 1 } else { samples },
+            stable: 0,
+            count: [0; LINES],
+            events: Events {
+                feed_hold: false,
+                cycle_start: false,
+                tripped: false,
+            },
+            latch: 0,
+        }
+    }
+
+    /// One raw sample of the inputs. Board's periodic input task. Returns the debounced inputs.
+    pub fn sample(&mut self, raw: Inputs) -> Inputs {
+        let raw = bits(raw);
+        let before = self.stable;
+        let mut stable = before;
+        for (k, count) in self.count.iter_mut().enumerate() {
+            let bit = 1u16 << k;
+            if (raw ^ before) & bit == 0 {
+                *count = 0;
+            } else if raw & bit & SAFETY != 0 {
+                // A safety line going active: at once.
+                stable |= bit;
+                *count = 0;
+            } else {
+                *count = count.saturating_add(1);
+                if *count >= self.samples {
+                    stable ^= bit;
+                    *count = 0;
+                }
+            }
+        }
+        self.stable = stable;
+        let rising = stable & !before;
+        self.events.feed_hold |= rising & FEED_HOLD != 0;
+        self.events.cycle_start |= rising & CYCLE_START != 0;
+        let active = stable & SAFETY;
+        if active != 0 {
+            self.events.tripped |= self.latch == 0;
+            self.latch |= active;
+        }
+        inputs(stable)
+    }
+
+    /// The debounced inputs as of the last sample. Any context that holds the debouncer.
+    pub fn inputs(&self) -> Inputs {
+        inputs(self.stable)
+    }
+
+    /// Takes (and clears) the events since the last call. Loader task.
+    pub fn take(&mut self) -> Events {
+        core::mem::take(&mut self.events)
+    }
+
+    /// The latched alarm, if any: which safety lines were active since it was set.
+    pub fn latched(&self) -> Option<Trip> {
+        if self.latch == 0 {
+            return None;
+        }
+        let t = inputs(self.latch);
+        Some(Trip {
+            estop: t.estop,
+            limits: t.limits,
+        })
+    }
+
+    /// The operator acknowledges the alarm (`$X`, soft reset). Loader task. Clears the latch
+    /// only when no e-stop or limit line is active (debounced); returns true when the latch is
+    /// clear afterwards (also when nothing was latched), false when it stays latched.
+    pub fn acknowledge(&mut self) -> bool {
+        if self.stable & SAFETY == 0 {
+            self.latch = 0;
+            self.events.tripped = false;
+        }
+        self.latch == 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const IDLE: Inputs = Inputs {
+        estop: false,
+        feed_hold: false,
+        cycle_start: false,
+        limits: 0,
+    };
+
+    fn hold(on: bool) -> Inputs {
+        Inputs {
+            feed_hold: on,
+            ..IDLE
+        }
+    }
+
+    fn start(on: bool) -> Inputs {
+        Inputs {
+            cycle_start: on,
+            ..IDLE
+        }
+    }
+
+    fn estop(on: bool) -> Inputs {
+        Inputs { estop: on, ..IDLE }
+    }
+
+    /// Feeds a sequence; returns the debounced value of `line` after each sample.
+    fn run(d: &mut Debouncer, seq: &[Inputs], line: fn(Inputs) -> bool) -> Vec<bool> {
+        seq.iter().map(|&i| line(d.sample(i))).collect()
+    }
+
+    #[test]
+    fn a_bouncing_button_changes_after_n_equal_samples() {
+        let mut d = Debouncer::new(3);
+        let b = |s: &str| s.bytes().map(|c| hold(c == b'1')).collect::<Vec<_>>();
+        // Press with bounce: 1 0 1 1 0 1 1 1 -> active only after the third 1 in a row.
+        let got = run(&mut d, &b("10110111"), |i| i.feed_hold);
+        assert_eq!(got, [false, false, false, false, false, false, false, true]);
+        assert!(d.take().feed_hold);
+        // Release with bounce: 0 1 0 0 1 0 0 0 -> inactive only after the third 0 in a row.
+        let got = run(&mut d, &b("01001000"), |i| i.feed_hold);
+        assert_eq!(got, [true, true, true, true, true, true, true, false]);
+        // Releasing is no event; short glitches never reach the output.
+        assert_eq!(d.take(), Events::default());
+        let got = run(&mut d, &b("1101101"), |i| i.feed_hold);
+        assert!(got.iter().all(|&a| !a));
+        assert_eq!(d.take(), Events::default());
+        assert_eq!(d.inputs(), IDLE);
+    }
+
+    #[test]
+    fn a_held_button_acts_once() {
+        let mut d = Debouncer::new(3);
+        let mut presses = 0;
+        for _ in 0..100 {
+            d.sample(start(true));
+            presses += d.take().cycle_start as u32;
+        }
+        assert_eq!(presses, 1);
+        // Release and press again: a second action.
+        for _ in 0..3 {
+            d.sample(IDLE);
+        }
+        for _ in 0..3 {
+            d.sample(start(true));
+        }
+        let e = d.take();
+        assert!(e.cycle_start && !e.feed_hold && !e.tripped);
+        // Presses between two takes are kept (not lost by a slow loader).
+        for i in [IDLE, IDLE, IDLE, hold(true), hold(true), hold(true), IDLE] {
+            d.sample(i);
+        }
+        assert!(d.take().feed_hold);
+        assert!(!d.take().feed_hold);
+    }
+
+    #[test]
+    fn estop_and_limits_trip_on_the_first_active_sample() {
+        let mut d = Debouncer::new(10);
+        assert!(d.sample(estop(true)).estop);
+        assert!(d.take().tripped);
+        assert_eq!(
+            d.latched(),
+            Some(Trip {
+                estop: true,
+                limits: 0
+            })
+        );
+        let mut d = Debouncer::new(10);
+        let limit_y = Inputs {
+            limits: 0b010,
+            ..IDLE
+        };
+        assert_eq!(d.sample(limit_y).limits, 0b010);
+        assert!(d.take().tripped);
+        assert_eq!(
+            d.latched(),
+            Some(Trip {
+                estop: false,
+                limits: 0b010
+            })
+        );
+        // A second limit while latched adds to the trip, no new trip event.
+        d.sample(Inputs {
+            limits: 0b100,
+            ..IDLE
+        });
+        assert!(!d.take().tripped);
+        assert_eq!(d.latched().map(|t| t.limits), Some(0b110));
+    }
+
+    #[test]
+    fn the_latch_survives_release_until_acknowledged() {
+        let mut d = Debouncer::new(3);
+        d.sample(estop(true));
+        assert!(d.take().tripped);
+        // Bouncing release: the debounced e-stop stays active, the ack is refused.
+        for on in [false, true, false, false] {
+            d.sample(estop(on));
+            assert!(d.inputs().estop);
+            assert!(!d.acknowledge());
+        }
+        // Released for good (3 samples): the latch is still set...
+        d.sample(estop(false));
+        assert!(!d.inputs().estop);
+        assert!(d.latched().is_some());
+        for _ in 0..50 {
+            d.sample(IDLE);
+        }
+        assert!(d.latched().is_some());
+        // ...until acknowledged.
+        assert!(d.acknowledge());
+        assert_eq!(d.latched(), None);
+        assert!(d.acknowledge());
+        // And it trips again.
+        d.sample(estop(true));
+        assert!(d.take().tripped);
+    }
+
+    #[test]
+    fn ack_is_refused_while_a_limit_is_active() {
+        let mut d = Debouncer::new(2);
+        let limit_x = Inputs {
+            limits: 0b001,
+            ..IDLE
+        };
+        for _ in 0..20 {
+            d.sample(limit_x);
+            assert!(!d.acknowledge());
+        }
+        assert!(d.latched().is_some());
+        // The trip event stays pending for the loader while refused.
+        assert!(d.take().tripped);
+        d.sample(IDLE);
+        assert!(!d.acknowledge(), "release not yet debounced");
+        d.sample(IDLE);
+        assert!(d.acknowledge());
+        assert_eq!(d.latched(), None);
+        assert_eq!(d.take(), Events::default());
+    }
+
+    #[test]
+    fn zero_samples_means_no_debouncing() {
+        let mut d = Debouncer::new(0);
+        assert!(d.sample(hold(true)).feed_hold);
+        assert!(!d.sample(IDLE).feed_hold);
+        assert!(d.take().feed_hold);
+    }
+}
