@@ -16,7 +16,7 @@ use core::fmt::{self, Write};
 
 use crate::ac::settings::{AcSettings, AcSettingsError};
 use crate::gcode::number::{parse_decimal, Decimal, NumError};
-use crate::settings::{Blu, Settings, SettingsError};
+use crate::settings::{Blu, BoardLimits, Settings, SettingsError};
 
 mod persistent;
 pub mod record;
@@ -236,10 +236,17 @@ pub fn parse_assignment(stmt: &str) -> Result<(u16, Decimal), SetError> {
 }
 
 impl MachineSettings {
-    /// The validation the firmware runs at start-up and every set runs: [`Settings::validate`],
-    /// [`AcSettings::validate`], the report mask, and every f32 of the table listable exactly.
+    /// The validation the firmware runs at start-up and every set runs, for the generic board
+    /// (the QEMU board, the host tools): [`MachineSettings::validate_for`] with
+    /// [`BoardLimits::GENERIC`].
     pub fn validate(&self) -> Result<(), Invalid> {
-        self.nc.validate().map_err(Invalid::Nc)?;
+        self.validate_for(&BoardLimits::GENERIC)
+    }
+
+    /// [`Settings::validate_for`] the board's limits, [`AcSettings::validate`], the report mask,
+    /// and every f32 of the table listable exactly.
+    pub fn validate_for(&self, board: &BoardLimits) -> Result<(), Invalid> {
+        self.nc.validate_for(board).map_err(Invalid::Nc)?;
         self.ac.validate().map_err(Invalid::Ac)?;
         if self.report.status_mask > 3 {
             return Err(Invalid::Range);
@@ -258,10 +265,20 @@ impl MachineSettings {
     /// Lengths and rates round to the nearest BLU, ns or us; `$200` (BLU) converts the settings
     /// listed in mm so that they keep their mm values (soft limits rounded inward).
     pub fn set(&mut self, number: u16, value: Decimal) -> Result<(), SetError> {
+        self.set_for(number, value, &BoardLimits::GENERIC)
+    }
+
+    /// [`MachineSettings::set`], validated for a board's limits.
+    pub fn set_for(
+        &mut self,
+        number: u16,
+        value: Decimal,
+        board: &BoardLimits,
+    ) -> Result<(), SetError> {
         let e = entry(number).ok_or(SetError::Unsupported)?;
         let mut new = *self;
         new.assign(e, value)?;
-        new.validate().map_err(SetError::Invalid)?;
+        new.validate_for(board).map_err(SetError::Invalid)?;
         *self = new;
         Ok(())
     }

@@ -12,6 +12,7 @@ use core::fmt::{self, Write};
 use super::{record, MachineSettings};
 use crate::gcode::number::Decimal;
 use crate::ports::SettingsStorage;
+use crate::settings::BoardLimits;
 use crate::protocol::report::ReportOptions;
 use crate::protocol::{GrblError, SettingsTable};
 
@@ -20,17 +21,26 @@ use crate::protocol::{GrblError, SettingsTable};
 pub struct Persistent<S> {
     pub settings: MachineSettings,
     pub storage: S,
+    /// The board's limits every set is validated for.
+    pub board: BoardLimits,
 }
 
 impl<S: SettingsStorage> Persistent<S> {
     /// Loads the record from `storage` ([`record::load`]): the table, and how the load went (a
     /// [`record::LoadStatus::Refused`] is the caller's alarm).
-    pub fn load(mut storage: S) -> (Self, record::LoadStatus) {
-        let loaded = record::load(&mut storage);
+    pub fn load(storage: S) -> (Self, record::LoadStatus) {
+        Self::load_for(storage, BoardLimits::GENERIC)
+    }
+
+    /// [`Persistent::load`] for a board with its own limits: the record and every later set are
+    /// validated for them.
+    pub fn load_for(mut storage: S, board: BoardLimits) -> (Self, record::LoadStatus) {
+        let loaded = record::load_for(&mut storage, &board);
         (
             Persistent {
                 settings: loaded.settings,
                 storage,
+                board,
             },
             loaded.status,
         )
@@ -45,7 +55,7 @@ impl<S: SettingsStorage> SettingsTable for Persistent<S> {
     /// Validated, stored, and only then taken: a refused value (its grbl error) or a refused store
     /// (`error:7`) changes neither the table nor the record.
     fn set(&mut self, n: u16, value: Decimal) -> Result<(), u8> {
-        record::set_persistent(&mut self.settings, &mut self.storage, n, value)
+        record::set_persistent_for(&mut self.settings, &mut self.storage, n, value, &self.board)
             .map_err(|e| e.code())
     }
 
@@ -60,7 +70,8 @@ impl<S: SettingsStorage> SettingsTable for Persistent<S> {
         match what {
             b'$' | b'*' => {
                 let defaults = MachineSettings::default();
-                record::store(&mut self.storage, &defaults).map_err(|e| e.code())?;
+                record::store_for(&mut self.storage, &defaults, &self.board)
+                    .map_err(|e| e.code())?;
                 self.settings = defaults;
                 Ok(())
             }

@@ -23,7 +23,7 @@ use super::{AcStrategy, Invalid, MachineSettings, ReportSettings, SetError};
 use crate::ac::settings::{AcSettings, Calibration, FeedCeiling, Pick};
 use crate::gcode::number::Decimal;
 use crate::ports::SettingsStorage;
-use crate::settings::{Blu, Settings};
+use crate::settings::{Blu, BoardLimits, Settings};
 
 pub const MAGIC: [u8; 4] = *b"MLST";
 pub const VERSION: u16 = 1;
@@ -251,6 +251,11 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
 
 /// The settings of a record image, checked (length, magic, CRC, version, values, validation).
 pub fn decode(bytes: &[u8]) -> Result<MachineSettings, RecordError> {
+    decode_for(bytes, &BoardLimits::GENERIC)
+}
+
+/// [`decode`], validating the settings for a board's limits.
+pub fn decode_for(bytes: &[u8], board: &BoardLimits) -> Result<MachineSettings, RecordError> {
     let mut t = Take { b: bytes, pos: 0 };
     let magic: [u8; 4] = t.bytes().ok_or(RecordError::Truncated)?;
     let version = t.u16().ok_or(RecordError::Truncated)?;
@@ -281,7 +286,7 @@ pub fn decode(bytes: &[u8]) -> Result<MachineSettings, RecordError> {
     }
     let s = payload(&mut t).ok_or(RecordError::Truncated)?;
     let s = s.ok_or(RecordError::Value)?;
-    s.validate().map_err(RecordError::Invalid)?;
+    s.validate_for(board).map_err(RecordError::Invalid)?;
     Ok(s)
 }
 
@@ -388,13 +393,19 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
 /// version, invalid values) gives the defaults and [`LoadStatus::Refused`], which the caller
 /// reports as an alarm. Never writes: the next store replaces a refused record.
 pub fn load<S: SettingsStorage>(storage: &mut S) -> Loaded {
+    load_for(storage, &BoardLimits::GENERIC)
+}
+
+/// [`load`], validating the record's settings for a board's limits (a record another board
+/// accepted but this one cannot run is refused).
+pub fn load_for<S: SettingsStorage>(storage: &mut S, board: &BoardLimits) -> Loaded {
     let mut buf = [0u8; RECORD_LEN + 64];
     let status = match storage.load(&mut buf) {
         None => LoadStatus::Missing,
         Some(n) => match buf.get(..n) {
             None => LoadStatus::Refused(RecordError::Length),
             Some(img) if !img.is_empty() && img.iter().all(|&b| b == 0xFF) => LoadStatus::Missing,
-            Some(img) => match decode(img) {
+            Some(img) => match decode_for(img, board) {
                 Ok(settings) => {
                     return Loaded {
                         settings,
@@ -414,7 +425,16 @@ pub fn load<S: SettingsStorage>(storage: &mut S) -> Loaded {
 /// Validates and stores `s`: [`SetError::Invalid`] (nothing written) or [`SetError::Storage`]
 /// when the storage refused.
 pub fn store<S: SettingsStorage>(storage: &mut S, s: &MachineSettings) -> Result<(), SetError> {
-    s.validate().map_err(SetError::Invalid)?;
+    store_for(storage, s, &BoardLimits::GENERIC)
+}
+
+/// [`store`], validating for a board's limits.
+pub fn store_for<S: SettingsStorage>(
+    storage: &mut S,
+    s: &MachineSettings,
+    board: &BoardLimits,
+) -> Result<(), SetError> {
+    s.validate_for(board).map_err(SetError::Invalid)?;
     if storage.store(&encode(s)) {
         Ok(())
     } else {
@@ -430,9 +450,20 @@ pub fn set_persistent<S: SettingsStorage>(
     number: u16,
     value: Decimal,
 ) -> Result<(), SetError> {
+    set_persistent_for(settings, storage, number, value, &BoardLimits::GENERIC)
+}
+
+/// [`set_persistent`], validated for a board's limits.
+pub fn set_persistent_for<S: SettingsStorage>(
+    settings: &mut MachineSettings,
+    storage: &mut S,
+    number: u16,
+    value: Decimal,
+    board: &BoardLimits,
+) -> Result<(), SetError> {
     let mut new = *settings;
-    new.set(number, value)?;
-    store(storage, &new)?;
+    new.set_for(number, value, board)?;
+    store_for(storage, &new, board)?;
     *settings = new;
     Ok(())
 }

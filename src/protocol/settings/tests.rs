@@ -657,3 +657,50 @@ fn the_persistent_table_stores_each_set_before_its_ok() {
     assert_eq!(status, LoadStatus::Refused(RecordError::Checksum));
     assert_eq!(t.settings, MachineSettings::default());
 }
+
+/// A board with its own limits (a fast one, as the Nucleo-F446RE states): the table validates
+/// every set for them, so a frame rate the generic board refuses is taken and stored, and the
+/// record loads back only where the board can run it.
+#[test]
+fn a_board_table_validates_sets_and_loads_for_its_limits() {
+    use crate::protocol::settings::persistent::Persistent;
+    use crate::protocol::SettingsTable;
+    use crate::settings::BoardLimits;
+    let fast = BoardLimits {
+        max_frame_hz: 250_000,
+        max_rapid_hz: 250_000,
+        frame_work_ns: 1_500,
+        pulse_end_ns: 400,
+    };
+    let (mut t, status) = Persistent::load_for(MemStorage::default(), fast);
+    assert_eq!(status, LoadStatus::Missing);
+    // 2 us pulse, 2 us sign setup, rapid and W0 at 200 kHz (the rapid rate first: W0 <= rapid).
+    for stmt in ["$0=2", "$207=2", "$110=30480", "$201=200000"] {
+        let (n, v) = parse_assignment(stmt).unwrap();
+        assert_eq!(t.set(n, v), Ok(()), "{stmt}");
+    }
+    assert_eq!(t.settings.nc.frame_hz, 200_000);
+    // The generic board refuses W0 = 200 kHz (above its 100 kHz), even with pulse timing it
+    // accepts at that rapid rate, and it refuses the board's record.
+    let mut generic = MachineSettings::default();
+    for stmt in ["$0=1", "$207=1", "$110=30480"] {
+        generic.set_line(stmt).unwrap();
+    }
+    assert!(generic.set_line("$201=200000").is_err());
+    let mut st = t.storage;
+    assert_eq!(
+        record::load_for(&mut st, &fast).status,
+        LoadStatus::Loaded,
+        "the board loads its record"
+    );
+    assert!(matches!(
+        record::load(&mut st).status,
+        LoadStatus::Refused(RecordError::Invalid(_))
+    ));
+    // Above the board's own maximum: refused, nothing stored.
+    let (mut t, _) = Persistent::load_for(st, fast);
+    let stores = t.storage.stores;
+    let (n, v) = parse_assignment("$201=260000").unwrap();
+    assert!(t.set(n, v).is_err());
+    assert_eq!(t.storage.stores, stores);
+}
