@@ -4,9 +4,10 @@
 use super::arc::{self, Centre};
 use super::error::{axis_name, ErrorKind};
 use super::words::{
-    self, Words, AXES, F, G_DISTANCE, G_DWELL, G_MOTION, G_PLANE, G_UNITS, M_STOP, OFFSETS, P, R, S,
+    self, Words, AXES, F, G_DISTANCE, G_DWELL, G_MOTION, G_PLANE, G_UNITS, M_SPINDLE, M_STOP,
+    OFFSETS, P, R, S,
 };
-use super::{feed_number, Distance, Modes, MotionMode, Parsed, Units};
+use super::{feed_number, Distance, Modes, MotionMode, Parsed, Spindle, Units};
 use crate::nc::{isqrt, Block, Dwell, Linear, Motion, Plane, Rapid, Q_MAX};
 use crate::settings::Settings;
 
@@ -191,7 +192,7 @@ fn modal_words(w: &Words, m: &mut Modes) {
     }
 }
 
-/// F (to the feed number, in the line's units) and S (rpm, stored only).
+/// F (to the feed number, in the line's units), S (rpm) and M3/M4/M5.
 fn feed_and_spindle(
     st: &Settings,
     w: &Words,
@@ -212,6 +213,12 @@ fn feed_and_spindle(
             Some(Ok(v)) => v,
             _ => return Err(ErrorKind::NumberTooLarge('S')),
         };
+    }
+    match w.m[M_SPINDLE] {
+        Some(3) => m.spindle = Spindle::Cw,
+        Some(4) => m.spindle = Spindle::Ccw,
+        Some(5) => m.spindle = Spindle::Off,
+        _ => {}
     }
     Ok(())
 }

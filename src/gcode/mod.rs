@@ -1,8 +1,9 @@
 //! G-code lines -> validated blocks (loader task). This is the only place where the program is
 //! validated: the frame interrupt trusts every [`Block`] it gets.
 //!
-//! Supported words: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 G90 G91 G94, M2 M30 (end), M3 M4 M5 M8 M9
-//! (accepted, no NC effect), N (ignored), F S X Y Z I J K R P. Comments `( )` and `;`, any case,
+//! Supported words: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 G90 G91 G94, M2 M30 (end), M3 M4 M5
+//! (the spindle's modal state, [`Spindle`]: no NC effect, a board with a spindle output applies
+//! it), M8 M9 (accepted, no effect), N (ignored), F S X Y Z I J K R P. Comments `( )` and `;`, any case,
 //! whitespace anywhere. Power-up modes as grbl: G0, G17, G90, G94, but G20 (inch) and no feed.
 //!
 //! Files: [`number`] exact decimals, [`words`] the lexer, `exec` the line semantics,
@@ -95,8 +96,22 @@ pub struct Modes {
     pub distance: Distance,
     /// Feed number f of the last F word (0 = none yet, or F0), see [`feed_number`].
     pub feed: u32,
-    /// Spindle speed of the last S word (rpm, rounded). Stored only.
+    /// Spindle speed of the last S word (rpm, rounded).
     pub spindle_rpm: u32,
+    /// M3 / M4 / M5. The frame does not see it: a board with a spindle output applies it when
+    /// the motion queued before the line has finished (see `millac_hal::serial`).
+    pub spindle: Spindle,
+}
+
+/// The spindle's modal state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Spindle {
+    /// M5 (power-up, and after M2/M30).
+    Off,
+    /// M3: clockwise.
+    Cw,
+    /// M4: counter-clockwise.
+    Ccw,
 }
 
 impl Modes {
@@ -108,6 +123,7 @@ impl Modes {
         distance: Distance::Absolute,
         feed: 0,
         spindle_rpm: 0,
+        spindle: Spindle::Off,
     };
 }
 

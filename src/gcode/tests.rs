@@ -247,6 +247,7 @@ fn modal_words_are_accepted() {
         Ok(Parsed::Nothing)
     );
     assert_eq!(p.spindle_rpm(), 12_000);
+    assert_eq!(p.modes().spindle, Spindle::Cw);
     let m = p.modes();
     assert_eq!(
         (m.units, m.distance, m.plane),
@@ -254,12 +255,21 @@ fn modal_words_are_accepted() {
     );
     assert_eq!(p.line(1, "G17 M4 M9 S0.5"), Ok(Parsed::Nothing));
     assert_eq!(p.spindle_rpm(), 1);
+    assert_eq!(p.modes().spindle, Spindle::Ccw);
     assert_eq!(p.modes().plane, Plane::XY);
     assert_eq!(p.line(1, "G19 M5 G20 G90"), Ok(Parsed::Nothing));
+    assert_eq!(p.modes().spindle, Spindle::Off);
     assert_eq!(
         (p.modes().plane, p.modes().units, p.modes().distance),
         (Plane::YZ, Units::Inch, Distance::Absolute)
     );
+    // A line without an M word keeps the spindle; the program end stops it.
+    assert_eq!(p.line(1, "M3"), Ok(Parsed::Nothing));
+    assert_eq!(p.line(1, "S200"), Ok(Parsed::Nothing));
+    assert_eq!(p.modes().spindle, Spindle::Cw);
+    assert_eq!(p.line(1, "M2"), Ok(Parsed::End));
+    p.end_program();
+    assert_eq!(p.modes().spindle, Spindle::Off);
     assert_eq!(p.line(1, "G1 F5"), Ok(Parsed::Nothing));
     assert_eq!(p.modes().motion, MotionMode::Linear);
     assert_eq!(p.settings(), &Settings::default());

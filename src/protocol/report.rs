@@ -14,7 +14,7 @@
 
 use super::rx::Overrides;
 use crate::gcode::number::div_round;
-use crate::gcode::{Distance, Modes, MotionMode, Units};
+use crate::gcode::{Distance, Modes, MotionMode, Spindle, Units};
 use crate::nc::Plane;
 use crate::settings::{Blu, Settings};
 use core::fmt::{self, Write};
@@ -253,8 +253,9 @@ pub fn write_status(out: &mut dyn Write, d: &StatusData, cx: &StatusContext) -> 
     out.write_str(">\r\n")
 }
 
-/// `$G`: `[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]`. The parser does not keep the spindle
-/// and coolant words (accepted, no effect), so M5 M9 always; T0 (no tool changer); F is the
+/// `$G`: `[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]`. M3/M4/M5 as the parser stands; the
+/// parser does not keep the coolant words (accepted, no effect), so M9 always; T0 (no tool
+/// changer); F is the
 /// modal feed as the machine runs it (the feed number, so clamped to FRM) in `$13` units.
 pub fn write_modes(
     out: &mut dyn Write,
@@ -281,9 +282,14 @@ pub fn write_modes(
         Distance::Absolute => 90,
         Distance::Incremental => 91,
     };
+    let spindle = match m.spindle {
+        Spindle::Off => 5,
+        Spindle::Cw => 3,
+        Spindle::Ccw => 4,
+    };
     write!(
         out,
-        "[GC:G{motion} G54 G{plane} G{units} G{distance} G94 M5 M9 T0 F"
+        "[GC:G{motion} G54 G{plane} G{units} G{distance} G94 M{spindle} M9 T0 F"
     )?;
     write_rate(out, feed_blu_per_min(machine, m.feed), machine.blu, inches)?;
     write!(out, " S{}]\r\n", m.spindle_rpm)

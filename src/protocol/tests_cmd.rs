@@ -84,6 +84,15 @@ fn parser_state_offsets_and_build_info() {
         answer(&mut r, "$G"),
         "[GC:G1 G54 G18 G21 G91 G94 M5 M9 T0 F100 S600]\r\nok\r\n"
     );
+    // The spindle word as the parser stands.
+    r.feed(b"M4\n");
+    assert_eq!(r.responses(), ["ok"]);
+    assert!(answer(&mut r, "$G").contains(" M4 M9 "));
+    r.feed(b"M3\n");
+    assert_eq!(r.responses(), ["ok"]);
+    assert!(answer(&mut r, "$G").contains(" M3 M9 "));
+    r.feed(b"M5\n");
+    assert_eq!(r.responses(), ["ok"]);
     r.table.inches = true;
     assert_eq!(
         answer(&mut r, "$g"),

@@ -12,9 +12,9 @@ use core::fmt::{self, Write};
 use super::{record, MachineSettings};
 use crate::gcode::number::Decimal;
 use crate::ports::SettingsStorage;
-use crate::settings::BoardLimits;
 use crate::protocol::report::ReportOptions;
 use crate::protocol::{GrblError, SettingsTable};
+use crate::settings::BoardLimits;
 
 /// The settings as `$$` lists them (the stored record, or the defaults that replaced a missing or
 /// refused one) and the storage that keeps them.
