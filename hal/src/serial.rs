@@ -33,7 +33,7 @@ use millac::ac::{Alarm, FeedCeiling};
 use millac::gcode::tape::{finish_block, Tape};
 use millac::nc::{operator, Block, FrameConfig, Motion};
 use millac::ports::SettingsStorage;
-use millac::protocol::codes::{ac_alarm, GrblError};
+use millac::protocol::codes::{ac_alarm, alarm, GrblError};
 use millac::protocol::report::{feed_blu_per_min, AcReport, AcState, State, StatusData};
 use millac::protocol::rx::Overrides;
 use millac::protocol::settings::Persistent;
@@ -41,49 +41,69 @@ use millac::protocol::{Context, Event, Protocol, SettingsTable};
 use millac::rt::ac::AC_RUN;
 use millac::rt::Status;
 
+use millac::gcode::{Parsed, Spindle};
+use millac::inputs::{Events, Trip};
 use millac::protocol::jog::JogRequest;
+use millac::protocol::LINE_MAX;
 
 /// Free queue slots a line needs before the loader takes it: the look-ahead's held block and the
 /// line's own (a line emits at most two blocks).
 const ROOM_PER_LINE: usize = 2;
 
-/// The board's serial line as the loader drives it (register writes on a zero-sized board type,
-/// so `&self`). Loader task.
-pub trait SerialLine {
-    /// Sets up the line (115200 8N1, receive interrupts on) before the banner.
-    fn start(&self);
+/// What the loader needs of a board: its serial line, and optionally a session log, a spindle
+/// output and operator inputs (the defaults: none). Loader task.
+pub trait LoaderBoard {
+    /// Sets up the serial line (115200 8N1, receive interrupts on) before the banner.
+    fn start(&mut self);
     /// Pends the serial interrupt so that it moves queued bytes out (the writer calls it after
     /// queueing, and while the transmit queue is full). Must not block.
-    fn kick(&self);
-}
+    fn kick();
 
-/// The session log of the serial mode: every accepted G-code line, jog, early run of the held
-/// block and soft reset, in the order the loader fed its tape (the QEMU board writes `serve.nc`,
-/// see `session`). `()` logs nothing. Loader task.
-pub trait SessionSink {
-    fn gcode(&mut self, line: &str);
-    fn jog(&mut self, jog: &JogRequest);
-    fn flush(&mut self);
-    fn reset(&mut self);
-}
+    /// The session log (the QEMU board writes `serve.nc`, see `session`): every accepted G-code
+    /// line, in the order the loader fed its tape.
+    fn log_gcode(&mut self, _line: &str) {}
+    /// A jog that was queued.
+    fn log_jog(&mut self, _jog: &JogRequest) {}
+    /// The look-ahead's held block ran before the next line came.
+    fn log_flush(&mut self) {}
+    /// Soft reset.
+    fn log_reset(&mut self) {}
 
-/// No session log (a real board: the sender has the program).
-impl SessionSink for () {
-    fn gcode(&mut self, _: &str) {}
-    fn jog(&mut self, _: &JogRequest) {}
-    fn flush(&mut self) {}
-    fn reset(&mut self) {}
+    /// The board drives a spindle: a line that changes M3/M4/M5 or S waits until the motion
+    /// queued before it has finished (grbl's buffer sync), then [`LoaderBoard::spindle`] applies
+    /// it, and only then does the line's own motion queue; its `ok` comes after that.
+    const SPINDLE: bool = false;
+    /// Sets the spindle output (the machine stands). Also called with `Off` on a soft reset and on
+    /// an e-stop or limit alarm.
+    fn spindle(&mut self, _state: Spindle, _rpm: u32) {}
+
+    /// The operator inputs' events since the last call (debounced by the board; see
+    /// `millac::inputs`).
+    fn inputs(&mut self) -> Events {
+        Events::default()
+    }
+    /// The e-stop and limit switches that latched the alarm, if it is latched.
+    fn latched(&mut self) -> Option<Trip> {
+        None
+    }
+    /// `$X`: clears the latch; false while an e-stop or limit line is still active.
+    fn acknowledge(&mut self) -> bool {
+        true
+    }
 }
 
 /// The writer's end of the transmit queue. Loader task.
-pub struct Tx<'a, const N: usize, L: SerialLine> {
+pub struct Tx<'a, const N: usize, B: LoaderBoard> {
     queue: &'a mut Producer<'static, u8, N>,
-    line: &'a L,
+    board: core::marker::PhantomData<B>,
 }
 
-impl<'a, const N: usize, L: SerialLine> Tx<'a, N, L> {
-    pub fn new(queue: &'a mut Producer<'static, u8, N>, line: &'a L) -> Self {
-        Tx { queue, line }
+impl<'a, const N: usize, B: LoaderBoard> Tx<'a, N, B> {
+    pub fn new(queue: &'a mut Producer<'static, u8, N>) -> Self {
+        Tx {
+            queue,
+            board: core::marker::PhantomData,
+        }
     }
 
     /// Queues `bytes`, waiting while the queue is full (the serial interrupt drains it), and kicks
@@ -91,15 +111,15 @@ impl<'a, const N: usize, L: SerialLine> Tx<'a, N, L> {
     pub fn write(&mut self, bytes: &[u8]) {
         for &b in bytes {
             while self.queue.enqueue(b).is_err() {
-                self.line.kick();
+                B::kick();
                 cortex_m::asm::nop();
             }
         }
-        self.line.kick();
+        B::kick();
     }
 }
 
-impl<const N: usize, L: SerialLine> core::fmt::Write for Tx<'_, N, L> {
+impl<const N: usize, B: LoaderBoard> core::fmt::Write for Tx<'_, N, B> {
     /// Queues the text (for `write!`).
     fn write_str(&mut self, s: &str) -> core::fmt::Result {
         self.write(s.as_bytes());
@@ -107,17 +127,28 @@ impl<const N: usize, L: SerialLine> core::fmt::Write for Tx<'_, N, L> {
     }
 }
 
+/// The alarm an input trip raises: the e-stop grblHAL's 10, a limit switch grbl's 1 (hard limit).
+fn trip_alarm(t: &Trip) -> u8 {
+    if t.estop {
+        alarm::ESTOP
+    } else {
+        alarm::HARD_LIMIT
+    }
+}
+
+/// A line that changes the spindle, waiting for the machine to stop (see
+/// [`LoaderBoard::SPINDLE`]).
+struct Deferred {
+    line: heapless::String<LINE_MAX>,
+    no: u32,
+    spindle: Spindle,
+    rpm: u32,
+}
+
 /// Loader task: never returns (the operator ends the session by resetting the machine). `table`:
 /// the settings init loaded (and started the frame with) and their storage.
 #[allow(clippy::too_many_arguments)]
-pub fn run<
-    const Q: usize,
-    const T: usize,
-    const A: usize,
-    S: SettingsStorage,
-    L: SerialLine,
-    G: SessionSink,
->(
+pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B: LoaderBoard>(
     blocks: &mut Producer<'static, Block, Q>,
     table: &mut Persistent<S>,
     ceiling: Option<FeedCeiling>,
@@ -125,11 +156,10 @@ pub fn run<
     tx: &mut Producer<'static, u8, T>,
     ac_alarms: &mut Consumer<'static, Alarm, A>,
     status: &Status,
-    line: &L,
-    log: &mut G,
+    board: &mut B,
 ) -> ! {
-    line.start();
-    let mut out = Tx::new(tx, line);
+    board.start();
+    let mut out = Tx::<T, B>::new(tx);
     proto.start(&mut out);
     // The frame's configuration and the parser's, fixed at init: a `$N=value` the table stores
     // (and `$$` lists) at once takes effect for the NC settings at the next start.
@@ -156,6 +186,9 @@ pub fn run<
             .store(operator::word(ov.feed, ov.rapid, hold, false), Relaxed);
     };
     publish(hold, overrides);
+    // The spindle output as last applied, and a line waiting to change it.
+    let mut spindle = (Spindle::Off, 0u32);
+    let mut deferred: Option<Deferred> = None;
     loop {
         // AC holds: said once each, as they come.
         while let Some(a) = ac_alarms.dequeue() {
@@ -163,6 +196,43 @@ pub fn run<
             if !matches!(a, Alarm::Overload { .. }) {
                 proto.alarm(ac_alarm(&a), &mut out);
             }
+        }
+        // Operator inputs: the buttons as `!` and `~`; an e-stop or a limit switch stops at
+        // once like a reset (queue and held block dropped, the parser at the machine's position
+        // in power-up modes), stops the spindle and raises its alarm.
+        let inputs = board.inputs();
+        if inputs.tripped {
+            let trip = board.latched().unwrap_or(Trip {
+                estop: true,
+                limits: 0,
+            });
+            let (at, signs) = abort(blocks, status);
+            tape.abort(at, signs);
+            board.log_reset();
+            deferred = None;
+            spindle = (Spindle::Off, 0);
+            board.spindle(Spindle::Off, 0);
+            hold = false;
+            cancel_jog = false;
+            jogging = false;
+            publish(hold, overrides);
+            proto.alarm(trip_alarm(&trip), &mut out);
+            if trip.estop {
+                proto.message(&mut out, format_args!("E-stop"));
+            } else {
+                proto.message(
+                    &mut out,
+                    format_args!("Limit switch {:03b} (ZYX)", trip.limits),
+                );
+            }
+        }
+        if inputs.feed_hold {
+            hold = true;
+            publish(hold, overrides);
+        }
+        if inputs.cycle_start && hold {
+            hold = false;
+            publish(hold, overrides);
         }
         let idle = blocks.len() == 0 && status.idle.load(Relaxed);
         if idle {
@@ -179,6 +249,21 @@ pub fn run<
             hold = false;
             publish(hold, overrides);
         }
+        // A line that changes the spindle runs once everything before it has run.
+        if let Some(d) = deferred.as_ref() {
+            if idle && !tape.holds_a_block() {
+                board.spindle(d.spindle, d.rpm);
+                spindle = (d.spindle, d.rpm);
+                let result = tape
+                    .line(d.no, &d.line, |b| enqueue(blocks, b, &mut last_feed))
+                    .map(|()| board.log_gcode(&d.line))
+                    .map_err(GrblError::from);
+                proto.reply(result, &mut out);
+                deferred = None;
+            } else if idle {
+                run_held(&mut tape, board, blocks, &mut last_feed);
+            }
+        }
         let state = if hold || ac_held {
             State::Hold {
                 complete: status.stopped(),
@@ -190,13 +275,13 @@ pub fn run<
                 (false, false) => State::Run,
             }
         };
-        let room = Q - 1 - blocks.len() >= ROOM_PER_LINE;
+        let room = Q - 1 - blocks.len() >= ROOM_PER_LINE && deferred.is_none();
         let mut cx = Context {
             table: &mut *table,
             modes: tape.parser().modes(),
             machine: &settings,
             state,
-            frame_cycles: None,
+            frame_cycles: status.frame_cycles(),
         };
         let event = if room {
             proto.poll(&mut out, &mut cx)
@@ -207,29 +292,47 @@ pub fn run<
             Event::None => {
                 // Nothing more has come: let the held block run once the machine would stop.
                 if room && idle {
-                    run_held(&mut tape, log, blocks, &mut last_feed);
+                    run_held(&mut tape, board, blocks, &mut last_feed);
                 }
             }
             Event::Gcode { line, check } => {
                 line_no = line_no.wrapping_add(1);
-                let result = if check {
+                if check {
                     // `$C`: parse and validate on a copy; nothing is queued.
                     let mut probe = tape.parser().clone();
-                    probe
+                    let result = probe
                         .line(line_no, line)
                         .map(|_| ())
-                        .map_err(GrblError::from)
+                        .map_err(GrblError::from);
+                    proto.reply(result, &mut out);
+                } else if let Some((state, rpm)) =
+                    spindle_change::<B>(&tape, line_no, line, spindle)
+                {
+                    // Wait for the machine (the `ok` comes when the line has run).
+                    let mut text = heapless::String::new();
+                    if text.push_str(line).is_ok() {
+                        run_held(&mut tape, board, blocks, &mut last_feed);
+                        deferred = Some(Deferred {
+                            line: text,
+                            no: line_no,
+                            spindle: state,
+                            rpm,
+                        });
+                    } else {
+                        proto.reply(Err(GrblError::OVERFLOW), &mut out);
+                    }
                 } else {
-                    tape.line(line_no, line, |b| enqueue(blocks, b, &mut last_feed))
-                        .map(|()| log.gcode(line))
-                        .map_err(GrblError::from)
-                };
-                proto.reply(result, &mut out);
+                    let result = tape
+                        .line(line_no, line, |b| enqueue(blocks, b, &mut last_feed))
+                        .map(|()| board.log_gcode(line))
+                        .map_err(GrblError::from);
+                    proto.reply(result, &mut out);
+                }
             }
             Event::Jog(jog) => {
                 // The look-ahead's held block goes first (the parser already stands at its end,
                 // where the jog is planned from).
-                run_held(&mut tape, log, blocks, &mut last_feed);
+                run_held(&mut tape, board, blocks, &mut last_feed);
                 // Planned on a copy of the parser (validated like any block, soft limits
                 // included); queued as it is (no AC ceiling: a jog is the operator's feed); the
                 // parser then stands at its end, its modes unchanged.
@@ -240,7 +343,7 @@ pub fn run<
                             _ => tape.parser().signs(),
                         };
                         let b = finish_block(b, None, &cfg, settings.q0);
-                        log.jog(&jog);
+                        board.log_jog(&jog);
                         enqueue(blocks, b, &mut last_feed);
                         tape.jogged_to(plan.end, signs);
                         jogging = true;
@@ -299,7 +402,7 @@ pub fn run<
                         spindle_rpm: tape.parser().spindle_rpm(),
                         blocks_free: (Q - 1 - blocks.len()) as u16,
                         ac,
-                        frame_cycles: None,
+                        frame_cycles: status.frame_cycles(),
                     };
                     proto.status_report(&data, options, settings.blu, &mut out);
                 }
@@ -309,9 +412,13 @@ pub fn run<
                 // machine stopped. A reset during motion is an alarm, as in grbl (the position
                 // is exact here, and reported).
                 let moving = !idle && !status.stopped();
-                log.reset();
+                board.log_reset();
                 let (at, signs) = abort(blocks, status);
                 tape.abort(at, signs);
+                // A reset stops the spindle (the parser is back in power-up modes, M5).
+                deferred = None;
+                spindle = (Spindle::Off, 0);
+                board.spindle(Spindle::Off, 0);
                 hold = false;
                 cancel_jog = false;
                 jogging = false;
@@ -322,6 +429,17 @@ pub fn run<
                 }
             }
             Event::Unlock => {
+                if let Some(t) = board.latched() {
+                    if !board.acknowledge() {
+                        // The e-stop or a limit switch is still active: the alarm stays.
+                        proto.alarm(trip_alarm(&t), &mut out);
+                        proto.message(
+                            &mut out,
+                            format_args!("E-stop or limit switch still active"),
+                        );
+                        continue;
+                    }
+                }
                 // `$X` also clears an AC sensor hold: the AC resumes from f_min.
                 if ac_held {
                     status.ac_resume.store(true, Relaxed);
@@ -333,16 +451,40 @@ pub fn run<
     }
 }
 
+/// The spindle output a G-code line asks for, when the board has a spindle and the line changes
+/// it (parsed on a copy of the parser; a line the parser refuses changes nothing and gets its
+/// error from the tape as usual). M2/M30 stops the spindle. Loader task.
+fn spindle_change<B: LoaderBoard>(
+    tape: &Tape,
+    line_no: u32,
+    line: &str,
+    applied: (Spindle, u32),
+) -> Option<(Spindle, u32)> {
+    if !B::SPINDLE || !line.bytes().any(|b| matches!(b, b'M' | b'm' | b'S' | b's')) {
+        return None;
+    }
+    let mut probe = tape.parser().clone();
+    let out = match probe.line(line_no, line) {
+        Ok(Parsed::End) => (Spindle::Off, 0),
+        Ok(_) => match probe.modes().spindle {
+            Spindle::Off => (Spindle::Off, 0),
+            s => (s, probe.spindle_rpm()),
+        },
+        Err(_) => return None,
+    };
+    (out != applied).then_some(out)
+}
+
 /// Queues the look-ahead's held block, if there is one, before the next line has come (logged
 /// as such, so the host's replay flushes it at the same place). Loader task.
 fn run_held<const Q: usize>(
     tape: &mut Tape,
-    log: &mut impl SessionSink,
+    log: &mut impl LoaderBoard,
     blocks: &mut Producer<'static, Block, Q>,
     last_feed: &mut u32,
 ) {
     if tape.holds_a_block() {
-        log.flush();
+        log.log_flush();
         tape.flush(|b| enqueue(blocks, b, last_feed));
     }
 }

@@ -9,7 +9,6 @@
 use millac::protocol::jog::JogRequest;
 use millac::wire::{SessionLine, SERVE_LOG_FILE};
 
-use crate::serial::SessionSink;
 use crate::simadc::LogFile;
 
 /// The open log (None: the host refused the file; then nothing is logged).
@@ -33,19 +32,16 @@ impl SessionLog {
             f.write(s.as_bytes());
         }
     }
-}
-
-impl SessionSink for SessionLog {
     /// A G-code line `Tape::line` accepted (a line that reads as a marker is only a comment with
     /// no effect, and is left out).
-    fn gcode(&mut self, line: &str) {
+    pub fn gcode(&mut self, line: &str) {
         if !SessionLine::is_marker(line) {
             self.write(SessionLine::Gcode(line));
         }
     }
 
     /// A jog that was queued.
-    fn jog(&mut self, jog: &JogRequest) {
+    pub fn jog(&mut self, jog: &JogRequest) {
         let mut g = Line::new();
         if jog.write_gcode(&mut g).is_ok() {
             // `G1 ...` as the words after `$J=`.
@@ -54,12 +50,12 @@ impl SessionSink for SessionLog {
     }
 
     /// The held block ran before the next line came (`Tape::flush`).
-    fn flush(&mut self) {
+    pub fn flush(&mut self) {
         self.write(SessionLine::Flush);
     }
 
     /// Soft reset (`Tape::reset`).
-    fn reset(&mut self) {
+    pub fn reset(&mut self) {
         self.write(SessionLine::Reset);
     }
 }

@@ -2,8 +2,8 @@
 //! for a G-code sender. RX and TX by interrupt (the UART0 hardware task, a priority below the
 //! frame): every received byte goes to the caller's sink at once (the protocol takes realtime
 //! bytes out there); bytes to send wait in a lock-free queue that the interrupt drains while the
-//! transmit FIFO has room. `init` from init or the loader (through [`Uart0`], the serial loader's
-//! `SerialLine`); `on_interrupt` from the UART0 task; `Uart0::kick` from the loader.
+//! transmit FIFO has room. `init` from init or the loader (through [`QemuLoader`], the serial loader's
+//! `LoaderBoard`); `on_interrupt` from the UART0 task; `QemuLoader::kick` from the loader.
 //!
 //! Registers (LM3S6965 datasheet, PL011): DR 0x000, FR 0x018 (RXFE bit 4, TXFF bit 5), IBRD 0x024,
 //! FBRD 0x028, LCRH 0x02C, CTL 0x030, IM 0x038, MIS 0x040, ICR 0x044; clock gate RCGC1 bit 0.
@@ -87,17 +87,35 @@ fn drain<const N: usize>(tx: &mut Consumer<'static, u8, N>) {
     }
 }
 
-/// UART0 as the serial loader's line (`init` with the board's UART clock; `kick` pends UART0).
-pub struct Uart0 {
+/// The QEMU board as the serial loader sees it: UART0 (`init` with the board's UART clock; `kick`
+/// pends UART0) and the session log `serve.nc`. No spindle output, no operator inputs.
+pub struct QemuLoader {
     pub clock_hz: u32,
+    pub log: crate::session::SessionLog,
 }
 
-impl crate::serial::SerialLine for Uart0 {
-    fn start(&self) {
+impl crate::serial::LoaderBoard for QemuLoader {
+    fn start(&mut self) {
         init(self.clock_hz);
     }
 
-    fn kick(&self) {
+    fn kick() {
         cortex_m::peripheral::NVIC::pend(lm3s6965::Interrupt::UART0);
+    }
+
+    fn log_gcode(&mut self, line: &str) {
+        self.log.gcode(line);
+    }
+
+    fn log_jog(&mut self, jog: &millac::protocol::jog::JogRequest) {
+        self.log.jog(jog);
+    }
+
+    fn log_flush(&mut self) {
+        self.log.flush();
+    }
+
+    fn log_reset(&mut self) {
+        self.log.reset();
     }
 }

@@ -145,6 +145,9 @@ pub mod alarm {
     /// grbl 3: reset while in motion (position may be lost): the firmware raises it when a soft
     /// reset stops a running block.
     pub const ABORT_CYCLE: u8 = 3;
+    /// grblHAL 10: the e-stop input is (or was) active; the machine stopped at once. `$X` clears
+    /// it only once the e-stop is released.
+    pub const ESTOP: u8 = 10;
     /// Adaptive control, overload hold: cutting force or torque above the overload limit.
     pub const AC_OVERLOAD: u8 = 100;
     /// Adaptive control, sensor hold: a code stuck at an ADC rail.

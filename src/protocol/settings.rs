@@ -62,6 +62,9 @@ pub struct MachineSettings {
     pub ac_enabled: bool,
     pub strategy: AcStrategy,
     pub report: ReportSettings,
+    /// `$30`: the spindle speed (rpm) of full PWM duty on a board with a spindle output (grbl's
+    /// max spindle speed; S above it runs at full duty). Default 1000, as grbl's.
+    pub spindle_max_rpm: u32,
 }
 
 impl Default for MachineSettings {
@@ -72,6 +75,7 @@ impl Default for MachineSettings {
             ac_enabled: true,
             strategy: AcStrategy::Paper,
             report: ReportSettings::default(),
+            spindle_max_rpm: 1000,
         }
     }
 }
@@ -248,7 +252,7 @@ impl MachineSettings {
     pub fn validate_for(&self, board: &BoardLimits) -> Result<(), Invalid> {
         self.nc.validate_for(board).map_err(Invalid::Nc)?;
         self.ac.validate().map_err(Invalid::Ac)?;
-        if self.report.status_mask > 3 {
+        if self.report.status_mask > 3 || !(1..=1_000_000).contains(&self.spindle_max_rpm) {
             return Err(Invalid::Range);
         }
         for e in TABLE.iter() {

@@ -32,6 +32,15 @@ use millac::ports::{
 /// The board. Zero-sized: all state is in the peripherals.
 pub struct F446;
 
+/// What the board sustains, for the settings validation (`Settings::validate_for`): see
+/// "Speed on the Nucleo-F446RE" in the README for where the ISR times come from.
+pub const LIMITS: millac::settings::BoardLimits = millac::settings::BoardLimits {
+    max_frame_hz: 250_000,
+    max_rapid_hz: 250_000,
+    frame_work_ns: 2_000,
+    pulse_end_ns: 500,
+};
+
 /// Core clock (SYSCLK = HCLK) in Hz.
 pub const CORE_HZ: u32 = 180_000_000;
 /// PCLK1 (USART2) in Hz.
@@ -491,15 +500,43 @@ pub fn usart2_interrupt<const N: usize>(
     }
 }
 
-/// USART2 as the serial loader's line.
-pub struct Usart2;
+// Spindle PWM: TIM4 channel 1 on PB6 (AF2), 1 kHz.
+const GPIOB: usize = 0x4002_0400;
+const TIM4: usize = 0x4000_0800;
+const APB1_TIM4: u32 = 1 << 2;
+const AHB1_GPIOB: u32 = 1 << 1;
+const TIM_CCMR1: usize = 0x18;
+const TIM_CCER: usize = 0x20;
+const TIM_CCR1: usize = 0x34;
+/// PWM period in 1 MHz counts (1 kHz).
+const PWM_PERIOD: u32 = 1000;
 
-impl millac_hal::serial::SerialLine for Usart2 {
-    fn start(&self) {
-        usart2_start();
-    }
+/// Starts the spindle PWM on PB6 (TIM4 CH1, PWM mode 1, preloaded, duty 0). Init context.
+pub fn spindle_pwm_start() {
+    set_bits(RCC_AHB1ENR, AHB1_GPIOB);
+    set_bits(RCC_APB1ENR, APB1_TIM4);
+    let _ = read(RCC_APB1ENR);
+    let moder = read(GPIOB + GPIO_MODER) & !(0b11 << 12);
+    write(GPIOB + GPIO_MODER, moder | (0b10 << 12));
+    let afrl = read(GPIOB + 0x20) & !(0xF << 24);
+    write(GPIOB + 0x20, afrl | (2 << 24));
+    write(TIM4 + TIM_PSC, TIMER_HZ / 1_000_000 - 1);
+    write(TIM4 + TIM_ARR, PWM_PERIOD - 1);
+    write(TIM4 + TIM_CCR1, 0);
+    // OC1M = 110 (PWM mode 1), OC1PE (preload).
+    write(TIM4 + TIM_CCMR1, (0b110 << 4) | (1 << 3));
+    write(TIM4 + TIM_CCER, 1);
+    write(TIM4 + TIM_EGR, EGR_UG);
+    write(TIM4 + TIM_CR1, CR1_ARPE | CR1_CEN);
+}
 
-    fn kick(&self) {
-        cortex_m::peripheral::NVIC::pend(stm32f4xx_hal::pac::Interrupt::USART2);
-    }
+/// The spindle PWM duty for `rpm` of `max_rpm` (full duty at and above it). Loader task.
+pub fn spindle_duty(rpm: u32, max_rpm: u32) -> u32 {
+    let d = u64::from(rpm) * u64::from(PWM_PERIOD) / u64::from(max_rpm.max(1));
+    d.min(u64::from(PWM_PERIOD)) as u32
+}
+
+/// Sets the PWM compare value (from [`spindle_duty`]). Loader task.
+pub fn spindle_pwm_set(duty: u32) {
+    write(TIM4 + TIM_CCR1, duty.min(PWM_PERIOD));
 }

@@ -44,8 +44,14 @@ mod app {
 
     use millac::flashstore::FlashStore;
 
-    use crate::board::{self, TripleAdc, Usart2, F446};
+    use crate::board::{self, TripleAdc, F446};
     use crate::flash::Sector7;
+    use millac::gcode::Spindle;
+    use millac::inputs::{Debouncer, Events, Trip};
+    use millac::ports::{OperatorInputs, PinInputs};
+    use millac_hal::serial::LoaderBoard;
+    use rtic::Mutex;
+    use stm32f4xx_hal::gpio::{AnyPin, Input, Output};
 
     /// The status words between the contexts.
     static STATUS: Status = Status::new();
@@ -57,8 +63,11 @@ mod app {
     /// Transmit queue slots.
     const TX_QUEUE: usize = 512;
 
+    /// The operator inputs' debouncer: sampled by the sampler task, read by the loader.
     #[shared]
-    struct Shared {}
+    struct Shared {
+        inputs: Debouncer,
+    }
 
     /// The frame's own measurement: min and max cycles since reset.
     pub struct FrameCycles {
@@ -76,6 +85,10 @@ mod app {
         sampler: Option<Sampler<TripleAdc>>,
         ac: Option<AcTask<DefmtLog>>,
         frames_seen: u32,
+        /// The operator input pins (embedded-hal input pins, active low with pull-ups).
+        pins: PinInputs<AnyPin<Input>>,
+        /// The spindle enable and direction pins.
+        spindle: (AnyPin<Output>, AnyPin<Output>),
         uart_rx: RxIsr<'static>,
         uart_tx: Consumer<'static, u8, TX_QUEUE>,
         proto: Protocol<'static>,
@@ -92,7 +105,7 @@ mod app {
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let mut core = cx.core;
-        let rcc = cx.device.RCC.freeze(
+        let mut rcc = cx.device.RCC.freeze(
             Config::hse(8.MHz())
                 .bypass_hse_oscillator()
                 .sysclk(board::CORE_HZ.Hz())
@@ -107,11 +120,31 @@ mod app {
                 c.timclk1().raw()
             );
         }
+        // Operator inputs (pull-ups, switches to ground): PB12 e-stop (normally closed), PB13 feed
+        // hold, PB14 cycle start, PB15 / PB1 / PB2 X / Y / Z limit. Spindle: PA8 enable, PA9
+        // direction (high = M4), PB6 PWM (TIM4 CH1).
+        let gpioa = cx.device.GPIOA.split(&mut rcc);
+        let gpiob = cx.device.GPIOB.split(&mut rcc);
+        let pins = PinInputs {
+            estop: gpiob.pb12.into_pull_up_input().erase(),
+            feed_hold: gpiob.pb13.into_pull_up_input().erase(),
+            cycle_start: gpiob.pb14.into_pull_up_input().erase(),
+            limits: [
+                gpiob.pb15.into_pull_up_input().erase(),
+                gpiob.pb1.into_pull_up_input().erase(),
+                gpiob.pb2.into_pull_up_input().erase(),
+            ],
+        };
+        let spindle = (
+            gpioa.pa8.into_push_pull_output().erase(),
+            gpioa.pa9.into_push_pull_output().erase(),
+        );
+        board::spindle_pwm_start();
         core.DCB.enable_trace();
         core.DWT.enable_cycle_counter();
         let watchdog_reset = F446::watchdog_reset();
 
-        let (table, status) = Persistent::load(FlashStore::new(Sector7));
+        let (table, status) = Persistent::load_for(FlashStore::new(Sector7), board::LIMITS);
         let refused = match status {
             LoadStatus::Refused(e) => {
                 defmt::warn!("settings record refused: {}; defaults loaded", e.message());
@@ -120,7 +153,7 @@ mod app {
             LoadStatus::Loaded | LoadStatus::Missing => None,
         };
         let settings = table.settings.nc;
-        if let Err(e) = settings.validate() {
+        if let Err(e) = settings.validate_for(&board::LIMITS) {
             defmt::panic!("settings: {}", e.message());
         }
         let (producer, consumer) = cx.local.queue.split();
@@ -159,6 +192,7 @@ mod app {
 
         let (uart_rx, rx) = cx.local.serial_rx.split();
         let mut proto = Protocol::new(rx, (QUEUE - 1) as u16);
+        proto.set_core_hz(board::CORE_HZ);
         // ALARM:120 after the banner, G-code locked until `$X` (as on the QEMU board).
         if let Some(e) = refused {
             proto.settings_refused(e);
@@ -179,8 +213,12 @@ mod app {
             }
         );
 
+        // Debounce over ~10 ms of samples.
+        let debounce = (ac_settings.sample_hz / 100).clamp(1, 255) as u8;
         (
-            Shared {},
+            Shared {
+                inputs: Debouncer::new(debounce),
+            },
             Local {
                 frame: FrameTask::new(Frame::new(FrameConfig::from_settings(&settings)), reloads),
                 consumer,
@@ -193,6 +231,8 @@ mod app {
                 sampler,
                 ac,
                 frames_seen: 0,
+                pins,
+                spindle,
                 uart_rx,
                 uart_tx,
                 proto,
@@ -216,16 +256,13 @@ mod app {
         let c = cx.local.cycles;
         if dt < c.min {
             c.min = dt;
-            FRAME_CYCLES_MIN.store(dt, Relaxed);
+            STATUS.frame_cycles_min.store(dt, Relaxed);
         }
         if dt > c.max {
             c.max = dt;
-            FRAME_CYCLES_MAX.store(dt, Relaxed);
+            STATUS.frame_cycles_max.store(dt, Relaxed);
         }
     }
-
-    static FRAME_CYCLES_MIN: AtomicU32 = AtomicU32::new(0);
-    static FRAME_CYCLES_MAX: AtomicU32 = AtomicU32::new(0);
 
     /// The block queue as the frame's Initiator sees it.
     struct Source<'a>(&'a mut Consumer<'static, Block, QUEUE>);
@@ -258,14 +295,18 @@ mod app {
 
     /// The sampler (TIM3 update, `sample_hz`): one conversion of the triple ADC, the AC period
     /// spawned every N samples; feeds the watchdog while the frame runs. Priority 2.
-    #[task(binds = TIM3, priority = 2, local = [sampler, frames_seen])]
-    fn sample(cx: sample::Context) {
+    #[task(binds = TIM3, priority = 2, local = [sampler, frames_seen, pins], shared = [inputs])]
+    fn sample(mut cx: sample::Context) {
         SampleClock::ack(&mut F446);
         let frames = FRAMES.load(Relaxed);
         if frames != *cx.local.frames_seen {
             *cx.local.frames_seen = frames;
             F446::watchdog_feed();
         }
+        let raw = cx.local.pins.read();
+        cx.shared.inputs.lock(|d| {
+            d.sample(raw);
+        });
         let Some(s) = cx.local.sampler.as_mut() else {
             return;
         };
@@ -292,8 +333,15 @@ mod app {
     }
 
     /// The loader: the grbl protocol on USART2, forever.
-    #[idle(local = [producer, table, proto, tx, ac_alarms])]
+    #[idle(local = [producer, table, proto, tx, ac_alarms, spindle], shared = [inputs])]
     fn idle(cx: idle::Context) -> ! {
+        let (enable, direction) = cx.local.spindle;
+        let mut board = Nucleo {
+            inputs: cx.shared.inputs,
+            enable,
+            direction,
+            max_rpm: cx.local.table.settings.spindle_max_rpm,
+        };
         let ceiling = cx
             .local
             .table
@@ -308,9 +356,57 @@ mod app {
             cx.local.tx,
             cx.local.ac_alarms,
             &STATUS,
-            &Usart2,
-            &mut (),
+            &mut board,
         )
+    }
+
+    /// The board as the serial loader sees it: USART2, the operator inputs (through the shared
+    /// debouncer: a short lock against the sampler), the spindle outputs.
+    struct Nucleo<'a, M: Mutex<T = Debouncer>> {
+        inputs: M,
+        enable: &'a mut AnyPin<Output>,
+        direction: &'a mut AnyPin<Output>,
+        max_rpm: u32,
+    }
+
+    impl<M: Mutex<T = Debouncer>> LoaderBoard for Nucleo<'_, M> {
+        fn start(&mut self) {
+            board::usart2_start();
+        }
+
+        fn kick() {
+            rtic::pend(stm32f4xx_hal::pac::Interrupt::USART2);
+        }
+
+        const SPINDLE: bool = true;
+
+        /// Enable high for M3/M4, direction high for M4, PWM duty S / `$30`.
+        fn spindle(&mut self, state: Spindle, rpm: u32) {
+            match state {
+                Spindle::Off => {
+                    board::spindle_pwm_set(0);
+                    self.enable.set_low();
+                }
+                Spindle::Cw | Spindle::Ccw => {
+                    self.direction.set_state((state == Spindle::Ccw).into());
+                    board::spindle_pwm_set(board::spindle_duty(rpm, self.max_rpm));
+                    self.enable.set_high();
+                }
+            }
+            defmt::info!("spindle {} at {} rpm", defmt::Debug2Format(&state), rpm);
+        }
+
+        fn inputs(&mut self) -> Events {
+            self.inputs.lock(|d| d.take())
+        }
+
+        fn latched(&mut self) -> Option<Trip> {
+            self.inputs.lock(|d| d.latched())
+        }
+
+        fn acknowledge(&mut self) -> bool {
+            self.inputs.lock(|d| d.acknowledge())
+        }
     }
 
     /// The AC log lines at defmt's debug level (`DEFMT_LOG=debug` to see them).

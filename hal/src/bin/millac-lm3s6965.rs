@@ -354,10 +354,10 @@ mod app {
                     cx.local.tx,
                     cx.local.ac_alarms,
                     &STATUS,
-                    &millac_hal::uart::Uart0 {
+                    &mut millac_hal::uart::QemuLoader {
                         clock_hz: B::TIMER_HZ,
+                        log: millac_hal::session::SessionLog::create(),
                     },
-                    &mut millac_hal::session::SessionLog::create(),
                 )
             }
         };

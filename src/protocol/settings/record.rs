@@ -26,9 +26,9 @@ use crate::ports::SettingsStorage;
 use crate::settings::{Blu, BoardLimits, Settings};
 
 pub const MAGIC: [u8; 4] = *b"MLST";
-pub const VERSION: u16 = 1;
+pub const VERSION: u16 = 2;
 pub const HEADER_LEN: usize = 8;
-pub const PAYLOAD_LEN: usize = 175;
+pub const PAYLOAD_LEN: usize = 179;
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF): the
@@ -239,6 +239,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     });
     p.u8(s.report.status_mask);
     p.u8(s.report.inches as u8);
+    p.u32(s.spindle_max_rpm);
     let end = p.pos;
     let crc = crc32(img.get(..end).unwrap_or(&[]));
     let mut p = Put {
@@ -338,6 +339,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     };
     let status_mask = t.u8()?;
     let inches = t.bool()?;
+    let spindle_max_rpm = t.u32()?;
     let build = || {
         Some(MachineSettings {
             nc: Settings {
@@ -383,6 +385,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
                 status_mask,
                 inches: inches?,
             },
+            spindle_max_rpm,
         })
     };
     Some(build())

@@ -143,7 +143,7 @@ macro_rules! mirror {
 /// millac's own from `$200` (NC) and `$250` (adaptive control). `$200` (the BLU) comes first: the
 /// settings listed in mm are kept in BLU, so a listing restored line by line onto the defaults
 /// changes the BLU before it sets them.
-pub static TABLE: [Entry; 53] = [
+pub static TABLE: [Entry; 54] = [
     Entry {
         number: 200,
         name: "BLU",
@@ -174,6 +174,15 @@ pub static TABLE: [Entry; 53] = [
     }),
     flag!(20, "soft limits (always on)", |_| 1, |_, v| (v == 1)
         .then_some(())),
+    int!(
+        30,
+        "max spindle speed (full PWM duty)",
+        "rpm",
+        Unit::One,
+        u32,
+        false,
+        spindle_max_rpm
+    ),
     int!(
         110,
         "X max rate (rapid, all axes)",

@@ -11,7 +11,7 @@ use std::string::String;
 use std::vec::Vec;
 
 const DEFAULT_LIST: &str =
-    "$200=0.00254\r\n$0=5\r\n$10=1\r\n$13=0\r\n$20=1\r\n$110=4013.1492\r\n$111=4013.1492\r\n\
+    "$200=0.00254\r\n$0=5\r\n$10=1\r\n$13=0\r\n$20=1\r\n$30=1000\r\n$110=4013.1492\r\n$111=4013.1492\r\n\
 $112=4013.1492\r\n$120=635\r\n$121=635\r\n$122=635\r\n$130=254\r\n$131=254\r\n$132=101.6\r\n\
 $201=5000\r\n$202=3000\r\n$203=400\r\n$204=100\r\n$205=25\r\n$206=20\r\n$207=5\r\n\
 $230=-254\r\n$231=-254\r\n$232=-101.6\r\n$250=1\r\n$251=0\r\n$252=1000\r\n$253=10\r\n$254=4000\r\n\
@@ -19,12 +19,14 @@ $255=80\r\n$256=0.9\r\n$257=75000\r\n$258=100\r\n$259=3000\r\n$260=-0.1\r\n$261=
 $263=0\r\n$270=0.05\r\n$271=2.5\r\n$272=2.5\r\n$273=2048\r\n$274=2048\r\n$275=2048\r\n$280=20\r\n\
 $281=1500\r\n$282=1\r\n$283=50\r\n$284=6.35\r\n$285=0.6\r\n$286=1.4\r\n$287=5\r\n$288=5\r\n";
 
-/// The record of the defaults, version 1 (its acceleration 250 000 BLU/s^2 since the ramps came,
-/// issue 7): a change of the layout must bump the version.
-const DEFAULT_IMAGE: &str = "4d4c53540100af000088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
+/// The record of the defaults, version 2 (its acceleration 250 000 BLU/s^2 since the ramps came,
+/// issue 7; `$30` max spindle speed appended in version 2, issue 8; the CRC computed here with
+/// Python's zlib.crc32): a change of the layout must bump the version.
+const DEFAULT_IMAGE: &str = "4d4c53540200b3000088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
 feff6079feffc063ffffa0860100a0860100409c000090d0030090d0030090d003000100e80300000a000000cdcc4c\
 3d00000045000020400000004500002040000000450000007a450000a0426666663ff824010064000000b80b0000cd\
-ccccbd14000000dc050100320000003333cb409a99193f3333b33f0000a04005000000030000000001002003018b";
+ccccbd14000000dc050100320000003333cb409a99193f3333b33f0000a0400500000003000000000100e803000098\
+ed6848";
 
 fn listing(m: &MachineSettings) -> String {
     let mut s = String::new();
@@ -77,8 +79,8 @@ fn grbl_settings_take_grbl_units() {
     // 3000 mm/min = 50 mm/s = 19 685.04 BLU/s -> 19 685, listed exactly.
     set(&mut m, "$110=3000").unwrap();
     assert_eq!(m.nc.rapid_hz, 19_685);
-    assert_eq!(m.line(5).unwrap().as_str(), "$110=2999.994");
-    assert_eq!(m.line(6).unwrap().as_str(), "$111=2999.994");
+    assert_eq!(m.line(6).unwrap().as_str(), "$110=2999.994");
+    assert_eq!(m.line(7).unwrap().as_str(), "$111=2999.994");
     set(&mut m, "$111=2999.994").unwrap();
     set(&mut m, "$112=3000").unwrap(); // the same rate once rounded
     set(&mut m, "$121=100").unwrap();
@@ -340,13 +342,14 @@ prop_compose! {
 
 prop_compose! {
     fn arb_settings()(nc in arb_nc(), ac in arb_ac(), on in any::<bool>(), mask in 0u8..=3,
-                      inches in any::<bool>()) -> MachineSettings {
+                      inches in any::<bool>(), rpm in 1u32..=1_000_000) -> MachineSettings {
         MachineSettings {
             nc,
             ac,
             ac_enabled: on,
             strategy: AcStrategy::Paper,
             report: ReportSettings { status_mask: mask, inches },
+            spindle_max_rpm: rpm,
         }
     }
 }
@@ -491,9 +494,9 @@ fn a_sealed_record_with_bad_values_is_refused() {
     reseal(&mut img);
     assert_eq!(record::decode(&img), Err(RecordError::Value));
     let mut img = record::encode(&MachineSettings::default());
-    img[4] = 2; // version 2
+    img[4] = 3; // version 3
     reseal(&mut img);
-    assert_eq!(record::decode(&img), Err(RecordError::Version(2)));
+    assert_eq!(record::decode(&img), Err(RecordError::Version(3)));
 }
 
 /// A settings storage in memory (the host's test double of flash or EEPROM).
