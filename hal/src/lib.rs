@@ -1,6 +1,6 @@
-//! millac boards (hal/): the board-agnostic parts of the apps, [`serial`] (the loader in serial
-//! mode, over a board's [`serial::SerialLine`]) and [`actask`] (the sampler and the AC period over
-//! a board's ADC and log), and the boards. Each board implements the core's ports (`millac::ports`: step/sign port,
+//! millac boards (hal/): the board-agnostic AC side of the apps, [`actask`] (the sampler and the
+//! AC period over a board's ADC and log; the serial loader is the core's `millac::rt::loader`),
+//! and the boards. Each board implements the core's ports (`millac::ports`: step/sign port,
 //! frame and pulse timers, sample clock, force/torque ADC) with its registers, and has a thin RTIC
 //! app in `src/bin/` that binds the core's ISR and task bodies (`millac::rt`) to its interrupts.
 //! Board modules (feature `lm3s6965`, default): `lm3s6965` (the board QEMU emulates) with
@@ -13,7 +13,6 @@
 #![no_std]
 
 pub mod actask;
-pub mod serial;
 
 #[cfg(feature = "lm3s6965")]
 pub mod lm3s6965;

@@ -94,7 +94,7 @@ pub struct QemuLoader {
     pub log: crate::session::SessionLog,
 }
 
-impl crate::serial::LoaderBoard for QemuLoader {
+impl millac::rt::loader::LoaderBoard for QemuLoader {
     fn start(&mut self) {
         init(self.clock_hz);
     }

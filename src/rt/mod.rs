@@ -1,6 +1,6 @@
 //! Run-time bodies of the firmware, written once over the [`crate::ports`] and called by a thin
 //! RTIC app per board (hal/) and by the host simulation: the frame ISR and the pulse-end ISR
-//! ([`isr`]), the sampler and the AC period ([`ac`]), the status words between the contexts
+//! ([`isr`]), the sampler and the AC period ([`ac`]), the serial loader ([`loader`]), the status words between the contexts
 //! ([`status`]), and the timer arithmetic of
 //! init ([`clocks_for_hz`], [`clocks_for_ns`]) with the QEMU board's clock ([`QemuClock`]).
 //!
@@ -10,7 +10,10 @@
 
 pub mod ac;
 pub mod isr;
+pub mod loader;
 pub mod status;
+#[cfg(test)]
+mod tests_loader;
 
 pub use isr::{pulse_end, FrameTask, Reloads};
 pub use status::Status;

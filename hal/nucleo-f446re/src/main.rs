@@ -49,7 +49,7 @@ mod app {
     use millac::gcode::Spindle;
     use millac::inputs::{Debouncer, Events, Trip};
     use millac::ports::{OperatorInputs, PinInputs};
-    use millac_hal::serial::LoaderBoard;
+    use millac::rt::loader::LoaderBoard;
     use rtic::Mutex;
     use stm32f4xx_hal::gpio::{AnyPin, Input, Output};
 
@@ -348,7 +348,7 @@ mod app {
             .settings
             .ac_enabled
             .then_some(cx.local.table.settings.ac.ceiling);
-        millac_hal::serial::run(
+        millac::rt::loader::run(
             cx.local.producer,
             cx.local.table,
             ceiling,
@@ -357,7 +357,11 @@ mod app {
             cx.local.ac_alarms,
             &STATUS,
             &mut board,
-        )
+        );
+        // Never reached: the board's loader runs for ever.
+        loop {
+            cortex_m::asm::nop();
+        }
     }
 
     /// The board as the serial loader sees it: USART2, the operator inputs (through the shared

@@ -346,7 +346,7 @@ mod app {
             // No program file: the operator streams G-code over the serial line.
             Loaded::NoFile => {
                 SERIAL.store(true, Relaxed);
-                millac_hal::serial::run(
+                millac::rt::loader::run(
                     producer,
                     cx.local.table,
                     ceiling,
@@ -358,7 +358,9 @@ mod app {
                         clock_hz: B::TIMER_HZ,
                         log: millac_hal::session::SessionLog::create(),
                     },
-                )
+                );
+                // The board's loader never ends (it runs while the board says so: always).
+                true
             }
         };
 
@@ -400,7 +402,7 @@ mod app {
         refused: Option<RecordError>,
         out: &mut Out,
     ) -> Loaded {
-        let mut enqueue = |b: Block| millac_hal::serial::enqueue_block(producer, b);
+        let mut enqueue = |b: Block| millac::rt::loader::enqueue_block(producer, b);
         let Some(fd) = semihost::open(b"program.nc\0", nr::open::R) else {
             return Loaded::NoFile;
         };

@@ -1,11 +1,13 @@
-//! The loader in serial mode (idle task): G-code streamed by a sender over UART0 instead of the
-//! semihosting program file, through the grbl 1.1 protocol core (`millac::protocol`): the banner,
+//! The loader in serial mode (idle task of every board; host tests): G-code streamed by a sender
+//! over the board's serial line (the QEMU board's UART0 instead of its semihosting program file,
+//! the Nucleo's USART2), through the grbl 1.1 protocol core (`crate::protocol`), over a board's
+//! [`LoaderBoard`]: the banner,
 //! one `ok` or `error:N` per line (grbl's numbers), `$` commands and settings (`$$`; `$N=value`
 //! stored at once through the settings storage, effective at the next start for the NC and AC
 //! settings), `?` status reports, `$C` check mode, `$X`. Each G-code line runs
 //! through the tape (`Tape::line`: an error refuses that line only) into the block queue; the
 //! look-ahead's held block runs as soon as no next line has come and the machine would otherwise
-//! stop. The RX interrupt (the app's UART0 task) pushes every byte into the protocol's ring
+//! stop. The RX interrupt (the app's serial task) pushes every byte into the protocol's ring
 //! (`RxIsr::push_byte`), which takes the realtime bytes out at once.
 //!
 //! `$J=` jogs run as their own block (no look-ahead, no AC ceiling); the parser then stands at the
@@ -28,23 +30,23 @@
 //! once whatever the queue holds, and a hold with a full queue cannot stall it.
 use core::sync::atomic::Ordering::Relaxed;
 
+use crate::ac::{Alarm, FeedCeiling};
+use crate::gcode::tape::{finish_block, Tape};
+use crate::nc::{operator, Block, FrameConfig, Motion};
+use crate::ports::SettingsStorage;
+use crate::protocol::codes::{ac_alarm, alarm, GrblError};
+use crate::protocol::report::{feed_blu_per_min, AcReport, AcState, State, StatusData};
+use crate::protocol::rx::Overrides;
+use crate::protocol::settings::Persistent;
+use crate::protocol::{Context, Event, Protocol, SettingsTable};
+use crate::rt::ac::AC_RUN;
+use crate::rt::Status;
 use heapless::spsc::{Consumer, Producer};
-use millac::ac::{Alarm, FeedCeiling};
-use millac::gcode::tape::{finish_block, Tape};
-use millac::nc::{operator, Block, FrameConfig, Motion};
-use millac::ports::SettingsStorage;
-use millac::protocol::codes::{ac_alarm, alarm, GrblError};
-use millac::protocol::report::{feed_blu_per_min, AcReport, AcState, State, StatusData};
-use millac::protocol::rx::Overrides;
-use millac::protocol::settings::Persistent;
-use millac::protocol::{Context, Event, Protocol, SettingsTable};
-use millac::rt::ac::AC_RUN;
-use millac::rt::Status;
 
-use millac::gcode::{Parsed, Spindle};
-use millac::inputs::{Events, Trip};
-use millac::protocol::jog::JogRequest;
-use millac::protocol::LINE_MAX;
+use crate::gcode::{Parsed, Spindle};
+use crate::inputs::{Events, Trip};
+use crate::protocol::jog::JogRequest;
+use crate::protocol::LINE_MAX;
 
 /// Free queue slots a line needs before the loader takes it: the look-ahead's held block and the
 /// line's own (a line emits at most two blocks).
@@ -90,6 +92,17 @@ pub trait LoaderBoard {
     fn acknowledge(&mut self) -> bool {
         true
     }
+
+    /// Called once per turn of the loader's loop: false ends [`run`]. A board's firmware never
+    /// ends it (the default); a host test runs its frames and its sender from here.
+    fn running(&mut self) -> bool {
+        true
+    }
+    /// Called while the loader waits for the frame (a full queue, an abort draining it). Must
+    /// not block; the default is a spin-loop hint. A host test runs a frame here.
+    fn wait(&mut self) {
+        core::hint::spin_loop();
+    }
 }
 
 /// The writer's end of the transmit queue. Loader task.
@@ -112,7 +125,7 @@ impl<'a, const N: usize, B: LoaderBoard> Tx<'a, N, B> {
         for &b in bytes {
             while self.queue.enqueue(b).is_err() {
                 B::kick();
-                cortex_m::asm::nop();
+                core::hint::spin_loop();
             }
         }
         B::kick();
@@ -145,8 +158,9 @@ struct Deferred {
     rpm: u32,
 }
 
-/// Loader task: never returns (the operator ends the session by resetting the machine). `table`:
-/// the settings init loaded (and started the frame with) and their storage.
+/// Loader task: runs while [`LoaderBoard::running`] (on a board: for ever; the operator ends the
+/// session by resetting the machine). `table`: the settings init loaded (and started the frame
+/// with) and their storage.
 #[allow(clippy::too_many_arguments)]
 pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B: LoaderBoard>(
     blocks: &mut Producer<'static, Block, Q>,
@@ -157,7 +171,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
     ac_alarms: &mut Consumer<'static, Alarm, A>,
     status: &Status,
     board: &mut B,
-) -> ! {
+) {
     board.start();
     let mut out = Tx::<T, B>::new(tx);
     proto.start(&mut out);
@@ -189,7 +203,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
     // The spindle output as last applied, and a line waiting to change it.
     let mut spindle = (Spindle::Off, 0u32);
     let mut deferred: Option<Deferred> = None;
-    loop {
+    while board.running() {
         // AC holds: said once each, as they come.
         while let Some(a) = ac_alarms.dequeue() {
             proto.message(&mut out, format_args!("AC hold: {}", a));
@@ -206,7 +220,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 estop: true,
                 limits: 0,
             });
-            let (at, signs) = abort(blocks, status);
+            let (at, signs) = abort(blocks, status, board);
             tape.abort(at, signs);
             board.log_reset();
             deferred = None;
@@ -242,7 +256,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
         if cancel_jog && status.stopped() {
             // The jog has stopped: drop it and any jog queued behind it. The parser keeps its
             // modes (a jog changes none) and stands where the machine stopped.
-            let (at, signs) = abort(blocks, status);
+            let (at, signs) = abort(blocks, status, board);
             tape.jogged_to(at, signs);
             cancel_jog = false;
             jogging = false;
@@ -413,7 +427,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 // is exact here, and reported).
                 let moving = !idle && !status.stopped();
                 board.log_reset();
-                let (at, signs) = abort(blocks, status);
+                let (at, signs) = abort(blocks, status, board);
                 tape.abort(at, signs);
                 // A reset stops the spindle (the parser is back in power-up modes, M5).
                 deferred = None;
@@ -425,7 +439,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 overrides = proto.overrides();
                 publish(hold, overrides);
                 if moving {
-                    proto.alarm(millac::protocol::codes::alarm::ABORT_CYCLE, &mut out);
+                    proto.alarm(alarm::ABORT_CYCLE, &mut out);
                 }
             }
             Event::Unlock => {
@@ -495,13 +509,14 @@ fn run_held<const Q: usize>(
 fn abort<const Q: usize>(
     blocks: &mut Producer<'static, Block, Q>,
     status: &Status,
+    board: &mut impl LoaderBoard,
 ) -> ([i32; 3], u8) {
     let word = status.operator.load(Relaxed);
     status.operator.store(word | operator::ABORT, Relaxed);
     // The frame pops one block per frame and publishes idle and the position in the frames
     // without pulses: wait for both.
     while blocks.len() != 0 || !status.idle.load(Relaxed) {
-        cortex_m::asm::nop();
+        board.wait();
     }
     status.operator.store(word & !operator::ABORT, Relaxed);
     (status.position(), status.next_signs.load(Relaxed))
@@ -520,6 +535,6 @@ fn enqueue<const Q: usize>(blocks: &mut Producer<'static, Block, Q>, b: Block, f
 /// Queues a block, waiting while the queue is full (the frame drains it). Loader task, both modes.
 pub fn enqueue_block<const Q: usize>(blocks: &mut Producer<'static, Block, Q>, b: Block) {
     while blocks.enqueue(b).is_err() {
-        cortex_m::asm::nop();
+        core::hint::spin_loop();
     }
 }

@@ -1,0 +1,383 @@
+//! Host tests of the serial loader ([`super::loader::run`]) on one thread: a test board whose
+//! `running` and `wait` run the real frame (one frame per call, the pulse end right after it),
+//! feed the sender's bytes at given frames, collect the replies and play the operator inputs and
+//! the spindle output. What is checked: a spindle change waits for the motion before it and
+//! applies before the line's own; an e-stop stops at once with the position exact and latches
+//! ALARM:10 until released and `$X`; the feed hold and cycle start buttons hold and resume.
+extern crate std;
+
+use std::boxed::Box;
+use std::collections::VecDeque;
+use std::string::String;
+use std::vec::Vec;
+
+use heapless::spsc::{Consumer, Queue};
+
+use super::loader::{run, LoaderBoard};
+use super::{FrameTask, Reloads, Status};
+use crate::ac::Alarm;
+use crate::gcode::Spindle;
+use crate::inputs::{Events, Trip};
+use crate::nc::{Block, Frame, FrameConfig};
+use crate::ports::{BlockSource, FrameTimer, PulseTimer, SettingsStorage, StepPort};
+use crate::protocol::rx::RxIsr;
+use crate::protocol::rx::RxShared;
+use crate::protocol::settings::Persistent;
+use crate::protocol::Protocol;
+
+const Q: usize = 16;
+const T: usize = 1024;
+const A: usize = 4;
+
+/// No stored settings: the defaults (5 kHz, 0.0001 in, F30 = FRM).
+struct NoStorage;
+
+impl SettingsStorage for NoStorage {
+    fn load(&mut self, _: &mut [u8]) -> Option<usize> {
+        None
+    }
+    fn store(&mut self, _: &[u8]) -> bool {
+        true
+    }
+}
+
+/// The pins, the frame timer and the pulse timer in software.
+#[derive(Default)]
+struct Pins {
+    levels: u8,
+}
+
+impl StepPort for Pins {
+    fn write_steps(&mut self, steps: u8) {
+        self.levels = (self.levels & !0b111) | (steps & 0b111);
+    }
+    fn write_signs(&mut self, signs: u8) {
+        self.levels = (self.levels & 0b111) | ((signs & 0b111) << 3);
+    }
+    fn read_pins(&mut self) -> u8 {
+        self.levels
+    }
+}
+
+/// The frame and pulse timers: the bench runs the frames itself.
+struct NoTimer;
+
+impl FrameTimer for NoTimer {
+    fn ack(&mut self) {}
+    fn set_reload(&mut self, _: u32) {}
+}
+
+impl PulseTimer for NoTimer {
+    fn start(&mut self) {}
+    fn ack(&mut self) {}
+}
+
+struct Source<'a>(&'a mut Consumer<'static, Block, Q>);
+
+impl BlockSource for Source<'_> {
+    fn front(&mut self) -> Option<&Block> {
+        self.0.peek()
+    }
+    fn pop(&mut self) {
+        let _ = self.0.dequeue();
+    }
+}
+
+/// What the board saw the loader do with the spindle: when (frame), what, and where the machine
+/// stood and whether it was idle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct SpindleCall {
+    frame: u64,
+    state: Spindle,
+    rpm: u32,
+    position: [i32; 3],
+    idle: bool,
+}
+
+/// The test board.
+struct Bench {
+    status: &'static Status,
+    frame: FrameTask,
+    blocks: Consumer<'static, Block, Q>,
+    pins: Pins,
+    rx: RxIsr<'static>,
+    tx: Consumer<'static, u8, T>,
+    /// Bytes from the sender, each at a frame number.
+    sends: VecDeque<(u64, Vec<u8>)>,
+    /// Input events, each at a frame number.
+    inputs: VecDeque<(u64, Events)>,
+    /// The e-stop line (active) and the latch.
+    estop_active: bool,
+    latch: Option<Trip>,
+    frames: u64,
+    end: u64,
+    out: String,
+    spindle: Vec<SpindleCall>,
+    /// Frames at which the e-stop line is released.
+    release_at: Option<u64>,
+}
+
+impl Bench {
+    fn tick(&mut self) {
+        self.frames += 1;
+        while let Some((at, bytes)) = self.sends.front() {
+            if *at > self.frames {
+                break;
+            }
+            for &b in bytes {
+                let _ = self.rx.push_byte(b);
+            }
+            self.sends.pop_front();
+        }
+        if self.release_at.is_some_and(|f| f <= self.frames) {
+            self.estop_active = false;
+        }
+        self.frame.run(
+            &mut self.pins,
+            &mut NoTimer,
+            &mut NoTimer,
+            &mut Source(&mut self.blocks),
+            self.status,
+        );
+        // The pulse timer's interrupt: only after a frame that raised PULSE lines.
+        if self.pins.levels & 0b111 != 0 {
+            super::pulse_end(&mut self.pins, &mut NoTimer, self.status);
+        }
+        while let Some(b) = self.tx.dequeue() {
+            self.out.push(b as char);
+        }
+    }
+
+    fn idle(&self) -> bool {
+        self.status.idle.load(core::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+impl LoaderBoard for Bench {
+    fn start(&mut self) {}
+    fn kick() {}
+
+    const SPINDLE: bool = true;
+
+    fn spindle(&mut self, state: Spindle, rpm: u32) {
+        self.spindle.push(SpindleCall {
+            frame: self.frames,
+            state,
+            rpm,
+            position: self.status.encoder(),
+            idle: self.idle(),
+        });
+    }
+
+    fn inputs(&mut self) -> Events {
+        match self.inputs.front() {
+            Some((at, e)) if *at <= self.frames => {
+                let e = *e;
+                self.inputs.pop_front();
+                if e.tripped {
+                    self.estop_active = true;
+                    self.latch = Some(Trip {
+                        estop: true,
+                        limits: 0,
+                    });
+                }
+                e
+            }
+            _ => Events::default(),
+        }
+    }
+
+    fn latched(&mut self) -> Option<Trip> {
+        self.latch
+    }
+
+    fn acknowledge(&mut self) -> bool {
+        if self.estop_active {
+            return false;
+        }
+        self.latch = None;
+        true
+    }
+
+    fn running(&mut self) -> bool {
+        self.tick();
+        self.frames < self.end
+    }
+
+    fn wait(&mut self) {
+        self.tick();
+    }
+}
+
+/// Runs the loader for `frames` frames with the sender's `sends` and the `inputs`; returns the
+/// bench (its output, spindle calls, final status).
+fn session(
+    sends: &[(u64, &str)],
+    inputs: &[(u64, Events)],
+    release_at: Option<u64>,
+    frames: u64,
+) -> Bench {
+    let status: &'static Status = Box::leak(Box::new(Status::new()));
+    status.start();
+    let (blocks_tx, blocks) = Box::leak(Box::new(Queue::<Block, Q>::new())).split();
+    let (tx_p, tx) = Box::leak(Box::new(Queue::<u8, T>::new())).split();
+    let (_alarm_tx, mut alarms) = Box::leak(Box::new(Queue::<Alarm, A>::new())).split();
+    let (rx, task) = Box::leak(Box::new(RxShared::new())).split();
+    let (mut table, _) = Persistent::load(NoStorage);
+    let settings = table.settings.nc;
+    let mut proto = Protocol::new(task, (Q - 1) as u16);
+    let mut blocks_tx = blocks_tx;
+    let mut tx_p = tx_p;
+    let mut bench = Bench {
+        status,
+        frame: FrameTask::new(
+            Frame::new(FrameConfig::from_settings(&settings)),
+            Reloads { feed: 1, rapid: 1 },
+        ),
+        blocks,
+        pins: Pins::default(),
+        rx,
+        tx,
+        sends: sends
+            .iter()
+            .map(|(f, s)| (*f, s.as_bytes().to_vec()))
+            .collect(),
+        inputs: inputs.iter().copied().collect(),
+        estop_active: false,
+        latch: None,
+        frames: 0,
+        end: frames,
+        out: String::new(),
+        spindle: Vec::new(),
+        release_at,
+    };
+    run(
+        &mut blocks_tx,
+        &mut table,
+        None,
+        &mut proto,
+        &mut tx_p,
+        &mut alarms,
+        status,
+        &mut bench,
+    );
+    bench
+}
+
+fn oks(out: &str) -> usize {
+    out.matches("ok\r\n").count()
+}
+
+/// 0.01 in = 100 BLU at F30 (FRM): about 100 frames of motion plus the ramps.
+#[test]
+fn a_spindle_change_waits_for_the_motion_before_it_and_runs_before_its_own() {
+    let b = session(
+        &[(1, "G91 G1 F30 X0.01\nM3 S500\nG1 X0.01\nM5 G1 X0.01\nM2\n")],
+        &[],
+        None,
+        5000,
+    );
+    assert_eq!(oks(&b.out), 5, "{}", b.out);
+    assert_eq!(b.status.encoder(), [300, 0, 0]);
+    let calls: Vec<(Spindle, u32, [i32; 3], bool)> = b
+        .spindle
+        .iter()
+        .map(|c| (c.state, c.rpm, c.position, c.idle))
+        .collect();
+    // M3 after the first move has run; M5 (with a move on its line) before that move; M2 with the
+    // spindle already off changes nothing.
+    assert_eq!(
+        calls,
+        [
+            (Spindle::Cw, 500, [100, 0, 0], true),
+            (Spindle::Off, 0, [200, 0, 0], true)
+        ]
+    );
+    // The `ok` of `M3 S500` came after the first move: the sender saw 1 ok while it moved.
+    assert!(b.spindle[0].frame > 100, "{:?}", b.spindle);
+}
+
+#[test]
+fn an_s_word_alone_changes_a_running_spindle_but_not_a_stopped_one() {
+    let b = session(
+        &[(1, "S800\nM4\nS900\nG91 G1 F30 Y0.01\nM5\n")],
+        &[],
+        None,
+        3000,
+    );
+    assert_eq!(oks(&b.out), 5, "{}", b.out);
+    let calls: Vec<(Spindle, u32)> = b.spindle.iter().map(|c| (c.state, c.rpm)).collect();
+    assert_eq!(
+        calls,
+        [(Spindle::Ccw, 800), (Spindle::Ccw, 900), (Spindle::Off, 0)]
+    );
+    assert_eq!(b.spindle[2].position, [0, 100, 0]);
+}
+
+#[test]
+fn an_estop_stops_at_once_latches_alarm_10_and_needs_release_and_unlock() {
+    let trip = Events {
+        tripped: true,
+        ..Events::default()
+    };
+    // A long move (1 in = 10 000 BLU, ~2 s); the e-stop at frame 400; `$X` at 600 while still
+    // pressed, released at 700, `$X` at 800, then a short move.
+    let b = session(
+        &[
+            (1, "M3 S300\nG91 G1 F30 X1\n"),
+            (600, "$X\n"),
+            (800, "$X\n"),
+            (900, "G91 G1 F30 Y0.01\n"),
+        ],
+        &[(400, trip)],
+        Some(700),
+        3000,
+    );
+    let alarms = b.out.matches("ALARM:10\r\n").count();
+    assert_eq!(
+        alarms, 2,
+        "once at the trip, once at the refused $X: {}",
+        b.out
+    );
+    assert!(b.out.contains("[MSG:E-stop]"), "{}", b.out);
+    assert_eq!(
+        b.out.matches("[MSG:Caution: Unlocked]").count(),
+        2,
+        "{}",
+        b.out
+    );
+    // Stopped at once: far short of 1 in, and the spindle went off at the trip.
+    let x = b.status.encoder()[0];
+    assert!(x > 0 && x < 1_000, "x = {x}");
+    assert_eq!(
+        b.status.encoder(),
+        [x, 100, 0],
+        "the move after the unlock runs"
+    );
+    assert_eq!(b.spindle.last().map(|c| c.state), Some(Spindle::Off));
+    let off = b.spindle.iter().find(|c| c.state == Spindle::Off).unwrap();
+    assert!(off.frame >= 400 && off.frame < 410, "{off:?}");
+    // The stop position is the frame's own: exact (no pulse lost or added after the abort).
+    assert_eq!(b.status.position(), b.status.encoder());
+}
+
+#[test]
+fn feed_hold_and_cycle_start_buttons_hold_and_resume() {
+    let hold = Events {
+        feed_hold: true,
+        ..Events::default()
+    };
+    let start = Events {
+        cycle_start: true,
+        ..Events::default()
+    };
+    let b = session(
+        &[(1, "G91 G1 F30 X0.1\n"), (700, "?")],
+        &[(300, hold), (1200, start)],
+        None,
+        4000,
+    );
+    // Held in between: the status at frame 700 says Hold (stopped: Hold:0).
+    assert!(b.out.contains("<Hold:0|"), "{}", b.out);
+    assert_eq!(b.status.encoder(), [1000, 0, 0], "resumed to the end");
+}
