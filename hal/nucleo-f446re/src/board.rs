@@ -146,6 +146,7 @@ const S0M0AR: usize = DMA2 + 0x1C;
 /// Stream 0 flags in LISR/LIFCR: FEIF0, DMEIF0, TEIF0, HTIF0, TCIF0.
 const S0_FLAGS: u32 = 0b11_1101;
 const S0_TCIF: u32 = 1 << 5;
+const S0_HTIF: u32 = 1 << 4;
 const S0_TEIF: u32 = 1 << 3;
 /// Peripheral to memory, circular, memory increment, half-words both sides, high priority.
 const S0CR_ADC: u32 = (1 << 8) | (1 << 10) | (0b01 << 11) | (0b01 << 13) | (0b10 << 16);
@@ -334,18 +335,20 @@ impl StepPort for F446 {
     }
 }
 
-/// The DMA target of the triple ADC: [T, Fu, Fv] of the last conversion (ADC1, ADC2, ADC3).
-struct Codes3(core::cell::UnsafeCell<[u16; 3]>);
+/// The DMA target of the triple ADC, two halves used in turn (ping-pong): [T, Fu, Fv] of one
+/// conversion each (ADC1, ADC2, ADC3). The sampler reads the half the DMA completed last while the
+/// DMA fills the other, so a late sampler never reads a half being written.
+struct Codes6(core::cell::UnsafeCell<[u16; 6]>);
 
 // SAFETY: written only by the DMA, read only by the sampler task through volatile loads.
-unsafe impl Sync for Codes3 {}
+unsafe impl Sync for Codes6 {}
 
-static ADC_CODES: Codes3 = Codes3(core::cell::UnsafeCell::new([0; 3]));
+static ADC_CODES: Codes6 = Codes6(core::cell::UnsafeCell::new([0; 6]));
 
 /// Starts the sample clock TIM3 at `sample_reload + 1` microseconds and the triple ADC it
 /// triggers: ADC1 converts T on PA0 (IN0), ADC2 Fu on PA1 (IN1), ADC3 Fv on PC0 (IN10), all three
 /// at the same instant (regular simultaneous mode), and DMA2 stream 0 moves the three results
-/// into [`ADC_CODES`] after every conversion. The TIM3 update interrupt is the sampler: it reads
+/// into one half of [`ADC_CODES`] after every conversion (the halves in turn). The TIM3 update interrupt is the sampler: it reads
 /// the conversion its previous update started (one sample period of delay). Init context.
 pub fn sample_start(sample_reload: u32) {
     // Analog mode (11) on PA0, PA1 and PC0.
@@ -364,12 +367,12 @@ pub fn sample_start(sample_reload: u32) {
     }
     write(ADC_CCR, CCR_TRIPLE);
 
-    // DMA: ADC_CDR (one half-word per request) into the three codes, circular.
+    // DMA: ADC_CDR (one half-word per request) into the two halves of six codes, circular.
     write(S0CR, 0);
     write(DMA_LIFCR, S0_FLAGS);
     write(S0PAR, ADC_CDR as u32);
     write(S0M0AR, ADC_CODES.0.get() as u32);
-    write(S0NDTR, 3);
+    write(S0NDTR, 6);
     write(S0CR, S0CR_ADC);
     write(S0CR, S0CR_ADC | DMA_EN);
 
@@ -412,11 +415,13 @@ impl SampleClock for F446 {
 pub struct TripleAdc;
 
 impl ForceTorqueAdc for TripleAdc {
-    /// The codes of the conversion the previous sample tick started: `Fresh` when the DMA has
-    /// completed a transfer since the last call, `Missed` otherwise (no conversion, an overrun,
-    /// a DMA error: the AC period that sees no fresh sample holds). An overrun or a transfer
-    /// error re-arms the ADC and the stream, so a single fault costs one sample. The encoder is
-    /// not needed by a real converter.
+    /// The codes of the last completed conversion (the one the previous sample tick started):
+    /// `Fresh` when the DMA has completed a half (HTIF or TCIF) since the last call, `Missed`
+    /// otherwise (no conversion, an overrun, a DMA error: the AC period that sees no fresh sample
+    /// holds). The half to read follows from NDTR: while the DMA writes one half (NDTR 6..4: the
+    /// first, 3..1: the second) the other is the complete one. An overrun or a transfer error
+    /// re-arms the ADC and the stream, so a single fault costs one sample. The encoder is not
+    /// needed by a real converter.
     fn sample(&mut self, _index: u32, _encoder: [i32; 3]) -> Conversion {
         let flags = read(DMA_LISR);
         write(DMA_LIFCR, flags & S0_FLAGS);
@@ -427,32 +432,37 @@ impl ForceTorqueAdc for TripleAdc {
             rearm();
             return Conversion::Missed;
         }
-        if flags & S0_TCIF == 0 {
+        if flags & (S0_TCIF | S0_HTIF) == 0 {
             return Conversion::Missed;
         }
+        let first = if read(S0NDTR) > 3 { 3 } else { 0 };
         let p = ADC_CODES.0.get() as *const u16;
-        // SAFETY: `p` points to the three half-words of ADC_CODES; the DMA has finished writing
-        // them (TCIF) and the next conversion starts only at the next TIM3 update.
+        // SAFETY: `p + first .. p + first + 3` is one half of ADC_CODES (first is 0 or 3); the DMA
+        // completed it and writes the other half now (a conversion every sample period).
         let codes: Codes = unsafe {
             [
-                core::ptr::read_volatile(p),
-                core::ptr::read_volatile(p.add(1)),
-                core::ptr::read_volatile(p.add(2)),
+                core::ptr::read_volatile(p.add(first)),
+                core::ptr::read_volatile(p.add(first + 1)),
+                core::ptr::read_volatile(p.add(first + 2)),
             ]
         };
         Conversion::Fresh(codes.map(|c| c & 0x0FFF))
     }
 }
 
-/// After an overrun or a DMA error: stream off, flags and OVR cleared, three transfers again.
+/// After an overrun or a DMA error: stream off, flags and OVR cleared, six transfers again.
 fn rearm() {
     write(S0CR, S0CR_ADC);
     while read(S0CR) & DMA_EN != 0 {}
     write(DMA_LIFCR, S0_FLAGS);
+    // Multi-ADC DMA mode off and on again restarts its request sequence at ADC1 (RM0390, overrun
+    // in multi-ADC mode), so the codes land in the order T, Fu, Fv again.
+    write(ADC_CCR, CCR_TRIPLE & !(0b11 << 14));
     for adc in [ADC1, ADC2, ADC3] {
         write(adc + ADC_SR, 0);
     }
-    write(S0NDTR, 3);
+    write(ADC_CCR, CCR_TRIPLE);
+    write(S0NDTR, 6);
     write(S0CR, S0CR_ADC | DMA_EN);
 }
 
