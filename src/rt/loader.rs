@@ -212,34 +212,15 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             }
         }
         // Operator inputs: the buttons as `!` and `~`; an e-stop or a limit switch stops at
-        // once like a reset (queue and held block dropped, the parser at the machine's position
-        // in power-up modes), stops the spindle and raises its alarm.
+        // once like a soft reset (below: queue and held block dropped, the parser at the
+        // machine's position in power-up modes, the spindle off) and raises its alarm.
         let inputs = board.inputs();
-        if inputs.tripped {
-            let trip = board.latched().unwrap_or(Trip {
+        let tripped = inputs.tripped.then(|| {
+            board.latched().unwrap_or(Trip {
                 estop: true,
                 limits: 0,
-            });
-            let (at, signs) = abort(blocks, status, board);
-            tape.abort(at, signs);
-            board.log_reset();
-            deferred = None;
-            spindle = (Spindle::Off, 0);
-            board.spindle(Spindle::Off, 0);
-            hold = false;
-            cancel_jog = false;
-            jogging = false;
-            publish(hold, overrides);
-            proto.alarm(trip_alarm(&trip), &mut out);
-            if trip.estop {
-                proto.message(&mut out, format_args!("E-stop"));
-            } else {
-                proto.message(
-                    &mut out,
-                    format_args!("Limit switch {:03b} (ZYX)", trip.limits),
-                );
-            }
-        }
+            })
+        });
         if inputs.feed_hold {
             hold = true;
             publish(hold, overrides);
@@ -297,7 +278,9 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             state,
             frame_cycles: status.frame_cycles(),
         };
-        let event = if room {
+        let event = if tripped.is_some() {
+            Event::Reset
+        } else if room {
             proto.poll(&mut out, &mut cx)
         } else {
             proto.poll_realtime(&mut out)
@@ -422,9 +405,10 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 }
             }
             Event::Reset => {
-                // Stop at once, drop the queue and the held block; the parser stands where the
-                // machine stopped. A reset during motion is an alarm, as in grbl (the position
-                // is exact here, and reported).
+                // A soft reset (the protocol has answered it) or an input trip: stop at once,
+                // drop the queue and the held block; the parser stands where the machine
+                // stopped. A reset during motion is an alarm, as in grbl (the position is exact
+                // here, and reported); a trip is always one.
                 let moving = !idle && !status.stopped();
                 board.log_reset();
                 let (at, signs) = abort(blocks, status, board);
@@ -438,8 +422,20 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 jogging = false;
                 overrides = proto.overrides();
                 publish(hold, overrides);
-                if moving {
-                    proto.alarm(alarm::ABORT_CYCLE, &mut out);
+                match tripped {
+                    Some(t) => {
+                        proto.alarm(trip_alarm(&t), &mut out);
+                        if t.estop {
+                            proto.message(&mut out, format_args!("E-stop"));
+                        } else {
+                            proto.message(
+                                &mut out,
+                                format_args!("Limit switch {:03b} (ZYX)", t.limits),
+                            );
+                        }
+                    }
+                    None if moving => proto.alarm(alarm::ABORT_CYCLE, &mut out),
+                    None => {}
                 }
             }
             Event::Unlock => {

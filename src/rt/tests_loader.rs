@@ -115,6 +115,8 @@ struct Bench {
     spindle: Vec<SpindleCall>,
     /// Frames at which the e-stop line is released.
     release_at: Option<u64>,
+    /// What a tripped event latches.
+    trip: Trip,
 }
 
 impl Bench {
@@ -176,10 +178,7 @@ impl LoaderBoard for Bench {
                 self.inputs.pop_front();
                 if e.tripped {
                     self.estop_active = true;
-                    self.latch = Some(Trip {
-                        estop: true,
-                        limits: 0,
-                    });
+                    self.latch = Some(self.trip);
                 }
                 e
             }
@@ -217,6 +216,21 @@ fn session(
     release_at: Option<u64>,
     frames: u64,
 ) -> Bench {
+    session_with(sends, inputs, release_at, frames, ESTOP)
+}
+
+const ESTOP: Trip = Trip {
+    estop: true,
+    limits: 0,
+};
+
+fn session_with(
+    sends: &[(u64, &str)],
+    inputs: &[(u64, Events)],
+    release_at: Option<u64>,
+    frames: u64,
+    trip: Trip,
+) -> Bench {
     let status: &'static Status = Box::leak(Box::new(Status::new()));
     status.start();
     let (blocks_tx, blocks) = Box::leak(Box::new(Queue::<Block, Q>::new())).split();
@@ -250,6 +264,7 @@ fn session(
         out: String::new(),
         spindle: Vec::new(),
         release_at,
+        trip,
     };
     run(
         &mut blocks_tx,
@@ -380,4 +395,29 @@ fn feed_hold_and_cycle_start_buttons_hold_and_resume() {
     // Held in between: the status at frame 700 says Hold (stopped: Hold:0).
     assert!(b.out.contains("<Hold:0|"), "{}", b.out);
     assert_eq!(b.status.encoder(), [1000, 0, 0], "resumed to the end");
+}
+
+#[test]
+fn a_limit_switch_stops_and_raises_alarm_1() {
+    let trip = Events {
+        tripped: true,
+        ..Events::default()
+    };
+    let y_limit = Trip {
+        estop: false,
+        limits: 0b010,
+    };
+    let b = session_with(
+        &[(1, "G91 G1 F30 Y1\n"), (800, "$X\n")],
+        &[(300, trip)],
+        Some(500),
+        1500,
+        y_limit,
+    );
+    assert!(b.out.contains("ALARM:1\r\n"), "{}", b.out);
+    assert!(!b.out.contains("ALARM:10"), "{}", b.out);
+    assert!(b.out.contains("[MSG:Limit switch 010 (ZYX)]"), "{}", b.out);
+    assert!(b.out.contains("[MSG:Caution: Unlocked]"), "{}", b.out);
+    let y = b.status.encoder()[1];
+    assert!(y > 0 && y < 1_000, "stopped at once: y = {y}");
 }
