@@ -162,6 +162,10 @@ pub mod alarm {
     pub const AC_NO_SAMPLES: u8 = 105;
     /// Adaptive control, sensor hold: force and torque disagree (transducer gain).
     pub const AC_MISMATCH: u8 = 106;
+    /// The frame ISR took more cycles than the board's stated limit (`BoardLimits::frame_work_ns`,
+    /// which the settings validation assumed): the pulse and sign timing the validation promised
+    /// may not hold. The feed is held; lower W0 (`$201`) or the rapid rate (`$110`) and restart.
+    pub const FRAME_OVERRUN: u8 = 111;
     /// Serial receive overflow: a sender broke the character-counting contract and bytes were
     /// refused ([`super::super::Event::RxOverflow`]); its stream is out of step, reset required.
     pub const RX_OVERFLOW: u8 = 110;

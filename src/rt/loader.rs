@@ -93,6 +93,13 @@ pub trait LoaderBoard {
         true
     }
 
+    /// The most cycles the board's frame ISR may take (its `BoardLimits::frame_work_ns` in core
+    /// cycles), when the board measures its frame (`Status::frame_cycles`): a measured frame
+    /// above it holds the feed and raises `ALARM:111` once. None: no check (the default).
+    fn frame_limit_cycles(&self) -> Option<u32> {
+        None
+    }
+
     /// Called once per turn of the loader's loop: false ends [`run`]. A board's firmware never
     /// ends it (the default); a host test runs its frames and its sender from here.
     fn running(&mut self) -> bool {
@@ -203,7 +210,23 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
     // The spindle output as last applied, and a line waiting to change it.
     let mut spindle = (Spindle::Off, 0u32);
     let mut deferred: Option<Deferred> = None;
+    // The frame overran the board's limit (said once).
+    let mut overrun = false;
     while board.running() {
+        if let (Some(limit), Some((_, max))) = (board.frame_limit_cycles(), status.frame_cycles()) {
+            if max > limit && !overrun {
+                overrun = true;
+                hold = true;
+                publish(hold, overrides);
+                proto.alarm(alarm::FRAME_OVERRUN, &mut out);
+                proto.message(
+                    &mut out,
+                    format_args!(
+                        "Frame ISR took {max} cycles, the board allows {limit}: lower $201 or $110"
+                    ),
+                );
+            }
+        }
         // AC holds: said once each, as they come.
         while let Some(a) = ac_alarms.dequeue() {
             proto.message(&mut out, format_args!("AC hold: {}", a));

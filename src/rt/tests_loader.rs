@@ -11,6 +11,8 @@ use std::collections::VecDeque;
 use std::string::String;
 use std::vec::Vec;
 
+use core::sync::atomic::Ordering::Relaxed;
+
 use heapless::spsc::{Consumer, Queue};
 
 use super::loader::{run, LoaderBoard};
@@ -117,6 +119,9 @@ struct Bench {
     release_at: Option<u64>,
     /// What a tripped event latches.
     trip: Trip,
+    /// The board's frame limit and the frame cycles it "measures" from a frame number on.
+    frame_limit: Option<u32>,
+    slow_frames_at: Option<(u64, u32)>,
 }
 
 impl Bench {
@@ -133,6 +138,18 @@ impl Bench {
         }
         if self.release_at.is_some_and(|f| f <= self.frames) {
             self.estop_active = false;
+        }
+        // The frame's own measurement, as a board's wrapper writes it.
+        let cycles = match self.slow_frames_at {
+            Some((at, c)) if self.frames >= at => c,
+            _ => 400,
+        };
+        let s = self.status;
+        if s.frame_cycles_min.load(Relaxed) == 0 || cycles < s.frame_cycles_min.load(Relaxed) {
+            s.frame_cycles_min.store(cycles, Relaxed);
+        }
+        if cycles > s.frame_cycles_max.load(Relaxed) {
+            s.frame_cycles_max.store(cycles, Relaxed);
         }
         self.frame.run(
             &mut self.pins,
@@ -198,6 +215,10 @@ impl LoaderBoard for Bench {
         true
     }
 
+    fn frame_limit_cycles(&self) -> Option<u32> {
+        self.frame_limit
+    }
+
     fn running(&mut self) -> bool {
         self.tick();
         self.frames < self.end
@@ -230,6 +251,17 @@ fn session_with(
     release_at: Option<u64>,
     frames: u64,
     trip: Trip,
+) -> Bench {
+    session_full(sends, inputs, release_at, frames, trip, None)
+}
+
+fn session_full(
+    sends: &[(u64, &str)],
+    inputs: &[(u64, Events)],
+    release_at: Option<u64>,
+    frames: u64,
+    trip: Trip,
+    frame_limit: Option<(u32, u64, u32)>,
 ) -> Bench {
     let status: &'static Status = Box::leak(Box::new(Status::new()));
     status.start();
@@ -265,6 +297,8 @@ fn session_with(
         spindle: Vec::new(),
         release_at,
         trip,
+        frame_limit: frame_limit.map(|(l, _, _)| l),
+        slow_frames_at: frame_limit.map(|(_, at, c)| (at, c)),
     };
     run(
         &mut blocks_tx,
@@ -420,4 +454,43 @@ fn a_limit_switch_stops_and_raises_alarm_1() {
     assert!(b.out.contains("[MSG:Caution: Unlocked]"), "{}", b.out);
     let y = b.status.encoder()[1];
     assert!(y > 0 && y < 1_000, "stopped at once: y = {y}");
+}
+
+/// A board that states its frame limit: frames within it change nothing; a frame above it holds
+/// the feed (the machine stops on its ramp, the block is kept) and raises ALARM:111 once.
+#[test]
+fn a_frame_over_the_boards_limit_holds_the_feed_and_raises_alarm_111() {
+    let b = session_full(
+        &[(1, "G91 G1 F30 X1\n"), (1500, "?")],
+        &[],
+        None,
+        2000,
+        ESTOP,
+        Some((500, 300, 600)),
+    );
+    assert_eq!(b.out.matches("ALARM:111\r\n").count(), 1, "{}", b.out);
+    assert!(
+        b.out.contains("took 600 cycles, the board allows 500"),
+        "{}",
+        b.out
+    );
+    // The alarm state, standing (feed 0) short of the end: the held block is kept.
+    assert!(
+        b.out.contains("<Alarm|") && b.out.contains("|FS:0,"),
+        "{}",
+        b.out
+    );
+    let x = b.status.encoder()[0];
+    assert!(x > 0 && x < 10_000, "held short of the end: x = {x}");
+    // Within the limit: nothing happens.
+    let b = session_full(
+        &[(1, "G91 G1 F30 X0.01\n")],
+        &[],
+        None,
+        1000,
+        ESTOP,
+        Some((500, 300, 450)),
+    );
+    assert!(!b.out.contains("ALARM"), "{}", b.out);
+    assert_eq!(b.status.encoder(), [100, 0, 0]);
 }

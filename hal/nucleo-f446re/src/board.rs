@@ -41,6 +41,9 @@ pub const LIMITS: millac::settings::BoardLimits = millac::settings::BoardLimits 
     pulse_end_ns: 500,
 };
 
+/// Cycles of an exception entry and return on the Cortex-M4 with zero-wait-state stacking
+/// (ARM: 12 + 12; lazy FP stacking adds none while the ISRs use no FPU register).
+pub const ENTRY_EXIT_CYCLES: u32 = 24;
 /// Core clock (SYSCLK = HCLK) in Hz.
 pub const CORE_HZ: u32 = 180_000_000;
 /// PCLK1 (USART2) in Hz.

@@ -400,6 +400,14 @@ mod app {
             defmt::info!("spindle {} at {} rpm", defmt::Debug2Format(&state), rpm);
         }
 
+        /// The board's stated frame time in cycles, less the exception entry and return (12 + 12
+        /// cycles) that the DWT measurement inside the handler does not see.
+        fn frame_limit_cycles(&self) -> Option<u32> {
+            let cycles =
+                u64::from(board::LIMITS.frame_work_ns) * u64::from(board::CORE_HZ) / 1_000_000_000;
+            Some((cycles as u32).saturating_sub(board::ENTRY_EXIT_CYCLES))
+        }
+
         fn inputs(&mut self) -> Events {
             self.inputs.lock(|d| d.take())
         }
