@@ -130,6 +130,41 @@ impl BoardLimits {
     pub const fn measured(&self) -> bool {
         self.frame_work_ns != 0
     }
+
+    /// The highest frame rate this board sustains with a pulse width and a sign setup time: the
+    /// largest rate r (Hz) for which the default settings with W0 = rapid rate = r and these pulse
+    /// times pass [`Settings::validate_for`]; 0 if none does. Host and init (a search of ~20
+    /// validations).
+    pub fn highest_rate_hz(&self, pulse_width_ns: u32, sign_setup_ns: u32) -> u32 {
+        let ok = |r: u32| {
+            Settings {
+                frame_hz: r,
+                rapid_hz: r,
+                pulse_width_ns,
+                sign_setup_ns,
+                ..Settings::default()
+            }
+            .validate_for(self)
+            .is_ok()
+        };
+        // Every check is monotonic in the rate: a rate that fails fails above it too.
+        let (mut lo, mut hi) = (0u32, FRAME_HZ_CEILING.min(RAPID_HZ_CEILING) + 1);
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if mid >= 100 && ok(mid) {
+                lo = mid;
+            } else if mid < 100 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        if lo >= 100 && ok(lo) {
+            lo
+        } else {
+            0
+        }
+    }
 }
 
 /// Highest frame rate any board may state (keeps the frame's arithmetic far from overflow).
@@ -297,6 +332,46 @@ mod tests {
             sign_setup_ns: 2000,
             ..Settings::default()
         }
+    }
+
+    /// The highest rate is the edge of validation: it validates and one Hz more does not. For the
+    /// generic board with 5 us + 5 us it is the 75 % rule's 75 kHz (10 us <= 0.75 T); for a
+    /// measured board it is the tighter of the sign-setup gap and the ISR share.
+    #[test]
+    fn the_highest_rate_is_the_edge_of_validation() {
+        let at = |b: &BoardLimits, r: u32, w: u32, s: u32| {
+            Settings {
+                frame_hz: r,
+                rapid_hz: r,
+                pulse_width_ns: w,
+                sign_setup_ns: s,
+                ..Settings::default()
+            }
+            .validate_for(b)
+            .is_ok()
+        };
+        for (b, w, s) in [
+            (BoardLimits::GENERIC, 5_000, 5_000),
+            (BoardLimits::GENERIC, 2_000, 2_000),
+            (F446, 2_000, 2_000),
+            (F446, 5_000, 5_000),
+            (F446, 2_000, 10_000),
+        ] {
+            let r = b.highest_rate_hz(w, s);
+            assert!(r >= 100 && at(&b, r, w, s), "{b:?} {w} {s}: {r}");
+            assert!(!at(&b, r + 1, w, s), "{b:?} {w} {s}: {r} + 1");
+        }
+        // The period is whole ns, rounded down: 4 x 10 000 <= 3 x floor(1e9 / r) needs a period
+        // of 13 334 ns.
+        assert_eq!(
+            BoardLimits::GENERIC.highest_rate_hz(5_000, 5_000),
+            1_000_000_000 / 13_334
+        );
+        // The brief's board: gap 1/r >= 2000 + 400 + 2000 ns -> 227 272 Hz; ISR share
+        // (1500 + 400) ns * r <= 0.5 s -> 263 157 Hz; its maximum 250 kHz: the gap binds.
+        assert_eq!(F446.highest_rate_hz(2_000, 2_000), 1_000_000_000 / 4_400);
+        // Nothing validates: a pulse longer than any allowed period.
+        assert_eq!(BoardLimits::GENERIC.highest_rate_hz(20_000_000, 1), 0);
     }
 
     #[test]
