@@ -151,9 +151,8 @@ impl BoardLimits {
         let (mut lo, mut hi) = (0u32, FRAME_HZ_CEILING.min(RAPID_HZ_CEILING) + 1);
         while hi - lo > 1 {
             let mid = lo + (hi - lo) / 2;
-            if mid >= 100 && ok(mid) {
-                lo = mid;
-            } else if mid < 100 {
+            // Below 100 Hz nothing validates: search above it.
+            if mid < 100 || ok(mid) {
                 lo = mid;
             } else {
                 hi = mid;
