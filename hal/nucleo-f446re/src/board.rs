@@ -52,6 +52,7 @@ pub const TIMER_HZ: u32 = 2 * PCLK1_HZ;
 const GPIOC: usize = 0x4002_0800;
 const GPIO_MODER: usize = 0x00;
 const GPIO_OSPEEDR: usize = 0x08;
+#[cfg_attr(feature = "qemu", allow(dead_code))]
 const GPIO_ODR: usize = 0x14;
 const GPIO_BSRR: usize = 0x18;
 /// First PULSE pin (PC4); the SIGN pins follow (PC7..PC9).
@@ -315,6 +316,8 @@ impl StepPort for F446 {
             GPIOC + GPIO_BSRR,
             (s << STEP_SHIFT) | ((!s & 0b111) << (STEP_SHIFT + 16)),
         );
+        #[cfg(feature = "qemu")]
+        PINS_WRITTEN[0].store(s as u8, Relaxed);
     }
 
     /// One BSRR store for the three SIGN lines.
@@ -325,14 +328,30 @@ impl StepPort for F446 {
             GPIOC + GPIO_BSRR,
             (s << SIGN_SHIFT) | ((!s & 0b111) << (SIGN_SHIFT + 16)),
         );
+        #[cfg(feature = "qemu")]
+        PINS_WRITTEN[1].store(s as u8, Relaxed);
     }
 
     /// The output data register: PULSE lines in bits 0..2, SIGN lines in bits 3..5.
     #[inline(always)]
     fn read_pins(&mut self) -> u8 {
-        ((read(GPIOC + GPIO_ODR) >> STEP_SHIFT) & 0b11_1111) as u8
+        #[cfg(feature = "qemu")]
+        return PINS_WRITTEN[0].load(Relaxed) | (PINS_WRITTEN[1].load(Relaxed) << 3);
+        #[cfg(not(feature = "qemu"))]
+        return ((read(GPIOC + GPIO_ODR) >> STEP_SHIFT) & 0b11_1111) as u8;
     }
 }
+
+/// Under QEMU (feature `qemu`): the PULSE and SIGN levels last written (netduinoplus2 models no
+/// GPIO: the BSRR stores are dropped and ODR reads 0), read back by `read_pins`. One byte store
+/// per pin write and two loads per read-back more than the real build.
+#[cfg(feature = "qemu")]
+static PINS_WRITTEN: [core::sync::atomic::AtomicU8; 2] = [
+    core::sync::atomic::AtomicU8::new(0),
+    core::sync::atomic::AtomicU8::new(0),
+];
+#[cfg(feature = "qemu")]
+use core::sync::atomic::Ordering::Relaxed;
 
 /// The DMA target of the triple ADC: [T, Fu, Fv] of the last conversion (ADC1, ADC2, ADC3).
 struct Codes3(core::cell::UnsafeCell<[u16; 3]>);
@@ -498,6 +517,15 @@ pub fn usart2_interrupt<const N: usize>(
     } else {
         write(USART2 + US_CR1, cr1 & !CR1_TXEIE);
     }
+}
+
+/// Under QEMU (feature `qemu`): the transmit interrupt is enabled (bytes wait). QEMU 7.2's
+/// stm32f2xx USART sends a DR store at once and keeps TXE set, but raises no interrupt for
+/// TXEIE: the serial task pends itself while this holds. Serial task.
+#[cfg(feature = "qemu")]
+#[inline(always)]
+pub fn usart2_txe_wanted() -> bool {
+    read(USART2 + US_CR1) & CR1_TXEIE != 0
 }
 
 // Spindle PWM: TIM4 channel 1 on PB6 (AF2), 1 kHz.
