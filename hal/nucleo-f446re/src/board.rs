@@ -295,14 +295,25 @@ impl FrameTimer for F446 {
 impl PulseTimer for F446 {
     /// One-pulse mode clears CEN at the overflow and leaves CNT at 0: setting CEN starts a new
     /// pulse width.
+    ///
+    /// Under QEMU (feature `qemu`): QEMU 7.2's stm32f2xx timer ignores OPM, its CNT counts on
+    /// past ARR, and after the first pulse it raised no more update interrupts (measured), so the
+    /// start pends TIM5 itself: the pulse-end ISR runs right after the frame (zero pulse width,
+    /// the same code and pin writes).
     #[inline(always)]
     fn start(&mut self) {
         write(TIM5 + TIM_CR1, CR1_OPM | CR1_URS | CR1_CEN);
+        #[cfg(feature = "qemu")]
+        cortex_m::peripheral::NVIC::pend(stm32f4xx_hal::pac::Interrupt::TIM5);
     }
 
+    /// Under QEMU (feature `qemu`) the ack also clears CEN, as one-pulse mode does at the
+    /// overflow on the board (so QEMU's timer raises nothing of its own).
     #[inline(always)]
     fn ack(&mut self) {
         write(TIM5 + TIM_SR, 0);
+        #[cfg(feature = "qemu")]
+        write(TIM5 + TIM_CR1, CR1_OPM | CR1_URS);
     }
 }
 
