@@ -11,7 +11,8 @@
 //! ```
 //!
 //! Prints the worst cases and, from them, the highest W0 the F446 sustains with the default pulse
-//! timing (see `--help` of the output's last lines). Exits with status 1 when a program fails.
+//! timing and with 2 us + 2 us (the rule of `Settings::validate_for`, at one cycle per instruction
+//! plus 22 cycles of interrupt entry and return at 180 MHz). Fails when a program fails.
 use anyhow::{Context, Result};
 use millac_qemu::f446;
 use millac_qemu::firmware::{build_board, NUCLEO_F446RE_QEMU};
@@ -60,5 +61,24 @@ fn main() -> Result<()> {
     }
     let _ = std::fs::remove_dir_all(&root);
     println!("F446 frame ISR worst case: {fworst} instructions; pulse-end ISR: {pworst}");
+    // Times at 180 MHz, one cycle per instruction plus exception entry and return (12 + 10
+    // cycles); flash wait states the ART accelerator misses come on top (the board's DWT figure).
+    let ns = |insns: u64| (insns + 22) as f64 * 1e3 / 180.0;
+    let (f, p) = (ns(fworst), ns(pworst));
+    println!("at 180 MHz, 1 cycle per instruction + 22 per interrupt: frame {f:.0} ns, pulse end {p:.0} ns");
+    let defaults = millac::Settings::default();
+    for (width, setup) in [
+        (defaults.pulse_width_ns, defaults.sign_setup_ns),
+        (2_000, 2_000),
+    ] {
+        // Settings::validate_for's rule for a board that states its ISR times: period >=
+        // max(width, frame) + pulse end + setup, and both ISRs at most half the CPU.
+        let period = (width as f64).max(f) + p + setup as f64;
+        let hz = (1e9 / period).min(0.5e9 / (f + p));
+        println!(
+            "pulse {width} ns + sign setup {setup} ns: highest W0 (and rapid rate) {:.0} Hz",
+            hz.floor()
+        );
+    }
     Ok(())
 }
