@@ -1,6 +1,8 @@
 //! Virtual logic analyser capture (host): runs the firmware under QEMU (lm3s6965evb, icount) with the
 //! millac TCG plugin and the `pl061_write` trace event, and turns the GPIO port B writes into timed
-//! pin events plus per-interrupt-handler instruction counts.
+//! pin events plus per-interrupt-handler instruction counts. The Nucleo-F446RE firmware (its `qemu`
+//! feature) runs the same way on netduinoplus2 ([`Machine::Netduinoplus2`]): there the values of
+//! the GPIOC BSRR stores come from QEMU's `-d unimp` log instead of a trace event.
 //!
 //! Measured on Debian's QEMU 7.2:
 //! - plugin arguments are given as `-plugin lib.so,key=value,key=value` (the older
@@ -42,6 +44,25 @@ pub const LM3S6965_GPIO_BASES: [u32; 7] = [
 pub const PORT_B: u32 = 0x4000_5000;
 /// Sub-directory of the run directory that receives the plugin, its log and the trace.
 pub const CAPTURE_DIR: &str = ".millac-capture";
+
+/// The QEMU machine a capture runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Machine {
+    /// lm3s6965evb (the QEMU board): PL061 GPIO, values from the `pl061_write` trace.
+    Lm3s6965,
+    /// netduinoplus2 (STM32F405, Cortex-M4) running the Nucleo-F446RE firmware built with its
+    /// `qemu` feature: QEMU 7.2 models no GPIO there, so GPIO stores go to unimplemented devices
+    /// whose `-d unimp` log lines (`GPIOC: unimplemented device write (size 4, offset 0x018, value
+    /// 0x...)`) carry the values; the pins are PC4..PC9 written through BSRR (see [`F4_GPIOC`]).
+    Netduinoplus2,
+}
+
+/// GPIO port C of the STM32F4 (PC4..PC9: X, Y, Z PULSE, X, Y, Z SIGN).
+pub const F4_GPIOC: u32 = 0x4002_0800;
+/// First STM32F4 GPIO port (GPIOA); ports A..I follow every 0x400 bytes.
+pub const F4_GPIOA: u32 = 0x4002_0000;
+/// First pin of the six on port C (PC4).
+pub const F4_FIRST_PIN: u32 = 4;
 
 /// An interrupt handler to time: entry PC and return-instruction PCs (Thumb bit cleared).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -89,6 +110,8 @@ pub struct CaptureSpec {
     /// Set to stop the run (`serve`): QEMU gets SIGTERM, shuts down cleanly (the plugin writes its
     /// log) and the capture is what ran until then. No timeout applies while this is given.
     pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    /// The machine (default lm3s6965evb).
+    pub machine: Machine,
 }
 
 impl CaptureSpec {
@@ -104,6 +127,18 @@ impl CaptureSpec {
             gpio_ports: LM3S6965_GPIO_BASES.to_vec(),
             pin_port: PORT_B,
             stop: None,
+            machine: Machine::Lm3s6965,
+        }
+    }
+
+    /// The Nucleo-F446RE firmware (`qemu` feature) on netduinoplus2: GPIOC watched, its PC4..PC9
+    /// reported.
+    pub fn netduinoplus2(elf: impl Into<PathBuf>, run_dir: impl Into<PathBuf>) -> CaptureSpec {
+        CaptureSpec {
+            gpio_ports: vec![F4_GPIOC],
+            pin_port: F4_GPIOC,
+            machine: Machine::Netduinoplus2,
+            ..CaptureSpec::new(elf, run_dir)
         }
     }
 }
@@ -207,6 +242,101 @@ pub fn parse_trace(text: &str) -> Result<Vec<TraceWrite>> {
     Ok(out)
 }
 
+/// Parses the GPIO writes of a QEMU `-d unimp` log of netduinoplus2 (other lines are ignored):
+/// `GPIOC: unimplemented device write (size 4, offset 0x018, value 0x03800000)` becomes a
+/// [`TraceWrite`] with device `GPIOC` and the offset within that port.
+pub fn parse_unimp_gpio(text: &str) -> Result<Vec<TraceWrite>> {
+    let mut out = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let Some(rest) = line.strip_prefix("GPIO") else {
+            continue;
+        };
+        let Some((port, rest)) = rest.split_once(": unimplemented device write (") else {
+            continue;
+        };
+        let w = (|| {
+            let field = |key: &str| -> Result<u32> {
+                let v = rest
+                    .split(", ")
+                    .find_map(|f| f.strip_prefix(key))
+                    .with_context(|| format!("no `{key}`"))?;
+                Ok(hex(v.trim_end_matches(')'))? as u32)
+            };
+            Ok::<_, anyhow::Error>(TraceWrite {
+                device: format!("GPIO{port}"),
+                offset: field("offset ")?,
+                value: field("value ")?,
+            })
+        })()
+        .with_context(|| format!("unimp log line {}: `{line}`", n + 1))?;
+        out.push(w);
+    }
+    Ok(out)
+}
+
+/// The address of an STM32F4 GPIO write parsed by [`parse_unimp_gpio`] (`GPIOA` .. `GPIOI`).
+pub fn f4_gpio_address(w: &TraceWrite) -> Option<u32> {
+    let letter = w.device.strip_prefix("GPIO")?.chars().next()?;
+    let k = (letter as u32).checked_sub('A' as u32).filter(|k| *k < 9)?;
+    Some(F4_GPIOA + 0x400 * k + w.offset)
+}
+
+/// Zips plugin store records with the writes of an unimp log, one to one in order, keeping the
+/// log's writes inside the watched 4 KiB windows. Fails if the counts differ or a pair's
+/// addresses disagree.
+pub fn zip_f4_writes(
+    stores: &[(u64, u32)],
+    writes: &[TraceWrite],
+    watched: &[u32],
+) -> Result<Vec<GpioWrite>> {
+    let mut log = Vec::new();
+    for w in writes {
+        let a = f4_gpio_address(w).with_context(|| format!("GPIO device `{}`", w.device))?;
+        if watched.iter().any(|&b| a >= b && a < b + 0x1000) {
+            log.push((a, w.value));
+        }
+    }
+    ensure!(
+        stores.len() == log.len(),
+        "plugin saw {} GPIO stores but the unimp log has {} GPIO writes",
+        stores.len(),
+        log.len()
+    );
+    stores
+        .iter()
+        .zip(log)
+        .enumerate()
+        .map(|(i, (&(count, addr), (a, value)))| {
+            ensure!(
+                addr == a,
+                "write #{i}: plugin store at {addr:#x} (count {count}) but the log's at {a:#x}"
+            );
+            Ok(GpioWrite { count, addr, value })
+        })
+        .collect()
+}
+
+/// Replays the writes to an STM32F4 GPIO port's BSRR (set bits in the low half, reset bits in
+/// the high half; set wins) and ODR and returns (time ns, the six pins from `first_pin`) after
+/// each write that changed them; time = count << shift.
+pub fn replay_bsrr(writes: &[GpioWrite], port: u32, first_pin: u32, shift: u32) -> Vec<(u64, u8)> {
+    let (mut odr, mut pins) = (0u32, 0u8);
+    let mut out = Vec::new();
+    for w in writes {
+        match w.addr.wrapping_sub(port) {
+            0x14 => odr = w.value & 0xFFFF,
+            0x18 => odr = (odr & !(w.value >> 16)) | (w.value & 0xFFFF),
+            _ => continue,
+        }
+        let now = ((odr >> first_pin) & 0b11_1111) as u8;
+        if now != pins {
+            pins = now;
+            out.push((w.count << shift, pins));
+        }
+    }
+    out
+}
+
 /// Zips plugin store records with trace events, one to one in order. Fails if the counts differ or a
 /// pair's offsets disagree, or if one trace device maps to two GPIO blocks.
 pub fn zip_writes(stores: &[(u64, u32)], writes: &[TraceWrite]) -> Result<Vec<GpioWrite>> {
@@ -283,14 +413,21 @@ pub fn qemu_command(
         }
     }
     let mut cmd = Command::new("qemu-system-arm");
-    cmd.args(["-cpu", "cortex-m3", "-machine", "lm3s6965evb", "-nographic"])
-        .args(["-semihosting-config", "enable=on,target=native"])
-        .arg("-icount")
+    match spec.machine {
+        Machine::Lm3s6965 => cmd
+            .args(["-cpu", "cortex-m3", "-machine", "lm3s6965evb", "-nographic"])
+            .args(["-semihosting-config", "enable=on,target=native"]),
+        Machine::Netduinoplus2 => cmd.args(["-machine", "netduinoplus2", "-nographic"]),
+    };
+    cmd.arg("-icount")
         .arg(format!("shift={},sleep=off", spec.icount_shift))
         .arg("-kernel")
-        .arg(elf)
-        .args(["-trace", "pl061_write", "-D"])
-        .arg(trace)
+        .arg(elf);
+    match spec.machine {
+        Machine::Lm3s6965 => cmd.args(["-trace", "pl061_write", "-D"]),
+        Machine::Netduinoplus2 => cmd.args(["-d", "unimp", "-D"]),
+    };
+    cmd.arg(trace)
         .arg("-plugin")
         .arg(plugin_arg)
         .args(&spec.extra_args);
@@ -396,7 +533,20 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
         .total
         .ok_or_else(|| fail("plugin log has no final line (atexit did not run)".into()))?;
     let trace_text = std::fs::read_to_string(&trace).unwrap_or_default();
-    let writes = zip_writes(&plog.stores, &parse_trace(&trace_text)?)?;
+    let pins = match spec.machine {
+        Machine::Lm3s6965 => {
+            let writes = zip_writes(&plog.stores, &parse_trace(&trace_text)?)?;
+            replay_port(&writes, spec.pin_port, spec.icount_shift)
+        }
+        Machine::Netduinoplus2 => {
+            let writes = zip_f4_writes(
+                &plog.stores,
+                &parse_unimp_gpio(&trace_text)?,
+                &spec.gpio_ports,
+            )?;
+            replay_bsrr(&writes, spec.pin_port, F4_FIRST_PIN, spec.icount_shift)
+        }
+    };
     let mut handlers: Vec<(String, Vec<u64>)> = spec
         .handlers
         .iter()
@@ -410,7 +560,7 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
             .push(n);
     }
     Ok(Capture {
-        pins: replay_port(&writes, spec.pin_port, spec.icount_shift),
+        pins,
         handlers,
         total_instructions: total,
         end_ns: total << spec.icount_shift,
@@ -490,6 +640,36 @@ mod tests {
             replay_port(&z, PORT_B, 4),
             vec![(480, 0x01), (640, 0x09), (960, 0x08)]
         );
+    }
+
+    #[test]
+    fn f4_unimp_writes_replay_through_bsrr() {
+        let log = "I2S2ext: unimplemented device write (size 4, offset 0x000, value 0x0000aaaa)\n\
+                   GPIOC: unimplemented device read  (size 4, offset 0x014)\n\
+                   GPIOC: unimplemented device write (size 4, offset 0x018, value 0x03f00000)\n\
+                   GPIOC: unimplemented device write (size 4, offset 0x018, value 0x00600010)\n\
+                   GPIOD: unimplemented device write (size 4, offset 0x018, value 0x00000001)\n\
+                   GPIOA: unimplemented device write (size 4, offset 0x000, value 0x000000a0)\n\
+                   GPIOC: unimplemented device write (size 4, offset 0x018, value 0x03900200)\n";
+        let w = parse_unimp_gpio(log).unwrap();
+        assert_eq!(w.len(), 5);
+        assert_eq!(f4_gpio_address(&w[0]), Some(0x4002_0818));
+        assert_eq!(f4_gpio_address(&w[2]), Some(0x4002_0C18));
+        let stores = [
+            (10, 0x4002_0818),
+            (20, 0x4002_0818),
+            (25, 0x4002_0C18),
+            (30, 0x4002_0818),
+        ];
+        let z = zip_f4_writes(&stores, &w, &[F4_GPIOC]).unwrap();
+        assert_eq!(z.len(), 4);
+        // PC4 up (X PULSE), then X PULSE down and PC9 up (Z SIGN); GPIOD is not port C.
+        assert_eq!(
+            replay_bsrr(&z, F4_GPIOC, F4_FIRST_PIN, 4),
+            vec![(320, 0b00_0001), (480, 0b10_0000)]
+        );
+        assert!(zip_f4_writes(&stores[..3], &w, &[F4_GPIOC]).is_err());
+        assert!(parse_unimp_gpio("GPIOC: unimplemented device write (size 4, offset zz)").is_err());
     }
 
     #[test]

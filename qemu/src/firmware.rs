@@ -1,6 +1,6 @@
 //! Builds the firmware from the workspace (host): the QEMU board (millac-hal for
 //! thumbv7m-none-eabi, [`build`]) and the real boards ([`build_board`], e.g. [`NUCLEO_F446RE`] for
-//! the CI checks of its size and its ISRs). A nested cargo with its own target directory, so it
+//! the CI checks of its size and its ISRs, and [`NUCLEO_F446RE_QEMU`] to run it under QEMU). A nested cargo with its own target directory, so it
 //! never waits on the lock of the cargo that runs us; the thumb target is added with rustup first
 //! when missing (see `tools::ensure_rust_target`).
 use anyhow::{bail, Context, Result};
@@ -17,6 +17,8 @@ pub struct Board {
     pub package: &'static str,
     pub target: &'static str,
     pub bin: &'static str,
+    /// Cargo features of the package (e.g. `qemu`).
+    pub features: &'static [&'static str],
 }
 
 /// The QEMU board.
@@ -24,6 +26,7 @@ pub const LM3S6965: Board = Board {
     package: "millac-hal",
     target: TARGET,
     bin: BIN,
+    features: &[],
 };
 
 /// The Nucleo-F446RE (links with flip-link, see .cargo/config.toml).
@@ -31,6 +34,14 @@ pub const NUCLEO_F446RE: Board = Board {
     package: "millac-nucleo-f446re",
     target: "thumbv7em-none-eabihf",
     bin: "millac-nucleo-f446re",
+    features: &[],
+};
+
+/// The Nucleo-F446RE firmware built to run under QEMU's netduinoplus2 machine (its `qemu`
+/// feature; see `millac_qemu::f446`).
+pub const NUCLEO_F446RE_QEMU: Board = Board {
+    features: &["qemu"],
+    ..NUCLEO_F446RE
 };
 
 /// The workspace root (where Cargo.toml of `millac` lives).
@@ -54,13 +65,17 @@ pub fn build_board(board: &Board) -> Result<PathBuf> {
         package,
         target: tgt,
         bin,
+        features,
     } = *board;
     let ws = workspace();
     crate::tools::ensure_rust_target(tgt, &ws)?;
     let target_dir = if package == LM3S6965.package {
         ws.join("target").join("firmware")
-    } else {
+    } else if features.is_empty() {
         ws.join("target").join(format!("firmware-{bin}"))
+    } else {
+        ws.join("target")
+            .join(format!("firmware-{bin}-{}", features.join("-")))
     };
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = Command::new(&cargo)
@@ -76,6 +91,11 @@ pub fn build_board(board: &Board) -> Result<PathBuf> {
             "--bin",
             bin,
         ])
+        .args(if features.is_empty() {
+            Vec::new()
+        } else {
+            vec!["--features".to_string(), features.join(",")]
+        })
         .env("CARGO_TARGET_DIR", &target_dir)
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_BUILD_TARGET")

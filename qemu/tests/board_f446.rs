@@ -1,8 +1,13 @@
 //! Checks of the Nucleo-F446RE firmware that need no board (host, CI): it builds in release, it
 //! fits the flash and RAM budgets recorded in hal/nucleo-f446re/budget.txt, and its frame ISR
-//! (TIM2) and pulse-end ISR (TIM5) contain no call and no panic path, as on the QEMU board.
-use millac_qemu::elf;
-use millac_qemu::firmware::{build_board, workspace, NUCLEO_F446RE};
+//! (TIM2) and pulse-end ISR (TIM5) contain no call and no panic path, as on the QEMU board. Its
+//! `qemu` build runs under QEMU's netduinoplus2: a program streamed over USART2 with the grbl
+//! protocol gets its `ok`s, ends `Idle` at the right MPos, and the GPIOC BSRR stores carry exactly
+//! the host core's pulses.
+use millac::protocol::settings::MachineSettings;
+use millac_qemu::firmware::{build_board, workspace, NUCLEO_F446RE, NUCLEO_F446RE_QEMU};
+use millac_qemu::{analysis, elf, f446, vcd};
+use std::time::{Duration, Instant};
 
 /// `key = value` lines of the budget file (comments start with `#`).
 fn budget(key: &str) -> u64 {
@@ -49,4 +54,84 @@ fn f446_fits_its_flash_and_ram_budgets() {
     );
     assert!(m.flash <= flash, "flash {} > budget {flash}", m.flash);
     assert!(m.ram <= ram, "RAM {} > budget {ram}", m.ram);
+}
+
+#[test]
+fn f446_under_qemu_streams_grbl_and_pulses_like_the_host_core() {
+    let elf = build_board(&NUCLEO_F446RE_QEMU).unwrap();
+    // Lines, a rapid with Z, an arc, and back: every axis both ways.
+    let program = "G20 G90\nG1 X0.02 Y0.01 F30\nG0 X0.03 Y-0.01 Z0.005\n\
+                   G2 X0.01 Y0.01 I-0.01 J0.01 F30\nG1 X0.004 Y0.002 Z-0.002 F20\n";
+    let dir = workspace().join("target").join("f446-qemu-stream");
+    let t0 = Instant::now();
+    let s = f446::stream(
+        &elf,
+        &dir,
+        program,
+        4,
+        &["TIM2", "TIM5"],
+        Duration::from_secs(60),
+    )
+    .unwrap();
+    println!("wall time {:?}, status {}", t0.elapsed(), s.status);
+    assert!(
+        s.banner.iter().any(|l| l.starts_with("Grbl 1.1")),
+        "{:?}",
+        s.banner
+    );
+    assert_eq!(s.answers.len(), 5);
+    for (line, got) in &s.answers {
+        assert_eq!(
+            got.last().map(String::as_str),
+            Some("ok"),
+            "{line}: {got:?}"
+        );
+    }
+
+    // The pins against the host core: every block its pulses, the frames' pulse groups equal.
+    let settings = MachineSettings::default().nc;
+    let prog = analysis::load_program(program, &settings).unwrap();
+    let report = analysis::analyse(&prog, &settings, 0, &s.capture.pins);
+    assert!(report.counts_match, "pulse counts per block differ");
+    assert!(report.end_points_exact(), "{:?}", report.blocks);
+    let edges = analysis::edges(0, &s.capture.pins);
+    assert_eq!(
+        analysis::compare_with_host(&prog, &settings, &edges.groups),
+        None,
+        "the pulse groups differ from the host core's"
+    );
+    let end = vcd::positions(0, &s.capture.pins);
+    assert_eq!(end, [40, 20, -20]);
+    let rises: Vec<usize> = (0..3)
+        .map(|k| edges.edges.iter().filter(|e| e.axis == k).count())
+        .collect();
+    println!("rising edges per axis {rises:?}, end {end:?} BLU");
+    assert!(rises.iter().all(|&n| n > 0));
+
+    // The status report: idle at the pins' end point (mm, 0.0001 in per BLU).
+    assert!(s.status.starts_with("<Idle"), "{}", s.status);
+    let mpos = f446::mpos(&s.status).unwrap();
+    for k in 0..3 {
+        let want = end[k] as f64 * 0.00254;
+        assert!(
+            (mpos[k] - want).abs() < 0.0006,
+            "MPos {mpos:?}, pins {end:?}"
+        );
+    }
+
+    // Both ISRs ran under the plugin, within the times hal/nucleo-f446re/src/board.rs states in
+    // LIMITS (frame_work_ns 2000, pulse_end_ns 500) at 180 MHz, one cycle per instruction plus
+    // 22 cycles of interrupt entry and return.
+    let (frames, pulses) = (&s.capture.handlers[0].1, &s.capture.handlers[1].1);
+    assert!(frames.len() > 100 && !pulses.is_empty());
+    let ns = |v: &[u64]| (v.iter().max().unwrap() + 22) * 1000 / 180;
+    assert!(ns(frames) <= 2000, "frame ISR {} ns", ns(frames));
+    assert!(ns(pulses) <= 500, "pulse-end ISR {} ns", ns(pulses));
+    println!(
+        "TIM2 max {} instructions over {} frames, TIM5 max {} over {}",
+        frames.iter().max().unwrap(),
+        frames.len(),
+        pulses.iter().max().unwrap(),
+        pulses.len()
+    );
 }

@@ -55,6 +55,7 @@ pub const TIMER_HZ: u32 = 2 * PCLK1_HZ;
 const GPIOC: usize = 0x4002_0800;
 const GPIO_MODER: usize = 0x00;
 const GPIO_OSPEEDR: usize = 0x08;
+#[cfg_attr(feature = "qemu", allow(dead_code))]
 const GPIO_ODR: usize = 0x14;
 const GPIO_BSRR: usize = 0x18;
 /// First PULSE pin (PC4); the SIGN pins follow (PC7..PC9).
@@ -298,14 +299,25 @@ impl FrameTimer for F446 {
 impl PulseTimer for F446 {
     /// One-pulse mode clears CEN at the overflow and leaves CNT at 0: setting CEN starts a new
     /// pulse width.
+    ///
+    /// Under QEMU (feature `qemu`): QEMU 7.2's stm32f2xx timer ignores OPM, its CNT counts on
+    /// past ARR, and after the first pulse it raised no more update interrupts (measured), so the
+    /// start pends TIM5 itself: the pulse-end ISR runs right after the frame (zero pulse width,
+    /// the same code and pin writes).
     #[inline(always)]
     fn start(&mut self) {
         write(TIM5 + TIM_CR1, CR1_OPM | CR1_URS | CR1_CEN);
+        #[cfg(feature = "qemu")]
+        cortex_m::peripheral::NVIC::pend(stm32f4xx_hal::pac::Interrupt::TIM5);
     }
 
+    /// Under QEMU (feature `qemu`) the ack also clears CEN, as one-pulse mode does at the
+    /// overflow on the board (so QEMU's timer raises nothing of its own).
     #[inline(always)]
     fn ack(&mut self) {
         write(TIM5 + TIM_SR, 0);
+        #[cfg(feature = "qemu")]
+        write(TIM5 + TIM_CR1, CR1_OPM | CR1_URS);
     }
 }
 
@@ -319,6 +331,8 @@ impl StepPort for F446 {
             GPIOC + GPIO_BSRR,
             (s << STEP_SHIFT) | ((!s & 0b111) << (STEP_SHIFT + 16)),
         );
+        #[cfg(feature = "qemu")]
+        PINS_WRITTEN[0].store(s as u8, Relaxed);
     }
 
     /// One BSRR store for the three SIGN lines.
@@ -329,14 +343,30 @@ impl StepPort for F446 {
             GPIOC + GPIO_BSRR,
             (s << SIGN_SHIFT) | ((!s & 0b111) << (SIGN_SHIFT + 16)),
         );
+        #[cfg(feature = "qemu")]
+        PINS_WRITTEN[1].store(s as u8, Relaxed);
     }
 
     /// The output data register: PULSE lines in bits 0..2, SIGN lines in bits 3..5.
     #[inline(always)]
     fn read_pins(&mut self) -> u8 {
-        ((read(GPIOC + GPIO_ODR) >> STEP_SHIFT) & 0b11_1111) as u8
+        #[cfg(feature = "qemu")]
+        return PINS_WRITTEN[0].load(Relaxed) | (PINS_WRITTEN[1].load(Relaxed) << 3);
+        #[cfg(not(feature = "qemu"))]
+        return ((read(GPIOC + GPIO_ODR) >> STEP_SHIFT) & 0b11_1111) as u8;
     }
 }
+
+/// Under QEMU (feature `qemu`): the PULSE and SIGN levels last written (netduinoplus2 models no
+/// GPIO: the BSRR stores are dropped and ODR reads 0), read back by `read_pins`. One byte store
+/// per pin write and two loads per read-back more than the real build.
+#[cfg(feature = "qemu")]
+static PINS_WRITTEN: [core::sync::atomic::AtomicU8; 2] = [
+    core::sync::atomic::AtomicU8::new(0),
+    core::sync::atomic::AtomicU8::new(0),
+];
+#[cfg(feature = "qemu")]
+use core::sync::atomic::Ordering::Relaxed;
 
 /// The DMA target of the triple ADC, two halves used in turn (ping-pong): [T, Fu, Fv] of one
 /// conversion each (ADC1, ADC2, ADC3). The sampler reads the half the DMA completed last while the
@@ -351,8 +381,9 @@ static ADC_CODES: Codes6 = Codes6(core::cell::UnsafeCell::new([0; 6]));
 /// Starts the sample clock TIM3 at `sample_reload + 1` microseconds and the triple ADC it
 /// triggers: ADC1 converts T on PA0 (IN0), ADC2 Fu on PA1 (IN1), ADC3 Fv on PC0 (IN10), all three
 /// at the same instant (regular simultaneous mode), and DMA2 stream 0 moves the three results
-/// into one half of [`ADC_CODES`] after every conversion (the halves in turn). The TIM3 update interrupt is the sampler: it reads
-/// the conversion its previous update started (one sample period of delay). Init context.
+/// into one half of [`ADC_CODES`] after every conversion (the halves in turn). The TIM3
+/// update interrupt is the sampler: it reads the conversion its previous update started (one
+/// sample period of delay). Init context.
 pub fn sample_start(sample_reload: u32) {
     // Analog mode (11) on PA0, PA1 and PC0.
     set_bits(0x4002_0000 + GPIO_MODER, 0b1111);
@@ -511,6 +542,15 @@ pub fn usart2_interrupt<const N: usize>(
     } else {
         write(USART2 + US_CR1, cr1 & !CR1_TXEIE);
     }
+}
+
+/// Under QEMU (feature `qemu`): the transmit interrupt is enabled (bytes wait). QEMU 7.2's
+/// stm32f2xx USART sends a DR store at once and keeps TXE set, but raises no interrupt for
+/// TXEIE: the serial task pends itself while this holds. Serial task.
+#[cfg(feature = "qemu")]
+#[inline(always)]
+pub fn usart2_txe_wanted() -> bool {
+    read(USART2 + US_CR1) & CR1_TXEIE != 0
 }
 
 // Spindle PWM: TIM4 channel 1 on PB6 (AF2), 1 kHz.

@@ -9,7 +9,25 @@
 //! from 2.7 V, the Nucleo's 3.3 V). While the flash is busy every fetch from it stalls, interrupts
 //! included: a word takes ~16 us (a record ~1 ms), the sector erase 1-2 s (once every 512 stores).
 //! The erase therefore stretches the watchdog to ~8 s around itself and restores it after.
+//!
+//! With the `qemu` feature the store is [`RamSector`] instead: QEMU's netduinoplus2 models no
+//! flash interface (its registers read 0, stores to the flash are dropped).
 use millac::flashstore::FlashSector;
+
+/// The settings sector of this build: sector 7 of the flash.
+#[cfg(not(feature = "qemu"))]
+pub type Sector = Sector7;
+/// The settings sector of this build: RAM (QEMU).
+#[cfg(feature = "qemu")]
+pub type Sector = RamSector;
+
+/// The settings sector of this build. Init context.
+pub fn sector() -> Sector {
+    #[cfg(not(feature = "qemu"))]
+    return Sector7;
+    #[cfg(feature = "qemu")]
+    return RamSector;
+}
 
 /// Sector 7.
 const BASE: usize = 0x0806_0000;
@@ -47,8 +65,10 @@ fn read(addr: usize) -> u32 {
 }
 
 /// Sector 7 of the on-chip flash.
+#[cfg_attr(feature = "qemu", allow(dead_code))]
 pub struct Sector7;
 
+#[cfg_attr(feature = "qemu", allow(dead_code))]
 impl Sector7 {
     fn unlock() {
         if read(CR) & CR_LOCK != 0 {
@@ -122,5 +142,67 @@ impl FlashSector for Sector7 {
             }
         }
         Self::finish() && ok
+    }
+}
+
+/// Bytes of the RAM store under QEMU: four slots.
+#[cfg(feature = "qemu")]
+const RAM_SIZE: usize = 4 * millac::flashstore::SLOT_LEN;
+
+/// The RAM store's bytes, erased (0xFF) at reset.
+#[cfg(feature = "qemu")]
+struct RamBytes(core::cell::UnsafeCell<[u8; RAM_SIZE]>);
+
+// SAFETY: used only by the one `RamSector` (init, then the loader task), never concurrently.
+#[cfg(feature = "qemu")]
+unsafe impl Sync for RamBytes {}
+
+#[cfg(feature = "qemu")]
+static RAM: RamBytes = RamBytes(core::cell::UnsafeCell::new([0xFF; RAM_SIZE]));
+
+/// The settings "sector" under QEMU: 1 KiB of RAM with the flash's rules (erase to 0xFF,
+/// programming clears bits), lost at reset (the defaults load).
+#[cfg(feature = "qemu")]
+pub struct RamSector;
+
+#[cfg(feature = "qemu")]
+impl RamSector {
+    fn bytes(&mut self) -> &mut [u8; RAM_SIZE] {
+        // SAFETY: the only reference to RAM lives as long as this `&mut self` (one RamSector).
+        unsafe { &mut *RAM.0.get() }
+    }
+}
+
+#[cfg(feature = "qemu")]
+impl FlashSector for RamSector {
+    const SIZE: usize = RAM_SIZE;
+
+    fn read(&mut self, offset: usize, buf: &mut [u8]) -> bool {
+        match self.bytes().get(offset..offset.saturating_add(buf.len())) {
+            Some(src) => {
+                buf.copy_from_slice(src);
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn erase(&mut self) -> bool {
+        self.bytes().fill(0xFF);
+        true
+    }
+
+    fn program(&mut self, offset: usize, words: &[u32]) -> bool {
+        let end = offset.saturating_add(4 * words.len());
+        if offset % 4 != 0 || end > RAM_SIZE {
+            return false;
+        }
+        let bytes = self.bytes();
+        for (k, w) in words.iter().enumerate() {
+            for (b, v) in bytes[offset + 4 * k..][..4].iter_mut().zip(w.to_le_bytes()) {
+                *b &= v;
+            }
+        }
+        true
     }
 }

@@ -10,6 +10,11 @@
 //! `probe-rs run`), never from the frame or pulse-end ISR (defmt's RTT logger takes a critical
 //! section).
 //!
+//! With the `qemu` feature the same app runs under QEMU's netduinoplus2 machine (STM32F405):
+//! only what that machine does not model changes (no clock tree set-up, the settings in RAM, the
+//! pins' levels kept in RAM for the pulse-end ISR's read-back, the operator inputs released, the
+//! AC off); see `board` and `flash`.
+//!
 //! The frame measures itself with the DWT cycle counter: cycles from the first instruction of the
 //! handler to its last (the exception entry and return, 12 + ~10 cycles on a Cortex-M4 with zero
 //! wait states, come on top), min and max since reset.
@@ -40,12 +45,13 @@ mod app {
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
     use millac_hal::actask::{AcTask, LogSink, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use stm32f4xx_hal::prelude::*;
+    #[cfg(not(feature = "qemu"))]
     use stm32f4xx_hal::rcc::Config;
 
     use millac::flashstore::FlashStore;
 
     use crate::board::{self, TripleAdc, F446};
-    use crate::flash::Sector7;
+    use crate::flash::{self, Sector};
     use millac::gcode::Spindle;
     use millac::inputs::{Debouncer, Events, Trip};
     use millac::ports::{OperatorInputs, PinInputs};
@@ -80,7 +86,7 @@ mod app {
         frame: FrameTask,
         consumer: Consumer<'static, Block, QUEUE>,
         producer: Producer<'static, Block, QUEUE>,
-        table: Persistent<FlashStore<Sector7>>,
+        table: Persistent<FlashStore<Sector>>,
         cycles: FrameCycles,
         sampler: Option<Sampler<TripleAdc>>,
         ac: Option<AcTask<DefmtLog>>,
@@ -105,6 +111,7 @@ mod app {
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let mut core = cx.core;
+        #[cfg(not(feature = "qemu"))]
         let mut rcc = cx.device.RCC.freeze(
             Config::hse(8.MHz())
                 .bypass_hse_oscillator()
@@ -112,14 +119,21 @@ mod app {
                 .pclk1(board::PCLK1_HZ.Hz())
                 .pclk2(90.MHz()),
         );
-        let c = rcc.clocks;
-        if c.sysclk().raw() != board::CORE_HZ || c.timclk1().raw() != board::TIMER_HZ {
-            defmt::panic!(
-                "clock tree: sysclk {} Hz, APB1 timers {} Hz",
-                c.sysclk().raw(),
-                c.timclk1().raw()
-            );
+        #[cfg(not(feature = "qemu"))]
+        {
+            let c = rcc.clocks;
+            if c.sysclk().raw() != board::CORE_HZ || c.timclk1().raw() != board::TIMER_HZ {
+                defmt::panic!(
+                    "clock tree: sysclk {} Hz, APB1 timers {} Hz",
+                    c.sysclk().raw(),
+                    c.timclk1().raw()
+                );
+            }
         }
+        // QEMU's netduinoplus2 has no RCC model (reads 0: `freeze` would wait for HSE ready
+        // forever); its timers count at their own fixed clock (`board::TIMER_HZ`).
+        #[cfg(feature = "qemu")]
+        let mut rcc = cx.device.RCC.constrain();
         // Operator inputs (pull-ups, switches to ground): PB12 e-stop (normally closed), PB13 feed
         // hold, PB14 cycle start, PB15 / PB1 / PB2 X / Y / Z limit. Spindle: PA8 enable, PA9
         // direction (high = M4), PB6 PWM (TIM4 CH1).
@@ -144,7 +158,14 @@ mod app {
         core.DWT.enable_cycle_counter();
         let watchdog_reset = F446::watchdog_reset();
 
-        let (table, status) = Persistent::load_for(FlashStore::new(Sector7), board::LIMITS);
+        let (table, status) = Persistent::load_for(FlashStore::new(flash::sector()), board::LIMITS);
+        // Under QEMU: no DMA model, so no ADC samples: the AC is off ($250=0).
+        #[cfg(feature = "qemu")]
+        let table = {
+            let mut table = table;
+            table.settings.ac_enabled = false;
+            table
+        };
         let refused = match status {
             LoadStatus::Refused(e) => {
                 defmt::warn!("settings record refused: {}; defaults loaded", e.message());
@@ -291,6 +312,11 @@ mod app {
         board::usart2_interrupt(cx.local.uart_tx, |b| {
             let _ = rx.push_byte(b);
         });
+        // QEMU's USART raises no transmit-empty interrupt: pend it again while TXEIE is on.
+        #[cfg(feature = "qemu")]
+        if board::usart2_txe_wanted() {
+            rtic::pend(stm32f4xx_hal::pac::Interrupt::USART2);
+        }
     }
 
     /// The sampler (TIM3 update, `sample_hz`): one conversion of the triple ADC, the AC period
@@ -303,7 +329,13 @@ mod app {
             *cx.local.frames_seen = frames;
             F446::watchdog_feed();
         }
-        let raw = cx.local.pins.read();
+        // Under QEMU the GPIO inputs read 0 (no GPIO model), which would be every switch active:
+        // they read as released instead.
+        let raw = if cfg!(feature = "qemu") {
+            millac::ports::Inputs::default()
+        } else {
+            cx.local.pins.read()
+        };
         cx.shared.inputs.lock(|d| {
             d.sample(raw);
         });

@@ -1,0 +1,192 @@
+//! The Nucleo-F446RE firmware under QEMU (host): its `qemu` build
+//! ([`crate::firmware::NUCLEO_F446RE_QEMU`]) on the netduinoplus2 machine (STM32F405), with USART2
+//! (QEMU's second `-serial`) on a TCP port. [`stream`] sends a G-code program with the grbl
+//! protocol, as a simple sender does (soft reset until the banner, one line at a time, each
+//! answered `ok`, then `?` until `Idle`), stops QEMU and returns the capture: the PC4..PC9 levels
+//! from the GPIOC BSRR stores (see [`crate::capture::Machine::Netduinoplus2`]) and the
+//! instructions per call of the handlers asked for (the frame ISR `TIM2`, the pulse-end ISR
+//! `TIM5`).
+//!
+//! Measured on Debian's QEMU 7.2 (netduinoplus2): no RCC, flash interface, GPIO, DMA or IWDG
+//! model (unimplemented devices: reads 0, writes ignored and logged by `-d unimp`); TIM2..TIM5 and
+//! the USARTs are modelled; USART2 is the second `-serial`; the USART raises RXNE interrupts but
+//! no TXE interrupt; DWT CYCCNT is not modelled (reads 0, logged as a read of an unassigned PPB
+//! address). The firmware's `qemu` feature works around exactly these.
+use crate::capture::{run_capture, Capture, CaptureSpec, HandlerSpec};
+use anyhow::{bail, Context, Result};
+use std::io::{BufRead, BufReader, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// What a streamed session produced.
+pub struct Session {
+    pub capture: Capture,
+    /// The banner lines (up to `[MSG:millac ...]`).
+    pub banner: Vec<String>,
+    /// Per program line sent: the line and the answers up to its `ok`.
+    pub answers: Vec<(String, Vec<String>)>,
+    /// The last status report (`<Idle|MPos:...>`).
+    pub status: String,
+}
+
+/// A free TCP port on the loopback interface (the OS may hand it to another later).
+fn free_port() -> Result<u16> {
+    Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
+}
+
+/// One line from the serial port (without its line end); an error after `deadline`.
+fn line(r: &mut BufReader<TcpStream>, deadline: Instant) -> Result<String> {
+    let mut l = String::new();
+    loop {
+        match r.read_line(&mut l) {
+            Ok(0) => bail!("serial port closed"),
+            Ok(_) if l.ends_with('\n') => return Ok(l.trim_end().to_string()),
+            Ok(_) => {}
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) => {}
+            Err(e) => return Err(e.into()),
+        }
+        if Instant::now() > deadline {
+            bail!("no answer in time (so far `{l}`)");
+        }
+    }
+}
+
+/// What the sender saw.
+struct Talk {
+    banner: Vec<String>,
+    answers: Vec<(String, Vec<String>)>,
+    status: String,
+}
+
+/// The grbl side of a session: banner, lines, status until idle.
+fn talk(addr: &str, program: &str, deadline: Instant) -> Result<Talk> {
+    let stream = loop {
+        match TcpStream::connect(addr) {
+            Ok(s) => break s,
+            Err(e) if Instant::now() < deadline => {
+                let _ = e;
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            Err(e) => bail!("connect {addr}: {e}"),
+        }
+    };
+    stream.set_read_timeout(Some(Duration::from_millis(500)))?;
+    let mut w = stream.try_clone()?;
+    let mut r = BufReader::new(stream);
+    // The first banner went out before we connected: soft reset until one comes.
+    let mut banner = Vec::new();
+    'reset: loop {
+        w.write_all(&[0x18])?;
+        let wait = Instant::now() + Duration::from_secs(1);
+        while let Ok(l) = line(&mut r, wait.min(deadline)) {
+            let done = l.starts_with("[MSG:millac");
+            banner.push(l);
+            if done {
+                break 'reset;
+            }
+        }
+        if Instant::now() > deadline {
+            bail!("no banner: {banner:?}");
+        }
+    }
+    let mut answers = Vec::new();
+    for l in program.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        w.write_all(format!("{l}\n").as_bytes())?;
+        let mut got = Vec::new();
+        loop {
+            let a = line(&mut r, deadline).with_context(|| format!("line `{l}`"))?;
+            let end = a == "ok" || a.starts_with("error:") || a.starts_with("ALARM:");
+            got.push(a);
+            if end {
+                break;
+            }
+        }
+        answers.push((l.to_string(), got));
+    }
+    // `?` until the machine is idle.
+    let status = loop {
+        w.write_all(b"?")?;
+        let s = loop {
+            let a = line(&mut r, deadline).context("status report")?;
+            if a.starts_with('<') {
+                break a;
+            }
+        };
+        if s.starts_with("<Idle") {
+            break s;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    Ok(Talk {
+        banner,
+        answers,
+        status,
+    })
+}
+
+/// Runs the `qemu` build `elf` on netduinoplus2 in `dir` (created; the capture's files go there)
+/// with `-icount shift`, streams `program` over USART2 and returns the session once the machine
+/// reports `Idle` after the last line. `handlers`: functions of `elf` to time (e.g. `TIM2`).
+pub fn stream(
+    elf: &Path,
+    dir: &Path,
+    program: &str,
+    shift: u32,
+    handlers: &[&str],
+    timeout: Duration,
+) -> Result<Session> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let addr = format!("127.0.0.1:{}", free_port()?);
+    let mut spec = CaptureSpec::netduinoplus2(elf, dir);
+    spec.icount_shift = shift;
+    spec.extra_args = vec![
+        "-serial".into(),
+        "null".into(),
+        "-serial".into(),
+        format!("tcp:{addr},server=on,wait=off"),
+        "-monitor".into(),
+        "none".into(),
+    ];
+    spec.handlers = handlers
+        .iter()
+        .map(|h| HandlerSpec::from_elf(elf, h))
+        .collect::<Result<_>>()?;
+    let stop = Arc::new(AtomicBool::new(false));
+    spec.stop = Some(stop.clone());
+    let qemu = std::thread::spawn(move || run_capture(&spec));
+    let talked = talk(&addr, program, Instant::now() + timeout);
+    stop.store(true, Ordering::SeqCst);
+    let capture = qemu
+        .join()
+        .map_err(|_| anyhow::anyhow!("the QEMU thread panicked"))??;
+    let t = talked.with_context(|| {
+        format!(
+            "streaming to the F446 firmware under QEMU; QEMU stderr:\n{}",
+            capture.stderr
+        )
+    })?;
+    Ok(Session {
+        capture,
+        banner: t.banner,
+        answers: t.answers,
+        status: t.status,
+    })
+}
+
+/// MPos of a status report (`<Idle|MPos:1.000,2.000,0.000|...>`), in the report's unit.
+pub fn mpos(status: &str) -> Option<[f64; 3]> {
+    let m = status.split('|').find_map(|f| f.strip_prefix("MPos:"))?;
+    let v: Vec<f64> = m
+        .trim_end_matches('>')
+        .split(',')
+        .map(|x| x.parse().ok())
+        .collect::<Option<_>>()?;
+    v.try_into().ok()
+}
