@@ -10,9 +10,11 @@
 //! cargo run -p millac-qemu --release --example frame_budget_f446
 //! ```
 //!
-//! Prints the worst cases and, from them, the highest W0 the F446 sustains with the default pulse
-//! timing and with 2 us + 2 us (the rule of `Settings::validate_for`, at one cycle per instruction
-//! plus 22 cycles of interrupt entry and return at 180 MHz). Fails when a program fails.
+//! Prints the worst cases against the instruction bounds the board's stated ISR times come from
+//! (`millac::settings::F446_ISR_BOUNDS`), and the highest W0 the F446 sustains with the default
+//! pulse timing and with 2 us + 2 us: with the stated times (`BoardLimits::NUCLEO_F446RE`, the
+//! firmware's validation) and with the measured counts at the same cycles per instruction. Fails
+//! when a program fails or a count exceeds its bound.
 use anyhow::{Context, Result};
 use millac_qemu::f446;
 use millac_qemu::firmware::{build_board, NUCLEO_F446RE_QEMU};
@@ -61,24 +63,43 @@ fn main() -> Result<()> {
     }
     let _ = std::fs::remove_dir_all(&root);
     println!("F446 frame ISR worst case: {fworst} instructions; pulse-end ISR: {pworst}");
-    // Times at 180 MHz, one cycle per instruction plus exception entry and return (12 + 10
-    // cycles); flash wait states the ART accelerator misses come on top (the board's DWT figure).
-    let ns = |insns: u64| (insns + 22) as f64 * 1e3 / 180.0;
-    let (f, p) = (ns(fworst), ns(pworst));
-    println!("at 180 MHz, 1 cycle per instruction + 22 per interrupt: frame {f:.0} ns, pulse end {p:.0} ns");
+    let bounds = millac::settings::F446_ISR_BOUNDS;
+    println!(
+        "bounds: frame {} instructions, pulse end {}, at {}.{} cycles per instruction + {} per \
+         interrupt at {} MHz",
+        bounds.frame_instructions,
+        bounds.pulse_end_instructions,
+        bounds.cpi_x10 / 10,
+        bounds.cpi_x10 % 10,
+        bounds.entry_exit_cycles,
+        bounds.core_hz / 1_000_000
+    );
+    let stated = millac::settings::BoardLimits::NUCLEO_F446RE;
+    let measured = millac::settings::BoardLimits {
+        frame_work_ns: bounds.ns(fworst as u32),
+        pulse_end_ns: bounds.ns(pworst as u32),
+        ..stated
+    };
     let defaults = millac::Settings::default();
     for (width, setup) in [
         (defaults.pulse_width_ns, defaults.sign_setup_ns),
         (2_000, 2_000),
     ] {
-        // Settings::validate_for's rule for a board that states its ISR times: period >=
-        // max(width, frame) + pulse end + setup, and both ISRs at most half the CPU.
-        let period = (width as f64).max(f) + p + setup as f64;
-        let hz = (1e9 / period).min(0.5e9 / (f + p));
         println!(
-            "pulse {width} ns + sign setup {setup} ns: highest W0 (and rapid rate) {:.0} Hz",
-            hz.floor()
+            "pulse {width} ns + sign setup {setup} ns: highest W0 (= rapid rate) {} Hz stated \
+             (frame {} ns, pulse end {} ns), {} Hz with the measured counts ({} ns, {} ns)",
+            stated.highest_rate_hz(width, setup),
+            stated.frame_work_ns,
+            stated.pulse_end_ns,
+            measured.highest_rate_hz(width, setup),
+            measured.frame_work_ns,
+            measured.pulse_end_ns
         );
     }
+    anyhow::ensure!(
+        fworst <= u64::from(bounds.frame_instructions)
+            && pworst <= u64::from(bounds.pulse_end_instructions),
+        "an ISR count exceeds its bound: raise F446_ISR_BOUNDS (and the README's figures)"
+    );
     Ok(())
 }

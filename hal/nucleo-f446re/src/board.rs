@@ -32,20 +32,13 @@ use millac::ports::{
 /// The board. Zero-sized: all state is in the peripherals.
 pub struct F446;
 
-/// What the board sustains, for the settings validation (`Settings::validate_for`): see
-/// "Speed on the Nucleo-F446RE" in the README for where the ISR times come from.
-pub const LIMITS: millac::settings::BoardLimits = millac::settings::BoardLimits {
-    max_frame_hz: 250_000,
-    max_rapid_hz: 250_000,
-    frame_work_ns: 2_000,
-    pulse_end_ns: 500,
-};
+/// What the board sustains, for the settings validation (`Settings::validate_for`): the core's
+/// `BoardLimits::NUCLEO_F446RE` (its ISR times from `millac::settings::F446_ISR_BOUNDS`; README
+/// "Speed on the Nucleo-F446RE").
+pub const LIMITS: millac::settings::BoardLimits = millac::settings::BoardLimits::NUCLEO_F446RE;
 
-/// Cycles of an exception entry and return on the Cortex-M4 with zero-wait-state stacking
-/// (ARM: 12 + 12; lazy FP stacking adds none while the ISRs use no FPU register).
-pub const ENTRY_EXIT_CYCLES: u32 = 24;
 /// Core clock (SYSCLK = HCLK) in Hz.
-pub const CORE_HZ: u32 = 180_000_000;
+pub const CORE_HZ: u32 = millac::settings::F446_ISR_BOUNDS.core_hz;
 /// PCLK1 (USART2) in Hz.
 pub const PCLK1_HZ: u32 = 45_000_000;
 /// APB1 timer clock (TIM2, TIM3, TIM5) in Hz.

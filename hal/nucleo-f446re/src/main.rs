@@ -373,6 +373,7 @@ mod app {
             enable,
             direction,
             max_rpm: cx.local.table.settings.spindle_max_rpm,
+            frame_limit: frame_limit_cycles(&cx.local.table.settings.nc),
         };
         let ceiling = cx
             .local
@@ -403,6 +404,20 @@ mod app {
         enable: &'a mut AnyPin<Output>,
         direction: &'a mut AnyPin<Output>,
         max_rpm: u32,
+        /// The frame work the running settings tolerate, in DWT cycles.
+        frame_limit: u32,
+    }
+
+    /// The most cycles a frame may take with the running settings
+    /// (`BoardLimits::frame_work_allowed_ns`), less the exception entry and return that the DWT
+    /// measurement inside the handler does not see. Idle (once).
+    fn frame_limit_cycles(nc: &millac::Settings) -> u32 {
+        let ns = board::LIMITS.frame_work_allowed_ns(nc);
+        let cycles = ns * u64::from(board::CORE_HZ) / 1_000_000_000;
+        let entry_exit = millac::settings::F446_ISR_BOUNDS.entry_exit_cycles;
+        u32::try_from(cycles)
+            .unwrap_or(u32::MAX)
+            .saturating_sub(entry_exit)
     }
 
     impl<M: Mutex<T = Debouncer>> LoaderBoard for Nucleo<'_, M> {
@@ -432,12 +447,8 @@ mod app {
             defmt::info!("spindle {} at {} rpm", defmt::Debug2Format(&state), rpm);
         }
 
-        /// The board's stated frame time in cycles, less the exception entry and return (12 + 12
-        /// cycles) that the DWT measurement inside the handler does not see.
         fn frame_limit_cycles(&self) -> Option<u32> {
-            let cycles =
-                u64::from(board::LIMITS.frame_work_ns) * u64::from(board::CORE_HZ) / 1_000_000_000;
-            Some((cycles as u32).saturating_sub(board::ENTRY_EXIT_CYCLES))
+            Some(self.frame_limit)
         }
 
         fn inputs(&mut self) -> Events {
