@@ -6,7 +6,7 @@
 //! Board modules (feature `lm3s6965`, default): `lm3s6965` (the board QEMU emulates) with
 //! `simadc`, its lockstep simulated ADC (semihosting FIFOs to the host), `uart` (UART0, a
 //! PL011), `storage`, the
-//! settings record in a host file, `session`, the serial mode's log `serve.nc`, and
+//! settings record in a host file, `results`, the result file the host tools read, `session`, the serial mode's log `serve.nc`, and
 //! `semihost`, the host-file calls they all use. The Nucleo-F446RE is its own package
 //! (hal/nucleo-f446re) over the shared modules: a second device crate here would clash. Init, ISR and
 //! task contexts as each item says.
@@ -17,6 +17,8 @@ pub mod serial;
 
 #[cfg(feature = "lm3s6965")]
 pub mod lm3s6965;
+#[cfg(feature = "lm3s6965")]
+pub mod results;
 #[cfg(feature = "lm3s6965")]
 pub mod semihost;
 #[cfg(feature = "lm3s6965")]

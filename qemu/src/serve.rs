@@ -133,7 +133,7 @@ pub fn serve(
     let prog = analysis::program_of_blocks(
         replay(&log, &settings).with_context(|| format!("replaying {}", log_path.display()))?,
     );
-    let hold = runner::firmware_hold(&cap.stdout);
+    let hold = runner::firmware_hold(&cap.result);
     let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
     let ac_in = ac.map(|a| runner::AcInput {
         run: a,

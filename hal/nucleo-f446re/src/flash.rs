@@ -100,7 +100,11 @@ impl FlashSector for Sector7 {
     }
 
     fn program(&mut self, offset: usize, words: &[u32]) -> bool {
-        let Some(end) = words.len().checked_mul(4).and_then(|n| n.checked_add(offset)) else {
+        let Some(end) = words
+            .len()
+            .checked_mul(4)
+            .and_then(|n| n.checked_add(offset))
+        else {
             return false;
         };
         if offset % 4 != 0 || end > SIZE {

@@ -42,28 +42,35 @@
 
 use core::fmt::{self, Write as _};
 use core::panic::PanicInfo;
+use core::sync::atomic::{AtomicBool, Ordering};
 
-use cortex_m_semihosting::{debug, hio};
+use cortex_m_semihosting::debug;
+// The defmt global logger: frames to semihosting stdout (linked for it, nothing is called).
+use defmt_semihosting as _;
+use millac_hal::results;
 
-/// Semihosting stdout without the critical section `hprintln!` takes (it would delay the frame ISR
-/// while the loader prints an error); output errors are ignored, nothing here panics.
-struct Out(Option<hio::HostStream>);
+/// One human log message, formatted before the logger is taken: defmt's logger holds a critical
+/// section while it encodes and writes, so the text is ready and that section stays short.
+type Text = heapless::String<200>;
 
-impl Out {
-    fn open() -> Self {
-        Out(hio::hstdout().ok())
-    }
-    fn line(&mut self, args: fmt::Arguments) {
-        if let Some(s) = self.0.as_mut() {
-            let _ = s.write_fmt(args);
-            let _ = s.write_str("\n");
-        }
-    }
+fn text(args: fmt::Arguments) -> Text {
+    let mut t = Text::new();
+    // A message too long for the buffer keeps what fitted.
+    let _ = t.write_fmt(args);
+    t
 }
 
-/// Prints `error: <what>` and leaves QEMU with a failure status. Init and idle.
+/// An error: `error: <what>` in the result file (the run fails) and in the log. Init and tasks,
+/// never the frame or pulse-end ISR.
+fn error(what: fmt::Arguments) {
+    let t = text(what);
+    results::line(format_args!("error: {}", t));
+    defmt::error!("{=str}", t.as_str());
+}
+
+/// Reports an error ([`error`]) and leaves QEMU with a failure status. Init and idle.
 fn fail(what: fmt::Arguments) -> ! {
-    Out::open().line(format_args!("error: {}", what));
+    error(what);
     exit(false)
 }
 
@@ -80,11 +87,19 @@ fn exit(ok: bool) -> ! {
     }
 }
 
-/// Any context: prints the panic through semihosting and exits with failure.
+/// Set by the first panic: a panic inside the panic handler (the logger taken where the first
+/// panic struck) only exits.
+static PANICKED: AtomicBool = AtomicBool::new(false);
+
+/// Any context: `panic: <message>` in the result file and in the log, exit with failure.
 #[panic_handler]
 fn panic(info: &PanicInfo) -> ! {
     cortex_m::interrupt::disable();
-    Out::open().line(format_args!("panic: {}", info));
+    if !PANICKED.swap(true, Ordering::Relaxed) {
+        let t = text(format_args!("{}", info));
+        results::line(format_args!("panic: {}", t));
+        defmt::error!("panic: {=str}", t.as_str());
+    }
     exit(false)
 }
 
@@ -114,7 +129,7 @@ mod app {
     use millac_hal::storage::FileStorage;
     use millac_hal::uart::TX_QUEUE;
 
-    use super::{exit, fail, Out};
+    use super::{error, exit, fail, results, text};
 
     /// The board this binary drives (a unit struct: its ports are `&mut B`).
     use millac_hal::lm3s6965::Lm3s6965 as B;
@@ -169,6 +184,8 @@ mod app {
         alarms: Queue<Alarm, ALARM_QUEUE> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
+        // The result file first: everything after may report into it.
+        results::create();
         // The stored record (validated as a whole), or the defaults.
         let (table, status) = Persistent::load(FileStorage);
         let refused = match status {
@@ -295,7 +312,7 @@ mod app {
             // The host has gone: without samples the AC cannot guard the cut. Said once; the
             // periods go on, see no samples and hold, and the run ends as after any hold.
             Sampled::Lost(due) => {
-                Out::open().line(format_args!("error: simulated ADC lost"));
+                error(format_args!("simulated ADC lost"));
                 due
             }
             Sampled::Ok(due) => due,
@@ -315,7 +332,9 @@ mod app {
         };
         let p = task.run(due);
         if let Some(a) = p.alarm {
-            Out::open().line(format_args!("alarm: {}", a));
+            let t = text(format_args!("{}", a));
+            results::line(format_args!("alarm: {}", t));
+            defmt::warn!("alarm: {=str}", t.as_str());
         }
         if p.halt && !SERIAL.load(Relaxed) {
             let [x, y, z] = [
@@ -323,13 +342,18 @@ mod app {
                 STATUS.position[1].load(Relaxed),
                 STATUS.position[2].load(Relaxed),
             ];
-            Out::open().line(format_args!(
+            let blocks = STATUS.blocks_done.load(Relaxed);
+            results::line(format_args!(
                 "millac: hold blocks={} position={},{},{}",
-                STATUS.blocks_done.load(Relaxed),
+                blocks, x, y, z
+            ));
+            defmt::warn!(
+                "held: blocks={=u32} position={=i32},{=i32},{=i32}",
+                blocks,
                 x,
                 y,
                 z
-            ));
+            );
             exit(false);
         }
     }
@@ -338,9 +362,8 @@ mod app {
     #[idle(local = [producer, settings, table, refused, ceiling, proto, tx, ac_alarms])]
     fn idle(cx: idle::Context) -> ! {
         let producer = cx.local.producer;
-        let mut out = Out::open();
         let (settings, ceiling) = (cx.local.settings, *cx.local.ceiling);
-        let ok = match load(producer, settings, ceiling, *cx.local.refused, &mut out) {
+        let ok = match load(producer, settings, ceiling, *cx.local.refused) {
             Loaded::All => true,
             Loaded::Error => false,
             // No program file: the operator streams G-code over the serial line.
@@ -371,13 +394,18 @@ mod app {
             STATUS.position[1].load(Relaxed),
             STATUS.position[2].load(Relaxed),
         ];
-        out.line(format_args!(
+        let blocks = STATUS.blocks_done.load(Relaxed);
+        results::line(format_args!(
             "millac: blocks={} position={},{},{}",
-            STATUS.blocks_done.load(Relaxed),
+            blocks, x, y, z
+        ));
+        defmt::info!(
+            "done: blocks={=u32} position={=i32},{=i32},{=i32}",
+            blocks,
             x,
             y,
             z
-        ));
+        );
         exit(ok)
     }
 
@@ -398,15 +426,14 @@ mod app {
         settings: &Settings,
         ceiling: Option<FeedCeiling>,
         refused: Option<RecordError>,
-        out: &mut Out,
     ) -> Loaded {
         let mut enqueue = |b: Block| millac_hal::serial::enqueue_block(producer, b);
         let Some(fd) = semihost::open(b"program.nc\0", nr::open::R) else {
             return Loaded::NoFile;
         };
         if let Some(e) = refused {
-            out.line(format_args!(
-                "error: settings: {}; nothing runs (fix or remove {})",
+            error(format_args!(
+                "settings: {}; nothing runs (fix or remove {})",
                 e.message(),
                 millac::wire::SETTINGS_NAME
             ));
@@ -423,7 +450,7 @@ mod app {
         let mut ok = true;
         loop {
             let Some(n) = semihost::read(fd, &mut chunk) else {
-                out.line(format_args!("error: cannot read program.nc"));
+                error(format_args!("cannot read program.nc"));
                 ok = false;
                 // What was accepted still runs.
                 let _ = tape.finish(&mut enqueue);
@@ -436,7 +463,7 @@ mod app {
                 tape.feed(bytes, &mut enqueue)
             };
             if let Err(e) = result {
-                out.line(format_args!("error: {}", e));
+                error(format_args!("{}", e));
                 ok = false;
             }
             if tape.done() {
