@@ -4,7 +4,7 @@
 //! without a level is its message alone). What the tools read is not in this stream: it is the
 //! firmware's result file (`millac::wire::RESULT_FILE`, [`crate::capture::Capture::result`]).
 //!
-//! An ELF without a `.defmt` section (a hand-assembled test image, a firmware that prints text)
+//! An image without a `.defmt` section (a hand-assembled test image, a firmware that prints text)
 //! gives its stdout as text.
 use anyhow::{Context, Result};
 use defmt_decoder::{DecodeError, Table};
@@ -15,8 +15,12 @@ pub struct Log {
 }
 
 impl Log {
-    /// Reads the `.defmt` table of the ELF `elf` (the file's bytes); None for an ELF without one.
+    /// Reads the `.defmt` table of the ELF `elf` (the file's bytes). No table for an ELF without
+    /// one, nor for a kernel image that is no ELF at all (QEMU loads raw images too).
     pub fn from_elf(elf: &[u8]) -> Result<Log> {
+        if !elf.starts_with(b"\x7fELF") {
+            return Ok(Log { table: None });
+        }
         let table = Table::parse(elf).context("reading the firmware's defmt table")?;
         Ok(Log { table })
     }
@@ -68,4 +72,17 @@ impl Log {
 pub fn decode_file(elf: &std::path::Path, stdout: &[u8]) -> Result<String> {
     let bytes = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
     Ok(Log::from_elf(&bytes)?.decode(stdout))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A kernel image that is no ELF (QEMU loads raw images too) has no table: its stdout is text.
+    #[test]
+    fn an_image_without_a_table_gives_its_stdout_as_text() {
+        let log = Log::from_elf(&[0x00, 0x10, 0x00, 0x20]).unwrap();
+        assert!(!log.is_defmt());
+        assert_eq!(log.decode(b"hello\n"), "hello\n");
+    }
 }

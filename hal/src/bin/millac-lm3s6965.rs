@@ -11,7 +11,7 @@
 //! 0. The pulse-end ISR counts the pulses on the pins into the encoder counts (`STATUS.encoder`,
 //! a `millac::rt::Status`); the sampler exchanges them for ADC codes with the host in lockstep and
 //! queues them; the AC task runs the `AcController` on them, writes the feed cap
-//! (`STATUS.feed_cap`, when enabled) and `ac.log`, prints `alarm: ..` on a hold and stops the run
+//! (`STATUS.feed_cap`, when enabled) and `ac.log`, reports `alarm: ..` on a hold and stops the run
 //! after a long hold with nothing moving (see `millac_hal::actask`). Without `adc.req` in the
 //! working directory none of this starts: no sample timer, no AC task, the feed cap stays
 //! `u32::MAX` and the firmware behaves as before.
@@ -25,6 +25,18 @@
 //!
 //! No monotonic/SysTick: any that is added must have a priority below the frame's.
 //!
+//! # Output
+//!
+//! Two channels, never mixed:
+//! - the log, for people: defmt (`defmt::error!/warn!/info!`, no timestamp) through
+//!   `defmt-semihosting`'s global logger on semihosting stdout; the host decodes the frames with
+//!   this ELF's `.defmt` table (`millac_qemu::defmtlog`). The logger takes a critical section, so
+//!   the frame and pulse-end ISRs never log, and the others format their text first ([`text`]);
+//! - the results, for the tools: `result.txt` (`millac::wire::RESULT_FILE`, see "Result file"
+//!   there; [`millac_hal::results`]): errors, alarms, the hold and the final position.
+//!
+//! The exit status (semihosting SYS_EXIT) is failure after an error, a hold or a panic.
+//!
 //! # Settings
 //!
 //! init loads the persistent record through `millac_hal::storage::FileStorage` (`settings.bin` in
@@ -34,9 +46,9 @@
 //! another version, invalid values) gives the defaults and:
 //! - serial mode: `ALARM:120` and `[MSG:<why>; defaults loaded]` after the banner, G-code locked
 //!   until `$X` (`Protocol::settings_refused`); `$RST=*` or any `$N=value` stores a new record;
-//! - program mode (`program.nc`): `error: settings: <why>; nothing runs` and exit with failure
-//!   before anything moves: a program run unattended must not run on settings the operator did
-//!   not choose, and there is no `$X` to acknowledge them.
+//! - program mode (`program.nc`): `error: settings: <why>; nothing runs` (log and result file)
+//!   and exit with failure before anything moves: a program run unattended must not run on
+//!   settings the operator did not choose, and there is no `$X` to acknowledge them.
 #![no_std]
 #![no_main]
 
@@ -63,8 +75,20 @@ fn text(args: fmt::Arguments) -> Text {
 /// An error: `error: <what>` in the result file (the run fails) and in the log. Init and tasks,
 /// never the frame or pulse-end ISR.
 fn error(what: fmt::Arguments) {
+    log_error(&report(what));
+}
+
+/// `error: <what>` in the result file, at once (one semihosting write, no critical section);
+/// returns the text for the log.
+fn report(what: fmt::Arguments) -> Text {
     let t = text(what);
     results::line(format_args!("error: {}", t));
+    t
+}
+
+/// An error in the log. The logger's critical section lasts about 30 instructions per byte (1 197
+/// for a 38-character line, measured at shift 4): 19 us in which no frame can start.
+fn log_error(t: &Text) {
     defmt::error!("{=str}", t.as_str());
 }
 
@@ -129,7 +153,7 @@ mod app {
     use millac_hal::storage::FileStorage;
     use millac_hal::uart::TX_QUEUE;
 
-    use super::{error, exit, fail, results, text};
+    use super::{error, exit, fail, log_error, report, results, text, Text};
 
     /// The board this binary drives (a unit struct: its ports are `&mut B`).
     use millac_hal::lm3s6965::Lm3s6965 as B;
@@ -363,7 +387,9 @@ mod app {
     fn idle(cx: idle::Context) -> ! {
         let producer = cx.local.producer;
         let (settings, ceiling) = (cx.local.settings, *cx.local.ceiling);
-        let ok = match load(producer, settings, ceiling, *cx.local.refused) {
+        // The loader's errors, logged once the machine is idle (see `load`).
+        let mut errors = Errors::new();
+        let ok = match load(producer, settings, ceiling, *cx.local.refused, &mut errors) {
             Loaded::All => true,
             Loaded::Error => false,
             // No program file: the operator streams G-code over the serial line.
@@ -389,6 +415,9 @@ mod app {
         while producer.len() != 0 || !STATUS.idle.load(Relaxed) {
             cortex_m::asm::nop();
         }
+        for t in &errors {
+            log_error(t);
+        }
         let [x, y, z] = [
             STATUS.position[0].load(Relaxed),
             STATUS.position[1].load(Relaxed),
@@ -409,6 +438,9 @@ mod app {
         exit(ok)
     }
 
+    /// The loader's error messages for the log (more are in the result file only).
+    type Errors = heapless::Vec<Text, 2>;
+
     /// How loading ended.
     enum Loaded {
         /// Program end (M2/M30) or end of file.
@@ -419,20 +451,27 @@ mod app {
         NoFile,
     }
 
-    /// Reads, parses and queues the program. Errors are printed here. With a refused settings
-    /// record nothing runs (see "Settings" in the crate docs).
+    /// Reads, parses and queues the program. With a refused settings record nothing runs (see
+    /// "Settings" in the crate docs). Errors go to the result file at once and into `errors` for
+    /// the log, which the loader writes once the accepted blocks have run: the blocks before an
+    /// error still run, and the logger's critical section (tens of microseconds for a long line)
+    /// must not hold back a frame, at a rapid period of 38 us.
     fn load(
         producer: &mut Producer<'static, Block, QUEUE>,
         settings: &Settings,
         ceiling: Option<FeedCeiling>,
         refused: Option<RecordError>,
+        errors: &mut Errors,
     ) -> Loaded {
+        let mut refuse = |what: core::fmt::Arguments| {
+            let _ = errors.push(report(what));
+        };
         let mut enqueue = |b: Block| millac_hal::serial::enqueue_block(producer, b);
         let Some(fd) = semihost::open(b"program.nc\0", nr::open::R) else {
             return Loaded::NoFile;
         };
         if let Some(e) = refused {
-            error(format_args!(
+            refuse(format_args!(
                 "settings: {}; nothing runs (fix or remove {})",
                 e.message(),
                 millac::wire::SETTINGS_NAME
@@ -450,7 +489,7 @@ mod app {
         let mut ok = true;
         loop {
             let Some(n) = semihost::read(fd, &mut chunk) else {
-                error(format_args!("cannot read program.nc"));
+                refuse(format_args!("cannot read program.nc"));
                 ok = false;
                 // What was accepted still runs.
                 let _ = tape.finish(&mut enqueue);
@@ -463,7 +502,7 @@ mod app {
                 tape.feed(bytes, &mut enqueue)
             };
             if let Err(e) = result {
-                error(format_args!("{}", e));
+                refuse(format_args!("{}", e));
                 ok = false;
             }
             if tape.done() {
