@@ -27,6 +27,16 @@
 //! host after a `serve` session: one [`SessionLine`] per line, in the order the loader fed its
 //! tape. A G-code program (markers are comments), so `millac run serve.nc` accepts it; the host
 //! replays the markers too and gets exactly the blocks the firmware queued.
+//!
+//! # Result file
+//!
+//! [`RESULT_FILE`]: what the QEMU firmware reports to the tools, one line each, in the order it
+//! happened: `error: <why>` (a refused line, settings, the simulated ADC lost; the run fails),
+//! `panic: <message>`, `alarm: <text>` (an AC hold), then at the end of a program run
+//! `millac: blocks=N position=x,y,z` or, after a long AC hold, `millac: hold blocks=N
+//! position=x,y,z`. The firmware creates it at start-up (`millac_hal::results`); the host reads it
+//! after QEMU exits (`millac_qemu::capture::Capture::result`). The firmware's human log is a
+//! separate defmt stream on semihosting stdout, which carries no results.
 use core::fmt;
 
 /// Request FIFO (firmware -> host). The names are NUL-terminated for the firmware's semihosting
@@ -42,12 +52,15 @@ pub const AC_LOG_FILE: &str = "ac.log\0";
 pub const SETTINGS_FILE: &str = "settings.bin\0";
 /// The session log of the serial mode ([`SessionLine`]s).
 pub const SERVE_LOG_FILE: &str = "serve.nc\0";
+/// The firmware's results for the host tools (see "Result file").
+pub const RESULT_FILE: &str = "result.txt\0";
 /// The names without their NUL.
 pub const REQ_NAME: &str = strip_nul(REQ_FILE);
 pub const RESP_NAME: &str = strip_nul(RESP_FILE);
 pub const AC_LOG_NAME: &str = strip_nul(AC_LOG_FILE);
 pub const SETTINGS_NAME: &str = strip_nul(SETTINGS_FILE);
 pub const SERVE_LOG_NAME: &str = strip_nul(SERVE_LOG_FILE);
+pub const RESULT_NAME: &str = strip_nul(RESULT_FILE);
 
 /// `s` without a trailing NUL.
 const fn strip_nul(s: &str) -> &str {
@@ -344,6 +357,7 @@ mod tests {
         assert_eq!(REQ_NAME, "adc.req");
         assert_eq!(RESP_NAME, "adc.resp");
         assert_eq!(AC_LOG_NAME, "ac.log");
+        assert_eq!(RESULT_NAME, "result.txt");
     }
 
     proptest! {

@@ -44,8 +44,9 @@ fn run(elf: &Path, dir: &Path, program: &str, handlers: &[HandlerSpec]) -> Resul
     let cap = run_capture(&spec)?;
     ensure!(
         cap.status == Some(0),
-        "firmware exit status {:?}, output:\n{}",
+        "firmware exit status {:?}: {}\nlog:\n{}",
         cap.status,
+        cap.result,
         cap.stdout
     );
     Ok(cap.handlers.into_iter().map(|(_, v)| v).collect())

@@ -154,8 +154,14 @@ pub struct Capture {
     pub total_instructions: u64,
     /// Virtual time at exit, ns.
     pub end_ns: u64,
-    /// QEMU's stdout (the firmware's semihosting output).
+    /// The firmware's log: QEMU's stdout, its defmt frames decoded with the ELF's table, one
+    /// `<level>: <message>` line each ([`crate::defmtlog`]; as text for an ELF without a table).
+    /// For people: what the tools read is in [`Capture::result`].
     pub stdout: String,
+    /// The firmware's result file ([`millac::wire::RESULT_NAME`] in the run directory, written
+    /// through semihosting): errors, alarms and the final position, the lines the tools parse
+    /// (see `millac::wire`, "Result file"); empty when the firmware wrote none.
+    pub result: String,
     /// QEMU's stderr.
     pub stderr: String,
     /// QEMU's exit status (the firmware's semihosting exit code), None if killed by a signal.
@@ -468,7 +474,13 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
     let plugin = crate::plugin::write_plugin(&dir)?;
     let log = dir.join("plugin.log");
     let trace = dir.join("trace.log");
-    for f in [&log, &trace] {
+    // The firmware's log decoder (its ELF's defmt table), and no stale result file: a firmware that
+    // ends before it writes one leaves none.
+    let fw_log = crate::defmtlog::Log::from_elf(
+        &std::fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?,
+    )?;
+    let result = run_dir.join(millac::wire::RESULT_NAME);
+    for f in [&log, &trace, &result] {
         if f.exists() {
             std::fs::remove_file(f).with_context(|| format!("removing {}", f.display()))?;
         }
@@ -510,7 +522,7 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
         if start.elapsed() > spec.timeout {
             let _ = child.kill();
             let _ = child.wait();
-            let stdout = String::from_utf8_lossy(&out.join().unwrap_or_default()).into_owned();
+            let stdout = fw_log.decode(&out.join().unwrap_or_default());
             bail!(
                 "QEMU timed out after {:?} (killed); firmware output so far:\n{stdout}",
                 spec.timeout
@@ -518,8 +530,9 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
         }
         std::thread::sleep(Duration::from_millis(10));
     };
-    let stdout = String::from_utf8_lossy(&out.join().unwrap_or_default()).into_owned();
+    let stdout = fw_log.decode(&out.join().unwrap_or_default());
     let stderr = String::from_utf8_lossy(&err.join().unwrap_or_default()).into_owned();
+    let result = std::fs::read_to_string(&result).unwrap_or_default();
     let fail = |what: String| {
         anyhow::anyhow!(
             "{what}; QEMU {status} (the millac plugin supports QEMU 7.x, found {}), stderr:\n{stderr}",
@@ -565,6 +578,7 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
         total_instructions: total,
         end_ns: total << spec.icount_shift,
         stdout,
+        result,
         stderr,
         status: status.code(),
     })

@@ -8,9 +8,10 @@
 //!   step counts with sigrok's `stepper_motor` decoder; [`analysis`] checks a capture against its
 //!   program (end points, path deviation, feed).
 //! - Running the firmware: [`firmware`] builds it, [`tools`] finds or installs the external tools,
-//!   [`runner`] runs a program under QEMU and analyses the capture; [`f446`] runs the
-//!   Nucleo-F446RE firmware (its `qemu` build) on QEMU's netduinoplus2 and streams a program to it
-//!   over USART2 (pins PC4..PC9, same byte layout as below).
+//!   [`runner`] runs a program under QEMU and analyses the capture; [`defmtlog`] decodes the
+//!   firmware's defmt log (QEMU's stdout), whose results are in a file of their own; [`f446`]
+//!   runs the Nucleo-F446RE firmware (its `qemu` build) on QEMU's netduinoplus2 and streams a
+//!   program to it over USART2 (pins PC4..PC9, same byte layout as below).
 //! - Adaptive control: [`cosim`] is the host side of the lockstep simulated ADC (the plant behind
 //!   the firmware's ADC) and the `ac.log` parser; [`acsim`] runs the core's frame and AC
 //!   controller natively on the host against the plant; [`fault`] injects sensor faults into the
@@ -24,6 +25,7 @@ pub mod acsim;
 pub mod analysis;
 pub mod capture;
 pub mod cosim;
+pub mod defmtlog;
 pub mod elf;
 pub mod f446;
 pub mod fault;

@@ -236,11 +236,12 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
     };
     // A hold the firmware reported is a result (the run did not complete), anything else that
     // ends the firmware with failure is not.
-    let hold = firmware_hold(&cap.stdout);
+    let hold = firmware_hold(&cap.result);
     if cap.status != Some(0) && hold.is_none() {
         anyhow::bail!(
-            "firmware exited with {:?}:\n{}{}",
+            "firmware exited with {:?}: {}\nfirmware log:\n{}{}",
             cap.status,
+            cap.result.trim_end(),
             cap.stdout,
             cap.stderr
         );
@@ -254,7 +255,7 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
     });
     let (summary, report, records) =
         summarise(&prog, &settings, &cap, out, shift, hold.as_ref(), ac_in)?;
-    let fw = firmware_position(&cap.stdout);
+    let fw = firmware_position(&cap.result);
     write_json(&out.join("summary.json"), &summary)?;
     let ok = checks_pass(&report) && fw == Some(report.final_position) && hold.is_none();
     Ok(Outcome {
@@ -295,7 +296,7 @@ pub fn summarise(
     // With the feed cap applied the pulses follow the controller, not the programmed feeds.
     report.pulses_match_host =
         (!feed_capped).then(|| analysis::compare_with_host(prog, settings, &e.groups).is_none());
-    let fw = firmware_position(&cap.stdout);
+    let fw = firmware_position(&cap.result);
     let mut summary = summary_json(prog, &report);
     if feed_capped {
         summary["max_feed_error_pct"] = Value::Null;
@@ -399,10 +400,11 @@ pub struct Hold {
     pub position: [i64; 3],
 }
 
-/// The firmware's report of a hold: `alarm: <text>` (the first one) and
-/// `millac: hold blocks=N position=x,y,z`; None when the firmware did not stop on a hold.
-pub fn firmware_hold(stdout: &str) -> Option<Hold> {
-    let line = stdout
+/// The firmware's report of a hold in its result file ([`Capture::result`]): `alarm: <text>`
+/// (the first one) and `millac: hold blocks=N position=x,y,z`; None when the firmware did not stop
+/// on a hold.
+pub fn firmware_hold(result: &str) -> Option<Hold> {
+    let line = result
         .lines()
         .find_map(|l| l.strip_prefix("millac: hold "))?;
     let blocks_done = line
@@ -410,7 +412,7 @@ pub fn firmware_hold(stdout: &str) -> Option<Hold> {
         .find_map(|w| w.strip_prefix("blocks="))?
         .parse()
         .ok()?;
-    let alarm = stdout
+    let alarm = result
         .lines()
         .find_map(|l| l.strip_prefix("alarm: "))
         .unwrap_or("")
@@ -418,7 +420,7 @@ pub fn firmware_hold(stdout: &str) -> Option<Hold> {
     Some(Hold {
         alarm,
         blocks_done,
-        position: firmware_position(stdout)?,
+        position: firmware_position(result)?,
     })
 }
 
@@ -451,8 +453,10 @@ pub fn hold_json(prog: &[ProgBlock], h: &Hold) -> Value {
     })
 }
 
-pub fn firmware_position(stdout: &str) -> Option<[i64; 3]> {
-    let line = stdout.lines().find_map(|l| l.strip_prefix("millac: "))?;
+/// The final (or held) position in the firmware's result file ([`Capture::result`]):
+/// `millac: blocks=N position=x,y,z` or `millac: hold ...`.
+pub fn firmware_position(result: &str) -> Option<[i64; 3]> {
+    let line = result.lines().find_map(|l| l.strip_prefix("millac: "))?;
     let pos = line
         .split_whitespace()
         .find_map(|w| w.strip_prefix("position="))?;

@@ -133,7 +133,7 @@ pub fn serve(
     let prog = analysis::program_of_blocks(
         replay(&log, &settings).with_context(|| format!("replaying {}", log_path.display()))?,
     );
-    let hold = runner::firmware_hold(&cap.stdout);
+    let hold = runner::firmware_hold(&cap.result);
     let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
     let ac_in = ac.map(|a| runner::AcInput {
         run: a,
@@ -159,7 +159,7 @@ pub fn serve(
 
 /// The blocks the firmware queued in a serial session, in order, from its log `serve.nc` (see
 /// `millac::wire::SessionLine`): the same tape, jog planning and block finishing as the loader in
-/// serial mode (`millac_hal::serial`), so the session is analysed like a `run` of its program.
+/// serial mode (`millac::rt::loader`), so the session is analysed like a `run` of its program.
 pub fn replay(log: &str, settings: &Settings) -> Result<Vec<Block>> {
     let mut tape = Tape::new(*settings);
     let cfg = FrameConfig::from_settings(settings);

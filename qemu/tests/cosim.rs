@@ -174,7 +174,7 @@ fn ac_converges_to_f0_exact_end_deterministic_and_replayable() {
     assert_eq!(a.cap.status, Some(0), "{}", a.cap.stdout);
     // (a) exact end point, firmware and pins.
     assert_eq!(
-        runner::firmware_position(&a.cap.stdout),
+        runner::firmware_position(&a.cap.result),
         Some([END_X, 0, 0]),
         "{}",
         a.cap.stdout
@@ -216,21 +216,27 @@ fn ac_converges_to_f0_exact_end_deterministic_and_replayable() {
 #[test]
 fn stuck_sensor_holds_without_losing_a_pulse_and_the_run_ends() {
     let r = run("stuck", PROGRAM, Toy::new(25.0, Some(300)), true);
-    // (d) hold: alarm printed, cap 0, motion stops, the firmware reports and exits (failure).
+    // (d) hold: alarm logged and reported, cap 0, motion stops, the firmware reports and exits
+    // (failure).
     assert_eq!(r.cap.status, Some(1), "{}", r.cap.stdout);
     assert!(
-        r.cap.stdout.contains("alarm: sensor hold"),
+        r.cap.stdout.contains("warn: alarm: sensor hold"),
         "{}",
         r.cap.stdout
     );
-    assert!(r.cap.stdout.contains("millac: hold"), "{}", r.cap.stdout);
+    assert!(
+        r.cap.result.contains("alarm: sensor hold"),
+        "{}",
+        r.cap.result
+    );
+    assert!(r.cap.result.contains("millac: hold"), "{}", r.cap.result);
     let first_hold = r
         .records
         .iter()
         .position(|x| x.hold.is_some())
         .expect("no hold in ac.log");
     assert!(r.records[first_hold..].iter().all(|x| x.feed_cap == 0));
-    let fw = runner::firmware_position(&r.cap.stdout).expect("position line");
+    let fw = runner::firmware_position(&r.cap.result).expect("position line");
     let vcd = vcd_path(&r.cap.pins).last().unwrap().1;
     let enc = r.exchanges.last().unwrap().pos_blu;
     assert_eq!(fw, vcd, "firmware counters vs pins");
@@ -256,7 +262,8 @@ fn a_lost_adc_holds_and_reports_like_any_hold() {
     assert_eq!(r.cap.status, Some(1), "{}", r.cap.stdout);
     let out = &r.cap.stdout;
     assert!(out.contains("error: simulated ADC lost"), "{out}");
-    let hold = runner::firmware_hold(out).expect("a hold report");
+    assert!(r.cap.result.contains("error: simulated ADC lost"), "{out}");
+    let hold = runner::firmware_hold(&r.cap.result).expect("a hold report");
     assert_eq!(hold.alarm, "sensor hold: no fresh samples in an AC period");
     let vcd = vcd_path(&r.cap.pins).last().unwrap().1;
     assert_eq!(hold.position, vcd, "firmware counters vs pins");

@@ -144,15 +144,17 @@ fn bad_line_stops_after_the_accepted_blocks_with_exact_position() {
     let out = out_dir("bad");
     let cap = runner::execute(&prog, &out, 4).unwrap();
     assert_eq!(cap.status, Some(1), "{}", cap.stdout);
+    // In the log (decoded defmt) and in the result file.
     assert!(cap.stdout.contains("error: line 4:"), "{}", cap.stdout);
+    assert!(cap.result.starts_with("error: line 4:"), "{}", cap.result);
     let settings = Settings::default();
     let accepted = analysis::load_program(good, &settings).unwrap();
     let end = accepted.last().unwrap().end;
     assert_eq!(
-        runner::firmware_position(&cap.stdout),
+        runner::firmware_position(&cap.result),
         Some(end.map(i64::from)),
         "{}",
-        cap.stdout
+        cap.result
     );
     // The pins agree: every accepted block ran, nothing after the error moved.
     let r = analysis::analyse(&accepted, &settings, 0, &cap.pins);
@@ -274,17 +276,69 @@ fn program_mode_refuses_a_corrupt_settings_record_and_runs_on_a_valid_one() {
     std::fs::write(&file, bad).unwrap();
     let cap = run_capture(&spec).unwrap();
     assert_eq!(cap.status, Some(1), "{}", cap.stdout);
-    assert!(
-        cap.stdout
-            .contains("error: settings: settings record checksum mismatch; nothing runs"),
-        "{}",
-        cap.stdout
+    // The firmware's log is its defmt frames, decoded by the host with their levels; the result
+    // file has the same error and the (unmoved) position for the tools.
+    let why =
+        "settings: settings record checksum mismatch; nothing runs (fix or remove settings.bin)";
+    assert_eq!(
+        cap.stdout,
+        format!("error: {why}\ninfo: done: blocks=0 position=0,0,0\n")
+    );
+    assert_eq!(
+        cap.result,
+        format!("error: {why}\nmillac: blocks=0 position=0,0,0\n")
     );
     assert!(cap.pins.is_empty(), "nothing moves");
     std::fs::write(&file, good).unwrap();
     let cap = run_capture(&spec).unwrap();
     assert_eq!(cap.status, Some(0), "{}", cap.stdout);
+    assert_eq!(cap.stdout, "info: done: blocks=1 position=100,0,0\n");
+    assert_eq!(cap.result, "millac: blocks=1 position=100,0,0\n");
     let e = analysis::edges(0, &cap.pins);
     assert_eq!(e.edges.len(), 100);
     assert!((7000..9000).contains(&e.min_pulse_width_ns.unwrap()));
+}
+
+/// The firmware's log is defmt, not text: QEMU's raw stdout holds format-string indices and
+/// arguments (no `blocks=`), which the host decodes with the ELF's `.defmt` table; the results the
+/// tools read are in the result file, and only there.
+#[test]
+fn the_log_is_a_defmt_stream_and_the_results_are_in_the_result_file() {
+    let out = out_dir("defmt");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("program.nc"), "G91 G1 F30 X0.01 Y-0.02\nM2\n").unwrap();
+    let elf = millac_qemu::firmware::build().unwrap();
+    // QEMU alone, as `cargo fw-run` runs it: stdout is the raw defmt stream.
+    let o = std::process::Command::new("qemu-system-arm")
+        .current_dir(&out)
+        .args(["-cpu", "cortex-m3", "-machine", "lm3s6965evb", "-nographic"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(["-icount", "shift=4,sleep=off", "-kernel"])
+        .arg(&elf)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0));
+    let raw = &o.stdout;
+    assert!(!raw.is_empty());
+    assert!(
+        !raw.windows(7).any(|w| w == b"blocks="),
+        "text in the defmt stream: {raw:?}"
+    );
+    let log = millac_qemu::defmtlog::decode_file(&elf, raw).unwrap();
+    assert_eq!(log, "info: done: blocks=1 position=100,-200,0\n");
+    // The result, from the file: the line the tools parse is not in the log.
+    let result = std::fs::read_to_string(out.join(millac::wire::RESULT_NAME)).unwrap();
+    assert_eq!(result, "millac: blocks=1 position=100,-200,0\n");
+    assert_eq!(runner::firmware_position(&result), Some([100, -200, 0]));
+    assert_eq!(runner::firmware_position(&log), None);
+    // A run through the host tool reports from the file: its summary has the position.
+    let run = runner::run("G91 G1 F30 X0.01 Y-0.02\nM2\n", &out_dir("defmt-run"), 4).unwrap();
+    assert!(run.ok);
+    let cap = run.capture.unwrap();
+    assert_eq!(cap.result, result);
+    assert_eq!(cap.stdout, log);
+    assert_eq!(
+        run.summary["firmware_position_blu"],
+        serde_json::json!({"x": 100, "y": -200, "z": 0})
+    );
 }

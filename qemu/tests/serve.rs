@@ -56,8 +56,8 @@ fn read_until(r: &mut BufReader<TcpStream>, done: impl Fn(&str) -> bool) -> Vec<
     }
 }
 
-/// Soft resets until the banner comes (the first one went out before we connected, and the
-/// firmware may still be starting): what a sender does.
+/// Soft resets until a whole banner comes (the first one went out before we connected, or while
+/// we did, and the firmware may still be starting): what a sender does.
 fn banner(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> Vec<String> {
     r.get_ref()
         .set_read_timeout(Some(Duration::from_secs(2)))
@@ -74,7 +74,12 @@ fn banner(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> Vec<String> {
             }
             let line = l.trim_end().to_string();
             l.clear();
-            let done = line.starts_with("[MSG:millac");
+            // A whole banner: connecting while the first one went out can cut its `Grbl` line,
+            // then the next reset gives a whole one.
+            let done = line.starts_with("[MSG:millac")
+                && got
+                    .last()
+                    .is_some_and(|g: &String| g.starts_with("Grbl 1.1"));
             got.push(line);
             if done {
                 r.get_ref()

@@ -99,7 +99,7 @@ pub struct Modes {
     /// Spindle speed of the last S word (rpm, rounded).
     pub spindle_rpm: u32,
     /// M3 / M4 / M5. The frame does not see it: a board with a spindle output applies it when
-    /// the motion queued before the line has finished (see `millac_hal::serial`).
+    /// the motion queued before the line has finished (see `crate::rt::loader`).
     pub spindle: Spindle,
 }
 

@@ -2,7 +2,7 @@
 //! (HSE bypass from the ST-LINK's 8 MHz), loads the settings record, validates it against the
 //! board's limits and starts the board; the frame ISR (TIM2) and the pulse-end ISR (TIM5) drive
 //! the pins with the core's bodies (`millac::rt`, the same code as on the QEMU board); the idle
-//! loop is the serial loader (`millac_hal::serial`: grbl 1.1 over USART2, the ST-LINK virtual COM
+//! loop is the serial loader (`millac::rt::loader`: grbl 1.1 over USART2, the ST-LINK virtual COM
 //! port).
 //!
 //! Priorities: frame and pulse-end 3; the sampler (TIM3, `sample_hz`) and USART2 2; the AC period

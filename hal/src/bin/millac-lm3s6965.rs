@@ -2,7 +2,7 @@
 //! (`settings.bin`, see "Settings" below), validates the settings and starts the board; the frame
 //! ISR (TIMER_0A) and the pulse-end ISR (TIMER_1A) drive the pins; the idle loop is the loader: it
 //! reads `program.nc` through semihosting, parses it and queues the blocks, then reports the final
-//! position and exits QEMU (without `program.nc`: the serial loader, `millac_hal::serial`).
+//! position and exits QEMU (without `program.nc`: the serial loader, `millac::rt::loader`).
 //!
 //! # Adaptive control (only when the host serves the simulated ADC, see `millac_hal::simadc`)
 //!
@@ -11,7 +11,7 @@
 //! 0. The pulse-end ISR counts the pulses on the pins into the encoder counts (`STATUS.encoder`,
 //! a `millac::rt::Status`); the sampler exchanges them for ADC codes with the host in lockstep and
 //! queues them; the AC task runs the `AcController` on them, writes the feed cap
-//! (`STATUS.feed_cap`, when enabled) and `ac.log`, prints `alarm: ..` on a hold and stops the run
+//! (`STATUS.feed_cap`, when enabled) and `ac.log`, reports `alarm: ..` on a hold and stops the run
 //! after a long hold with nothing moving (see `millac_hal::actask`). Without `adc.req` in the
 //! working directory none of this starts: no sample timer, no AC task, the feed cap stays
 //! `u32::MAX` and the firmware behaves as before.
@@ -25,6 +25,18 @@
 //!
 //! No monotonic/SysTick: any that is added must have a priority below the frame's.
 //!
+//! # Output
+//!
+//! Two channels, never mixed:
+//! - the log, for people: defmt (`defmt::error!/warn!/info!`, no timestamp) through
+//!   `defmt-semihosting`'s global logger on semihosting stdout; the host decodes the frames with
+//!   this ELF's `.defmt` table (`millac_qemu::defmtlog`). The logger takes a critical section, so
+//!   the frame and pulse-end ISRs never log, and the others format their text first ([`text`]);
+//! - the results, for the tools: `result.txt` (`millac::wire::RESULT_FILE`, see "Result file"
+//!   there; [`millac_hal::results`]): errors, alarms, the hold and the final position.
+//!
+//! The exit status (semihosting SYS_EXIT) is failure after an error, a hold or a panic.
+//!
 //! # Settings
 //!
 //! init loads the persistent record through `millac_hal::storage::FileStorage` (`settings.bin` in
@@ -34,36 +46,55 @@
 //! another version, invalid values) gives the defaults and:
 //! - serial mode: `ALARM:120` and `[MSG:<why>; defaults loaded]` after the banner, G-code locked
 //!   until `$X` (`Protocol::settings_refused`); `$RST=*` or any `$N=value` stores a new record;
-//! - program mode (`program.nc`): `error: settings: <why>; nothing runs` and exit with failure
-//!   before anything moves: a program run unattended must not run on settings the operator did
-//!   not choose, and there is no `$X` to acknowledge them.
+//! - program mode (`program.nc`): `error: settings: <why>; nothing runs` (log and result file)
+//!   and exit with failure before anything moves: a program run unattended must not run on
+//!   settings the operator did not choose, and there is no `$X` to acknowledge them.
 #![no_std]
 #![no_main]
 
 use core::fmt::{self, Write as _};
 use core::panic::PanicInfo;
+use core::sync::atomic::{AtomicBool, Ordering};
 
-use cortex_m_semihosting::{debug, hio};
+use cortex_m_semihosting::debug;
+// The defmt global logger: frames to semihosting stdout (linked for it, nothing is called).
+use defmt_semihosting as _;
+use millac_hal::results;
 
-/// Semihosting stdout without the critical section `hprintln!` takes (it would delay the frame ISR
-/// while the loader prints an error); output errors are ignored, nothing here panics.
-struct Out(Option<hio::HostStream>);
+/// One human log message, formatted before the logger is taken: defmt's logger holds a critical
+/// section while it encodes and writes, so the text is ready and that section stays short.
+type Text = heapless::String<200>;
 
-impl Out {
-    fn open() -> Self {
-        Out(hio::hstdout().ok())
-    }
-    fn line(&mut self, args: fmt::Arguments) {
-        if let Some(s) = self.0.as_mut() {
-            let _ = s.write_fmt(args);
-            let _ = s.write_str("\n");
-        }
-    }
+fn text(args: fmt::Arguments) -> Text {
+    let mut t = Text::new();
+    // A message too long for the buffer keeps what fitted.
+    let _ = t.write_fmt(args);
+    t
 }
 
-/// Prints `error: <what>` and leaves QEMU with a failure status. Init and idle.
+/// An error: `error: <what>` in the result file (the run fails) and in the log. Init and tasks,
+/// never the frame or pulse-end ISR.
+fn error(what: fmt::Arguments) {
+    log_error(&report(what));
+}
+
+/// `error: <what>` in the result file, at once (one semihosting write, no critical section);
+/// returns the text for the log.
+fn report(what: fmt::Arguments) -> Text {
+    let t = text(what);
+    results::line(format_args!("error: {}", t));
+    t
+}
+
+/// An error in the log. The logger's critical section lasts about 30 instructions per byte (1 197
+/// for a 38-character line, measured at shift 4): 19 us in which no frame can start.
+fn log_error(t: &Text) {
+    defmt::error!("{=str}", t.as_str());
+}
+
+/// Reports an error ([`error`]) and leaves QEMU with a failure status. Init and idle.
 fn fail(what: fmt::Arguments) -> ! {
-    Out::open().line(format_args!("error: {}", what));
+    error(what);
     exit(false)
 }
 
@@ -80,11 +111,19 @@ fn exit(ok: bool) -> ! {
     }
 }
 
-/// Any context: prints the panic through semihosting and exits with failure.
+/// Set by the first panic: a panic inside the panic handler (the logger taken where the first
+/// panic struck) only exits.
+static PANICKED: AtomicBool = AtomicBool::new(false);
+
+/// Any context: `panic: <message>` in the result file and in the log, exit with failure.
 #[panic_handler]
 fn panic(info: &PanicInfo) -> ! {
     cortex_m::interrupt::disable();
-    Out::open().line(format_args!("panic: {}", info));
+    if !PANICKED.swap(true, Ordering::Relaxed) {
+        let t = text(format_args!("{}", info));
+        results::line(format_args!("panic: {}", t));
+        defmt::error!("panic: {=str}", t.as_str());
+    }
     exit(false)
 }
 
@@ -114,7 +153,7 @@ mod app {
     use millac_hal::storage::FileStorage;
     use millac_hal::uart::TX_QUEUE;
 
-    use super::{exit, fail, Out};
+    use super::{error, exit, fail, log_error, report, results, text, Text};
 
     /// The board this binary drives (a unit struct: its ports are `&mut B`).
     use millac_hal::lm3s6965::Lm3s6965 as B;
@@ -169,6 +208,8 @@ mod app {
         alarms: Queue<Alarm, ALARM_QUEUE> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
+        // The result file first: everything after may report into it.
+        results::create();
         // The stored record (validated as a whole), or the defaults.
         let (table, status) = Persistent::load(FileStorage);
         let refused = match status {
@@ -295,7 +336,7 @@ mod app {
             // The host has gone: without samples the AC cannot guard the cut. Said once; the
             // periods go on, see no samples and hold, and the run ends as after any hold.
             Sampled::Lost(due) => {
-                Out::open().line(format_args!("error: simulated ADC lost"));
+                error(format_args!("simulated ADC lost"));
                 due
             }
             Sampled::Ok(due) => due,
@@ -315,7 +356,9 @@ mod app {
         };
         let p = task.run(due);
         if let Some(a) = p.alarm {
-            Out::open().line(format_args!("alarm: {}", a));
+            let t = text(format_args!("{}", a));
+            results::line(format_args!("alarm: {}", t));
+            defmt::warn!("alarm: {=str}", t.as_str());
         }
         if p.halt && !SERIAL.load(Relaxed) {
             let [x, y, z] = [
@@ -323,13 +366,18 @@ mod app {
                 STATUS.position[1].load(Relaxed),
                 STATUS.position[2].load(Relaxed),
             ];
-            Out::open().line(format_args!(
+            let blocks = STATUS.blocks_done.load(Relaxed);
+            results::line(format_args!(
                 "millac: hold blocks={} position={},{},{}",
-                STATUS.blocks_done.load(Relaxed),
+                blocks, x, y, z
+            ));
+            defmt::warn!(
+                "held: blocks={=u32} position={=i32},{=i32},{=i32}",
+                blocks,
                 x,
                 y,
                 z
-            ));
+            );
             exit(false);
         }
     }
@@ -338,9 +386,10 @@ mod app {
     #[idle(local = [producer, settings, table, refused, ceiling, proto, tx, ac_alarms])]
     fn idle(cx: idle::Context) -> ! {
         let producer = cx.local.producer;
-        let mut out = Out::open();
         let (settings, ceiling) = (cx.local.settings, *cx.local.ceiling);
-        let ok = match load(producer, settings, ceiling, *cx.local.refused, &mut out) {
+        // The loader's errors, logged once the machine is idle (see `load`).
+        let mut errors = Errors::new();
+        let ok = match load(producer, settings, ceiling, *cx.local.refused, &mut errors) {
             Loaded::All => true,
             Loaded::Error => false,
             // No program file: the operator streams G-code over the serial line.
@@ -368,20 +417,31 @@ mod app {
         while producer.len() != 0 || !STATUS.idle.load(Relaxed) {
             cortex_m::asm::nop();
         }
+        for t in &errors {
+            log_error(t);
+        }
         let [x, y, z] = [
             STATUS.position[0].load(Relaxed),
             STATUS.position[1].load(Relaxed),
             STATUS.position[2].load(Relaxed),
         ];
-        out.line(format_args!(
+        let blocks = STATUS.blocks_done.load(Relaxed);
+        results::line(format_args!(
             "millac: blocks={} position={},{},{}",
-            STATUS.blocks_done.load(Relaxed),
+            blocks, x, y, z
+        ));
+        defmt::info!(
+            "done: blocks={=u32} position={=i32},{=i32},{=i32}",
+            blocks,
             x,
             y,
             z
-        ));
+        );
         exit(ok)
     }
+
+    /// The loader's error messages for the log (more are in the result file only).
+    type Errors = heapless::Vec<Text, 2>;
 
     /// How loading ended.
     enum Loaded {
@@ -393,22 +453,28 @@ mod app {
         NoFile,
     }
 
-    /// Reads, parses and queues the program. Errors are printed here. With a refused settings
-    /// record nothing runs (see "Settings" in the crate docs).
+    /// Reads, parses and queues the program. With a refused settings record nothing runs (see
+    /// "Settings" in the crate docs). Errors go to the result file at once and into `errors` for
+    /// the log, which the loader writes once the accepted blocks have run: the blocks before an
+    /// error still run, and the logger's critical section (tens of microseconds for a long line)
+    /// must not hold back a frame, at a rapid period of 38 us.
     fn load(
         producer: &mut Producer<'static, Block, QUEUE>,
         settings: &Settings,
         ceiling: Option<FeedCeiling>,
         refused: Option<RecordError>,
-        out: &mut Out,
+        errors: &mut Errors,
     ) -> Loaded {
+        let mut refuse = |what: core::fmt::Arguments| {
+            let _ = errors.push(report(what));
+        };
         let mut enqueue = |b: Block| millac::rt::loader::enqueue_block(producer, b);
         let Some(fd) = semihost::open(b"program.nc\0", nr::open::R) else {
             return Loaded::NoFile;
         };
         if let Some(e) = refused {
-            out.line(format_args!(
-                "error: settings: {}; nothing runs (fix or remove {})",
+            refuse(format_args!(
+                "settings: {}; nothing runs (fix or remove {})",
                 e.message(),
                 millac::wire::SETTINGS_NAME
             ));
@@ -425,7 +491,7 @@ mod app {
         let mut ok = true;
         loop {
             let Some(n) = semihost::read(fd, &mut chunk) else {
-                out.line(format_args!("error: cannot read program.nc"));
+                refuse(format_args!("cannot read program.nc"));
                 ok = false;
                 // What was accepted still runs.
                 let _ = tape.finish(&mut enqueue);
@@ -438,7 +504,7 @@ mod app {
                 tape.feed(bytes, &mut enqueue)
             };
             if let Err(e) = result {
-                out.line(format_args!("error: {}", e));
+                refuse(format_args!("{}", e));
                 ok = false;
             }
             if tape.done() {
