@@ -26,14 +26,7 @@ const BUDGET: u64 = 199;
 #[path = "common/programs.rs"]
 mod programs;
 
-fn stats(v: &[u64]) -> (u64, u64, u64) {
-    if v.is_empty() {
-        return (0, 0, 0);
-    }
-    let mut s = v.to_vec();
-    s.sort_unstable();
-    (s[0], s[s.len() / 2], s[s.len() - 1])
-}
+use programs::stats;
 
 fn run(elf: &Path, dir: &Path, program: &str, handlers: &[HandlerSpec]) -> Result<Vec<Vec<u64>>> {
     std::fs::create_dir_all(dir)?;

@@ -23,14 +23,7 @@ use std::time::Duration;
 #[path = "common/programs.rs"]
 mod programs;
 
-fn stats(v: &[u64]) -> (u64, u64, u64) {
-    if v.is_empty() {
-        return (0, 0, 0);
-    }
-    let mut s = v.to_vec();
-    s.sort_unstable();
-    (s[0], s[s.len() / 2], s[s.len() - 1])
-}
+use programs::stats;
 
 fn main() -> Result<()> {
     let elf = build_board(&NUCLEO_F446RE_QEMU)?;

@@ -1,5 +1,6 @@
 //! The programs of the frame budget benchmarks (`frame_budget` for the QEMU board,
-//! `frame_budget_f446` for the Nucleo-F446RE under QEMU): one small program per block type.
+//! `frame_budget_f446` for the Nucleo-F446RE under QEMU): one small program per block type, and
+//! the statistics both print.
 
 /// (name, program). Each runs for well under a second of virtual time.
 pub const PROGRAMS: &[(&str, &str)] = &[
@@ -52,4 +53,14 @@ pub fn all() -> Vec<(&'static str, String)> {
             (name, text)
         })
         .collect()
+}
+
+/// (min, median, max) of instruction counts; zeros when there are none.
+pub fn stats(v: &[u64]) -> (u64, u64, u64) {
+    if v.is_empty() {
+        return (0, 0, 0);
+    }
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    (s[0], s[s.len() / 2], s[s.len() - 1])
 }
