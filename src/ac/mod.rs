@@ -20,6 +20,7 @@
 pub mod drr;
 pub mod ecr;
 pub mod frc;
+pub mod law;
 pub mod plaus;
 pub mod settings;
 #[cfg(test)]
@@ -183,6 +184,8 @@ pub struct AcController {
     band: plaus::Band,
     /// Periods with F*R/T of the window peaks outside the band since the last one inside it.
     mismatch: u32,
+    /// The feed law (strategy): the paper's FRC unless [`AcController::with_law`] says otherwise.
+    law: law::FeedLaw,
 }
 
 /// Applies the feed ceiling of an enabled AC to a validated block before it is queued (loader task):
@@ -231,8 +234,16 @@ impl AcController {
             achieved: None,
             band: plaus::Band::new(&s),
             mismatch: 0,
+            law: law::FeedLaw::Paper,
             s,
         })
+    }
+
+    /// The controller with another feed law (see [`law`]); the holds, the clamps, the
+    /// anti-windup lead and the ceilings stay as they are.
+    pub fn with_law(mut self, law: law::FeedLaw) -> Self {
+        self.law = law;
+        self
     }
 
     /// Anti-windup (beyond the paper). The frame takes min(programmed feed, cap), so while the
@@ -334,7 +345,14 @@ impl AcController {
                 (None, _) if mismatch.is_some() => mismatch,
                 (None, None) => Some(Alarm::NoSamples),
                 (None, Some(_)) => {
-                    let f = frc::next_feed(self.f, self.e, self.step, self.s.f_min, self.s.f_max);
+                    let f = self.law.next(
+                        self.f,
+                        self.e,
+                        achieved.unwrap_or(self.f),
+                        self.step,
+                        self.s.f_min,
+                        self.s.f_max,
+                    );
                     // While force and torque disagree the measured load may be too low: no raise.
                     self.f = if self.s.ft_periods > 0 && out_of_band {
                         f.min(self.f)
@@ -370,6 +388,7 @@ impl AcController {
         if let AcState::Hold(_) = self.state {
             self.state = AcState::Run;
             self.f = self.s.f_min;
+            self.law.resume();
         }
     }
 }

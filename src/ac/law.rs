@@ -1,0 +1,333 @@
+//! The AC's feed laws (strategies): how the feed of the next period follows from the load
+//! measured in this one. Called from the AC period (`AcController::period`, AC task; the host
+//! simulation runs the same code). The controller around a law keeps everything else as it is for
+//! every law: the DRR and its sensor holds, the overload hold, the clamp to [f_min, f_max], the
+//! anti-windup lead over the achieved feed, and the programmed-feed ceiling (the frame takes
+//! min(programmed feed, cap)).
+//!
+//! The laws see the load as y = 1 - E, the critical one of F/F0 and T/T0 (the paper's E, Eq. 5),
+//! so every law regulates y to its reference 1 (F = F0, or T = T0 where the torque binds), and the
+//! feed as u = f / f_max (0..1), so their parameters do not depend on the feed unit.
+//!
+//! - [`Strategy::Paper`]: Tlusty, Koren and McNeil's FRC (Fig. 7, Eqs. 6-8, `frc`).
+//! - [`Strategy::Integral`]: Ulsoy, Koren and Lauderbaugh's fixed-gain integral law (their Eq. 2),
+//!   u(k) = u(k-1) + k_i (1 - y(k)), the gain by pole assignment for a nominal process
+//!   y(k) = a y(k-1) + b u(k-1) (see [`IntegralLaw`]).
+//! - [`Strategy::Mrac`]: their model reference adaptive law (Eqs. 3-4): reference model
+//!   y_m(k+1) = 0.5 y_m(k) + 0.5, control u(k) = [y_m(k+1) - 0.5 y_m(k) - (p^ - 0.5) y(k)] / b^,
+//!   the process parameters p^, b^ estimated on line by the constant-trace recursive least squares
+//!   of [`Rls`] (the estimator the thesis' GPC uses; an equivalent of the Lozano-Landau adaptation
+//!   the paper cites: a least-squares parameter adaptation with a bounded gain).
+
+use super::frc;
+
+/// Which feed law the AC runs (`$251`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Strategy {
+    /// The paper's FRC (default).
+    Paper,
+    /// Fixed-gain integral control.
+    Integral,
+    /// Model reference adaptive control with an on-line estimate of the process.
+    Mrac,
+}
+
+/// The process pole `a` the integral gain and the MRAC's initial estimate assume (Ulsoy, Koren and
+/// Lauderbaugh's a1 = -0.1: y(k) = 0.1 y(k-1) + b u(k-1)).
+pub const NOMINAL_POLE: f32 = 0.1;
+
+/// The integral law's gain for a nominal process y(k) = a y(k-1) + b u(k-1) with the steady gain
+/// y = 1 at u = `u_nominal` (b = (1 - a) / u_nominal).
+///
+/// Pole assignment: with u(k) = u(k-1) + k_i (1 - y(k)) the closed loop's characteristic
+/// polynomial is z^2 - (1 + a - b k_i) z + a. One gain moves only the sum of the two poles (their
+/// product is the process pole a); k_i = (1 + a) / b puts the sum at zero, the poles at
+/// +-j sqrt(a): the fastest decay the law can have on the nominal process (|z| = 0.32 at a = 0.1).
+/// On a process with n times the nominal b (n times the depth of cut) the sum is (1 + a)(1 - n):
+/// at n = 2 a pole reaches -1 (sustained oscillation), above it the loop is unstable, the
+/// behaviour of the paper's Fig. 2.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IntegralLaw {
+    pub ki: f32,
+}
+
+impl IntegralLaw {
+    pub fn tuned(a: f32, u_nominal: f32) -> Self {
+        let b = (1.0 - a) / u_nominal;
+        IntegralLaw { ki: (1.0 + a) / b }
+    }
+
+    /// u(k) = u(k-1) + k_i (1 - y).
+    pub fn next(&self, u: f32, y: f32) -> f32 {
+        u + self.ki * (1.0 - y)
+    }
+}
+
+/// Recursive least squares with a constant trace and a dead zone, for two parameters
+/// theta = [p, b] of y(k) = p y(k-1) + b u(k-1) (the thesis' estimator, section 3.1.3, on the
+/// model the MRAC uses). After each update the covariance is scaled back to its initial trace, so
+/// the estimator keeps tracking a process that changes (a step in the depth of cut) without the
+/// gain blowing up when nothing excites it; a prediction error inside the dead zone updates
+/// nothing (noise and quantisation do not make the estimates wander).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rls {
+    pub theta: [f32; 2],
+    p: [[f32; 2]; 2],
+    trace: f32,
+    dead_zone: f32,
+}
+
+impl Rls {
+    pub fn new(theta: [f32; 2], trace: f32, dead_zone: f32) -> Self {
+        let d = trace / 2.0;
+        Rls {
+            theta,
+            p: [[d, 0.0], [0.0, d]],
+            trace,
+            dead_zone,
+        }
+    }
+
+    /// The model's prediction of y from the regressor phi = [y(k-1), u(k-1)].
+    pub fn predict(&self, phi: [f32; 2]) -> f32 {
+        self.theta[0] * phi[0] + self.theta[1] * phi[1]
+    }
+
+    /// One update with the regressor phi and the measured y; returns the prediction error.
+    pub fn update(&mut self, phi: [f32; 2], y: f32) -> f32 {
+        let err = y - self.predict(phi);
+        if !(err.abs() > self.dead_zone) {
+            return err;
+        }
+        let p = &self.p;
+        let pphi = [
+            p[0][0] * phi[0] + p[0][1] * phi[1],
+            p[1][0] * phi[0] + p[1][1] * phi[1],
+        ];
+        let den = 1.0 + phi[0] * pphi[0] + phi[1] * pphi[1];
+        let k = [pphi[0] / den, pphi[1] / den];
+        self.theta[0] += k[0] * err;
+        self.theta[1] += k[1] * err;
+        // P = P - P phi phi' P / den, then scaled to the constant trace.
+        let mut n = [[0.0f32; 2]; 2];
+        for (i, row) in n.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = p[i][j] - pphi[i] * pphi[j] / den;
+            }
+        }
+        let t = n[0][0] + n[1][1];
+        if t > 0.0 && t.is_finite() {
+            let s = self.trace / t;
+            for row in n.iter_mut() {
+                for v in row.iter_mut() {
+                    *v *= s;
+                }
+            }
+            self.p = n;
+        }
+        err
+    }
+}
+
+/// The MRAC law's state: the reference model's output and the estimator.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MracLaw {
+    pub ym: f32,
+    pub rls: Rls,
+    /// The smallest b^ the control divides by (a fraction of the nominal b): an estimate driven
+    /// towards zero (air: load 0 at any feed) must not ask for an unbounded feed.
+    b_min: f32,
+    /// The last period's y, for the regressor.
+    y_prev: f32,
+}
+
+/// The estimator's constant trace. The regressor [y, u] is of order 1 (load and feed both
+/// normalised), so a trace of 20 gives gains close to those of a fresh least-squares estimate: a
+/// step in the process gain is tracked within a few periods (`rls_with_a_constant_trace_...`);
+/// with a trace of 2 it took hundreds.
+pub const RLS_TRACE: f32 = 20.0;
+/// The estimator's dead zone on the prediction error (1 % of the reference load).
+pub const RLS_DEAD_ZONE: f32 = 0.01;
+
+/// The reference model's pole (the paper's 0.5).
+pub const MRAC_MODEL_POLE: f32 = 0.5;
+
+impl MracLaw {
+    /// Starts from the nominal process (a, b = (1 - a) / u_nominal) and y_m = 0.
+    pub fn new(a: f32, u_nominal: f32) -> Self {
+        let b = (1.0 - a) / u_nominal;
+        MracLaw {
+            ym: 0.0,
+            rls: Rls::new([a, b], RLS_TRACE, RLS_DEAD_ZONE),
+            b_min: 0.25 * b,
+            y_prev: 0.0,
+        }
+    }
+
+    /// One period: `y` measured now, `u_prev` the (normalised) feed the process had over the
+    /// period that produced it. Updates the estimate, advances the reference model, returns u(k).
+    pub fn next(&mut self, y: f32, u_prev: f32) -> f32 {
+        self.rls.update([self.y_prev, u_prev], y);
+        self.y_prev = y;
+        let [p, b] = self.rls.theta;
+        let b = if b > self.b_min { b } else { self.b_min };
+        let ym_next = MRAC_MODEL_POLE * self.ym + (1.0 - MRAC_MODEL_POLE);
+        // The error y - y_m decays with the model's pole: y(k+1) = y_m(k+1) + 0.5 (y(k) - y_m(k)).
+        let u = (ym_next + MRAC_MODEL_POLE * (y - self.ym) - p * y) / b;
+        self.ym = ym_next;
+        u
+    }
+}
+
+/// A feed law with its state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FeedLaw {
+    Paper,
+    Integral(IntegralLaw),
+    Mrac(MracLaw),
+}
+
+impl FeedLaw {
+    /// The law of `strategy` for a nominal feed `f_nominal` (feed number at which the nominal cut
+    /// reaches the reference load) out of `f_max`.
+    pub fn new(strategy: Strategy, f_nominal: u32, f_max: u32) -> Self {
+        let u_nom = f_nominal.max(1) as f32 / f_max.max(1) as f32;
+        match strategy {
+            Strategy::Paper => FeedLaw::Paper,
+            Strategy::Integral => FeedLaw::Integral(IntegralLaw::tuned(NOMINAL_POLE, u_nom)),
+            Strategy::Mrac => FeedLaw::Mrac(MracLaw::new(NOMINAL_POLE, u_nom)),
+        }
+    }
+
+    /// The next feed number (before the controller's clamps) from the current one `f`, the
+    /// critical error `e` and the feed the process achieved over the last period (`achieved`,
+    /// the current feed when unknown). `step` is the FRC's fdot_m x dt.
+    pub fn next(
+        &mut self,
+        f: u32,
+        e: f32,
+        achieved: u32,
+        step: f32,
+        f_min: u32,
+        f_max: u32,
+    ) -> u32 {
+        let scale = f_max.max(1) as f32;
+        let to_feed = |u: f32| {
+            // `as` saturates and maps NaN to 0; the clamp keeps the law's range.
+            let n = (u * scale) as i64;
+            n.clamp(f_min as i64, f_max as i64) as u32
+        };
+        match self {
+            FeedLaw::Paper => frc::next_feed(f, e, step, f_min, f_max),
+            FeedLaw::Integral(l) => to_feed(l.next(f as f32 / scale, 1.0 - e)),
+            FeedLaw::Mrac(l) => to_feed(l.next(1.0 - e, achieved as f32 / scale)),
+        }
+    }
+
+    /// After a hold, the law restarts from the controller's f_min: the reference model from the
+    /// load now (0: the machine stands), the estimate kept.
+    pub fn resume(&mut self) {
+        if let FeedLaw::Mrac(l) = self {
+            l.ym = 0.0;
+            l.y_prev = 0.0;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::vec::Vec;
+
+    /// Ulsoy, Koren and Lauderbaugh's simulation (their Figs. 2 and 3): the process
+    /// y(k) = 0.1 y(k-1) + b0 u(k-1) with b0 proportional to the depth of cut, 1 -> 2 -> 3 mm at
+    /// equal lengths; the laws tuned for 1 mm (steady y = 1 at f = 1500 of 3000). Returns y(k).
+    fn depth_steps(strategy: Strategy, periods_per_depth: usize) -> Vec<f32> {
+        let (f_min, f_max, f_nom) = (1u32, 3000u32, 1500u32);
+        let b1 = (1.0 - NOMINAL_POLE) / (f_nom as f32 / f_max as f32);
+        let mut law = FeedLaw::new(strategy, f_nom, f_max);
+        let (mut y, mut f) = (0.0f32, f_min);
+        let mut out = Vec::new();
+        for depth in 1..=3 {
+            for _ in 0..periods_per_depth {
+                y = NOMINAL_POLE * y + depth as f32 * b1 * (f as f32 / f_max as f32);
+                out.push(y);
+                f = law.next(f, 1.0 - y, f, 750.0, f_min, f_max);
+            }
+        }
+        out
+    }
+
+    fn spread(y: &[f32]) -> f32 {
+        let max = y.iter().cloned().fold(f32::MIN, f32::max);
+        let min = y.iter().cloned().fold(f32::MAX, f32::min);
+        max - min
+    }
+
+    #[test]
+    fn integral_tuned_at_1_mm_settles_there_and_oscillates_at_3_mm() {
+        let n = 300;
+        let y = depth_steps(Strategy::Integral, n);
+        // 1 mm: settled on the reference.
+        assert!(
+            y[n - 50..n].iter().all(|v| (v - 1.0).abs() < 0.01),
+            "{:?}",
+            &y[n - 5..n]
+        );
+        // 3 mm: the oscillation does not die out (the unstable loop runs into the feed limits).
+        let late = &y[3 * n - 100..3 * n];
+        assert!(spread(late) > 1.0, "spread {}", spread(late));
+        // ... and it is no start-up transient: just as large at the end as after the step.
+        let early = &y[2 * n + 10..2 * n + 110];
+        assert!(spread(late) >= 0.9 * spread(early));
+    }
+
+    #[test]
+    fn mrac_stays_within_a_band_of_its_reference_at_every_depth() {
+        let n = 300;
+        let y = depth_steps(Strategy::Mrac, n);
+        for depth in 0..3 {
+            // After 20 periods of adaptation and the model's own rise, within 5 % of the
+            // reference (the model's output has reached 1 within 1e-6 by then).
+            let seg = &y[depth * n + 20..(depth + 1) * n];
+            let worst = seg.iter().map(|v| (v - 1.0).abs()).fold(0.0, f32::max);
+            assert!(worst < 0.05, "depth {}: {worst}", depth + 1);
+        }
+    }
+
+    #[test]
+    fn the_integral_gain_places_the_nominal_poles_at_plus_minus_j_sqrt_a() {
+        let l = IntegralLaw::tuned(0.1, 0.5);
+        let b = 0.9 / 0.5;
+        // z^2 - (1 + a - b ki) z + a: the sum of the poles is zero.
+        assert!((1.0 + 0.1 - b * l.ki).abs() < 1e-6);
+    }
+
+    #[test]
+    fn rls_with_a_constant_trace_tracks_a_step_in_the_process_gain() {
+        let mut r = Rls::new([0.1, 1.0], RLS_TRACE, 0.0);
+        let (mut y, mut k) = (0.0f32, 0u32);
+        for b in [1.8f32, 3.6] {
+            for _ in 0..100 {
+                // A varying feed: the regressor stays excited.
+                k += 1;
+                let u = 0.3 + 0.2 * ((k % 7) as f32 / 7.0);
+                let y_new = 0.1 * y + b * u;
+                r.update([y, u], y_new);
+                y = y_new;
+            }
+            assert!(
+                (r.theta[1] - b).abs() < 0.01 * b,
+                "b^ {} for {b}",
+                r.theta[1]
+            );
+            assert!((r.theta[0] - 0.1).abs() < 0.01, "p^ {}", r.theta[0]);
+        }
+        // The dead zone: errors inside it change nothing.
+        let mut r = Rls::new([0.1, 1.0], RLS_TRACE, 0.05);
+        let before = r.theta;
+        r.update([0.5, 0.5], 0.1 * 0.5 + 1.0 * 0.5 + 0.04);
+        assert_eq!(r.theta, before);
+    }
+}
