@@ -96,7 +96,8 @@ impl Rls {
     /// One update with the regressor phi and the measured y; returns the prediction error.
     pub fn update(&mut self, phi: [f32; 2], y: f32) -> f32 {
         let err = y - self.predict(phi);
-        if !(err.abs() > self.dead_zone) {
+        // Inside the dead zone, or not a number (a NaN updates nothing either).
+        if err.is_nan() || err.abs() <= self.dead_zone {
             return err;
         }
         let p = &self.p;
