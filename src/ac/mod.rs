@@ -184,7 +184,8 @@ pub struct AcController {
     band: plaus::Band,
     /// Periods with F*R/T of the window peaks outside the band since the last one inside it.
     mismatch: u32,
-    /// The feed law (strategy): the paper's FRC unless [`AcController::with_law`] says otherwise.
+    /// The feed law (strategy): the settings' (`AcSettings::strategy`), or another one from
+    /// [`AcController::with_law`].
     law: law::FeedLaw,
 }
 
@@ -234,7 +235,7 @@ impl AcController {
             achieved: None,
             band: plaus::Band::new(&s),
             mismatch: 0,
-            law: law::FeedLaw::Paper,
+            law: law::FeedLaw::new(s.strategy, s.nominal_feed, s.f_max),
             s,
         })
     }

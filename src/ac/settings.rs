@@ -112,6 +112,12 @@ pub struct AcSettings {
     /// What the frame's feed ceiling is while the AC runs: the programmed feed (default, the
     /// frame takes min(programmed, cap)) or FRM, so the AC alone sets the feed up to `f_max`.
     pub ceiling: FeedCeiling,
+    /// The feed law (`$251`, see `super::law`): the paper's FRC by default.
+    pub strategy: super::law::Strategy,
+    /// The nominal feed of the integral and MRAC laws (`$264`), feed number: the feed at which
+    /// the nominal cut reaches F0 (their gain and initial estimate come from it). Default 1500 =
+    /// 15 ipm, in [f_min, f_max].
+    pub nominal_feed: u32,
 }
 
 /// The feed ceiling under adaptive control (see [`AcSettings::ceiling`]).
@@ -167,6 +173,8 @@ impl Default for AcSettings {
             ft_periods: 5,
             peak_windows: 3,
             ceiling: FeedCeiling::Programmed,
+            strategy: super::law::Strategy::Paper,
+            nominal_feed: 1500,
         }
     }
 }
@@ -192,6 +200,7 @@ pub enum AcSettingsError {
     ForceTorqueBand,
     ForceTorqueFloor,
     ForceTorquePeriods,
+    NominalFeed,
 }
 
 impl AcSettingsError {
@@ -223,6 +232,7 @@ impl AcSettingsError {
             AcSettingsError::ForceTorqueBand => {
                 "F*R/T band must be finite with 0 < ft_ratio_min < ft_ratio_max <= 100"
             }
+            AcSettingsError::NominalFeed => "the nominal feed must be within [f_min, f_max]",
             AcSettingsError::ForceTorquePeriods => {
                 "force/torque mismatch count must be 0 (off) ..=100000 AC periods"
             }
@@ -276,6 +286,9 @@ impl AcSettings {
         }
         if !(1 <= self.f_min && self.f_min <= self.f_max && self.f_max <= 1_000_000) {
             return Err(AcSettingsError::FeedRange);
+        }
+        if !(self.f_min..=self.f_max).contains(&self.nominal_feed) {
+            return Err(AcSettingsError::NominalFeed);
         }
         let o = self.overload_e;
         if !(o.is_finite() && (-1.0..0.0).contains(&o)) {

@@ -641,3 +641,26 @@ fn anti_windup_keeps_f_one_step_above_the_achieved_feed() {
     let next = window(&mut c, air).feed_cap;
     assert!(next > 1950);
 }
+
+/// `$251` picks the feed law: the controller built from the settings runs it.
+#[test]
+fn the_settings_strategy_picks_the_controllers_feed_law() {
+    use super::law::{FeedLaw, Strategy};
+    for (strategy, want) in [
+        (Strategy::Paper, "Paper"),
+        (Strategy::Integral, "Integral"),
+        (Strategy::Mrac, "Mrac"),
+    ] {
+        let s = AcSettings {
+            strategy,
+            ..AcSettings::default()
+        };
+        let c = AcController::new(s).unwrap();
+        let name = match c.law {
+            FeedLaw::Paper => "Paper",
+            FeedLaw::Integral(_) => "Integral",
+            FeedLaw::Mrac(_) => "Mrac",
+        };
+        assert_eq!(name, want);
+    }
+}

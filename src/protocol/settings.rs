@@ -46,12 +46,9 @@ impl Default for ReportSettings {
     }
 }
 
-/// Adaptive-control strategy (`$251`). Only the paper's exists; the number is reserved for more.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum AcStrategy {
-    /// Tlusty, Koren and McNeil's FRC (with millac's anti-windup and held peak). Code 0.
-    Paper,
-}
+/// Adaptive-control strategy (`$251`): the AC's feed law, `AcSettings::strategy` (codes 0 the
+/// paper's FRC, 1 integral, 2 MRAC).
+pub use crate::ac::law::Strategy as AcStrategy;
 
 /// Everything the settings table and the persistent record hold.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,7 +57,6 @@ pub struct MachineSettings {
     pub ac: AcSettings,
     /// `$250`: adaptive control on. Default true.
     pub ac_enabled: bool,
-    pub strategy: AcStrategy,
     pub report: ReportSettings,
     /// `$30`: the spindle speed (rpm) of full PWM duty on a board with a spindle output (grbl's
     /// max spindle speed; S above it runs at full duty). Default 1000, as grbl's.
@@ -73,7 +69,6 @@ impl Default for MachineSettings {
             nc: Settings::default(),
             ac: AcSettings::default(),
             ac_enabled: true,
-            strategy: AcStrategy::Paper,
             report: ReportSettings::default(),
             spindle_max_rpm: 1000,
         }

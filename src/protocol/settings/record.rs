@@ -28,7 +28,7 @@ use crate::settings::{Blu, BoardLimits, Settings};
 pub const MAGIC: [u8; 4] = *b"MLST";
 pub const VERSION: u16 = 2;
 pub const HEADER_LEN: usize = 8;
-pub const PAYLOAD_LEN: usize = 179;
+pub const PAYLOAD_LEN: usize = 183;
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF): the
@@ -198,10 +198,12 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     n.soft_max.into_iter().for_each(|v| p.i32(v));
     n.accel_blu_s2.into_iter().for_each(|v| p.u32(v));
     p.u8(s.ac_enabled as u8);
-    p.u8(match s.strategy {
-        AcStrategy::Paper => 0,
-    });
     let a = &s.ac;
+    p.u8(match a.strategy {
+        AcStrategy::Paper => 0,
+        AcStrategy::Integral => 1,
+        AcStrategy::Mrac => 2,
+    });
     p.u32(a.sample_hz);
     p.u32(a.period_ms);
     for c in a.cal {
@@ -240,6 +242,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     p.u8(s.report.status_mask);
     p.u8(s.report.inches as u8);
     p.u32(s.spindle_max_rpm);
+    p.u32(s.ac.nominal_feed);
     let end = p.pos;
     let crc = crc32(img.get(..end).unwrap_or(&[]));
     let mut p = Put {
@@ -307,6 +310,8 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let ac_enabled = t.bool()?;
     let strategy = match t.u8()? {
         0 => Some(AcStrategy::Paper),
+        1 => Some(AcStrategy::Integral),
+        2 => Some(AcStrategy::Mrac),
         _ => None,
     };
     let (sample_hz, period_ms) = (t.u32()?, t.u32()?);
@@ -340,6 +345,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let status_mask = t.u8()?;
     let inches = t.bool()?;
     let spindle_max_rpm = t.u32()?;
+    let nominal_feed = t.u32()?;
     let build = || {
         Some(MachineSettings {
             nc: Settings {
@@ -378,9 +384,10 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
                 ft_periods,
                 peak_windows,
                 ceiling: ceiling?,
+                strategy: strategy?,
+                nominal_feed,
             },
             ac_enabled: ac_enabled?,
-            strategy: strategy?,
             report: ReportSettings {
                 status_mask,
                 inches: inches?,

@@ -143,7 +143,7 @@ macro_rules! mirror {
 /// millac's own from `$200` (NC) and `$250` (adaptive control). `$200` (the BLU) comes first: the
 /// settings listed in mm are kept in BLU, so a listing restored line by line onto the defaults
 /// changes the BLU before it sets them.
-pub static TABLE: [Entry; 54] = [
+pub static TABLE: [Entry; 55] = [
     Entry {
         number: 200,
         name: "BLU",
@@ -349,13 +349,18 @@ pub static TABLE: [Entry; 54] = [
     ),
     flag!(
         251,
-        "AC strategy (0 paper)",
-        |m| match m.strategy {
+        "AC strategy (0 paper, 1 integral, 2 MRAC)",
+        |m| match m.ac.strategy {
             AcStrategy::Paper => 0,
+            AcStrategy::Integral => 1,
+            AcStrategy::Mrac => 2,
         },
         |m, v| {
-            choice(v, 1)?;
-            m.strategy = AcStrategy::Paper;
+            m.ac.strategy = match choice(v, 3)? {
+                0 => AcStrategy::Paper,
+                1 => AcStrategy::Integral,
+                _ => AcStrategy::Mrac,
+            };
             Some(())
         }
     ),
@@ -430,6 +435,15 @@ pub static TABLE: [Entry; 54] = [
             };
             Some(())
         }
+    ),
+    int!(
+        264,
+        "AC nominal feed (integral, MRAC)",
+        "feed",
+        Unit::One,
+        u32,
+        false,
+        ac.nominal_feed
     ),
     real!(270, "T gain", "N*m/code", true, ac.cal[0].gain),
     real!(271, "Fu gain", "N/code", true, ac.cal[1].gain),
