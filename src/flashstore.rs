@@ -7,7 +7,7 @@
 //! Meant for the STM32F446RE's last sector (sector 7, 128 KiB at 0x0806_0000): 512 slots of
 //! [`SLOT_LEN`] bytes, so a sector erase (~1-2 s, reads stall meanwhile) comes once every 512
 //! stores, and 10 000 erase cycles last 5 million stores. A store programs `(8 + n) / 4` rounded up
-//! words plus two (a 187-byte settings record: 51 words, ~1 ms at ~16 us a word).
+//! words plus two (a 195-byte settings record: 53 words, ~1 ms at ~16 us a word).
 //!
 //! Slot layout (little-endian words, as a Cortex-M stores them), slot `k` at sector offset
 //! `k * SLOT_LEN`:

@@ -217,9 +217,11 @@ impl<S: embedded_hal::digital::OutputPin, D: embedded_hal::digital::OutputPin> S
     }
 }
 
-/// [`OperatorInputs`] over embedded-hal input pins, active low (switches to ground with pull-ups,
-/// the usual wiring; an e-stop is normally closed, so a broken wire reads as pressed). A pin that
-/// cannot be read counts as active (safe side). No debouncing here: [`crate::inputs::Debouncer`] does it.
+/// [`OperatorInputs`] over embedded-hal input pins with pull-ups, contacts to ground (the usual
+/// wiring). The buttons and limit switches are normally open: active low. The e-stop is a normally
+/// closed contact: closed (low) while released, so it is active HIGH: pressed, or its wire broken,
+/// the pull-up takes the pin high and the machine stops. A pin that cannot be read counts as
+/// active (safe side). No debouncing here: [`crate::inputs::Debouncer`] does it.
 pub struct PinInputs<P> {
     pub estop: P,
     pub feed_hold: P,
@@ -230,6 +232,7 @@ pub struct PinInputs<P> {
 impl<P: embedded_hal::digital::InputPin> OperatorInputs for PinInputs<P> {
     fn read(&mut self) -> Inputs {
         let active = |p: &mut P| p.is_low().unwrap_or(true);
+        let estop = self.estop.is_high().unwrap_or(true);
         let mut limits = 0u8;
         for (k, p) in self.limits.iter_mut().enumerate() {
             if active(p) {
@@ -237,7 +240,7 @@ impl<P: embedded_hal::digital::InputPin> OperatorInputs for PinInputs<P> {
             }
         }
         Inputs {
-            estop: active(&mut self.estop),
+            estop,
             feed_hold: active(&mut self.feed_hold),
             cycle_start: active(&mut self.cycle_start),
             limits,
@@ -274,26 +277,36 @@ mod tests {
         }
     }
 
+    /// Buttons and limits active low; the e-stop (normally closed) active high: released (contact
+    /// closed, low) it is not an e-stop, pressed or with its wire broken (high) it is.
     #[test]
-    fn pin_inputs_are_active_low_and_fail_safe() {
+    fn pin_inputs_are_active_low_the_estop_normally_closed() {
         let mut i = PinInputs {
-            estop: PinMock::new(&[T::get(State::High)]),
-            feed_hold: PinMock::new(&[T::get(State::Low)]),
-            cycle_start: PinMock::new(&[T::get(State::High)]),
+            estop: PinMock::new(&[T::get(State::Low), T::get(State::High)]),
+            feed_hold: PinMock::new(&[T::get(State::Low), T::get(State::High)]),
+            cycle_start: PinMock::new(&[T::get(State::High), T::get(State::Low)]),
             limits: [
-                PinMock::new(&[T::get(State::High)]),
-                PinMock::new(&[T::get(State::Low)]),
-                PinMock::new(&[T::get(State::High)]),
+                PinMock::new(&[T::get(State::High), T::get(State::High)]),
+                PinMock::new(&[T::get(State::Low), T::get(State::High)]),
+                PinMock::new(&[T::get(State::High), T::get(State::Low)]),
             ],
         };
-        let got = i.read();
         assert_eq!(
-            got,
+            i.read(),
             Inputs {
                 estop: false,
                 feed_hold: true,
                 cycle_start: false,
                 limits: 0b010,
+            }
+        );
+        assert_eq!(
+            i.read(),
+            Inputs {
+                estop: true,
+                feed_hold: false,
+                cycle_start: true,
+                limits: 0b100,
             }
         );
         for pin in [&mut i.estop, &mut i.feed_hold, &mut i.cycle_start]

@@ -28,7 +28,7 @@
 //! How the loader uses it:
 //! ```text
 //! loop {
-//!     match proto.poll(&mut uart, &mut Context { table, modes, machine, state, frame_cycles }) {
+//!     match proto.poll(&mut uart, &mut Context { table, modes, machine, state, frame_cycles, interlock }) {
 //!         Event::None => break,                      // nothing more now
 //!         Event::Gcode { line, check } => {          // parse (and queue unless check)
 //!             let r = feed_line(line, check);        // Result<(), GrblError>
@@ -113,6 +113,9 @@ pub struct Context<'a, T: SettingsTable + ?Sized> {
     /// The frame ISR's (fewest, most) cycles for `$I`, when the board measures them
     /// ([`crate::rt::Status::frame_cycles`]); None: no `[FRAME:...]` line.
     pub frame_cycles: Option<(u32, u32)>,
+    /// An alarm `$X` cannot clear now (the board's e-stop or a limit switch still active): `$X`
+    /// answers `error:9` with `[MSG:...]` and the alarm stays. None: `$X` unlocks.
+    pub interlock: Option<u8>,
 }
 
 /// What [`Protocol::poll`] found.
@@ -478,6 +481,10 @@ impl<'a> Protocol<'a> {
         let r: Result<(), GrblError> = match cmd {
             "$" => sent(report::write_help(out)),
             "$G" => sent(report::write_modes(out, &cx.modes, cx.machine, opts.inches)),
+            "$X" if cx.interlock.is_some() && self.alarm.is_some() => {
+                let _ = out.write_str("[MSG:E-stop or limit switch still active]\r\n");
+                Err(GrblError::GCODE_LOCK)
+            }
             "$X" => {
                 if self.alarm.take().is_some() {
                     self.settings_refused = None;

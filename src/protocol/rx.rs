@@ -276,6 +276,17 @@ impl RxIsr<'_> {
         Push::Stored
     }
 
+    /// `n` bytes the hardware lost before they reached [`RxIsr::push_byte`] (a receiver overrun:
+    /// the UART's data register was overwritten). They count and poison the ring exactly like
+    /// refused bytes, so the loader reports [`super::Event::RxOverflow`] (`ALARM:110`): the
+    /// sender's stream is out of step. RX interrupt.
+    pub fn lost_bytes(&mut self, n: u32) {
+        let f = self.flags;
+        f.poisoned.store(true, Relaxed);
+        f.lost
+            .store(f.lost.load(Relaxed).saturating_add(n), Relaxed);
+    }
+
     fn pend(&self, bit: u8) {
         self.flags.pending.fetch_or(bit, Relaxed);
     }

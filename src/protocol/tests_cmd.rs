@@ -211,3 +211,24 @@ fn bad_jogs_get_grbl_errors() {
         assert_eq!(r.responses(), [want], "{line}");
     }
 }
+
+/// `$X` while the board says its e-stop or a limit switch is still active: refused before anything
+/// else is said (no "Unlocked"), the alarm stays; once the interlock clears, `$X` unlocks.
+#[test]
+fn unlock_is_refused_while_the_interlock_is_active() {
+    let mut r = Rig::new();
+    r.p.alarm(10, &mut r.out);
+    r.take();
+    r.interlock = Some(10);
+    assert_eq!(
+        answer(&mut r, "$X"),
+        "[MSG:E-stop or limit switch still active]\r\nerror:9\r\n"
+    );
+    assert_eq!(r.p.alarm_code(), Some(10));
+    r.interlock = None;
+    assert_eq!(answer(&mut r, "$X"), "[MSG:Caution: Unlocked]\r\nok\r\n");
+    assert_eq!(r.p.alarm_code(), None);
+    // Without an alarm the interlock changes nothing.
+    r.interlock = Some(10);
+    assert_eq!(answer(&mut r, "$X"), "ok\r\n");
+}

@@ -116,6 +116,7 @@ fn exactly_one_answer_per_line() {
         machine: &r.machine,
         state: State::Idle,
         frame_cycles: None,
+        interlock: None,
     };
     let mut out = String::new();
     assert_eq!(

@@ -395,3 +395,18 @@ fn reset_markers_do_not_take_the_128_bytes() {
     assert_eq!(ev[0], Ev::Reset);
     assert_eq!(gcode(&ev).len(), RX_BUFFER_SIZE / 10);
 }
+
+/// Bytes the UART lost (a receiver overrun) are reported like bytes the ring refused: the line
+/// they belonged to is refused (error:11), the loss raises the overflow event with their count,
+/// and later bytes are refused until the loader has reported it.
+#[test]
+fn a_receiver_overrun_is_reported_like_a_ring_overflow() {
+    let mut r = Rig::new();
+    assert!(r.push(b"G0 X").iter().all(|p| *p == Push::Stored));
+    r.isr.lost_bytes(3);
+    assert_eq!(r.isr.push_byte(b'1'), Push::Refused);
+    let ev = r.run();
+    assert_eq!(ev.last(), Some(&Ev::Overflow(4)), "{ev:?}");
+    assert_eq!(r.feed(b"\nG0 X0.002\n").len(), 2);
+    assert_eq!(r.responses(), ["error:11", "ok"]);
+}

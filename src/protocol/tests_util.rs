@@ -69,6 +69,8 @@ pub struct Rig {
     pub line_no: u32,
     /// What the loader passes as [`Context::frame_cycles`].
     pub frame_cycles: Option<(u32, u32)>,
+    /// What the loader passes as [`Context::interlock`].
+    pub interlock: Option<u8>,
 }
 
 impl Rig {
@@ -89,6 +91,7 @@ impl Rig {
             state: State::Idle,
             line_no: 0,
             frame_cycles: None,
+            interlock: None,
         }
     }
 
@@ -106,6 +109,7 @@ impl Rig {
             machine: &self.machine,
             state: self.state,
             frame_cycles: self.frame_cycles,
+            interlock: self.interlock,
         };
         let ev = match self.p.poll(&mut self.out, &mut cx) {
             Event::None => return None,

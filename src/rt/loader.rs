@@ -75,9 +75,10 @@ pub trait LoaderBoard {
     /// queued before it has finished (grbl's buffer sync), then [`LoaderBoard::spindle`] applies
     /// it, and only then does the line's own motion queue; its `ok` comes after that.
     const SPINDLE: bool = false;
-    /// Sets the spindle output (the machine stands). Also called with `Off` on a soft reset and on
-    /// an e-stop or limit alarm.
-    fn spindle(&mut self, _state: Spindle, _rpm: u32) {}
+    /// Sets the spindle output (the machine stands): `rpm` of `max_rpm` (`$30`, as the table
+    /// holds it now: a change acts at the next spindle command). Also called with `Off` on a soft
+    /// reset and on an e-stop or limit alarm, before the queue is dropped.
+    fn spindle(&mut self, _state: Spindle, _rpm: u32, _max_rpm: u32) {}
 
     /// The operator inputs' events since the last call (debounced by the board; see
     /// `millac::inputs`).
@@ -91,6 +92,11 @@ pub trait LoaderBoard {
     /// `$X`: clears the latch; false while an e-stop or limit line is still active.
     fn acknowledge(&mut self) -> bool {
         true
+    }
+    /// The alarm is latched and an e-stop or limit line is still active (`$X` would be refused:
+    /// the protocol answers it with `error:9` before saying anything else).
+    fn latch_active(&mut self) -> bool {
+        false
     }
 
     /// The most cycles the board's frame ISR may take (its `BoardLimits::frame_work_ns` in core
@@ -210,12 +216,13 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
     // The spindle output as last applied, and a line waiting to change it.
     let mut spindle = (Spindle::Off, 0u32);
     let mut deferred: Option<Deferred> = None;
-    // The frame overran the board's limit (said once).
-    let mut overrun = false;
+    // The longest frame already reported over the board's limit (said again only when a longer
+    // one comes).
+    let mut overrun = 0u32;
     while board.running() {
         if let (Some(limit), Some((_, max))) = (board.frame_limit_cycles(), status.frame_cycles()) {
-            if max > limit && !overrun {
-                overrun = true;
+            if max > limit && max > overrun {
+                overrun = max;
                 hold = true;
                 publish(hold, overrides);
                 proto.alarm(alarm::FRAME_OVERRUN, &mut out);
@@ -248,7 +255,8 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             hold = true;
             publish(hold, overrides);
         }
-        if inputs.cycle_start && hold {
+        // An alarm (a frame overrun, a trip) keeps the hold until `$X`.
+        if inputs.cycle_start && hold && proto.alarm_code().is_none() {
             hold = false;
             publish(hold, overrides);
         }
@@ -267,10 +275,11 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             hold = false;
             publish(hold, overrides);
         }
-        // A line that changes the spindle runs once everything before it has run.
-        if let Some(d) = deferred.as_ref() {
+        // A line that changes the spindle runs once everything before it has run (not in the
+        // turn of a trip: the trip drops it below).
+        if let (Some(d), None) = (deferred.as_ref(), tripped) {
             if idle && !tape.holds_a_block() {
-                board.spindle(d.spindle, d.rpm);
+                board.spindle(d.spindle, d.rpm, table.settings.spindle_max_rpm);
                 spindle = (d.spindle, d.rpm);
                 let result = tape
                     .line(d.no, &d.line, |b| enqueue(blocks, b, &mut last_feed))
@@ -300,6 +309,11 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             machine: &settings,
             state,
             frame_cycles: status.frame_cycles(),
+            interlock: if board.latch_active() {
+                board.latched().map(|t| trip_alarm(&t))
+            } else {
+                None
+            },
         };
         let event = if tripped.is_some() {
             Event::Reset
@@ -375,7 +389,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 if p.hold() || p.door() {
                     hold = true;
                 }
-                if p.resume() {
+                if p.resume() && proto.alarm_code().is_none() {
                     hold = false;
                     if ac_held && proto.alarm_code().is_none() {
                         status.ac_resume.store(true, Relaxed);
@@ -433,13 +447,16 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 // stopped. A reset during motion is an alarm, as in grbl (the position is exact
                 // here, and reported); a trip is always one.
                 let moving = !idle && !status.stopped();
+                // The spindle first (the parser goes back to power-up modes, M5), then the
+                // queue.
+                spindle = (Spindle::Off, 0);
+                board.spindle(Spindle::Off, 0, table.settings.spindle_max_rpm);
                 board.log_reset();
                 let (at, signs) = abort(blocks, status, board);
                 tape.abort(at, signs);
-                // A reset stops the spindle (the parser is back in power-up modes, M5).
-                deferred = None;
-                spindle = (Spindle::Off, 0);
-                board.spindle(Spindle::Off, 0);
+                // A line waiting for the spindle: a soft reset discards it with the stream (the
+                // protocol has done so); after a trip it is answered, refused.
+                let waiting = deferred.take().is_some();
                 hold = false;
                 cancel_jog = false;
                 jogging = false;
@@ -455,6 +472,9 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                                 &mut out,
                                 format_args!("Limit switch {:03b} (ZYX)", t.limits),
                             );
+                        }
+                        if waiting {
+                            proto.reply(Err(GrblError::GCODE_LOCK), &mut out);
                         }
                     }
                     None if moving => proto.alarm(alarm::ABORT_CYCLE, &mut out),

@@ -178,7 +178,7 @@ impl LoaderBoard for Bench {
 
     const SPINDLE: bool = true;
 
-    fn spindle(&mut self, state: Spindle, rpm: u32) {
+    fn spindle(&mut self, state: Spindle, rpm: u32, _max_rpm: u32) {
         self.spindle.push(SpindleCall {
             frame: self.frames,
             state,
@@ -213,6 +213,10 @@ impl LoaderBoard for Bench {
         }
         self.latch = None;
         true
+    }
+
+    fn latch_active(&mut self) -> bool {
+        self.latch.is_some() && self.estop_active
     }
 
     fn frame_limit_cycles(&self) -> Option<u32> {
@@ -382,16 +386,18 @@ fn an_estop_stops_at_once_latches_alarm_10_and_needs_release_and_unlock() {
         Some(700),
         3000,
     );
-    let alarms = b.out.matches("ALARM:10\r\n").count();
-    assert_eq!(
-        alarms, 2,
-        "once at the trip, once at the refused $X: {}",
+    // The alarm once; the `$X` while pressed is refused before anything else is said.
+    assert_eq!(b.out.matches("ALARM:10\r\n").count(), 1, "{}", b.out);
+    assert!(b.out.contains("[MSG:E-stop]"), "{}", b.out);
+    assert!(
+        b.out
+            .contains("[MSG:E-stop or limit switch still active]\r\nerror:9\r\n"),
+        "{}",
         b.out
     );
-    assert!(b.out.contains("[MSG:E-stop]"), "{}", b.out);
     assert_eq!(
         b.out.matches("[MSG:Caution: Unlocked]").count(),
-        2,
+        1,
         "{}",
         b.out
     );
@@ -493,4 +499,88 @@ fn a_frame_over_the_boards_limit_holds_the_feed_and_raises_alarm_111() {
     );
     assert!(!b.out.contains("ALARM"), "{}", b.out);
     assert_eq!(b.status.encoder(), [100, 0, 0]);
+}
+
+/// An e-stop while a line waits for the spindle: the waiting line is answered (refused: the
+/// alarm locks G-code), so the sender's count stays right and the lines after `$X` are answered.
+#[test]
+fn a_trip_while_a_spindle_line_waits_answers_it_and_the_lines_after() {
+    let trip = Events {
+        tripped: true,
+        ..Events::default()
+    };
+    let b = session(
+        &[
+            (1, "G91 G1 F30 X1\nM3 S500\n"),
+            (800, "$X\n"),
+            (900, "G91 G1 F30 Y0.01\n"),
+        ],
+        &[(400, trip)],
+        Some(500),
+        3000,
+    );
+    assert!(
+        b.out.contains("ALARM:10\r\n[MSG:E-stop]\r\nerror:9\r\n"),
+        "{}",
+        b.out
+    );
+    assert!(b.out.contains("[MSG:Caution: Unlocked]"), "{}", b.out);
+    // Every line answered once: the move, M3 (error:9), $X, the move after it.
+    let answers = b.out.matches("ok\r\n").count() + b.out.matches("error:").count();
+    assert_eq!(answers, 4, "{}", b.out);
+    assert_eq!(b.status.encoder()[1], 100, "the move after $X ran");
+    assert!(
+        b.spindle.iter().all(|c| c.state == Spindle::Off),
+        "{:?}",
+        b.spindle
+    );
+}
+
+/// The turn that sees a trip does not first apply a waiting spindle change: however the trip
+/// and the machine's stop coincide, the spindle never turns on.
+#[test]
+fn no_spindle_on_in_the_turn_of_a_trip() {
+    let sends = [(1u64, "G91 G1 F30 X0.01\nM3 S500\n")];
+    let b = session(&sends, &[], None, 2000);
+    let on_at = b.spindle[0].frame;
+    let trip = Events {
+        tripped: true,
+        ..Events::default()
+    };
+    for at in [on_at - 1, on_at, on_at + 1] {
+        let b = session(&sends, &[(at, trip)], None, 2000);
+        let on = b.spindle.iter().any(|c| c.state != Spindle::Off);
+        assert!(
+            on == (at > on_at),
+            "trip at {at} (on at {on_at}): {:?}",
+            b.spindle
+        );
+    }
+}
+
+/// `~` does not resume a feed the frame-overrun alarm holds (nor does the cycle start button).
+#[test]
+fn resume_waits_for_unlock_after_alarm_111() {
+    let run = |sends: &[(u64, &str)], inputs: &[(u64, Events)]| {
+        session_full(sends, inputs, None, 4000, ESTOP, Some((500, 300, 600)))
+    };
+    let held = run(&[(1, "G91 G1 F30 X1\n")], &[]);
+    let start = Events {
+        cycle_start: true,
+        ..Events::default()
+    };
+    let tried = run(&[(1, "G91 G1 F30 X1\n"), (1500, "~")], &[(1600, start)]);
+    assert_eq!(
+        tried.status.encoder(),
+        held.status.encoder(),
+        "{}",
+        tried.out
+    );
+    // After `$X`, `~` resumes.
+    let resumed = run(&[(1, "G91 G1 F30 X1\n"), (1500, "$X\n"), (1600, "~")], &[]);
+    assert!(
+        resumed.status.encoder()[0] > held.status.encoder()[0],
+        "{}",
+        resumed.out
+    );
 }

@@ -200,12 +200,13 @@ impl F446 {
         // The clock gates take two bus clocks: the read-back waits for them.
         let _ = read(RCC_APB2ENR);
 
-        // PC4..PC9: low, then output mode (01) and high speed (10) for each.
+        // PC4..PC9: low, then output mode (01) and fast speed (10) for each.
         write(GPIOC + GPIO_BSRR, PINS << 16);
         let mut moder = read(GPIOC + GPIO_MODER);
         let mut speed = read(GPIOC + GPIO_OSPEEDR);
         for pin in STEP_SHIFT..SIGN_SHIFT + 3 {
             moder = (moder & !(0b11 << (2 * pin))) | (0b01 << (2 * pin));
+            // 10 = fast speed (up to 50 MHz at 3.3 V): edges of a few ns, plenty for step lines.
             speed = (speed & !(0b11 << (2 * pin))) | (0b10 << (2 * pin));
         }
         write(GPIOC + GPIO_OSPEEDR, speed);
@@ -255,18 +256,31 @@ impl F446 {
     /// Stretches the watchdog to ~8 s (LSI / 64, reload 4095) around a flash sector erase, which
     /// stalls every fetch from flash for 1-2 s, and brings it back to ~100 ms after. Loader task
     /// (the settings store), only while the machine stands.
-    pub fn watchdog_stretch(long: bool) {
-        write(IWDG_KR, KR_UNLOCK);
-        if long {
-            write(IWDG_PR, 0b100);
-            write(IWDG_RLR, 0xFFF);
-        } else {
-            write(IWDG_PR, 0b011);
-            write(IWDG_RLR, 100);
-        }
-        // The new values reach the LSI domain within a few LSI clocks (SR PVU, RVU clear).
+    ///
+    /// The sampler feeds the watchdog (KR = 0xAAAA) at any time, and any KR write other than the
+    /// unlock key ends the unlock: the unlock and the two writes run with interrupts off (a few
+    /// cycles), after any earlier update has reached the LSI domain. Returns whether the new
+    /// values took (read back once the update is done): a caller about to erase must not
+    /// erase with the short timeout.
+    pub fn watchdog_stretch(long: bool) -> bool {
+        let (pr, rlr) = if long { (0b100, 0xFFF) } else { (0b011, 100) };
+        // Values reach the LSI domain within a few LSI clocks (SR PVU, RVU clear).
+        while read(IWDG_SR) != 0 {}
+        cortex_m::interrupt::free(|_| {
+            write(IWDG_KR, KR_UNLOCK);
+            write(IWDG_PR, pr);
+            write(IWDG_RLR, rlr);
+        });
         while read(IWDG_SR) != 0 {}
         write(IWDG_KR, KR_FEED);
+        read(IWDG_PR) & 0b111 == pr && read(IWDG_RLR) & 0xFFF == rlr
+    }
+
+    /// Pauses (true) or resumes the frame interrupt by its update interrupt enable, around a
+    /// flash operation while the machine stands: a pending update runs when it resumes. Loader
+    /// task.
+    pub fn frame_pause(pause: bool) {
+        write(TIM2 + TIM_DIER, if pause { 0 } else { DIER_UIE });
     }
 
     /// Feeds the watchdog. Sampler task (only while the frame runs).
@@ -403,10 +417,12 @@ pub fn sample_start(sample_reload: u32) {
     write(S0CR, S0CR_ADC);
     write(S0CR, S0CR_ADC | DMA_EN);
 
-    // ADC1 is the master: it takes the trigger; all three are on.
+    // ADC1 is the master: it takes the trigger; all three are on. The converters need t_STAB
+    // (3 us) after ADON before a conversion is valid: the timer starts after ~5 us.
     write(ADC2 + ADC_CR2, CR2_ADON);
     write(ADC3 + ADC_CR2, CR2_ADON);
     write(ADC1 + ADC_CR2, CR2_ADON | CR2_TRIGGER_TIM3);
+    cortex_m::asm::delay(CORE_HZ / 200_000);
 
     // TIM3: 1 MHz count, update every sample_reload + 1 counts, update as TRGO, interrupt.
     write(TIM3 + TIM_CR1, CR1_URS);
@@ -438,18 +454,30 @@ impl SampleClock for F446 {
     }
 }
 
-/// The triple ADC as the sampler reads it. Sampler task.
-pub struct TripleAdc;
+/// The triple ADC as the sampler reads it: which half of the ping-pong buffer it read last.
+/// Sampler task.
+pub struct TripleAdc {
+    last_half: Option<usize>,
+}
+
+impl TripleAdc {
+    pub const fn new() -> Self {
+        TripleAdc { last_half: None }
+    }
+}
 
 impl ForceTorqueAdc for TripleAdc {
     /// The codes of the last completed conversion (the one the previous sample tick started):
-    /// `Fresh` when the DMA has completed a half (HTIF or TCIF) since the last call, `Missed`
-    /// otherwise (no conversion, an overrun, a DMA error: the AC period that sees no fresh sample
-    /// holds). The half to read follows from NDTR: while the DMA writes one half (NDTR 6..4: the
-    /// first, 3..1: the second) the other is the complete one. An overrun or a transfer error
-    /// re-arms the ADC and the stream, so a single fault costs one sample. The encoder is not
-    /// needed by a real converter.
+    /// `Fresh` when the DMA has completed a half (HTIF or TCIF) since the last call and it is not
+    /// the half read last time, `Missed` otherwise (no conversion, an overrun, a DMA error: the
+    /// AC period that sees no fresh sample holds). NDTR is read before the flags: while the DMA
+    /// writes one half (NDTR 6..4: the first, 3..1: the second) the other is the complete one; a
+    /// conversion that completes between the two reads leaves its flag for the next call, which
+    /// then finds the half it names already read and reports a miss rather than the same codes
+    /// twice. An overrun or a transfer error re-arms the ADC and the stream, so a single fault
+    /// costs one sample. The encoder is not needed by a real converter.
     fn sample(&mut self, _index: u32, _encoder: [i32; 3]) -> Conversion {
+        let first = if read(S0NDTR) > 3 { 3 } else { 0 };
         let flags = read(DMA_LISR);
         write(DMA_LIFCR, flags & S0_FLAGS);
         let overrun = [ADC1, ADC2, ADC3]
@@ -457,12 +485,13 @@ impl ForceTorqueAdc for TripleAdc {
             .any(|adc| read(adc + ADC_SR) & ADC_SR_OVR != 0);
         if overrun || flags & S0_TEIF != 0 {
             rearm();
+            self.last_half = None;
             return Conversion::Missed;
         }
-        if flags & (S0_TCIF | S0_HTIF) == 0 {
+        if flags & (S0_TCIF | S0_HTIF) == 0 || self.last_half == Some(first) {
             return Conversion::Missed;
         }
-        let first = if read(S0NDTR) > 3 { 3 } else { 0 };
+        self.last_half = Some(first);
         let p = ADC_CODES.0.get() as *const u16;
         // SAFETY: `p + first .. p + first + 3` is one half of ADC_CODES (first is 0 or 3); the DMA
         // completed it and writes the other half now (a conversion every sample period).
@@ -508,19 +537,25 @@ pub fn usart2_start() {
     write(USART2 + US_CR1, CR1_UE | CR1_TE | CR1_RE | CR1_RXNEIE);
 }
 
-/// The USART2 interrupt: every received byte to `rx` (an overrun loses a byte the hardware could
-/// not keep; reading SR then DR clears it), then one queued byte out if the transmitter is empty;
-/// the transmit interrupt stays on only while bytes wait. Serial task.
+/// The USART2 interrupt: every received byte into the protocol's ring; an overrun (ORE: a byte
+/// arrived while DR still held the previous one, e.g. while a flash operation stalled this
+/// interrupt) is reported as a lost byte after the byte DR holds (reading SR then DR clears it),
+/// so the loader raises the overflow alarm instead of parsing a broken line. Then one queued byte
+/// out if the transmitter is empty; the transmit interrupt stays on only while bytes wait.
+/// Serial task.
 #[inline(always)]
 pub fn usart2_interrupt<const N: usize>(
     tx: &mut heapless::spsc::Consumer<'static, u8, N>,
-    mut rx: impl FnMut(u8),
+    rx: &mut millac::protocol::rx::RxIsr<'static>,
 ) {
     let mut sr = read(USART2 + US_SR);
     while sr & (SR_RXNE | SR_ORE) != 0 {
         let b = read(USART2 + US_DR) as u8;
         if sr & SR_RXNE != 0 {
-            rx(b);
+            let _ = rx.push_byte(b);
+        }
+        if sr & SR_ORE != 0 {
+            rx.lost_bytes(1);
         }
         sr = read(USART2 + US_SR);
     }

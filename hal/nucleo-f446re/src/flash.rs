@@ -8,7 +8,10 @@
 //! LOCK), ACR (data cache enable and reset). Programming is 32 bits at a time (PSIZE = x32, valid
 //! from 2.7 V, the Nucleo's 3.3 V). While the flash is busy every fetch from it stalls, interrupts
 //! included: a word takes ~16 us (a record ~1 ms), the sector erase 1-2 s (once every 512 stores).
-//! The erase therefore stretches the watchdog to ~8 s around itself and restores it after.
+//! The erase therefore stretches the watchdog to ~8 s around itself and restores it after (and is
+//! refused if the stretch did not take). The frame interrupt is paused around every operation
+//! (the machine stands): a frame stalled by the flash would show as a frame overrun in the DWT
+//! figures and raise ALARM:111.
 //!
 //! With the `qemu` feature the store is [`RamSector`] instead: QEMU's netduinoplus2 models no
 //! flash interface (its registers read 0, stores to the flash are dropped).
@@ -110,12 +113,19 @@ impl FlashSector for Sector7 {
     }
 
     fn erase(&mut self) -> bool {
-        crate::board::F446::watchdog_stretch(true);
+        use crate::board::F446;
+        // Not with the short timeout: the erase would outlast it.
+        if !F446::watchdog_stretch(true) {
+            F446::watchdog_stretch(false);
+            return false;
+        }
+        F446::frame_pause(true);
         Self::unlock();
         write(CR, CR_PSIZE_X32 | CR_SER | (SECTOR << 3));
         write(CR, CR_PSIZE_X32 | CR_SER | (SECTOR << 3) | CR_STRT);
         let ok = Self::finish();
-        crate::board::F446::watchdog_stretch(false);
+        F446::frame_pause(false);
+        F446::watchdog_stretch(false);
         ok
     }
 
@@ -130,6 +140,7 @@ impl FlashSector for Sector7 {
         if offset % 4 != 0 || end > SIZE {
             return false;
         }
+        crate::board::F446::frame_pause(true);
         Self::unlock();
         write(CR, CR_PSIZE_X32 | CR_PG);
         let mut ok = true;
@@ -141,7 +152,9 @@ impl FlashSector for Sector7 {
                 break;
             }
         }
-        Self::finish() && ok
+        let done = Self::finish();
+        crate::board::F446::frame_pause(false);
+        done && ok
     }
 }
 

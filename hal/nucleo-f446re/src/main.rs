@@ -91,8 +91,10 @@ mod app {
         sampler: Option<Sampler<TripleAdc>>,
         ac: Option<AcTask<DefmtLog>>,
         frames_seen: u32,
-        /// The operator input pins (embedded-hal input pins, active low with pull-ups).
+        /// The operator input pins (embedded-hal input pins with pull-ups).
         pins: PinInputs<AnyPin<Input>>,
+        /// Sample ticks per input sample (~1 kHz).
+        input_every: u32,
         /// The spindle enable and direction pins.
         spindle: (AnyPin<Output>, AnyPin<Output>),
         uart_rx: RxIsr<'static>,
@@ -208,7 +210,7 @@ mod app {
         };
         let sampler = ac
             .as_ref()
-            .map(|_| Sampler::new(&STATUS, TripleAdc, sample_tx, period_samples));
+            .map(|_| Sampler::new(&STATUS, TripleAdc::new(), sample_tx, period_samples));
         board::sample_start(board::sample_reload(ac_settings.sample_hz));
 
         let (uart_rx, rx) = cx.local.serial_rx.split();
@@ -234,11 +236,12 @@ mod app {
             }
         );
 
-        // Debounce over ~10 ms of samples.
-        let debounce = (ac_settings.sample_hz / 100).clamp(1, 255) as u8;
+        // The inputs are sampled at ~1 kHz (every `input_every`-th sample tick) and debounced over
+        // 10 of those samples.
+        let input_every = (ac_settings.sample_hz / 1000).max(1);
         (
             Shared {
-                inputs: Debouncer::new(debounce),
+                inputs: Debouncer::new(millac::inputs::DEBOUNCE_SAMPLES),
             },
             Local {
                 frame: FrameTask::new(Frame::new(FrameConfig::from_settings(&settings)), reloads),
@@ -253,6 +256,7 @@ mod app {
                 ac,
                 frames_seen: 0,
                 pins,
+                input_every,
                 spindle,
                 uart_rx,
                 uart_tx,
@@ -308,10 +312,7 @@ mod app {
     /// USART2: received bytes into the protocol's ring, queued bytes out. Priority 2.
     #[task(binds = USART2, priority = 2, local = [uart_rx, uart_tx])]
     fn usart2(cx: usart2::Context) {
-        let rx = cx.local.uart_rx;
-        board::usart2_interrupt(cx.local.uart_tx, |b| {
-            let _ = rx.push_byte(b);
-        });
+        board::usart2_interrupt(cx.local.uart_tx, cx.local.uart_rx);
         // QEMU's USART raises no transmit-empty interrupt: pend it again while TXEIE is on.
         #[cfg(feature = "qemu")]
         if board::usart2_txe_wanted() {
@@ -321,7 +322,12 @@ mod app {
 
     /// The sampler (TIM3 update, `sample_hz`): one conversion of the triple ADC, the AC period
     /// spawned every N samples; feeds the watchdog while the frame runs. Priority 2.
-    #[task(binds = TIM3, priority = 2, local = [sampler, frames_seen, pins], shared = [inputs])]
+    #[task(
+        binds = TIM3,
+        priority = 2,
+        local = [sampler, frames_seen, pins, input_every, input_tick: u32 = 0],
+        shared = [inputs]
+    )]
     fn sample(mut cx: sample::Context) {
         SampleClock::ack(&mut F446);
         let frames = FRAMES.load(Relaxed);
@@ -336,9 +342,14 @@ mod app {
         } else {
             cx.local.pins.read()
         };
-        cx.shared.inputs.lock(|d| {
-            d.sample(raw);
-        });
+        // The inputs at ~1 kHz whatever the sample rate (10 samples: ~10 ms of debounce).
+        *cx.local.input_tick += 1;
+        if *cx.local.input_tick >= *cx.local.input_every {
+            *cx.local.input_tick = 0;
+            cx.shared.inputs.lock(|d| {
+                d.sample(raw);
+            });
+        }
         let Some(s) = cx.local.sampler.as_mut() else {
             return;
         };
@@ -358,10 +369,9 @@ mod app {
         let Some(task) = cx.local.ac.as_mut() else {
             return;
         };
-        let p = task.run(due);
-        if let Some(a) = p.alarm {
-            defmt::warn!("AC hold: {}", defmt::Display2Format(&a));
-        }
+        // The hold is reported by the loader (`[MSG:AC hold: ...]`): no log here, where the axes
+        // may still move (defmt's RTT logger masks interrupts while it formats).
+        let _ = task.run(due);
     }
 
     /// The loader: the grbl protocol on USART2, forever.
@@ -372,7 +382,6 @@ mod app {
             inputs: cx.shared.inputs,
             enable,
             direction,
-            max_rpm: cx.local.table.settings.spindle_max_rpm,
             frame_limit: frame_limit_cycles(&cx.local.table.settings.nc),
         };
         let ceiling = cx
@@ -403,7 +412,6 @@ mod app {
         inputs: M,
         enable: &'a mut AnyPin<Output>,
         direction: &'a mut AnyPin<Output>,
-        max_rpm: u32,
         /// The frame work the running settings tolerate, in DWT cycles.
         frame_limit: u32,
     }
@@ -432,7 +440,7 @@ mod app {
         const SPINDLE: bool = true;
 
         /// Enable high for M3/M4, direction high for M4, PWM duty S / `$30`.
-        fn spindle(&mut self, state: Spindle, rpm: u32) {
+        fn spindle(&mut self, state: Spindle, rpm: u32, max_rpm: u32) {
             match state {
                 Spindle::Off => {
                     board::spindle_pwm_set(0);
@@ -440,7 +448,7 @@ mod app {
                 }
                 Spindle::Cw | Spindle::Ccw => {
                     self.direction.set_state((state == Spindle::Ccw).into());
-                    board::spindle_pwm_set(board::spindle_duty(rpm, self.max_rpm));
+                    board::spindle_pwm_set(board::spindle_duty(rpm, max_rpm));
                     self.enable.set_high();
                 }
             }
@@ -461,6 +469,13 @@ mod app {
 
         fn acknowledge(&mut self) -> bool {
             self.inputs.lock(|d| d.acknowledge())
+        }
+
+        fn latch_active(&mut self) -> bool {
+            self.inputs.lock(|d| {
+                let i = d.inputs();
+                d.latched().is_some() && (i.estop || i.limits != 0)
+            })
         }
     }
 

@@ -620,6 +620,7 @@ fn over_the_protocol(table: &mut Persistent<MemStorage>, line: &str) -> String {
         machine: &machine,
         state: State::Idle,
         frame_cycles: None,
+        interlock: None,
     };
     while p.poll(&mut out, &mut cx) != Event::None {}
     out
