@@ -18,6 +18,13 @@
 //!   the process parameters p^, b^ estimated on line by the constant-trace recursive least squares
 //!   of [`Rls`] (the estimator the thesis' GPC uses; an equivalent of the Lozano-Landau adaptation
 //!   the paper cites: a least-squares parameter adaptation with a bounded gain).
+//! - [`Strategy::Gpc`]: Munasinghe's Generalized Predictive Control (thesis section 3.1.4, Eqs.
+//!   3.32-3.42): the ARIMAX model A F = B f(t-1) + xi/Delta with A = 1 + a1 z^-1 + a2 z^-2,
+//!   B = b0 + b1 z^-1 + b2 z^-2 identified on line by the constant-trace RLS with its dead zone
+//!   (Eqs. 3.27-3.31), horizons N1 = 1, N2 = 4, Nu = 1, the control weight lambda a setting
+//!   (`$265`). It regulates the peak resultant force of each AC period (millac's DRR window,
+//!   10 ms), not of each spindle revolution as the thesis did: the AC period is the firmware's
+//!   clock, and the DRR's held peak already spans several windows (see [`GpcLaw`]).
 
 use super::frc;
 
@@ -30,6 +37,8 @@ pub enum Strategy {
     Integral,
     /// Model reference adaptive control with an on-line estimate of the process.
     Mrac,
+    /// Generalized predictive control on an ARIMAX model identified on line (the thesis').
+    Gpc,
 }
 
 /// The process pole `a` the integral gain and the MRAC's initial estimate assume (Ulsoy, Koren and
@@ -63,65 +72,71 @@ impl IntegralLaw {
     }
 }
 
-/// Recursive least squares with a constant trace and a dead zone, for two parameters
-/// theta = [p, b] of y(k) = p y(k-1) + b u(k-1) (the thesis' estimator, section 3.1.3, on the
-/// model the MRAC uses). After each update the covariance is scaled back to its initial trace, so
-/// the estimator keeps tracking a process that changes (a step in the depth of cut) without the
-/// gain blowing up when nothing excites it; a prediction error inside the dead zone updates
-/// nothing (noise and quantisation do not make the estimates wander).
+/// Recursive least squares with a constant trace and a dead zone, for N parameters theta of a
+/// model y = phi . theta: the thesis' estimator (section 3.1.3, Eqs. 3.27-3.31). After each update
+/// the covariance is brought back to a constant trace, P = c1 P'/tr(P') + c2 I (c2 = c1 / 10^4,
+/// the thesis' ratio), so the estimator keeps tracking a process that changes (a step in the
+/// depth of cut) without the gain blowing up when nothing excites it (estimator windup); a
+/// prediction error inside the dead zone updates nothing (the thesis' alpha = 0: noise and
+/// quantisation do not make the estimates wander).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Rls {
-    pub theta: [f32; 2],
-    p: [[f32; 2]; 2],
+pub struct Rls<const N: usize> {
+    pub theta: [f32; N],
+    p: [[f32; N]; N],
     trace: f32,
     dead_zone: f32,
 }
 
-impl Rls {
-    pub fn new(theta: [f32; 2], trace: f32, dead_zone: f32) -> Self {
-        let d = trace / 2.0;
+impl<const N: usize> Rls<N> {
+    pub fn new(theta: [f32; N], trace: f32, dead_zone: f32) -> Self {
+        let mut p = [[0.0; N]; N];
+        for (i, row) in p.iter_mut().enumerate() {
+            if let Some(v) = row.get_mut(i) {
+                *v = trace / N as f32;
+            }
+        }
         Rls {
             theta,
-            p: [[d, 0.0], [0.0, d]],
+            p,
             trace,
             dead_zone,
         }
     }
 
-    /// The model's prediction of y from the regressor phi = [y(k-1), u(k-1)].
-    pub fn predict(&self, phi: [f32; 2]) -> f32 {
-        self.theta[0] * phi[0] + self.theta[1] * phi[1]
+    /// The model's prediction of y from the regressor phi.
+    pub fn predict(&self, phi: &[f32; N]) -> f32 {
+        self.theta.iter().zip(phi).map(|(t, x)| t * x).sum()
     }
 
     /// One update with the regressor phi and the measured y; returns the prediction error.
-    pub fn update(&mut self, phi: [f32; 2], y: f32) -> f32 {
+    pub fn update(&mut self, phi: &[f32; N], y: f32) -> f32 {
         let err = y - self.predict(phi);
         // Inside the dead zone, or not a number (a NaN updates nothing either).
         if err.is_nan() || err.abs() <= self.dead_zone {
             return err;
         }
-        let p = &self.p;
-        let pphi = [
-            p[0][0] * phi[0] + p[0][1] * phi[1],
-            p[1][0] * phi[0] + p[1][1] * phi[1],
-        ];
-        let den = 1.0 + phi[0] * pphi[0] + phi[1] * pphi[1];
-        let k = [pphi[0] / den, pphi[1] / den];
-        self.theta[0] += k[0] * err;
-        self.theta[1] += k[1] * err;
-        // P = P - P phi phi' P / den, then scaled to the constant trace.
-        let mut n = [[0.0f32; 2]; 2];
+        let mut pphi = [0.0f32; N];
+        for (i, v) in pphi.iter_mut().enumerate() {
+            *v = self.p[i].iter().zip(phi).map(|(a, x)| a * x).sum();
+        }
+        let den = 1.0 + phi.iter().zip(&pphi).map(|(x, q)| x * q).sum::<f32>();
+        for (t, q) in self.theta.iter_mut().zip(&pphi) {
+            *t += q / den * err;
+        }
+        // P' = P - P phi phi' P / den, then P = c1 P'/tr(P') + c2 I with c1 + N c2 = trace.
+        let mut n = self.p;
         for (i, row) in n.iter_mut().enumerate() {
             for (j, v) in row.iter_mut().enumerate() {
-                *v = p[i][j] - pphi[i] * pphi[j] / den;
+                *v -= pphi[i] * pphi[j] / den;
             }
         }
-        let t = n[0][0] + n[1][1];
+        let t: f32 = (0..N).map(|i| n[i][i]).sum();
         if t > 0.0 && t.is_finite() {
-            let s = self.trace / t;
-            for row in n.iter_mut() {
-                for v in row.iter_mut() {
-                    *v *= s;
+            let c2 = self.trace / (1.0e4 + N as f32);
+            let c1 = 1.0e4 * c2;
+            for (i, row) in n.iter_mut().enumerate() {
+                for (j, v) in row.iter_mut().enumerate() {
+                    *v = c1 * *v / t + if i == j { c2 } else { 0.0 };
                 }
             }
             self.p = n;
@@ -134,7 +149,7 @@ impl Rls {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MracLaw {
     pub ym: f32,
-    pub rls: Rls,
+    pub rls: Rls<2>,
     /// The smallest b^ the control divides by (a fraction of the nominal b): an estimate driven
     /// towards zero (air: load 0 at any feed) must not ask for an unbounded feed.
     b_min: f32,
@@ -168,7 +183,7 @@ impl MracLaw {
     /// One period: `y` measured now, `u_prev` the (normalised) feed the process had over the
     /// period that produced it. Updates the estimate, advances the reference model, returns u(k).
     pub fn next(&mut self, y: f32, u_prev: f32) -> f32 {
-        self.rls.update([self.y_prev, u_prev], y);
+        self.rls.update(&[self.y_prev, u_prev], y);
         self.y_prev = y;
         let [p, b] = self.rls.theta;
         let b = if b > self.b_min { b } else { self.b_min };
@@ -180,23 +195,108 @@ impl MracLaw {
     }
 }
 
+/// The GPC law's state: the estimator of theta = [a1, a2, b0, b1, b2] and the histories of the
+/// load y (F/F0) and the normalised feed u.
+///
+/// Each period: the regressor phi = [-y(t-1), -y(t-2), u(t-1), u(t-2), u(t-3)] (u(t-1) the feed
+/// the process actually had: the achieved feed) updates the estimate with y(t); the incremental
+/// model Delta F(t+k) = -a1 Delta F(t+k-1) - a2 Delta F(t+k-2) + b0 Delta f(t+k-1) + ... gives
+/// the free response over k = 1..4 (no further feed change: the ARIMAX integrator, so no
+/// steady-state offset) and the step response g_k; with Nu = 1 the cost (Eq. 3.40) is minimised
+/// by Delta f = sum g_k (1 - F_free(t+k)) / (sum g_k^2 + lambda) (Eq. 3.41 with one column).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpcLaw {
+    pub rls: Rls<5>,
+    /// y(t), y(t-1), y(t-2) after the last period (y(t-1), y(t-2), y(t-3) before the next).
+    ys: [f32; 3],
+    /// u(t-1), u(t-2), u(t-3) after the last period.
+    us: [f32; 3],
+    pub lambda: f32,
+}
+
+/// The GPC estimator's constant trace (five parameters of order 1).
+pub const GPC_TRACE: f32 = 50.0;
+/// The output horizon N2 (N1 = 1, Nu = 1).
+pub const GPC_N2: usize = 4;
+
+impl GpcLaw {
+    /// Starts from the nominal first-order process (a1 = -a, b0 = (1 - a) / u_nominal).
+    pub fn new(a: f32, u_nominal: f32, lambda: f32) -> Self {
+        let b = (1.0 - a) / u_nominal;
+        GpcLaw {
+            rls: Rls::new([-a, 0.0, b, 0.0, 0.0], GPC_TRACE, RLS_DEAD_ZONE),
+            ys: [0.0; 3],
+            us: [0.0; 3],
+            lambda,
+        }
+    }
+
+    /// One period: `y` measured now, `u_prev` the (normalised) feed the process had over the
+    /// period that produced it. Returns u(t).
+    pub fn next(&mut self, y: f32, u_prev: f32) -> f32 {
+        let [y1, y2, _] = self.ys;
+        let [u2, u3] = [self.us[0], self.us[1]];
+        self.rls.update(&[-y1, -y2, u_prev, u2, u3], y);
+        self.ys = [y, y1, y2];
+        self.us = [u_prev, u2, u3];
+        let [a1, a2, b0, b1, b2] = self.rls.theta;
+        // Free response: Delta f = 0 from now on.
+        let (mut df1, mut df2) = (u_prev - u2, u2 - u3);
+        let (mut dy1, mut dy2) = (y - y1, y1 - y2);
+        let mut free = [0.0f32; GPC_N2];
+        let mut level = y;
+        for f in free.iter_mut() {
+            let dy = -a1 * dy1 - a2 * dy2 + b1 * df1 + b2 * df2;
+            level += dy;
+            *f = level;
+            dy2 = dy1;
+            dy1 = dy;
+            df2 = df1;
+            df1 = 0.0;
+        }
+        // Step response of F to Delta f(t) = 1.
+        let mut g = [0.0f32; GPC_N2];
+        let (mut s1, mut s2) = (0.0f32, 0.0f32);
+        let mut cum = 0.0;
+        for (k, gk) in g.iter_mut().enumerate() {
+            let input = match k {
+                0 => b0,
+                1 => b1,
+                2 => b2,
+                _ => 0.0,
+            };
+            let dy = -a1 * s1 - a2 * s2 + input;
+            cum += dy;
+            *gk = cum;
+            s2 = s1;
+            s1 = dy;
+        }
+        let num: f32 = g.iter().zip(&free).map(|(gk, fk)| gk * (1.0 - fk)).sum();
+        let den: f32 = g.iter().map(|gk| gk * gk).sum::<f32>() + self.lambda;
+        let du = if den > 0.0 { num / den } else { 0.0 };
+        u_prev + du
+    }
+}
+
 /// A feed law with its state.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FeedLaw {
     Paper,
     Integral(IntegralLaw),
     Mrac(MracLaw),
+    Gpc(GpcLaw),
 }
 
 impl FeedLaw {
     /// The law of `strategy` for a nominal feed `f_nominal` (feed number at which the nominal cut
     /// reaches the reference load) out of `f_max`.
-    pub fn new(strategy: Strategy, f_nominal: u32, f_max: u32) -> Self {
+    pub fn new(strategy: Strategy, f_nominal: u32, f_max: u32, gpc_lambda: f32) -> Self {
         let u_nom = f_nominal.max(1) as f32 / f_max.max(1) as f32;
         match strategy {
             Strategy::Paper => FeedLaw::Paper,
             Strategy::Integral => FeedLaw::Integral(IntegralLaw::tuned(NOMINAL_POLE, u_nom)),
             Strategy::Mrac => FeedLaw::Mrac(MracLaw::new(NOMINAL_POLE, u_nom)),
+            Strategy::Gpc => FeedLaw::Gpc(GpcLaw::new(NOMINAL_POLE, u_nom, gpc_lambda)),
         }
     }
 
@@ -222,15 +322,23 @@ impl FeedLaw {
             FeedLaw::Paper => frc::next_feed(f, e, step, f_min, f_max),
             FeedLaw::Integral(l) => to_feed(l.next(f as f32 / scale, 1.0 - e)),
             FeedLaw::Mrac(l) => to_feed(l.next(1.0 - e, achieved as f32 / scale)),
+            FeedLaw::Gpc(l) => to_feed(l.next(1.0 - e, achieved as f32 / scale)),
         }
     }
 
     /// After a hold, the law restarts from the controller's f_min: the reference model from the
     /// load now (0: the machine stands), the estimate kept.
     pub fn resume(&mut self) {
-        if let FeedLaw::Mrac(l) = self {
-            l.ym = 0.0;
-            l.y_prev = 0.0;
+        match self {
+            FeedLaw::Mrac(l) => {
+                l.ym = 0.0;
+                l.y_prev = 0.0;
+            }
+            FeedLaw::Gpc(l) => {
+                l.ys = [0.0; 3];
+                l.us = [0.0; 3];
+            }
+            FeedLaw::Paper | FeedLaw::Integral(_) => {}
         }
     }
 }
@@ -247,7 +355,7 @@ mod tests {
     fn depth_steps(strategy: Strategy, periods_per_depth: usize) -> Vec<f32> {
         let (f_min, f_max, f_nom) = (1u32, 3000u32, 1500u32);
         let b1 = (1.0 - NOMINAL_POLE) / (f_nom as f32 / f_max as f32);
-        let mut law = FeedLaw::new(strategy, f_nom, f_max);
+        let mut law = FeedLaw::new(strategy, f_nom, f_max, 1.0);
         let (mut y, mut f) = (0.0f32, f_min);
         let mut out = Vec::new();
         for depth in 1..=3 {
@@ -298,6 +406,51 @@ mod tests {
     }
 
     #[test]
+    fn gpc_stays_within_a_band_of_its_reference_at_every_depth() {
+        let n = 300;
+        let y = depth_steps(Strategy::Gpc, n);
+        for depth in 0..3 {
+            let seg = &y[depth * n + 20..(depth + 1) * n];
+            let worst = seg.iter().map(|v| (v - 1.0).abs()).fold(0.0, f32::max);
+            assert!(worst < 0.05, "depth {}: {worst}", depth + 1);
+        }
+    }
+
+    /// The thesis' plant form (Eq. 3.23): a second-order process with a delay, its gain doubling
+    /// mid-run (a deeper cut). GPC, started from the first-order nominal model, identifies it
+    /// and regulates the load to the reference without offset at both gains; the estimated
+    /// steady gain B(1)/A(1) follows the process's.
+    #[test]
+    fn gpc_identifies_a_second_order_process_and_regulates_without_offset() {
+        let (a1, a2, b0, b1, b2) = (-0.6f32, 0.08f32, 0.5f32, 0.3f32, 0.05f32);
+        let mut law = GpcLaw::new(NOMINAL_POLE, 0.5, 1.0);
+        let (mut y, mut y1, mut u1, mut u2, mut u3) = (0.0f32, 0.0, 0.0, 0.0, 0.0);
+        let mut ys = Vec::new();
+        for k in 0..600 {
+            let gain = if k < 300 { 1.0 } else { 2.0 };
+            let y_new = -a1 * y - a2 * y1 + gain * (b0 * u1 + b1 * u2 + b2 * u3);
+            y1 = y;
+            y = y_new;
+            ys.push(y);
+            let u = law.next(y, u1).clamp(0.0, 1.0);
+            (u3, u2, u1) = (u2, u1, u);
+            if k == 299 || k == 599 {
+                let [ea1, ea2, eb0, eb1, eb2] = law.rls.theta;
+                let est = (eb0 + eb1 + eb2) / (1.0 + ea1 + ea2);
+                let real = gain * (b0 + b1 + b2) / (1.0 + a1 + a2);
+                assert!(
+                    (est - real).abs() < 0.1 * real,
+                    "k {k}: gain {est} vs {real}"
+                );
+            }
+        }
+        for seg in [&ys[250..300], &ys[550..600]] {
+            let worst = seg.iter().map(|v| (v - 1.0).abs()).fold(0.0, f32::max);
+            assert!(worst < 0.02, "{worst}");
+        }
+    }
+
+    #[test]
     fn the_integral_gain_places_the_nominal_poles_at_plus_minus_j_sqrt_a() {
         let l = IntegralLaw::tuned(0.1, 0.5);
         let b = 0.9 / 0.5;
@@ -315,7 +468,7 @@ mod tests {
                 k += 1;
                 let u = 0.3 + 0.2 * ((k % 7) as f32 / 7.0);
                 let y_new = 0.1 * y + b * u;
-                r.update([y, u], y_new);
+                r.update(&[y, u], y_new);
                 y = y_new;
             }
             assert!(
@@ -328,7 +481,7 @@ mod tests {
         // The dead zone: errors inside it change nothing.
         let mut r = Rls::new([0.1, 1.0], RLS_TRACE, 0.05);
         let before = r.theta;
-        r.update([0.5, 0.5], 0.1 * 0.5 + 1.0 * 0.5 + 0.04);
+        r.update(&[0.5, 0.5], 0.1 * 0.5 + 1.0 * 0.5 + 0.04);
         assert_eq!(r.theta, before);
     }
 }

@@ -235,7 +235,7 @@ impl AcController {
             achieved: None,
             band: plaus::Band::new(&s),
             mismatch: 0,
-            law: law::FeedLaw::new(s.strategy, s.nominal_feed, s.f_max),
+            law: law::FeedLaw::new(s.strategy, s.nominal_feed, s.f_max, s.gpc_lambda),
             s,
         })
     }

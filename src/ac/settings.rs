@@ -118,6 +118,9 @@ pub struct AcSettings {
     /// the nominal cut reaches F0 (their gain and initial estimate come from it). Default 1500 =
     /// 15 ipm, in [f_min, f_max].
     pub nominal_feed: u32,
+    /// The GPC law's control weight lambda (`$265`, on the normalised feed): larger is gentler.
+    /// Default 1.0; 0..=1e6.
+    pub gpc_lambda: f32,
 }
 
 /// The feed ceiling under adaptive control (see [`AcSettings::ceiling`]).
@@ -175,6 +178,7 @@ impl Default for AcSettings {
             ceiling: FeedCeiling::Programmed,
             strategy: super::law::Strategy::Paper,
             nominal_feed: 1500,
+            gpc_lambda: 1.0,
         }
     }
 }
@@ -201,6 +205,7 @@ pub enum AcSettingsError {
     ForceTorqueFloor,
     ForceTorquePeriods,
     NominalFeed,
+    GpcLambda,
 }
 
 impl AcSettingsError {
@@ -233,6 +238,7 @@ impl AcSettingsError {
                 "F*R/T band must be finite with 0 < ft_ratio_min < ft_ratio_max <= 100"
             }
             AcSettingsError::NominalFeed => "the nominal feed must be within [f_min, f_max]",
+            AcSettingsError::GpcLambda => "the GPC weight lambda must be 0..=1e6",
             AcSettingsError::ForceTorquePeriods => {
                 "force/torque mismatch count must be 0 (off) ..=100000 AC periods"
             }
@@ -289,6 +295,9 @@ impl AcSettings {
         }
         if !(self.f_min..=self.f_max).contains(&self.nominal_feed) {
             return Err(AcSettingsError::NominalFeed);
+        }
+        if !(0.0..=1.0e6).contains(&self.gpc_lambda) {
+            return Err(AcSettingsError::GpcLambda);
         }
         let o = self.overload_e;
         if !(o.is_finite() && (-1.0..0.0).contains(&o)) {

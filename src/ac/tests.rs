@@ -650,6 +650,7 @@ fn the_settings_strategy_picks_the_controllers_feed_law() {
         (Strategy::Paper, "Paper"),
         (Strategy::Integral, "Integral"),
         (Strategy::Mrac, "Mrac"),
+        (Strategy::Gpc, "Gpc"),
     ] {
         let s = AcSettings {
             strategy,
@@ -660,6 +661,7 @@ fn the_settings_strategy_picks_the_controllers_feed_law() {
             FeedLaw::Paper => "Paper",
             FeedLaw::Integral(_) => "Integral",
             FeedLaw::Mrac(_) => "Mrac",
+            FeedLaw::Gpc(_) => "Gpc",
         };
         assert_eq!(name, want);
     }

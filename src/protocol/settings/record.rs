@@ -28,7 +28,7 @@ use crate::settings::{Blu, BoardLimits, Settings};
 pub const MAGIC: [u8; 4] = *b"MLST";
 pub const VERSION: u16 = 2;
 pub const HEADER_LEN: usize = 8;
-pub const PAYLOAD_LEN: usize = 183;
+pub const PAYLOAD_LEN: usize = 187;
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF): the
@@ -203,6 +203,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
         AcStrategy::Paper => 0,
         AcStrategy::Integral => 1,
         AcStrategy::Mrac => 2,
+        AcStrategy::Gpc => 3,
     });
     p.u32(a.sample_hz);
     p.u32(a.period_ms);
@@ -243,6 +244,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     p.u8(s.report.inches as u8);
     p.u32(s.spindle_max_rpm);
     p.u32(s.ac.nominal_feed);
+    p.f32(s.ac.gpc_lambda);
     let end = p.pos;
     let crc = crc32(img.get(..end).unwrap_or(&[]));
     let mut p = Put {
@@ -312,6 +314,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
         0 => Some(AcStrategy::Paper),
         1 => Some(AcStrategy::Integral),
         2 => Some(AcStrategy::Mrac),
+        3 => Some(AcStrategy::Gpc),
         _ => None,
     };
     let (sample_hz, period_ms) = (t.u32()?, t.u32()?);
@@ -346,6 +349,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let inches = t.bool()?;
     let spindle_max_rpm = t.u32()?;
     let nominal_feed = t.u32()?;
+    let gpc_lambda = t.f32()?;
     let build = || {
         Some(MachineSettings {
             nc: Settings {
@@ -386,6 +390,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
                 ceiling: ceiling?,
                 strategy: strategy?,
                 nominal_feed,
+                gpc_lambda,
             },
             ac_enabled: ac_enabled?,
             report: ReportSettings {

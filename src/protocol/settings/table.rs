@@ -143,7 +143,7 @@ macro_rules! mirror {
 /// millac's own from `$200` (NC) and `$250` (adaptive control). `$200` (the BLU) comes first: the
 /// settings listed in mm are kept in BLU, so a listing restored line by line onto the defaults
 /// changes the BLU before it sets them.
-pub static TABLE: [Entry; 55] = [
+pub static TABLE: [Entry; 56] = [
     Entry {
         number: 200,
         name: "BLU",
@@ -349,17 +349,19 @@ pub static TABLE: [Entry; 55] = [
     ),
     flag!(
         251,
-        "AC strategy (0 paper, 1 integral, 2 MRAC)",
+        "AC strategy (0 paper, 1 integral, 2 MRAC, 3 GPC)",
         |m| match m.ac.strategy {
             AcStrategy::Paper => 0,
             AcStrategy::Integral => 1,
             AcStrategy::Mrac => 2,
+            AcStrategy::Gpc => 3,
         },
         |m, v| {
-            m.ac.strategy = match choice(v, 3)? {
+            m.ac.strategy = match choice(v, 4)? {
                 0 => AcStrategy::Paper,
                 1 => AcStrategy::Integral,
-                _ => AcStrategy::Mrac,
+                2 => AcStrategy::Mrac,
+                _ => AcStrategy::Gpc,
             };
             Some(())
         }
@@ -445,6 +447,7 @@ pub static TABLE: [Entry; 55] = [
         false,
         ac.nominal_feed
     ),
+    real!(265, "GPC weight lambda", "1", false, ac.gpc_lambda),
     real!(270, "T gain", "N*m/code", true, ac.cal[0].gain),
     real!(271, "Fu gain", "N/code", true, ac.cal[1].gain),
     real!(272, "Fv gain", "N/code", true, ac.cal[2].gain),

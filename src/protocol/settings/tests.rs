@@ -16,18 +16,18 @@ $112=4013.1492\r\n$120=635\r\n$121=635\r\n$122=635\r\n$130=254\r\n$131=254\r\n$1
 $201=5000\r\n$202=3000\r\n$203=400\r\n$204=100\r\n$205=25\r\n$206=20\r\n$207=5\r\n\
 $230=-254\r\n$231=-254\r\n$232=-101.6\r\n$250=1\r\n$251=0\r\n$252=1000\r\n$253=10\r\n$254=4000\r\n\
 $255=80\r\n$256=0.9\r\n$257=75000\r\n$258=100\r\n$259=3000\r\n$260=-0.1\r\n$261=0\r\n$262=3\r\n\
-$263=0\r\n$264=1500\r\n$270=0.05\r\n$271=2.5\r\n$272=2.5\r\n$273=2048\r\n$274=2048\r\n$275=2048\r\n$280=20\r\n\
+$263=0\r\n$264=1500\r\n$265=1\r\n$270=0.05\r\n$271=2.5\r\n$272=2.5\r\n$273=2048\r\n$274=2048\r\n$275=2048\r\n$280=20\r\n\
 $281=1500\r\n$282=1\r\n$283=50\r\n$284=6.35\r\n$285=0.6\r\n$286=1.4\r\n$287=5\r\n$288=5\r\n";
 
 /// The record of the defaults, version 2 (its acceleration 250 000 BLU/s^2 since the ramps came,
-/// issue 7; `$30` max spindle speed and `$264` the AC's nominal feed appended in version 2, issues
+/// issue 7; `$30` max spindle speed, `$264` the AC's nominal feed and `$265` the GPC weight appended in version 2, issues
 /// 8 and 9; the CRC computed here with
 /// Python's zlib.crc32): a change of the layout must bump the version.
-const DEFAULT_IMAGE: &str = "4d4c53540200b7000088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
+const DEFAULT_IMAGE: &str = "4d4c53540200bb000088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
 feff6079feffc063ffffa0860100a0860100409c000090d0030090d0030090d003000100e80300000a000000cdcc4c\
 3d00000045000020400000004500002040000000450000007a450000a0426666663ff824010064000000b80b0000cd\
 ccccbd14000000dc050100320000003333cb409a99193f3333b33f0000a0400500000003000000000100e8030000dc\
-0500002cffed5e";
+0500000000803fef0f3134";
 
 fn listing(m: &MachineSettings) -> String {
     let mut s = String::new();
@@ -160,7 +160,7 @@ fn refused_sets_give_grbl_errors_and_change_nothing() {
     use crate::ac::settings::AcSettingsError as A;
     use crate::settings::SettingsError as N;
     let r = SetError::Invalid(Invalid::Range);
-    let cases: [(&str, SetError); 37] = [
+    let cases: [(&str, SetError); 39] = [
         ("$1=25", SetError::Unsupported),
         ("$2=0", SetError::Unsupported),
         ("$100=250", SetError::Unsupported),
@@ -194,7 +194,9 @@ fn refused_sets_give_grbl_errors_and_change_nothing() {
         ("$10=4", r),
         ("$13=2", r),
         ("$250=2", r),
-        ("$251=3", r),
+        ("$251=4", r),
+        ("$265=-1", SetError::Negative),
+        ("$265=2000000", SetError::Invalid(Invalid::Ac(A::GpcLambda))),
         ("$264=5000", SetError::Invalid(Invalid::Ac(A::NominalFeed))),
         ("$264=50", SetError::Invalid(Invalid::Ac(A::NominalFeed))),
         ("$200=0.002", r),
@@ -310,7 +312,7 @@ prop_compose! {
                 counts in (0u32..=1_000_000, 1u16..=4095, 0u16..=100, 0u32..=1_000_000),
                 ft in (real(1e-6, 1000.0), real(1e-6, 100.0), real(1e-6, 100.0), real(1e-6, 1e7)),
                 ft_periods in 0u32..=100_000, peak_windows in 1u32..=8,
-                law in (0u8..3, 0u32..=1000)) -> AcSettings {
+                law in (0u8..4, 0u32..=1000, prop_oneof![Just(0.0f32), real(1e-6, 1e6)])) -> AcSettings {
         let (sample_hz, p, fdot_m) = rates;
         let lo = 1000u32.div_ceil(sample_hz).max(1);
         let cal = [0, 1, 2].map(|k| Calibration {
@@ -340,7 +342,9 @@ prop_compose! {
             ft_periods,
             peak_windows,
             ceiling: if picks.1 { FeedCeiling::Frm } else { FeedCeiling::Programmed },
-            strategy: [AcStrategy::Paper, AcStrategy::Integral, AcStrategy::Mrac][law.0 as usize],
+            strategy: [AcStrategy::Paper, AcStrategy::Integral, AcStrategy::Mrac, AcStrategy::Gpc]
+                [law.0 as usize],
+            gpc_lambda: law.2,
             nominal_feed: {
                 let (lo, hi) = (feeds.0.min(feeds.1), feeds.0.max(feeds.1));
                 lo + ((hi - lo) as u64 * law.1 as u64 / 1000) as u32
