@@ -343,28 +343,38 @@ impl FeedLaw {
     }
 }
 
+/// Ulsoy, Koren and Lauderbaugh's simulated process (their Figs. 2 and 3), host (the tests and
+/// the figure of `ac_laws`): y(k) = 0.1 y(k-1) + b0 u(k-1) with b0 proportional to the depth of
+/// cut, 1 -> 2 -> 3 mm at equal lengths of `periods_per_depth` AC periods; the law tuned for
+/// 1 mm (steady y = 1 at f = 1500 of f_max = 3000, f_min = 1, the FRC's step 750). Calls
+/// `each(y, f)` once per period with the load and the feed number the law commands next.
+pub fn depth_step_model(
+    strategy: Strategy,
+    periods_per_depth: usize,
+    mut each: impl FnMut(f32, u32),
+) {
+    let (f_min, f_max, f_nom) = (1u32, 3000u32, 1500u32);
+    let b1 = (1.0 - NOMINAL_POLE) / (f_nom as f32 / f_max as f32);
+    let mut law = FeedLaw::new(strategy, f_nom, f_max, 1.0);
+    let (mut y, mut f) = (0.0f32, f_min);
+    for depth in 1..=3 {
+        for _ in 0..periods_per_depth {
+            y = NOMINAL_POLE * y + depth as f32 * b1 * (f as f32 / f_max as f32);
+            f = law.next(f, 1.0 - y, f, 750.0, f_min, f_max);
+            each(y, f);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     extern crate std;
     use super::*;
     use std::vec::Vec;
 
-    /// Ulsoy, Koren and Lauderbaugh's simulation (their Figs. 2 and 3): the process
-    /// y(k) = 0.1 y(k-1) + b0 u(k-1) with b0 proportional to the depth of cut, 1 -> 2 -> 3 mm at
-    /// equal lengths; the laws tuned for 1 mm (steady y = 1 at f = 1500 of 3000). Returns y(k).
     fn depth_steps(strategy: Strategy, periods_per_depth: usize) -> Vec<f32> {
-        let (f_min, f_max, f_nom) = (1u32, 3000u32, 1500u32);
-        let b1 = (1.0 - NOMINAL_POLE) / (f_nom as f32 / f_max as f32);
-        let mut law = FeedLaw::new(strategy, f_nom, f_max, 1.0);
-        let (mut y, mut f) = (0.0f32, f_min);
         let mut out = Vec::new();
-        for depth in 1..=3 {
-            for _ in 0..periods_per_depth {
-                y = NOMINAL_POLE * y + depth as f32 * b1 * (f as f32 / f_max as f32);
-                out.push(y);
-                f = law.next(f, 1.0 - y, f, 750.0, f_min, f_max);
-            }
-        }
+        super::depth_step_model(strategy, periods_per_depth, |y, _| out.push(y));
         out
     }
 
