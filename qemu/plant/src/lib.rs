@@ -15,7 +15,9 @@
 //! settings (e.g. its calibration) are its belief about them, set separately by whoever runs the
 //! experiment, so an honest evaluation can make the two disagree. The defaults happen to agree with
 //! the controller's defaults; millac-qemu's tests check that the default experiment is matched.
-//! Later models of the plant live here too: tool breakage, chatter, the feed drives.
+//! The feed drives ([`drive`]: a stepper, or the thesis' servo position loop) turn the commanded
+//! position into where the tool really is; the wiring into runs comes with issue 9. Later models
+//! of the plant live here too: tool breakage, chatter.
 //!
 //! Units: the controller speaks BLU (0.0001 in, integers) and ipm at the plant's boundary (tool tip
 //! positions in [`MM_PER_BLU`] steps, programmed feeds); inside, the plant works in SI: mm, s, N,
@@ -25,12 +27,14 @@
 //! Determinism: no hash maps, no clocks, no threads; noise from a seeded SplitMix64 and a sum of
 //! twelve uniforms (only + and *). Same inputs and seed give the same bytes on one platform (the
 //! force model uses `sin`/`cos`, whose last bits may differ between libm implementations).
+pub mod drive;
 pub mod oracle;
 pub mod process;
 pub mod stock;
 #[cfg(test)]
 mod tests;
 
+pub use drive::{Drive, DriveModel};
 pub use oracle::{oracle_time, OracleLimits, OraclePoint, OracleResult};
 pub use process::{Process, Sample};
 pub use stock::{Stock, StockError};
