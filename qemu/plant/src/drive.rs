@@ -29,7 +29,7 @@ pub enum DriveModel {
 impl DriveModel {
     /// The thesis' feed drive (appendix B, Eq. B.6).
     pub const THESIS: DriveModel = DriveModel::Servo {
-        wn2: 60_317.7784,
+        wn2: 60_317.778_4,
         two_zeta_wn: 400.0,
     };
 }
@@ -103,7 +103,7 @@ mod tests {
 
     /// zeta and wn of the thesis' loop.
     fn zeta_wn() -> (f64, f64) {
-        let wn = 60_317.7784f64.sqrt();
+        let wn = 60_317.778_4f64.sqrt();
         (400.0 / (2.0 * wn), wn)
     }
 
@@ -144,7 +144,7 @@ mod tests {
     #[test]
     fn a_servo_trails_a_ramp_by_two_zeta_over_wn() {
         let v = 10_000.0; // BLU/s (about 60 ipm)
-        let want = 400.0 / 60_317.7784 * v;
+        let want = 400.0 / 60_317.778_4 * v;
         for dt in [1.0e-3, 2.5e-4] {
             let mut d = Drive::new(DriveModel::THESIS, [0, 0, 0]);
             let mut lag = 0.0;
