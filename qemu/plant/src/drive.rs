@@ -69,11 +69,8 @@ impl Drive {
                     let steps = (span / MAX_STEP_S).ceil().max(1.0);
                     let h = span / steps;
                     for _ in 0..steps as u64 {
-                        for k in 0..3 {
-                            let (x, v) =
-                                rk4(self.pos[k], self.vel[k], target[k], h, wn2, two_zeta_wn);
-                            self.pos[k] = x;
-                            self.vel[k] = v;
+                        for ((x, v), c) in self.pos.iter_mut().zip(&mut self.vel).zip(&target) {
+                            (*x, *v) = rk4(*x, *v, *c, h, wn2, two_zeta_wn);
                         }
                     }
                 }
