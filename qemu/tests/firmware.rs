@@ -196,6 +196,7 @@ fn ac_against_the_cutting_process_and_host_replay() {
         },
         ac: true,
         faults: Vec::new(),
+        settings: millac::ac::AcSettings::default(),
     };
     let o = runner::run_with(program, &out, 4, Some(&ac)).unwrap();
     assert!(o.ok, "{:#}", o.summary);
