@@ -266,4 +266,37 @@ mod tests {
         assert!(e.to_string().contains("settings"), "{e}");
         assert!(!out.join("program.nc").exists());
     }
+
+    /// `serve --strategy`: stored in the session's own record (a fresh one, or the existing one
+    /// with its other settings kept); a link to another file and a refused record are refused
+    /// and left as they are.
+    #[test]
+    fn store_strategy_writes_only_the_sessions_own_record() {
+        use millac::ac::law::Strategy;
+        use millac::protocol::settings::{record, MachineSettings};
+        let out = dir("strategy");
+        let path = default_settings(&out);
+        store_strategy(&out, Strategy::Mrac).unwrap();
+        let s = record::decode(&std::fs::read(&path).unwrap()).unwrap();
+        assert_eq!(s.ac.strategy, Strategy::Mrac);
+        let mut mine = MachineSettings::default();
+        mine.nc.pulse_width_ns = 7_000;
+        std::fs::write(&path, record::encode(&mine)).unwrap();
+        store_strategy(&out, Strategy::Integral).unwrap();
+        let s = record::decode(&std::fs::read(&path).unwrap()).unwrap();
+        assert_eq!(s.ac.strategy, Strategy::Integral);
+        assert_eq!(s.nc.pulse_width_ns, 7_000);
+        let mut bad = std::fs::read(&path).unwrap();
+        bad[20] ^= 1;
+        std::fs::write(&path, &bad).unwrap();
+        let e = store_strategy(&out, Strategy::Mrac).unwrap_err();
+        assert!(e.to_string().contains("checksum"), "{e}");
+        assert_eq!(std::fs::read(&path).unwrap(), bad);
+        std::fs::remove_file(&path).unwrap();
+        let other = dir("strategy-other").join("s.bin");
+        link_settings(&out, &other).unwrap();
+        let e = store_strategy(&out, Strategy::Mrac).unwrap_err();
+        assert!(e.to_string().contains("links to another"), "{e}");
+        assert!(!other.exists());
+    }
 }
