@@ -5,12 +5,16 @@
 //! AcController code as the firmware, against the simulated cut (steel, 0.5 in 4-flute, 600 rpm).
 //!
 //! ```text
-//! cargo run -p millac-qemu --release --example ac_bench [-- --accel IN_PER_S2]
+//! cargo run -p millac-qemu --release --example ac_bench [-- --accel IN_PER_S2] [--strategy NAME|all]
 //! ```
 //!
 //! `--accel` sets the acceleration limit of every axis (`$120`..`$122`, default the settings'
 //! 25 in/s^2): the frame ramps every feed change at it, which the AC's loop sees as actuator lag.
+//! `--strategy` chooses the feed law of the AC rows (`$251`: paper, integral, mrac, gpc; default
+//! paper, the paper's two rows); `all` gives the paper's rows and one row for each other law
+//! (each with the anti-windup and the 3-window peak), before the oracle's.
 use anyhow::Result;
+use millac::ac::law::Strategy;
 use millac::ac::AcSettings;
 use millac::Settings;
 use millac_plant::{Material, Stock, Tool, Transducer};
@@ -32,6 +36,16 @@ fn main() -> Result<()> {
             .validate()
             .map_err(|e| anyhow::anyhow!("--accel {a}: {}", e.message()))?;
     }
+    let strategies: Vec<Strategy> = match args.iter().position(|a| a == "--strategy") {
+        None => vec![Strategy::Paper],
+        Some(i) => match args.get(i + 1).map(String::as_str) {
+            Some("all") => Strategy::ALL.to_vec(),
+            Some(name) => vec![Strategy::from_name(name).ok_or_else(|| {
+                anyhow::anyhow!("--strategy {name}: not paper, integral, mrac, gpc or all")
+            })?],
+            None => anyhow::bail!("--strategy needs paper, integral, mrac, gpc or all"),
+        },
+    };
     println!(
         "acceleration {} in/s^2 per axis",
         settings.accel_blu_s2[0] as f64 / 10_000.0
@@ -89,18 +103,32 @@ fn main() -> Result<()> {
             &format!("constant, safe {:.2} ipm", cmp.safe_feed_ipm),
             &cmp.safe,
         );
-        let paper = AcSettings {
-            peak_windows: 1,
-            ..acs
-        };
-        row(
-            "paper's FRC as published",
-            &acsim::run_with(&prog, &settings, &cut, Some(paper), false)?,
-        );
-        row(
-            "paper's FRC + anti-windup + 3-window peak",
-            &acsim::run(&prog, &settings, &cut, Some(acs))?,
-        );
+        for &strategy in &strategies {
+            if strategy == Strategy::Paper {
+                let paper = AcSettings {
+                    peak_windows: 1,
+                    ..acs
+                };
+                row(
+                    "paper's FRC as published",
+                    &acsim::run_with(&prog, &settings, &cut, Some(paper), false)?,
+                );
+                row(
+                    "paper's FRC + anti-windup + 3-window peak",
+                    &acsim::run(&prog, &settings, &cut, Some(acs))?,
+                );
+                continue;
+            }
+            let label = match strategy {
+                Strategy::Integral => "integral law (Ulsoy et al. Eq. 2)",
+                Strategy::Gpc => "GPC (Munasinghe 3.1.4)",
+                _ => "MRAC (Ulsoy et al. Eqs. 3-4)",
+            };
+            row(
+                &format!("{label} + anti-windup + 3-window peak"),
+                &acsim::run(&prog, &settings, &cut, Some(AcSettings { strategy, ..acs }))?,
+            );
+        }
         println!("| {name} | oracle (bound) | {oracle:.2} | 1.000 | - | - | - | - |");
     }
     Ok(())

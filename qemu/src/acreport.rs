@@ -155,9 +155,26 @@ pub fn ac_json(time_s: f64, load: &LoadFigures, c: &Comparison) -> Value {
     })
 }
 
+/// The AC row's name in the side-by-side table for the run's feed law.
+pub fn ac_label(strategy: millac::ac::law::Strategy) -> &'static str {
+    use millac::ac::law::Strategy;
+    match strategy {
+        Strategy::Paper => "AC (paper's FRC, anti-windup, held peak)",
+        Strategy::Integral => "AC (integral law, anti-windup, held peak)",
+        Strategy::Mrac => "AC (MRAC, anti-windup, held peak)",
+        Strategy::Gpc => "AC (GPC, anti-windup, held peak)",
+    }
+}
+
 /// Prints the side-by-side table. `unfinished`: why the AC run did not finish (e.g. `held at
-/// line 3`); its row then says so instead of a ratio to the oracle.
-pub fn print_table(time_s: f64, load: &LoadFigures, c: &Comparison, unfinished: Option<&str>) {
+/// line 3`); its row then says so instead of a ratio to the oracle. `strategy` names the AC row.
+pub fn print_table(
+    time_s: f64,
+    load: &LoadFigures,
+    c: &Comparison,
+    unfinished: Option<&str>,
+    strategy: millac::ac::law::Strategy,
+) {
     println!("  adaptive control on the simulated cut        time s   vs oracle  peak F/Fmax  peak T/Tmax  above F0 s  above limit s");
     let row = |name: &str, t: f64, l: Option<&LoadFigures>, unfinished: Option<&str>| {
         let (pf, pt, a0, al) = l.map_or(("-".into(), "-".into(), "-".into(), "-".into()), |l| {
@@ -176,12 +193,7 @@ pub fn print_table(time_s: f64, load: &LoadFigures, c: &Comparison, unfinished: 
             "  {name:<44} {t:>7.2}   {ratio:>8}  {pf:>11}  {pt:>11}  {a0:>10}  {al:>13}{note}"
         );
     };
-    row(
-        "AC (paper's FRC, anti-windup, held peak)",
-        time_s,
-        Some(load),
-        unfinished,
-    );
+    row(ac_label(strategy), time_s, Some(load), unfinished);
     row(
         "constant, programmed feeds",
         c.programmed.machining_time_s,

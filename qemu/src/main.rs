@@ -2,7 +2,7 @@
 //! paper's Fig. 1 cavity) through the firmware under QEMU; `run PROGRAM --out DIR` runs any program;
 //! `analyse CAPTURE.vcd PROGRAM` checks a capture (ours or a real logic analyser's) against a program.
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
 use millac::Settings;
 use millac_qemu::{analysis, runner, vcd};
 use std::path::{Path, PathBuf};
@@ -31,7 +31,7 @@ enum Cmd {
         #[arg(long, default_value_t = 4)]
         shift: u32,
         /// NC only: no simulated ADC and no adaptive control (the pulses then equal the host core's).
-        #[arg(long, conflicts_with = "faults")]
+        #[arg(long, conflicts_with_all = ["faults", "strategy"])]
         nc_only: bool,
         #[command(flatten)]
         cut: CutArgs,
@@ -71,7 +71,7 @@ enum Cmd {
         #[arg(long, default_value_t = 4)]
         shift: u32,
         /// No simulated ADC and no adaptive control.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "strategy")]
         nc_only: bool,
         #[command(flatten)]
         cut: CutArgs,
@@ -95,6 +95,48 @@ struct CutArgs {
     /// under QEMU (run, demo) and on the host (host); millac_qemu::fault lists each alarm.
     #[arg(long = "fault", value_name = "KIND@SECONDS")]
     faults: Vec<millac_qemu::fault::Fault>,
+    /// The AC's feed law ($251) [default: paper]: the same settings reach the firmware (a
+    /// settings record in the run directory) and the host's simulation, replay and report. In
+    /// `serve` it is stored in the session's record OUT/settings.bin (not with --settings).
+    #[arg(long, value_enum)]
+    strategy: Option<StrategyArg>,
+}
+
+/// `--strategy`: `millac::ac::law::Strategy` on the command line.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum StrategyArg {
+    /// The paper's FRC (Tlusty, Koren, McNeil).
+    Paper,
+    /// Fixed-gain integral law (Ulsoy, Koren, Lauderbaugh Eq. 2).
+    Integral,
+    /// Model reference adaptive control (their Eqs. 3-4).
+    Mrac,
+    /// Generalized predictive control (Munasinghe's thesis, Eqs. 3.27-3.42).
+    Gpc,
+}
+
+impl From<StrategyArg> for millac::ac::law::Strategy {
+    fn from(s: StrategyArg) -> Self {
+        use millac::ac::law::Strategy;
+        match s {
+            StrategyArg::Paper => Strategy::Paper,
+            StrategyArg::Integral => Strategy::Integral,
+            StrategyArg::Mrac => Strategy::Mrac,
+            StrategyArg::Gpc => Strategy::Gpc,
+        }
+    }
+}
+
+impl CutArgs {
+    /// The run's AC settings: the defaults with the strategy.
+    fn ac_settings(&self) -> millac::ac::AcSettings {
+        millac::ac::AcSettings {
+            strategy: self
+                .strategy
+                .map_or(millac::ac::law::Strategy::Paper, Into::into),
+            ..Default::default()
+        }
+    }
 }
 
 fn main() {
@@ -107,6 +149,7 @@ fn main() {
                 seed: 1,
                 stock: None,
                 faults: Vec::new(),
+                strategy: None,
             },
         ),
         Some(Cmd::Demo { out, cut }) => demo(&out, &cut),
@@ -127,10 +170,18 @@ fn main() {
             shift,
             nc_only,
             cut,
-        }) => {
+        }) => (|| {
+            if let Some(s) = cut.strategy {
+                anyhow::ensure!(
+                    settings.is_none(),
+                    "--strategy stores $251 only in the session's own record (OUT/settings.bin): \
+                     with --settings FILE set $251 in the session instead"
+                );
+                millac_qemu::serve::store_strategy(&out, s.into())?;
+            }
             let settings = settings.unwrap_or_else(|| millac_qemu::serve::default_settings(&out));
             serve(&tcp, &out, &settings, shift, (!nc_only).then_some(&cut))
-        }
+        })(),
         Some(Cmd::Host { program, out, cut }) => match program {
             Some(p) => with_program(&p, &out, |text| host(text, &out, &cut)),
             None => host(DEMO, &out, &cut),
@@ -159,7 +210,14 @@ fn with_program(path: &Path, out: &Path, f: impl FnOnce(&str) -> Result<bool>) -
 fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
     println!(
         "millac demo: roughing the cavity of Fig. 1 (Tlusty, Koren, McNeil) through the firmware under QEMU, {}",
-        if cut.no_ac { "adaptive control off (--no-ac)" } else { "with adaptive control" }
+        match (cut.no_ac, cut.strategy) {
+            (true, _) => "adaptive control off (--no-ac)".to_string(),
+            (false, None) => "with adaptive control".to_string(),
+            (false, Some(_)) => format!(
+                "with adaptive control (strategy {})",
+                cut.ac_settings().strategy.name()
+            ),
+        }
     );
     run(DEMO, out, 4, Some(cut))
 }
@@ -170,6 +228,7 @@ fn run(text: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> Result<bool
             cut: cut_setup(text, c)?,
             ac: !c.no_ac,
             faults: c.faults.clone(),
+            settings: c.ac_settings(),
         }),
         None => None,
     };
@@ -219,6 +278,7 @@ fn serve(
             cut: cut_setup("", c)?,
             ac: !c.no_ac,
             faults: c.faults.clone(),
+            settings: c.ac_settings(),
         }),
         None => None,
     };
@@ -288,7 +348,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
         }
     };
     let cut = cut_setup(text, args)?;
-    let acs = millac::ac::AcSettings::default();
+    let acs = args.ac_settings();
     std::fs::create_dir_all(out)?;
     let run = acsim::run_with_faults(
         &prog,
@@ -318,7 +378,11 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
     let cmp = acreport::compare(&prog, &settings, &cut, &acs)?;
     println!(
         "millac host run ({}): final position {:?}",
-        if args.no_ac { "no AC" } else { "AC" },
+        match (args.no_ac, args.strategy) {
+            (true, _) => "no AC".to_string(),
+            (false, None) => "AC".to_string(),
+            (false, Some(_)) => format!("AC, strategy {}", acs.strategy.name()),
+        },
         run.final_position
     );
     if let Some(a) = run.alarm {
@@ -335,6 +399,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
     });
     summary["ac"] = acreport::ac_json(run.machining_time_s, &load, &cmp);
     summary["ac"]["enabled"] = serde_json::json!(!args.no_ac);
+    summary["ac"]["strategy"] = serde_json::json!(acs.strategy.name());
     summary["ac"]["samples"] = serde_json::json!(run.samples.len());
     summary["ac"]["holds"] = serde_json::json!(run
         .rows
@@ -350,7 +415,13 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
         summary["hold"] = runner::hold_json(&prog, h);
     }
     let why = hold.as_ref().map(|h| runner::held_at(&prog, h));
-    acreport::print_table(run.machining_time_s, &load, &cmp, why.as_deref());
+    acreport::print_table(
+        run.machining_time_s,
+        &load,
+        &cmp,
+        why.as_deref(),
+        acs.strategy,
+    );
     runner::write_json(&out.join("summary.json"), &summary)?;
     println!(
         "  wrote {}/ac.csv, {}/ac.svg and {}/summary.json",

@@ -65,10 +65,47 @@ fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
     Ok(spec)
 }
 
+/// The settings record of a run whose AC settings are not the defaults (another `--strategy`):
+/// `out/settings.bin` ([`millac::wire::SETTINGS_NAME`], the file the firmware loads at start-up),
+/// written before QEMU starts and removed when the run ends (dropped), so the next run in `out`
+/// passes [`prepare`]'s check and a default run writes no file (its runs stay byte-identical).
+/// The NC settings stay the defaults the checks assume.
+struct RunSettings(Option<std::path::PathBuf>);
+
+impl RunSettings {
+    fn write(out: &Path, acs: Option<&millac::ac::AcSettings>) -> Result<RunSettings> {
+        let Some(acs) = acs.filter(|a| **a != millac::ac::AcSettings::default()) else {
+            return Ok(RunSettings(None));
+        };
+        acs.validate()
+            .map_err(|e| anyhow::anyhow!("AC settings: {}", e.message()))?;
+        let record = millac::protocol::settings::record::encode(&run_record(acs));
+        let path = out.join(millac::wire::SETTINGS_NAME);
+        std::fs::write(&path, record).with_context(|| format!("writing {}", path.display()))?;
+        Ok(RunSettings(Some(path)))
+    }
+}
+
+impl Drop for RunSettings {
+    fn drop(&mut self) {
+        if let Some(p) = &self.0 {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+/// The settings a run gives the firmware: the defaults with the run's AC settings.
+pub fn run_record(acs: &millac::ac::AcSettings) -> millac::protocol::settings::MachineSettings {
+    millac::protocol::settings::MachineSettings {
+        ac: *acs,
+        ..Default::default()
+    }
+}
+
 /// Runs the firmware on `text` like [`execute`], with the lockstep simulated ADC served by
 /// `plant` (see [`cosim`]): `ac_enabled` = the firmware applies the controller's feed cap (else it
 /// only measures and logs). Returns the capture and every ADC exchange; the firmware's AC log is
-/// `out/ac.log` (parse it with [`cosim::parse_ac_log`]).
+/// `out/ac.log` (parse it with [`cosim::parse_ac_log`]). The default AC settings.
 pub fn execute_with_plant(
     text: &str,
     out: &Path,
@@ -76,10 +113,24 @@ pub fn execute_with_plant(
     plant: Box<dyn cosim::Plant + Send>,
     ac_enabled: bool,
 ) -> Result<(Capture, Vec<cosim::Exchange>)> {
+    let acs = millac::ac::AcSettings::default();
+    execute_with_plant_settings(text, out, shift, plant, ac_enabled, &acs)
+}
+
+/// As [`execute_with_plant`], the firmware running on the AC settings `acs` (e.g. another
+/// strategy): a settings record in `out` for the run when they are not the defaults.
+pub fn execute_with_plant_settings(
+    text: &str,
+    out: &Path,
+    shift: u32,
+    plant: Box<dyn cosim::Plant + Send>,
+    ac_enabled: bool,
+    acs: &millac::ac::AcSettings,
+) -> Result<(Capture, Vec<cosim::Exchange>)> {
     let spec = prepare(text, out, shift)?;
     let _ = std::fs::remove_file(out.join(cosim::AC_LOG));
-    let sample_hz = millac::ac::AcSettings::default().sample_hz;
-    let bridge = cosim::Bridge::start(out, plant, sample_hz, ac_enabled)?;
+    let _record = RunSettings::write(out, Some(acs))?;
+    let bridge = cosim::Bridge::start(out, plant, acs.sample_hz, ac_enabled)?;
     let cap = run_capture(&spec);
     let exchanges = bridge.finish();
     let cap = cap?;
@@ -108,12 +159,16 @@ pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
 
 /// A run against the simulated cutting process: the firmware's ADC reads come from `cut` in
 /// lockstep; `ac` applies the controller's feed cap (false: measure and log only, `--no-ac`);
-/// `faults` are injected into the codes the firmware reads (`--fault`, see [`crate::fault`]).
+/// `faults` are injected into the codes the firmware reads (`--fault`, see [`crate::fault`]);
+/// `settings` are the AC settings of the run (`--strategy`), the same for the firmware (a
+/// settings record in the run directory when they are not the defaults) and for the host's
+/// report and replay.
 #[derive(Clone, Debug)]
 pub struct AcRun {
     pub cut: crate::acsim::Cut,
     pub ac: bool,
     pub faults: Vec<crate::fault::Fault>,
+    pub settings: millac::ac::AcSettings,
 }
 
 /// The cutting process as the firmware's simulated ADC; keeps the true force and torque of every
@@ -143,7 +198,7 @@ pub fn plant_with_truth(
         process: a.cut.process()?,
         truth,
     };
-    let acs = millac::ac::AcSettings::default();
+    let acs = a.settings;
     let zero = acs.cal.map(|c| f64::from(c.offset));
     Ok(Box::new(crate::fault::Faulty::new(
         plant,
@@ -231,7 +286,7 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
         None => (execute(text, out, shift)?, Vec::new()),
         Some(a) => {
             let plant = plant_with_truth(a, truth.clone())?;
-            execute_with_plant(text, out, shift, plant, a.ac)?
+            execute_with_plant_settings(text, out, shift, plant, a.ac, &a.settings)?
         }
     };
     // A hold the firmware reported is a result (the run did not complete), anything else that
@@ -320,7 +375,7 @@ pub fn summarise(
     if let Some(a) = ac {
         let log = std::fs::read_to_string(out.join(cosim::AC_LOG)).unwrap_or_default();
         records = cosim::parse_ac_log(&log)?;
-        let acs = millac::ac::AcSettings::default();
+        let acs = a.run.settings;
         let rows = ac_rows(settings, &acs, &records, a.truth);
         std::fs::write(out.join("ac.csv"), crate::acsim::csv(&rows))?;
         crate::acreport::plot(
@@ -340,11 +395,18 @@ pub fn summarise(
         let cmp = crate::acreport::compare(prog, settings, &a.run.cut, &acs)?;
         summary["ac"] = crate::acreport::ac_json(report.machining_time_s, &load, &cmp);
         summary["ac"]["enabled"] = json!(a.run.ac);
+        summary["ac"]["strategy"] = json!(acs.strategy.name());
         summary["ac"]["samples"] = json!(a.samples);
         summary["ac"]["holds"] = json!(records.iter().filter(|r| r.hold.is_some()).count());
         summary["ac"]["overruns"] = json!(records.last().map_or(0, |r| r.overruns));
         let why = hold.map(|h| held_at(prog, h));
-        crate::acreport::print_table(report.machining_time_s, &load, &cmp, why.as_deref());
+        crate::acreport::print_table(
+            report.machining_time_s,
+            &load,
+            &cmp,
+            why.as_deref(),
+            acs.strategy,
+        );
     }
     Ok((summary, report, records))
 }

@@ -73,6 +73,38 @@ pub fn link_settings(out: &Path, settings: &Path) -> Result<()> {
         .with_context(|| format!("linking {} to {}", name.display(), target.display()))
 }
 
+/// `serve --strategy NAME` (no `--settings`): stores the AC strategy (`$251`) in the session's
+/// own record `out/settings.bin` before the firmware starts, keeping its other settings (the
+/// defaults when there is no record yet), as a `$251=N` in an earlier session would have. Refused
+/// when that name is a link to another settings file (a session with `--settings`: set `$251`
+/// there) or holds a record the firmware would refuse (it is never overwritten).
+pub fn store_strategy(out: &Path, strategy: millac::ac::law::Strategy) -> Result<()> {
+    use millac::protocol::settings::{record, MachineSettings};
+    let path = default_settings(out);
+    let mut s = match std::fs::symlink_metadata(&path) {
+        Ok(m) if m.file_type().is_symlink() => anyhow::bail!(
+            "{} links to another settings file: --strategy writes only the session's own record \
+             (set $251 in the session, or remove the link)",
+            path.display()
+        ),
+        Ok(_) => {
+            let bytes =
+                std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+            record::decode(&bytes).map_err(|e| {
+                anyhow!(
+                    "{}: {}; --strategy does not overwrite a refused record",
+                    path.display(),
+                    e.message()
+                )
+            })?
+        }
+        Err(_) => MachineSettings::default(),
+    };
+    s.ac.strategy = strategy;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    std::fs::write(&path, record::encode(&s)).with_context(|| format!("writing {}", path.display()))
+}
+
 /// Runs the firmware in serial mode with UART0 on `tcp` until `stop` is set; writes
 /// `out/capture.vcd`, `out/serve.nc` (the firmware's session log) and `out/summary.json`. The
 /// firmware loads and stores its settings in `settings` ([`link_settings`]). With `ac`, the
@@ -114,6 +146,12 @@ pub fn serve(
     ];
     spec.stop = Some(stop);
     let truth = Arc::new(std::sync::Mutex::new(Vec::new()));
+    // The simulated ADC, the report and the plot take the AC settings the firmware starts with.
+    let ac = ac.map(|a| AcRun {
+        settings: stored.ac,
+        ..a.clone()
+    });
+    let ac = ac.as_ref();
     let (cap, samples) = match ac {
         None => (run_capture(&spec)?, 0),
         Some(a) => {
@@ -227,5 +265,38 @@ mod tests {
         let e = crate::runner::execute("G0 X1\n", &out, 4).expect_err("refused");
         assert!(e.to_string().contains("settings"), "{e}");
         assert!(!out.join("program.nc").exists());
+    }
+
+    /// `serve --strategy`: stored in the session's own record (a fresh one, or the existing one
+    /// with its other settings kept); a link to another file and a refused record are refused
+    /// and left as they are.
+    #[test]
+    fn store_strategy_writes_only_the_sessions_own_record() {
+        use millac::ac::law::Strategy;
+        use millac::protocol::settings::{record, MachineSettings};
+        let out = dir("strategy");
+        let path = default_settings(&out);
+        store_strategy(&out, Strategy::Mrac).unwrap();
+        let s = record::decode(&std::fs::read(&path).unwrap()).unwrap();
+        assert_eq!(s.ac.strategy, Strategy::Mrac);
+        let mut mine = MachineSettings::default();
+        mine.nc.pulse_width_ns = 7_000;
+        std::fs::write(&path, record::encode(&mine)).unwrap();
+        store_strategy(&out, Strategy::Integral).unwrap();
+        let s = record::decode(&std::fs::read(&path).unwrap()).unwrap();
+        assert_eq!(s.ac.strategy, Strategy::Integral);
+        assert_eq!(s.nc.pulse_width_ns, 7_000);
+        let mut bad = std::fs::read(&path).unwrap();
+        bad[20] ^= 1;
+        std::fs::write(&path, &bad).unwrap();
+        let e = store_strategy(&out, Strategy::Mrac).unwrap_err();
+        assert!(e.to_string().contains("checksum"), "{e}");
+        assert_eq!(std::fs::read(&path).unwrap(), bad);
+        std::fs::remove_file(&path).unwrap();
+        let other = dir("strategy-other").join("s.bin");
+        link_settings(&out, &other).unwrap();
+        let e = store_strategy(&out, Strategy::Mrac).unwrap_err();
+        assert!(e.to_string().contains("links to another"), "{e}");
+        assert!(!other.exists());
     }
 }

@@ -105,3 +105,64 @@ fn host_rejects_a_bad_program_like_run() {
     ]);
     assert_rejected(&o, &out, 3, &[]);
 }
+
+/// `host --strategy integral` runs the integral law (summary.json `ac.strategy`, its own feeds:
+/// ac.csv differs from the default, the paper's); `serve` refuses `--strategy` with `--settings`
+/// before anything starts.
+#[test]
+fn host_runs_the_strategy_it_is_given() {
+    let dir = scratch("strategy");
+    let prog = dir.join("slot.nc");
+    std::fs::write(
+        &prog,
+        "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n",
+    )
+    .unwrap();
+    let stock = dir.join("stock.txt");
+    std::fs::write(&stock, "blank X0 Y0 W5 H3 Z0\n").unwrap();
+    let mut csv = Vec::new();
+    for (strategy, name) in [(None, "paper"), (Some("integral"), "integral")] {
+        let out = dir.join(name);
+        let mut args: Vec<&std::ffi::OsStr> = vec![
+            "host".as_ref(),
+            prog.as_os_str(),
+            "--out".as_ref(),
+            out.as_os_str(),
+            "--stock".as_ref(),
+            stock.as_os_str(),
+        ];
+        if let Some(s) = strategy {
+            args.extend::<[&std::ffi::OsStr; 2]>(["--strategy".as_ref(), s.as_ref()]);
+        }
+        let o = millac(&args);
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            o.status.success(),
+            "{stdout}\n{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let s = summary(&out);
+        assert_eq!(s["ac"]["strategy"], name, "{s:#}");
+        assert_eq!(s["completed"], true, "{s:#}");
+        csv.push(std::fs::read_to_string(out.join("ac.csv")).unwrap());
+    }
+    assert_ne!(csv[0], csv[1], "the integral law ran the paper's feeds");
+    let out = dir.join("serve");
+    let settings = dir.join("s.bin");
+    let o = millac(&[
+        "serve".as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--settings".as_ref(),
+        settings.as_os_str(),
+        "--strategy".as_ref(),
+        "mrac".as_ref(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("--strategy"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!settings.exists() && !out.exists());
+}

@@ -196,6 +196,7 @@ fn ac_against_the_cutting_process_and_host_replay() {
         },
         ac: true,
         faults: Vec::new(),
+        settings: millac::ac::AcSettings::default(),
     };
     let o = runner::run_with(program, &out, 4, Some(&ac)).unwrap();
     assert!(o.ok, "{:#}", o.summary);
@@ -235,6 +236,77 @@ fn ac_against_the_cutting_process_and_host_replay() {
     for (k, (d, r)) in host.iter().zip(&o.ac_log).enumerate() {
         assert_eq!((d.feed_cap, d.e), (r.feed_cap, r.e), "period {k}");
     }
+}
+
+/// `--strategy mrac` (the runner's `AcRun::settings`) reaches the firmware: its AC log differs
+/// from the paper's on the same cut, a host controller with the same settings replays its
+/// decisions period by period, summary.json names the strategy, and the run's settings record
+/// is gone afterwards (the next run in the directory is not refused).
+#[test]
+fn the_strategy_reaches_the_firmware_and_the_replay() {
+    use millac::ac::law::Strategy;
+    use millac::ac::AcSettings;
+    use millac_plant::{Material, Stock, Tool, Transducer};
+    use millac_qemu::acsim::Cut;
+    let program = "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n";
+    let out = out_dir("strategy");
+    let mut logs = Vec::new();
+    for strategy in [Strategy::Paper, Strategy::Mrac] {
+        let settings = AcSettings {
+            strategy,
+            ..AcSettings::default()
+        };
+        let ac = runner::AcRun {
+            cut: Cut {
+                stock: Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(),
+                tool: Tool::default(),
+                material: Material::STEEL,
+                spindle_rpm: 600.0,
+                seed: 3,
+                transducer: Transducer::default(),
+            },
+            ac: true,
+            faults: Vec::new(),
+            settings,
+        };
+        let o = runner::run_with(program, &out, 4, Some(&ac)).unwrap();
+        assert!(o.ok, "{:#}", o.summary);
+        assert_eq!(o.summary["ac"]["strategy"], strategy.name());
+        assert!(!out.join(millac::wire::SETTINGS_NAME).exists());
+        let host =
+            millac_qemu::cosim::replay(&o.ac_log, &o.exchanges, &Settings::default(), settings)
+                .unwrap();
+        assert_eq!(host.len(), o.ac_log.len());
+        for (k, (d, r)) in host.iter().zip(&o.ac_log).enumerate() {
+            assert_eq!(
+                (d.feed_cap, d.e.to_bits()),
+                (r.feed_cap, r.e.to_bits()),
+                "{} period {k}",
+                strategy.name()
+            );
+        }
+        logs.push((o.ac_log, o.exchanges));
+    }
+    let caps =
+        |l: &[millac_qemu::cosim::AcRecord]| -> Vec<u32> { l.iter().map(|r| r.feed_cap).collect() };
+    let (mrac_log, mrac_exchanges) = &logs[1];
+    assert_ne!(
+        caps(&logs[0].0),
+        caps(mrac_log),
+        "MRAC ran the paper's feeds"
+    );
+    // The check has teeth: the paper's controller does not replay the MRAC run.
+    let paper = millac_qemu::cosim::replay(
+        mrac_log,
+        mrac_exchanges,
+        &Settings::default(),
+        AcSettings::default(),
+    )
+    .unwrap();
+    assert_ne!(
+        paper.iter().map(|d| d.feed_cap).collect::<Vec<_>>(),
+        caps(mrac_log)
+    );
 }
 
 /// The frame and pulse-end interrupts have no panic path and call nothing: no BL/BLX, no UDF trap,

@@ -697,6 +697,7 @@ fn ac_holds_and_operator_holds_resume_in_the_cut() {
                 },
                 ac: true,
                 faults: Vec::new(),
+                settings: millac::ac::AcSettings::default(),
             };
             serve::serve(&out, &settings_file, &addr, 4, Some(&ac), stop)
         })

@@ -41,6 +41,31 @@ pub enum Strategy {
     Gpc,
 }
 
+impl Strategy {
+    /// Every strategy, in the order of their `$251` codes.
+    pub const ALL: [Strategy; 4] = [
+        Strategy::Paper,
+        Strategy::Integral,
+        Strategy::Mrac,
+        Strategy::Gpc,
+    ];
+
+    /// The strategy's name on the host tool's command line and in summary.json (`ac.strategy`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Strategy::Paper => "paper",
+            Strategy::Integral => "integral",
+            Strategy::Mrac => "mrac",
+            Strategy::Gpc => "gpc",
+        }
+    }
+
+    /// The strategy of a [`Strategy::name`].
+    pub fn from_name(name: &str) -> Option<Strategy> {
+        Strategy::ALL.into_iter().find(|s| s.name() == name)
+    }
+}
+
 /// The process pole `a` the integral gain and the MRAC's initial estimate assume (Ulsoy, Koren and
 /// Lauderbaugh's a1 = -0.1: y(k) = 0.1 y(k-1) + b u(k-1)).
 pub const NOMINAL_POLE: f32 = 0.1;
@@ -458,6 +483,14 @@ mod tests {
             let worst = seg.iter().map(|v| (v - 1.0).abs()).fold(0.0, f32::max);
             assert!(worst < 0.02, "{worst}");
         }
+    }
+
+    #[test]
+    fn strategy_names_round_trip() {
+        for s in Strategy::ALL {
+            assert_eq!(Strategy::from_name(s.name()), Some(s));
+        }
+        assert_eq!(Strategy::from_name("all"), None);
     }
 
     #[test]
