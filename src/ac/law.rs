@@ -208,7 +208,9 @@ impl MracLaw {
     /// One period: `y` measured now, `u_prev` the (normalised) feed the process had over the
     /// period that produced it. Updates the estimate, advances the reference model, returns u(k).
     pub fn next(&mut self, y: f32, u_prev: f32) -> f32 {
-        self.rls.update(&[self.y_prev, u_prev], y);
+        if y.max(self.y_prev) >= EXCITATION_FLOOR {
+            self.rls.update(&[self.y_prev, u_prev], y);
+        }
         self.y_prev = y;
         let [p, b] = self.rls.theta;
         let b = if b > self.b_min { b } else { self.b_min };
@@ -232,12 +234,20 @@ impl MracLaw {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GpcLaw {
     pub rls: Rls<5>,
+    /// The nominal parameters, used for the control while the estimate's steady gain is
+    /// implausible (below a quarter of the nominal, or the model near an integrator).
+    nominal: [f32; 5],
     /// y(t), y(t-1), y(t-2) after the last period (y(t-1), y(t-2), y(t-3) before the next).
     ys: [f32; 3],
     /// u(t-1), u(t-2), u(t-3) after the last period.
     us: [f32; 3],
     pub lambda: f32,
 }
+
+/// Below this load (F/F0 and T/T0) over the regressor's periods the tool is in air: the feed
+/// makes no force, the data say nothing about the process gain, and the estimators (MRAC, GPC)
+/// do not update (otherwise an air cut drives b^ to zero and the next entry to f_max).
+pub const EXCITATION_FLOOR: f32 = 0.05;
 
 /// The GPC estimator's constant trace (five parameters of order 1).
 pub const GPC_TRACE: f32 = 50.0;
@@ -250,6 +260,7 @@ impl GpcLaw {
         let b = (1.0 - a) / u_nominal;
         GpcLaw {
             rls: Rls::new([-a, 0.0, b, 0.0, 0.0], GPC_TRACE, RLS_DEAD_ZONE),
+            nominal: [-a, 0.0, b, 0.0, 0.0],
             ys: [0.0; 3],
             us: [0.0; 3],
             lambda,
@@ -261,10 +272,23 @@ impl GpcLaw {
     pub fn next(&mut self, y: f32, u_prev: f32) -> f32 {
         let [y1, y2, _] = self.ys;
         let [u2, u3] = [self.us[0], self.us[1]];
-        self.rls.update(&[-y1, -y2, u_prev, u2, u3], y);
+        if y.max(y1).max(y2) >= EXCITATION_FLOOR {
+            self.rls.update(&[-y1, -y2, u_prev, u2, u3], y);
+        }
         self.ys = [y, y1, y2];
         self.us = [u_prev, u2, u3];
-        let [a1, a2, b0, b1, b2] = self.rls.theta;
+        let theta = {
+            let [a1, a2, b0, b1, b2] = self.rls.theta;
+            let [n1, n2, nb, _, _] = self.nominal;
+            let (a_sum, b_sum) = (1.0 + a1 + a2, b0 + b1 + b2);
+            let nominal_gain = nb / (1.0 + n1 + n2);
+            if a_sum > 0.05 && b_sum / a_sum >= 0.25 * nominal_gain {
+                self.rls.theta
+            } else {
+                self.nominal
+            }
+        };
+        let [a1, a2, b0, b1, b2] = theta;
         // Free response: Delta f = 0 from now on.
         let (mut df1, mut df2) = (u_prev - u2, u2 - u3);
         let (mut dy1, mut dy2) = (y - y1, y1 - y2);

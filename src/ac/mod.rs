@@ -354,6 +354,10 @@ impl AcController {
                         self.s.f_min,
                         self.s.f_max,
                     );
+                    // Every law raises the feed by at most fdot_m x dt per period (the paper's
+                    // FRC does so by construction: E <= 1): the machine's feed acceleration, the
+                    // bound's too. A law may lower it faster (the safe direction).
+                    let f = f.min(self.f.saturating_add(self.step as u32));
                     // While force and torque disagree the measured load may be too low: no raise.
                     self.f = if self.s.ft_periods > 0 && out_of_band {
                         f.min(self.f)

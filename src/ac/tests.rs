@@ -666,3 +666,34 @@ fn the_settings_strategy_picks_the_controllers_feed_law() {
         assert_eq!(name, want);
     }
 }
+
+/// One rule for every law: the feed rises by at most fdot_m x dt per period (the paper's FRC by
+/// construction; the integral, MRAC and GPC laws ask for far more in air).
+#[test]
+fn every_law_raises_the_feed_by_at_most_one_frc_step_per_period() {
+    use super::law::Strategy;
+    let air = codes(0.0, 0.0, 0.0);
+    for strategy in Strategy::ALL {
+        let s = AcSettings {
+            strategy,
+            ..AcSettings::default()
+        };
+        let step = s.step_per_period() as u32;
+        let mut c = ctl(s);
+        let mut f = c.feed_cap();
+        for k in 0..5 {
+            let out = window(&mut c, air);
+            assert!(
+                out.feed_cap <= f + step,
+                "{strategy:?} period {k}: {} after {f}",
+                out.feed_cap
+            );
+            f = out.feed_cap;
+        }
+        // The paper's and the integral law ask for more than the limit in air: they rise at it.
+        if matches!(strategy, Strategy::Paper | Strategy::Integral) {
+            let want = (s.f_min + 5 * step).min(s.f_max);
+            assert_eq!(f, want, "{strategy:?} rises at the limit in air");
+        }
+    }
+}
