@@ -181,19 +181,10 @@ fn rejected_program_writes_the_error_and_runs_nothing() {
 #[test]
 fn ac_against_the_cutting_process_and_host_replay() {
     use millac::ac::AcSettings;
-    use millac_plant::{Material, Stock, Tool, Transducer};
-    use millac_qemu::acsim::Cut;
     let program = "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n";
     let out = out_dir("ac");
     let ac = runner::AcRun {
-        cut: Cut {
-            stock: Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(),
-            tool: Tool::default(),
-            material: Material::STEEL,
-            spindle_rpm: 600.0,
-            seed: 3,
-            transducer: Transducer::default(),
-        },
+        cut: slot_cut(),
         ac: true,
         faults: Vec::new(),
         settings: millac::ac::AcSettings::default(),
@@ -246,8 +237,6 @@ fn ac_against_the_cutting_process_and_host_replay() {
 fn the_strategy_reaches_the_firmware_and_the_replay() {
     use millac::ac::law::Strategy;
     use millac::ac::AcSettings;
-    use millac_plant::{Material, Stock, Tool, Transducer};
-    use millac_qemu::acsim::Cut;
     let program = "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n";
     let out = out_dir("strategy");
     let mut logs = Vec::new();
@@ -257,14 +246,7 @@ fn the_strategy_reaches_the_firmware_and_the_replay() {
             ..AcSettings::default()
         };
         let ac = runner::AcRun {
-            cut: Cut {
-                stock: Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(),
-                tool: Tool::default(),
-                material: Material::STEEL,
-                spindle_rpm: 600.0,
-                seed: 3,
-                transducer: Transducer::default(),
-            },
+            cut: slot_cut(),
             ac: true,
             faults: Vec::new(),
             settings,
@@ -413,4 +395,17 @@ fn the_log_is_a_defmt_stream_and_the_results_are_in_the_result_file() {
         run.summary["firmware_position_blu"],
         serde_json::json!({"x": 100, "y": -200, "z": 0})
     );
+}
+
+/// The AC tests' cut: a 5 x 3 in steel blank, a default tool at 600 rpm, transducer seed 3.
+fn slot_cut() -> millac_qemu::acsim::Cut {
+    use millac_plant::{Material, Stock, Tool, Transducer};
+    millac_qemu::acsim::Cut {
+        stock: Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(),
+        tool: Tool::default(),
+        material: Material::STEEL,
+        spindle_rpm: 600.0,
+        seed: 3,
+        transducer: Transducer::default(),
+    }
 }
