@@ -5,7 +5,7 @@
 //! AcController code as the firmware, against the simulated cut (steel, 0.5 in 4-flute, 600 rpm).
 //!
 //! ```text
-//! cargo run -p millac-qemu --release --example ac_bench [-- --accel IN_PER_S2] [--strategy NAME|all]
+//! cargo run -p millac-qemu --release --example ac_bench [-- --accel IN_PER_S2] [--strategy NAME|all] [--drive stepper|servo]
 //! ```
 //!
 //! `--accel` sets the acceleration limit of every axis (`$120`..`$122`, default the settings'
@@ -46,9 +46,22 @@ fn main() -> Result<()> {
             None => anyhow::bail!("--strategy needs paper, integral, mrac, gpc or all"),
         },
     };
+    let drive = match args.iter().position(|a| a == "--drive") {
+        None => millac_plant::DriveModel::Stepper,
+        Some(i) => match args.get(i + 1).map(String::as_str) {
+            Some("stepper") => millac_plant::DriveModel::Stepper,
+            Some("servo") => millac_plant::DriveModel::THESIS,
+            _ => anyhow::bail!("--drive needs stepper or servo"),
+        },
+    };
     println!(
-        "acceleration {} in/s^2 per axis",
-        settings.accel_blu_s2[0] as f64 / 10_000.0
+        "acceleration {} in/s^2 per axis, {} drive",
+        settings.accel_blu_s2[0] as f64 / 10_000.0,
+        if drive == millac_plant::DriveModel::Stepper {
+            "stepper"
+        } else {
+            "servo (thesis appendix B)"
+        }
     );
     let cases = [
         (
@@ -75,6 +88,7 @@ fn main() -> Result<()> {
             spindle_rpm: 600.0,
             seed: 1,
             transducer: Transducer::default(),
+            drive,
         };
         let acs = AcSettings::default();
         let cmp = acreport::compare(&prog, &settings, &cut, &acs)?;

@@ -60,6 +60,7 @@ fn main() -> Result<()> {
                 spindle_rpm: 600.0,
                 seed: 1,
                 transducer: Transducer::default(),
+                drive: millac_plant::DriveModel::Stepper,
             },
             ac: true,
             faults: Vec::new(),

@@ -45,6 +45,9 @@ pub struct Cut {
     pub spindle_rpm: f64,
     pub seed: u64,
     pub transducer: Transducer,
+    /// The feed drives (`--drive`): a stepper (the tool where the pulses put it) or the thesis'
+    /// servo position loop.
+    pub drive: millac_plant::DriveModel,
 }
 
 impl Cut {
@@ -57,6 +60,7 @@ impl Cut {
             self.seed,
             self.transducer,
         )
+        .map(|p| p.with_drive(self.drive))
         .map_err(|e| anyhow!("{}", e.0))
     }
 }

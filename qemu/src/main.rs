@@ -100,6 +100,26 @@ struct CutArgs {
     /// `serve` it is stored in the session's record OUT/settings.bin (not with --settings).
     #[arg(long, value_enum)]
     strategy: Option<StrategyArg>,
+    /// The feed drives of the simulated machine: a stepper (the tool where the pulses put it) or
+    /// the thesis' servo position loop (wn^2 = 60318, 2 zeta wn = 400: the tool lags).
+    #[arg(long, value_enum, default_value = "stepper")]
+    drive: DriveArg,
+}
+
+/// `--drive`: `millac_plant::DriveModel` on the command line.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum DriveArg {
+    Stepper,
+    Servo,
+}
+
+impl From<DriveArg> for millac_plant::DriveModel {
+    fn from(d: DriveArg) -> Self {
+        match d {
+            DriveArg::Stepper => millac_plant::DriveModel::Stepper,
+            DriveArg::Servo => millac_plant::DriveModel::THESIS,
+        }
+    }
 }
 
 /// `--strategy`: `millac::ac::law::Strategy` on the command line.
@@ -150,6 +170,7 @@ fn main() {
                 stock: None,
                 faults: Vec::new(),
                 strategy: None,
+                drive: DriveArg::Stepper,
             },
         ),
         Some(Cmd::Demo { out, cut }) => demo(&out, &cut),
@@ -331,6 +352,7 @@ fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
         spindle_rpm: if rpm > 0 { rpm as f64 } else { DEFAULT_RPM },
         seed: args.seed,
         transducer: Transducer::default(),
+        drive: args.drive.into(),
     })
 }
 

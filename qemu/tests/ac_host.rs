@@ -18,6 +18,7 @@ fn cut(stock: &str, material: Material) -> Cut {
         spindle_rpm: 600.0,
         seed: 7,
         transducer: Transducer::default(),
+        drive: millac_plant::DriveModel::Stepper,
     }
 }
 
@@ -245,6 +246,7 @@ fn fig1_cavity_with_ac_ends_where_it_ends_without() {
         spindle_rpm: 600.0,
         seed: 1,
         transducer: Transducer::default(),
+        drive: millac_plant::DriveModel::Stepper,
     };
     let with = acsim::run(&prog, &settings, &c, Some(AcSettings::default())).unwrap();
     let without = acsim::run(&prog, &settings, &c, None).unwrap();
@@ -345,4 +347,28 @@ fn default_experiment_controller_believes_the_plant() {
     let s = Settings::default();
     let ipm_per_f = s.max_feed_blu_per_min() as f64 / s.q0 as f64 / 10_000.0;
     assert_eq!(limits.fdot_m_ipm_s, ac.fdot_m as f64 * ipm_per_f);
+}
+
+/// Issue 9: with the thesis' servo drive the tool lags the pulses (2 zeta / wn = 6.6 ms of
+/// travel), so the cut begins later than the pulses say: the entry from air reaches the stock
+/// some periods after the stepper's, and the rest of the run is the AC's response to that lag.
+/// The default (stepper) is the tool where the pulses put it.
+#[test]
+fn a_servo_drive_enters_the_cut_after_the_pulses() {
+    let program = "G20 G90\nG0 X-1 Y1.5\nG0 Z-0.3\nG1 X2.5 F22\nM2\n";
+    let entry = |drive| {
+        let c = Cut {
+            drive,
+            ..cut("blank X0 Y0 W5 H3 Z0\n", Material::STEEL)
+        };
+        let (run, _) = run_any(program, &c);
+        let r = run.rows.iter().find(|r| r.f_true_n > 0.0).unwrap();
+        (r.t_ms, r.pos_blu[0])
+    };
+    let (t_step, x_step) = entry(millac_plant::DriveModel::Stepper);
+    let (t_servo, x_servo) = entry(millac_plant::DriveModel::THESIS);
+    println!("first force: stepper {t_step} ms at X {x_step}, servo {t_servo} ms at X {x_servo}");
+    // The pulses (the logged position) are further along when the lagging tool first cuts.
+    assert!(t_servo > t_step, "{t_servo} <= {t_step}");
+    assert!(x_servo > x_step, "{x_servo} <= {x_step}");
 }

@@ -407,5 +407,6 @@ fn slot_cut() -> millac_qemu::acsim::Cut {
         spindle_rpm: 600.0,
         seed: 3,
         transducer: Transducer::default(),
+        drive: millac_plant::DriveModel::Stepper,
     }
 }

@@ -694,6 +694,7 @@ fn ac_holds_and_operator_holds_resume_in_the_cut() {
                     spindle_rpm: 600.0,
                     seed: 7,
                     transducer: Transducer::default(),
+                    drive: millac_plant::DriveModel::Stepper,
                 },
                 ac: true,
                 faults: Vec::new(),

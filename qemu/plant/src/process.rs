@@ -34,6 +34,7 @@
 //!   to this one get `top = min(top, tip Z)`.
 use std::collections::VecDeque;
 
+use crate::drive::{Drive, DriveModel};
 use crate::{validate, CutError, Material, Stock, Tool, Transducer, MM_PER_BLU};
 
 /// One ADC sample of the process.
@@ -149,6 +150,9 @@ pub struct Process {
     rng: SplitMix64,
     /// (t, tip position mm) of the samples of the last tooth period and one before it.
     hist: VecDeque<(f64, [f64; 3])>,
+    /// The feed drives: the commanded position (pulses) to where the tool is.
+    drive_model: DriveModel,
+    drive: Option<Drive>,
 }
 
 impl Process {
@@ -180,7 +184,17 @@ impl Process {
             cutter,
             rng: SplitMix64(seed),
             hist: VecDeque::new(),
+            drive_model: DriveModel::Stepper,
+            drive: None,
         })
+    }
+
+    /// The process behind feed drives of `model` (the default: a stepper, the tool where the
+    /// pulses put it). The drive starts at rest at the first sample's commanded position.
+    pub fn with_drive(mut self, model: DriveModel) -> Self {
+        self.drive_model = model;
+        self.drive = None;
+        self
     }
 
     /// The stock as cut so far.
@@ -197,10 +211,13 @@ impl Process {
         &self.tool
     }
 
-    /// One ADC sample at time `t_s` (s, non-decreasing between calls) with the tool tip at
-    /// `pos_blu` ([X, Y, Z] in BLU, machine coordinates = stock coordinates).
+    /// One ADC sample at time `t_s` (s, non-decreasing between calls) with the tool commanded to
+    /// `pos_blu` ([X, Y, Z] in BLU, machine coordinates = stock coordinates; the drive model
+    /// gives where the tip really is).
     pub fn sample(&mut self, t_s: f64, pos_blu: [i64; 3]) -> Sample {
-        let p = pos_blu.map(|v| v as f64 * MM_PER_BLU);
+        let model = self.drive_model;
+        let drive = self.drive.get_or_insert_with(|| Drive::new(model, pos_blu));
+        let p = drive.follow(t_s, pos_blu).map(|v| v * MM_PER_BLU);
         if let Some(&(t_last, _)) = self.hist.back() {
             assert!(t_s >= t_last, "Process::sample called out of time order");
         }
