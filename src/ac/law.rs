@@ -237,10 +237,10 @@ pub struct GpcLaw {
     /// The nominal parameters, used for the control while the estimate's steady gain is
     /// implausible (below a quarter of the nominal, or the model near an integrator).
     nominal: [f32; 5],
-    /// y(t), y(t-1), y(t-2) after the last period (y(t-1), y(t-2), y(t-3) before the next).
-    ys: [f32; 3],
-    /// u(t-1), u(t-2), u(t-3) after the last period.
-    us: [f32; 3],
+    /// y(t), y(t-1) after the last period: y(t-1), y(t-2) for the next.
+    ys: [f32; 2],
+    /// u(t-1), u(t-2) after the last period: u(t-2), u(t-3) for the next.
+    us: [f32; 2],
     pub lambda: f32,
 }
 
@@ -261,8 +261,8 @@ impl GpcLaw {
         GpcLaw {
             rls: Rls::new([-a, 0.0, b, 0.0, 0.0], GPC_TRACE, RLS_DEAD_ZONE),
             nominal: [-a, 0.0, b, 0.0, 0.0],
-            ys: [0.0; 3],
-            us: [0.0; 3],
+            ys: [0.0; 2],
+            us: [0.0; 2],
             lambda,
         }
     }
@@ -270,13 +270,13 @@ impl GpcLaw {
     /// One period: `y` measured now, `u_prev` the (normalised) feed the process had over the
     /// period that produced it. Returns u(t).
     pub fn next(&mut self, y: f32, u_prev: f32) -> f32 {
-        let [y1, y2, _] = self.ys;
-        let [u2, u3] = [self.us[0], self.us[1]];
+        let [y1, y2] = self.ys;
+        let [u2, u3] = self.us;
         if y.max(y1).max(y2) >= EXCITATION_FLOOR {
             self.rls.update(&[-y1, -y2, u_prev, u2, u3], y);
         }
-        self.ys = [y, y1, y2];
-        self.us = [u_prev, u2, u3];
+        self.ys = [y, y1];
+        self.us = [u_prev, u2];
         let theta = {
             let [a1, a2, b0, b1, b2] = self.rls.theta;
             let [n1, n2, nb, _, _] = self.nominal;
@@ -384,8 +384,8 @@ impl FeedLaw {
                 l.y_prev = 0.0;
             }
             FeedLaw::Gpc(l) => {
-                l.ys = [0.0; 3];
-                l.us = [0.0; 3];
+                l.ys = [0.0; 2];
+                l.us = [0.0; 2];
             }
             FeedLaw::Paper | FeedLaw::Integral(_) => {}
         }
