@@ -17,7 +17,7 @@ use anyhow::Result;
 use millac::ac::law::Strategy;
 use millac::ac::AcSettings;
 use millac::Settings;
-use millac_plant::{Material, Stock, Tool, Transducer};
+use millac_plant::Stock;
 use millac_qemu::acsim::{self, Cut};
 use millac_qemu::{acreport, analysis};
 
@@ -79,16 +79,12 @@ fn main() -> Result<()> {
     println!("| --- | --- | ---: | ---: | ---: | ---: | ---: | --- |");
     for (name, text, stock) in cases {
         let prog = analysis::load_program(text, &settings).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let stock = stock
+            .map_or_else(|| Ok(Stock::default()), Stock::parse)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
         let cut = Cut {
-            stock: stock
-                .map_or_else(|| Ok(Stock::default()), Stock::parse)
-                .map_err(|e| anyhow::anyhow!("{e}"))?,
-            tool: Tool::default(),
-            material: Material::STEEL,
-            spindle_rpm: 600.0,
-            seed: 1,
-            transducer: Transducer::default(),
             drive,
+            ..Cut::steel(stock, 1)
         };
         let acs = AcSettings::default();
         let cmp = acreport::compare(&prog, &settings, &cut, &acs)?;

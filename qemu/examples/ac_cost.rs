@@ -13,7 +13,7 @@
 use anyhow::{Context, Result};
 use millac::ac::law::Strategy;
 use millac::ac::AcSettings;
-use millac_plant::{Material, Stock, Tool, Transducer};
+use millac_plant::Stock;
 use millac_qemu::acsim::Cut;
 use millac_qemu::runner;
 use std::path::PathBuf;
@@ -53,15 +53,7 @@ fn main() -> Result<()> {
         let out = base.join(strategy.name());
         let _ = std::fs::remove_dir_all(&out);
         let ac = runner::AcRun {
-            cut: Cut {
-                stock: Stock::default(),
-                tool: Tool::default(),
-                material: Material::STEEL,
-                spindle_rpm: 600.0,
-                seed: 1,
-                transducer: Transducer::default(),
-                drive: millac_plant::DriveModel::Stepper,
-            },
+            cut: Cut::steel(Stock::default(), 1),
             ac: true,
             faults: Vec::new(),
             settings: AcSettings {

@@ -51,6 +51,20 @@ pub struct Cut {
 }
 
 impl Cut {
+    /// The experiments' usual cut: `stock` in steel with the default tool at the paper's 600 rpm,
+    /// the default transducer with noise seed `seed`, stepper drives.
+    pub fn steel(stock: Stock, seed: u64) -> Cut {
+        Cut {
+            stock,
+            tool: Tool::default(),
+            material: Material::STEEL,
+            spindle_rpm: millac_plant::DEFAULT_RPM,
+            seed,
+            transducer: Transducer::default(),
+            drive: millac_plant::DriveModel::Stepper,
+        }
+    }
+
     pub fn process(&self) -> Result<Process> {
         Process::new(
             self.stock.clone(),

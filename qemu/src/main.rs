@@ -336,7 +336,7 @@ fn serve(
 }
 
 fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
-    use millac_plant::{Material, Stock, Tool, Transducer, DEFAULT_RPM};
+    use millac_plant::{Stock, DEFAULT_RPM};
     let stock = match &args.stock {
         Some(p) => Stock::parse(
             &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
@@ -346,13 +346,9 @@ fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
     };
     let rpm = analysis::spindle_rpm(text, &Settings::default());
     Ok(millac_qemu::acsim::Cut {
-        stock,
-        tool: Tool::default(),
-        material: Material::STEEL,
         spindle_rpm: if rpm > 0 { rpm as f64 } else { DEFAULT_RPM },
-        seed: args.seed,
-        transducer: Transducer::default(),
         drive: args.drive.into(),
+        ..millac_qemu::acsim::Cut::steel(stock, args.seed)
     })
 }
 

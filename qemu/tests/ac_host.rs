@@ -12,13 +12,8 @@ use millac_qemu::analysis;
 
 fn cut(stock: &str, material: Material) -> Cut {
     Cut {
-        stock: Stock::parse(stock).unwrap(),
-        tool: Tool::default(),
         material,
-        spindle_rpm: 600.0,
-        seed: 7,
-        transducer: Transducer::default(),
-        drive: millac_plant::DriveModel::Stepper,
+        ..Cut::steel(Stock::parse(stock).unwrap(), 7)
     }
 }
 
@@ -239,15 +234,7 @@ fn fig1_cavity_with_ac_ends_where_it_ends_without() {
     let text = include_str!("../programs/fig1-cavity.nc");
     let settings = Settings::default();
     let prog = analysis::load_program(text, &settings).unwrap();
-    let c = Cut {
-        stock: Stock::default(),
-        tool: Tool::default(),
-        material: Material::STEEL,
-        spindle_rpm: 600.0,
-        seed: 1,
-        transducer: Transducer::default(),
-        drive: millac_plant::DriveModel::Stepper,
-    };
+    let c = Cut::steel(Stock::default(), 1);
     let with = acsim::run(&prog, &settings, &c, Some(AcSettings::default())).unwrap();
     let without = acsim::run(&prog, &settings, &c, None).unwrap();
     assert!(!with.held);

@@ -399,14 +399,6 @@ fn the_log_is_a_defmt_stream_and_the_results_are_in_the_result_file() {
 
 /// The AC tests' cut: a 5 x 3 in steel blank, a default tool at 600 rpm, transducer seed 3.
 fn slot_cut() -> millac_qemu::acsim::Cut {
-    use millac_plant::{Material, Stock, Tool, Transducer};
-    millac_qemu::acsim::Cut {
-        stock: Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(),
-        tool: Tool::default(),
-        material: Material::STEEL,
-        spindle_rpm: 600.0,
-        seed: 3,
-        transducer: Transducer::default(),
-        drive: millac_plant::DriveModel::Stepper,
-    }
+    let stock = millac_plant::Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap();
+    millac_qemu::acsim::Cut::steel(stock, 3)
 }

@@ -675,7 +675,7 @@ fn poll_until(
 #[test]
 fn ac_holds_and_operator_holds_resume_in_the_cut() {
     use millac::Settings;
-    use millac_plant::{Material, Stock, Tool, Transducer};
+    use millac_plant::Stock;
     use millac_qemu::acsim::Cut;
     use millac_qemu::analysis;
     use millac_qemu::runner::AcRun;
@@ -687,15 +687,7 @@ fn ac_holds_and_operator_holds_resume_in_the_cut() {
         let (out, addr, stop) = (out.clone(), addr.clone(), stop.clone());
         std::thread::spawn(move || {
             let ac = AcRun {
-                cut: Cut {
-                    stock: Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(),
-                    tool: Tool::default(),
-                    material: Material::STEEL,
-                    spindle_rpm: 600.0,
-                    seed: 7,
-                    transducer: Transducer::default(),
-                    drive: millac_plant::DriveModel::Stepper,
-                },
+                cut: Cut::steel(Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(), 7),
                 ac: true,
                 faults: Vec::new(),
                 settings: millac::ac::AcSettings::default(),
