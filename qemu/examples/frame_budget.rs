@@ -26,8 +26,6 @@ const BUDGET: u64 = 199;
 #[path = "common/programs.rs"]
 mod programs;
 
-use programs::stats;
-
 fn run(elf: &Path, dir: &Path, program: &str, handlers: &[HandlerSpec]) -> Result<Vec<Vec<u64>>> {
     std::fs::create_dir_all(dir)?;
     std::fs::write(dir.join("program.nc"), program)?;
@@ -55,22 +53,13 @@ fn main() -> Result<()> {
     ];
     let root = std::env::temp_dir().join(format!("millac-frame-budget-{}", std::process::id()));
     let mut worst = 0;
-    println!(
-        "{:<16} {:>7} {:>5} {:>5} {:>5}   {:>7} {:>5} {:>5} {:>5}",
-        "program", "frames", "min", "med", "max", "pulses", "min", "med", "max"
-    );
+    programs::print_header();
     for (k, (name, program)) in programs::all().into_iter().enumerate() {
         let dir = root.join(format!("p{k}"));
         let counts =
             run(&elf, &dir, &program, &handlers).with_context(|| format!("program `{name}`"))?;
         let (f, p) = (&counts[0], &counts[1]);
-        let (fmin, fmed, fmax) = stats(f);
-        let (pmin, pmed, pmax) = stats(p);
-        println!(
-            "{name:<16} {:>7} {fmin:>5} {fmed:>5} {fmax:>5}   {:>7} {pmin:>5} {pmed:>5} {pmax:>5}",
-            f.len(),
-            p.len()
-        );
+        let (fmax, _) = programs::print_row(name, f, p);
         worst = worst.max(fmax);
         if std::env::var_os("FRAME_BUDGET_DETAIL").is_some() {
             // The frames over budget: instruction count, how often, and the counts around the first.

@@ -23,16 +23,11 @@ use std::time::Duration;
 #[path = "common/programs.rs"]
 mod programs;
 
-use programs::stats;
-
 fn main() -> Result<()> {
     let elf = build_board(&NUCLEO_F446RE_QEMU)?;
     let root = std::env::temp_dir().join(format!("millac-f446-budget-{}", std::process::id()));
     let (mut fworst, mut pworst) = (0, 0);
-    println!(
-        "{:<16} {:>7} {:>5} {:>5} {:>5}   {:>7} {:>5} {:>5} {:>5}",
-        "program", "frames", "min", "med", "max", "pulses", "min", "med", "max"
-    );
+    programs::print_header();
     for (k, (name, program)) in programs::all().into_iter().enumerate() {
         let s = f446::stream(
             &elf,
@@ -44,13 +39,7 @@ fn main() -> Result<()> {
         )
         .with_context(|| format!("program `{name}`"))?;
         let (f, p) = (&s.capture.handlers[0].1, &s.capture.handlers[1].1);
-        let (fmin, fmed, fmax) = stats(f);
-        let (pmin, pmed, pmax) = stats(p);
-        println!(
-            "{name:<16} {:>7} {fmin:>5} {fmed:>5} {fmax:>5}   {:>7} {pmin:>5} {pmed:>5} {pmax:>5}",
-            f.len(),
-            p.len()
-        );
+        let (fmax, pmax) = programs::print_row(name, f, p);
         fworst = fworst.max(fmax);
         pworst = pworst.max(pmax);
     }

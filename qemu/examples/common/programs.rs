@@ -1,6 +1,6 @@
 //! The programs of the frame budget benchmarks (`frame_budget` for the QEMU board,
 //! `frame_budget_f446` for the Nucleo-F446RE under QEMU): one small program per block type, and
-//! the statistics both print.
+//! the table both print.
 
 /// (name, program). Each runs for well under a second of virtual time.
 pub const PROGRAMS: &[(&str, &str)] = &[
@@ -63,4 +63,25 @@ pub fn stats(v: &[u64]) -> (u64, u64, u64) {
     let mut s = v.to_vec();
     s.sort_unstable();
     (s[0], s[s.len() / 2], s[s.len() - 1])
+}
+
+/// The table's header line.
+pub fn print_header() {
+    println!(
+        "{:<16} {:>7} {:>5} {:>5} {:>5}   {:>7} {:>5} {:>5} {:>5}",
+        "program", "frames", "min", "med", "max", "pulses", "min", "med", "max"
+    );
+}
+
+/// One program's line: frame and pulse-end counts with their min / median / max; returns the two
+/// maxima.
+pub fn print_row(name: &str, frames: &[u64], pulses: &[u64]) -> (u64, u64) {
+    let (fmin, fmed, fmax) = stats(frames);
+    let (pmin, pmed, pmax) = stats(pulses);
+    println!(
+        "{name:<16} {:>7} {fmin:>5} {fmed:>5} {fmax:>5}   {:>7} {pmin:>5} {pmed:>5} {pmax:>5}",
+        frames.len(),
+        pulses.len()
+    );
+    (fmax, pmax)
 }
