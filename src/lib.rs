@@ -7,6 +7,8 @@
 //!   and the host tool's pre-check share the tape).
 //! - [`ac`]: the adaptive control (DRR, ECR, FRC, holds and alarms), the sampler's and AC task's
 //!   work.
+//! - [`monitor`]: tool breakage detection (average force per tooth period, two adaptive
+//!   time-series filters), the AC/monitoring task's work every sample and every tooth period.
 //! - [`flashstore`]: the settings record's wear-levelled log in a flash sector (init loads, loader
 //!   task stores) for the real boards.
 //! - [`ports`]: one trait per hardware role, with its context; boards (hal/) and the host
@@ -29,6 +31,7 @@ pub mod ac;
 pub mod flashstore;
 pub mod gcode;
 pub mod inputs;
+pub mod monitor;
 pub mod nc;
 pub mod ports;
 pub mod protocol;

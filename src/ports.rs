@@ -134,11 +134,19 @@ pub enum Conversion {
     Lost,
 }
 
-/// The force/torque ADC: three channels converted together. Sampler task.
+/// The force/torque ADC: three channels converted together, and optionally a sound channel at
+/// [`crate::wire::SOUND_PER_SAMPLE`] times the sample rate (the chatter detector's microphone).
+/// Sampler task.
 pub trait ForceTorqueAdc {
     /// One conversion, given the encoder counts at the sample (a simulated ADC computes the cut
     /// from them; a real one ignores them).
     fn sample(&mut self, index: u32, encoder: [i32; 3]) -> Conversion;
+
+    /// The sound channel's codes since the previous sample, oldest first (after `sample`); None
+    /// when the board has no microphone (the default) or it delivered none.
+    fn sound(&mut self) -> Option<[u16; crate::wire::SOUND_PER_SAMPLE]> {
+        None
+    }
 }
 
 /// The operator's serial line (grbl protocol, later). Loader task.

@@ -8,8 +8,11 @@
 //!
 //! Two FIFOs in QEMU's working directory: [`REQ_FILE`] (firmware -> host) and [`RESP_FILE`] (host ->
 //! firmware). The host writes a [`Header`] (8 bytes: `b"MAC1"`, u32 flags), then per sample the
-//! firmware writes a [`Request`] (16 bytes: u32 sample index, i32 encoder X, Y, Z in BLU) and reads
-//! a response (6 bytes: u16 codes T, Fu, Fv; [`emit_response`], [`parse_response`]).
+//! firmware writes a [`Request`] (20 bytes: u32 sample index, i32 encoder X, Y, Z in BLU, u32 the
+//! spindle speed the program has commanded, rpm, 0 before any S; the plant turns at it) and reads
+//! a [`Response`] (16 bytes: u16 codes T, Fu, Fv, then [`SOUND_PER_SAMPLE`] u16 codes of the sound
+//! channel since the previous sample, oldest first, each [`NO_SOUND`] when the plant has no
+//! microphone).
 //!
 //! A response of three `0xFFFF` ([`NO_CONVERSION`], no 12-bit ADC can deliver it) means "no
 //! conversion this sample": the ADC did not answer (a dropout, `millac --fault dropout@S`). The
@@ -105,30 +108,34 @@ impl Header {
     }
 }
 
-/// One sample request: the sample index and the encoder counts at the sample.
+/// One sample request: the sample index, the encoder counts at the sample and the spindle speed
+/// in effect (rpm; 0: none commanded, the plant keeps its own).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Request {
     pub index: u32,
     pub encoder: [i32; 3],
+    pub spindle_rpm: u32,
 }
 
 impl Request {
-    pub const LEN: usize = 16;
+    pub const LEN: usize = 20;
 
-    pub fn emit(&self) -> [u8; 16] {
-        let mut q = [0u8; 16];
+    pub fn emit(&self) -> [u8; Self::LEN] {
+        let mut q = [0u8; Self::LEN];
         q[0..4].copy_from_slice(&self.index.to_le_bytes());
         for (k, e) in self.encoder.iter().enumerate() {
             q[4 + 4 * k..8 + 4 * k].copy_from_slice(&e.to_le_bytes());
         }
+        q[16..20].copy_from_slice(&self.spindle_rpm.to_le_bytes());
         q
     }
 
-    pub fn parse(q: &[u8; 16]) -> Request {
+    pub fn parse(q: &[u8; Self::LEN]) -> Request {
         let le = |i: usize| [q[i], q[i + 1], q[i + 2], q[i + 3]];
         Request {
             index: u32::from_le_bytes(le(0)),
             encoder: [4, 8, 12].map(|i| i32::from_le_bytes(le(i))),
+            spindle_rpm: u32::from_le_bytes(le(16)),
         }
     }
 }
@@ -152,16 +159,45 @@ pub fn parse_codes(r: &[u8; 6]) -> [u16; 3] {
 /// The reserved response "no conversion this sample" (codes no 12-bit ADC delivers).
 pub const NO_CONVERSION: [u16; 3] = [0xFFFF; 3];
 
-/// The response to a request: the codes, or [`NO_CONVERSION`] for None (the ADC did not answer).
-pub fn emit_response(codes: Option<[u16; 3]>) -> [u8; 6] {
-    emit_codes(codes.unwrap_or(NO_CONVERSION))
+/// Sound samples per ADC sample: the sound channel runs at this multiple of the sample rate
+/// (5 kHz at the default 1 kHz; the chatter detector's `sound_hz`).
+pub const SOUND_PER_SAMPLE: usize = 5;
+
+/// A sound code meaning "no microphone" (no 12-bit ADC delivers it).
+pub const NO_SOUND: u16 = 0xFFFF;
+
+/// The response to a request: the force/torque codes (None: no conversion this sample, sent as
+/// [`NO_CONVERSION`]; any other codes, also out of the 12-bit range, are codes: the AC's range
+/// check judges them) and the sound channel's codes since the previous sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Response {
+    pub codes: Option<[u16; 3]>,
+    pub sound: [u16; SOUND_PER_SAMPLE],
 }
 
-/// The codes of a response; None: no conversion this sample ([`NO_CONVERSION`]). Any other
-/// codes, also out of the 12-bit range, are codes (the AC's range check judges them).
-pub fn parse_response(r: &[u8; 6]) -> Option<[u16; 3]> {
-    let codes = parse_codes(r);
-    (codes != NO_CONVERSION).then_some(codes)
+impl Response {
+    pub const LEN: usize = CODES_LEN + 2 * SOUND_PER_SAMPLE;
+
+    pub fn emit(&self) -> [u8; Self::LEN] {
+        let mut r = [0u8; Self::LEN];
+        r[..CODES_LEN].copy_from_slice(&emit_codes(self.codes.unwrap_or(NO_CONVERSION)));
+        for (k, c) in self.sound.iter().enumerate() {
+            r[CODES_LEN + 2 * k..CODES_LEN + 2 * k + 2].copy_from_slice(&c.to_le_bytes());
+        }
+        r
+    }
+
+    pub fn parse(r: &[u8; Self::LEN]) -> Response {
+        let codes = parse_codes(&[r[0], r[1], r[2], r[3], r[4], r[5]]);
+        let mut sound = [NO_SOUND; SOUND_PER_SAMPLE];
+        for (k, s) in sound.iter_mut().enumerate() {
+            *s = u16::from_le_bytes([r[CODES_LEN + 2 * k], r[CODES_LEN + 2 * k + 1]]);
+        }
+        Response {
+            codes: (codes != NO_CONVERSION).then_some(codes),
+            sound,
+        }
+    }
 }
 
 /// Header row of `ac.log` (with its newline).
@@ -305,14 +341,20 @@ mod tests {
 
     proptest! {
         #[test]
-        fn adc_messages_round_trip(flags: u32, index: u32, enc: [i32; 3], codes: [u16; 3]) {
+        fn adc_messages_round_trip(
+            flags: u32, index: u32, enc: [i32; 3], rpm: u32, codes: [u16; 3]
+        ) {
             let h = Header { flags };
             prop_assert_eq!(Header::parse(&h.emit()), Some(h));
-            let q = Request { index, encoder: enc };
+            let q = Request { index, encoder: enc, spindle_rpm: rpm };
             prop_assert_eq!(Request::parse(&q.emit()), q);
             prop_assert_eq!(parse_codes(&emit_codes(codes)), codes);
             let expect = (codes != NO_CONVERSION).then_some(codes);
-            prop_assert_eq!(parse_response(&emit_response(Some(codes))), expect);
+            let sound = [codes[0], codes[1], NO_SOUND, rpm as u16, index as u16];
+            let r = Response { codes: Some(codes), sound };
+            prop_assert_eq!(Response::parse(&r.emit()), Response { codes: expect, sound });
+            let none = Response { codes: None, sound };
+            prop_assert_eq!(Response::parse(&none.emit()), none);
         }
 
         #[test]
@@ -335,15 +377,24 @@ mod tests {
 
     #[test]
     fn no_conversion_is_its_own_response() {
-        assert_eq!(parse_response(&emit_response(None)), None);
-        assert_eq!(emit_response(None), [0xFF; 6]);
+        let silent = [NO_SOUND; SOUND_PER_SAMPLE];
+        let none = Response {
+            codes: None,
+            sound: silent,
+        };
+        assert_eq!(Response::parse(&none.emit()), none);
+        assert_eq!(none.emit(), [0xFF; Response::LEN]);
         // Out-of-range codes that are not the reserved triple stay codes.
         let odd = [0xFFFF, 0xFFFF, 4095];
-        assert_eq!(parse_response(&emit_response(Some(odd))), Some(odd));
-        assert_eq!(
-            parse_response(&emit_codes([0, 2048, 4095])),
-            Some([0, 2048, 4095])
-        );
+        let r = Response {
+            codes: Some(odd),
+            sound: silent,
+        };
+        assert_eq!(Response::parse(&r.emit()).codes, Some(odd));
+        let mut bytes = [0u8; Response::LEN];
+        bytes[..CODES_LEN].copy_from_slice(&emit_codes([0, 2048, 4095]));
+        assert_eq!(Response::parse(&bytes).codes, Some([0, 2048, 4095]));
+        assert_eq!(Response::parse(&bytes).sound, [0; SOUND_PER_SAMPLE]);
     }
 
     #[test]

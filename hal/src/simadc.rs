@@ -27,6 +27,8 @@ pub struct SimAdc {
     resp: usize,
     /// The host has gone: the ADC answers no more.
     lost: bool,
+    /// The sound codes of the last response, until taken.
+    sound: Option<[u16; wire::SOUND_PER_SAMPLE]>,
 }
 
 impl SimAdc {
@@ -45,6 +47,7 @@ impl SimAdc {
                 req,
                 resp,
                 lost: false,
+                sound: None,
             },
             header.flags,
         ))
@@ -60,16 +63,29 @@ impl ForceTorqueAdc for SimAdc {
         if self.lost {
             return Conversion::Missed;
         }
-        let q = Request { index, encoder }.emit();
-        let mut r = [0u8; wire::CODES_LEN];
+        let q = Request {
+            index,
+            encoder,
+            spindle_rpm: crate::uart::spindle_rpm(),
+        }
+        .emit();
+        let mut r = [0u8; wire::Response::LEN];
         if !write_all(self.req, &q) || !read_exact(self.resp, &mut r) {
             self.lost = true;
+            self.sound = None;
             return Conversion::Lost;
         }
-        match wire::parse_response(&r) {
+        let response = wire::Response::parse(&r);
+        self.sound = (!response.sound.contains(&wire::NO_SOUND)).then_some(response.sound);
+        match response.codes {
             Some(codes) => Conversion::Fresh(codes),
             None => Conversion::Missed,
         }
+    }
+
+    /// The sound codes of the last response (None: the plant has no microphone). Sampler task.
+    fn sound(&mut self) -> Option<[u16; wire::SOUND_PER_SAMPLE]> {
+        self.sound.take()
     }
 }
 

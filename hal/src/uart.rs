@@ -87,14 +87,36 @@ fn drain<const N: usize>(tx: &mut Consumer<'static, u8, N>) {
     }
 }
 
+/// The spindle speed the serial session has commanded (rpm, the S of its last spindle change; 0
+/// before any), for the simulated ADC's requests: the simulated spindle turns at it. Written by
+/// the loader task ([`QemuLoader`]'s `spindle`), read by the sampler.
+static SPINDLE_RPM: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+
+/// The spindle speed commanded in the serial session (rpm; 0: none yet). Sampler task.
+pub fn spindle_rpm() -> u32 {
+    SPINDLE_RPM.load(core::sync::atomic::Ordering::Relaxed)
+}
+
 /// The QEMU board as the serial loader sees it: UART0 (`init` with the board's UART clock; `kick`
-/// pends UART0) and the session log `serve.nc`. No spindle output, no operator inputs.
+/// pends UART0), the session log `serve.nc` and a simulated spindle: the S of a spindle change
+/// reaches the simulated cut through the ADC's requests ([`spindle_rpm`]), after the motion
+/// before it, as on the real board. No operator inputs.
 pub struct QemuLoader {
     pub clock_hz: u32,
     pub log: crate::session::SessionLog,
 }
 
 impl millac::rt::loader::LoaderBoard for QemuLoader {
+    const SPINDLE: bool = true;
+
+    /// The simulated spindle takes the commanded speed; stopping it (M5, a reset) leaves the
+    /// speed: the simulated cut has no stopped spindle (the plant turns whenever the tool moves).
+    fn spindle(&mut self, _state: millac::gcode::Spindle, rpm: u32, _max_rpm: u32) {
+        if rpm > 0 {
+            SPINDLE_RPM.store(rpm, core::sync::atomic::Ordering::Relaxed);
+        }
+    }
+
     fn start(&mut self) {
         init(self.clock_hz);
     }

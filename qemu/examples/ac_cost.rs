@@ -13,6 +13,7 @@
 use anyhow::{Context, Result};
 use millac::ac::law::Strategy;
 use millac::ac::AcSettings;
+use millac::Settings;
 use millac_plant::Stock;
 use millac_qemu::acsim::Cut;
 use millac_qemu::runner;
@@ -53,7 +54,7 @@ fn main() -> Result<()> {
         let out = base.join(strategy.name());
         let _ = std::fs::remove_dir_all(&out);
         let ac = runner::AcRun {
-            cut: Cut::steel(Stock::default(), 1),
+            cut: Cut::steel(Stock::default(), 1).at_program_rpm(&text, &Settings::default()),
             ac: true,
             faults: Vec::new(),
             settings: AcSettings {

@@ -6,7 +6,8 @@ use crate::acsim::{self, AcRow, Cut, HostRun, LoadFigures};
 use crate::analysis::ProgBlock;
 use anyhow::Result;
 use millac::ac::AcSettings;
-use millac::nc::Motion;
+use millac::gcode::tape::finish_block;
+use millac::nc::{FrameConfig, Motion};
 use millac::Settings;
 use millac_plant::oracle::{oracle_time, OracleLimits, OraclePoint};
 use serde_json::{json, Value};
@@ -26,7 +27,25 @@ fn is_feed(b: &ProgBlock) -> bool {
     matches!(b.block.motion, Motion::Linear(_) | Motion::Arc(_))
 }
 
+/// The feed blocks of `prog` as the AC with `acs` runs them: its ceiling applied (the programmed
+/// feed, or FRM with [`millac::ac::FeedCeiling::Frm`]) and sealed, by the firmware's own
+/// `finish_block`. One rule for every compared schedule: the oracle's ceilings and the safe
+/// constant feed's blocks come from these, so no schedule runs above a ceiling the AC honours.
+pub fn ceiling_blocks(prog: &[ProgBlock], settings: &Settings, acs: &AcSettings) -> Vec<ProgBlock> {
+    let cfg = FrameConfig::from_settings(settings);
+    prog.iter()
+        .map(|b| ProgBlock {
+            block: finish_block(b.block, Some(acs.ceiling), &cfg, settings.q0),
+            ..*b
+        })
+        .collect()
+}
+
 /// Runs the constant-feed references and the oracle.
+///
+/// The bound (the oracle) and the safe constant feed honour the same ceilings as the AC run
+/// ([`ceiling_blocks`]); the oracle changes the feed at most at each move's acceleration ramp,
+/// the fastest the frame lets any schedule change it.
 pub fn compare(
     prog: &[ProgBlock],
     settings: &Settings,
@@ -37,9 +56,15 @@ pub fn compare(
     let programmed = acsim::run(prog, settings, cut, None)?;
     let programmed_load =
         acsim::load_figures(&programmed.samples, &cut.tool, fraction, acs.sample_hz);
-    // Oracle over the feed blocks: path points per pulse with the programmed feed as ceiling; each
+    let ceilings = ceiling_blocks(prog, settings, acs);
+    // Oracle over the feed blocks: path points per pulse with the ceiling of their block; each
     // run of consecutive feed blocks starts from rest; rapids and dwells take their own time.
-    let limits = OracleLimits::for_tool(&cut.tool);
+    // F0 and T0: the controller's fraction of the tool's true limits.
+    let limits = OracleLimits {
+        f0_n: fraction * cut.tool.f_max_n,
+        t0_nm: fraction * cut.tool.t_max_nm,
+        ..OracleLimits::for_tool(&cut.tool)
+    };
     let mut stock = cut.stock.clone();
     let mut oracle_s = 0.0;
     let mut min_limit = f64::INFINITY;
@@ -60,13 +85,7 @@ pub fn compare(
             )
             .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))?;
             *oracle_s += r.time_s;
-            // Only where the force or torque binds (below the programmed ceiling) does a point limit
-            // the constant feed.
-            for (l, p) in r.limit_ipm.iter().zip(seg.iter()) {
-                if *l < p.feed_ipm - 1e-9 {
-                    min_limit = min_limit.min(*l);
-                }
-            }
+            min_limit = r.cut_limit_ipm.iter().copied().fold(min_limit, f64::min);
             // The stock after this segment, for the next one.
             for w in seg.windows(2) {
                 let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
@@ -81,23 +100,22 @@ pub fn compare(
         Ok(())
     };
     let mut pos = [0i64; 3];
-    for (i, b) in prog.iter().enumerate() {
+    for (i, (b, c)) in prog.iter().zip(ceilings.iter()).enumerate() {
         let start = pulse;
         while programmed.path.get(pulse).is_some_and(|p| p.2 == i) {
             pulse += 1;
         }
         let pts = &programmed.path[start..pulse];
         if is_feed(b) {
+            let point = |pos_blu| OraclePoint {
+                pos_blu,
+                feed_ipm: acsim::programmed_ipm(settings, &c.block),
+                accel_ipm_s: acsim::ramp_ipm_s(settings, &c.block),
+            };
             if seg.is_empty() {
-                seg.push(OraclePoint {
-                    pos_blu: pos,
-                    feed_ipm: pts.first().map_or(0.0, |p| p.1),
-                });
+                seg.push(point(pos));
             }
-            seg.extend(pts.iter().map(|p| OraclePoint {
-                pos_blu: p.0,
-                feed_ipm: p.1,
-            }));
+            seg.extend(pts.iter().map(|p| point(p.0)));
         } else {
             flush(&mut seg, &mut stock, &mut oracle_s)?;
             if let Some(&(_, t0, t1)) = programmed.spans.get(i) {
@@ -114,14 +132,15 @@ pub fn compare(
         }
     }
     flush(&mut seg, &mut stock, &mut oracle_s)?;
-    // The largest constant feed that is safe everywhere: the smallest point limit of the oracle.
+    // The largest constant feed that is safe everywhere: the smallest force or torque limit of
+    // the oracle's points, in every block below the block's ceiling.
     let max_f = settings.q0;
     let safe_f = if min_limit.is_finite() {
         ((min_limit / acsim::feed_ipm(settings, 1)).floor() as u32).clamp(1, max_f)
     } else {
         max_f
     };
-    let safe_prog = acsim::with_constant_feed(prog, safe_f, settings);
+    let safe_prog = acsim::with_constant_feed(&ceilings, safe_f, settings);
     let safe = acsim::run(&safe_prog, settings, cut, None)?;
     let safe_load = acsim::load_figures(&safe.samples, &cut.tool, fraction, acs.sample_hz);
     Ok(Comparison {

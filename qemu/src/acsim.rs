@@ -14,7 +14,7 @@ use millac::ports::{Conversion, ForceTorqueAdc};
 use millac::rt::ac::{self as rt_ac, AcPeriod};
 use millac::rt::Status;
 use millac::Settings;
-use millac_plant::{Material, Process, Stock, Tool, Transducer};
+use millac_plant::{Damage, Material, Process, Stock, Tool, ToothEvent, Transducer};
 use std::collections::VecDeque;
 use std::sync::atomic::Ordering::Relaxed;
 
@@ -34,6 +34,10 @@ pub struct AcRow {
     pub state: String,
     /// The feed cap the controller wrote for the frame (feed number; u32::MAX = no AC).
     pub feed_cap: u32,
+    /// The feed law's estimates after the period (`AcController::law_estimates`: GPC's
+    /// [a1, a2, b0, b1, b2], MRAC's [p^, b^, 0, 0, 0]); None for the fixed laws, without AC and
+    /// in the QEMU runs' rows (the firmware does not log them).
+    pub estimates: Option<[f32; 5]>,
 }
 
 /// The process set-up of a run.
@@ -48,7 +52,21 @@ pub struct Cut {
     /// The feed drives (`--drive`): a stepper (the tool where the pulses put it) or the thesis'
     /// servo position loop.
     pub drive: millac_plant::DriveModel,
+    /// Radial run-out per tooth, mm (`--runout`; empty = none): `millac_plant::teeth`.
+    pub runout_mm: Vec<f64>,
+    /// Chipped and broken teeth from given times (`--chip-tooth`, `--break-tooth`).
+    pub tooth_events: Vec<ToothEvent>,
+    /// The tool's modes in X and Y (a flexible tool that can chatter, heard by the microphone at
+    /// [`SOUND_HZ`]; `--preset thesis-table-3.2`); None: a rigid tool, no sound.
+    pub modes: Option<(
+        Vec<millac_plant::lobes::Mode>,
+        Vec<millac_plant::lobes::Mode>,
+    )>,
 }
+
+/// The sound channel's sample rate of a flexible tool's microphone, Hz (the chatter detector's
+/// default, `millac::monitor::chatter::ChatterSettings::sound_hz`).
+pub const SOUND_HZ: f64 = 5000.0;
 
 impl Cut {
     /// The experiments' usual cut: `stock` in steel with the default tool at the paper's 600 rpm,
@@ -62,11 +80,27 @@ impl Cut {
             seed,
             transducer: Transducer::default(),
             drive: millac_plant::DriveModel::Stepper,
+            runout_mm: Vec::new(),
+            modes: None,
+            tooth_events: Vec::new(),
         }
     }
 
+    /// This cut at the spindle speed the program `text` sets (its last S word, read by the
+    /// firmware's tape: [`crate::analysis::spindle_rpm`]), or at the plant's default
+    /// [`millac_plant::DEFAULT_RPM`] (600) when it sets none. Every command that knows its program
+    /// before the run (`run`, `demo`, `host`, the benchmark examples) builds its cut with it.
+    pub fn at_program_rpm(self, text: &str, settings: &Settings) -> Cut {
+        Cut {
+            spindle_rpm: program_rpm(text, settings),
+            ..self
+        }
+    }
+
+    /// The process of this cut (checked: the plant's errors, e.g. a tooth the tool does not
+    /// have).
     pub fn process(&self) -> Result<Process> {
-        Process::new(
+        let mut p = Process::new(
             self.stock.clone(),
             self.tool,
             self.material,
@@ -75,7 +109,120 @@ impl Cut {
             self.transducer,
         )
         .map(|p| p.with_drive(self.drive))
-        .map_err(|e| anyhow!("{}", e.0))
+        .map_err(|e| anyhow!("{}", e.0))?;
+        if let Some((x, y)) = &self.modes {
+            p = p
+                .with_tool_modes(
+                    x,
+                    y,
+                    millac_plant::chatter::Microphone::default(),
+                    SOUND_HZ,
+                    self.seed ^ 0x50_55_4e_44,
+                )
+                .map_err(|e| anyhow!("tool modes: {}", e.0))?;
+        }
+        if !self.runout_mm.is_empty() {
+            p = p
+                .with_runout(&self.runout_mm)
+                .map_err(|e| anyhow!("--runout: {}", e.0))?;
+        }
+        for ev in &self.tooth_events {
+            p = p.with_tooth_event(*ev).map_err(|e| {
+                let opt = match ev.damage {
+                    Damage::Broken => "--break-tooth",
+                    Damage::Chipped { .. } => "--chip-tooth",
+                };
+                anyhow!("{opt}: {}", e.0)
+            })?;
+        }
+        Ok(p)
+    }
+}
+
+/// `--break-tooth N@SECONDS`: tooth N (from 0, in cutting order) breaks at SECONDS of virtual
+/// time. The tooth's range is checked against the tool by [`Cut::process`].
+pub fn parse_break_tooth(s: &str) -> std::result::Result<ToothEvent, String> {
+    let (tooth, t_s) = tooth_at(s, "N@SECONDS, e.g. 1@2.5")?;
+    Ok(ToothEvent {
+        tooth,
+        t_s,
+        damage: Damage::Broken,
+    })
+}
+
+/// `--chip-tooth N@SECONDS[:DEPTH_MM]`: tooth N's edge loses DEPTH_MM of radius at SECONDS
+/// (default depth [`millac_plant::teeth::DEFAULT_CHIP_MM`], 0.05 mm).
+pub fn parse_chip_tooth(s: &str) -> std::result::Result<ToothEvent, String> {
+    let form = "N@SECONDS[:DEPTH_MM], e.g. 1@2.5:0.05";
+    let (at, depth) = match s.split_once(':') {
+        Some((at, d)) => (
+            at,
+            d.parse::<f64>()
+                .map_err(|_| format!("`{s}`: `{d}` is not a depth in mm ({form})"))?,
+        ),
+        None => (s, millac_plant::teeth::DEFAULT_CHIP_MM),
+    };
+    let (tooth, t_s) = tooth_at(at, form)?;
+    if !(depth.is_finite() && depth >= 0.0) {
+        return Err(format!("`{s}`: the depth must be finite and >= 0 mm"));
+    }
+    Ok(ToothEvent {
+        tooth,
+        t_s,
+        damage: Damage::Chipped { depth_mm: depth },
+    })
+}
+
+/// `N@SECONDS` of the tooth options.
+fn tooth_at(s: &str, form: &str) -> std::result::Result<(u32, f64), String> {
+    let (n, t) = s
+        .split_once('@')
+        .ok_or_else(|| format!("`{s}`: expected {form}"))?;
+    let tooth: u32 = n
+        .parse()
+        .map_err(|_| format!("`{s}`: `{n}` is not a tooth number (0, 1, ...; {form})"))?;
+    let t_s: f64 = t
+        .parse()
+        .map_err(|_| format!("`{s}`: `{t}` is not a time in seconds ({form})"))?;
+    if !(t_s.is_finite() && t_s >= 0.0) {
+        return Err(format!("`{s}`: the time must be finite and >= 0 s"));
+    }
+    Ok((tooth, t_s))
+}
+
+/// `--runout UM,UM,...`: radial run-out per tooth in micrometres (one value per tooth, in
+/// cutting order from tooth 0; signed: + cuts deeper), as mm. The count is checked against the
+/// tool by [`Cut::process`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunoutUm(pub Vec<f64>);
+
+impl std::str::FromStr for RunoutUm {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<RunoutUm, String> {
+        s.split(',')
+            .map(|v| {
+                let um: f64 = v.trim().parse().map_err(|_| {
+                    format!(
+                        "`{s}`: `{v}` is not a run-out in micrometres (UM,UM,..., e.g. 10,0,0,0)"
+                    )
+                })?;
+                if !um.is_finite() {
+                    return Err(format!("`{s}`: the run-out must be finite"));
+                }
+                Ok(um / 1000.0)
+            })
+            .collect::<std::result::Result<Vec<f64>, String>>()
+            .map(RunoutUm)
+    }
+}
+
+/// The simulated spindle speed of a program: its last S word, or [`millac_plant::DEFAULT_RPM`]
+/// without one.
+pub fn program_rpm(text: &str, settings: &Settings) -> f64 {
+    match crate::analysis::spindle_rpm(text, settings) {
+        0 => millac_plant::DEFAULT_RPM,
+        rpm => f64::from(rpm),
     }
 }
 
@@ -85,6 +232,8 @@ pub struct HostRun {
     pub rows: Vec<AcRow>,
     /// True force and torque of every ADC sample.
     pub samples: Vec<(f64, f64)>,
+    /// The codes [T, Fu, Fv] the controller got at every sample (None: a missed conversion).
+    pub codes: Vec<Option<[u16; 3]>>,
     /// Virtual time from the first to the last pulse (s).
     pub machining_time_s: f64,
     pub final_position: [i64; 3],
@@ -98,10 +247,12 @@ pub struct HostRun {
     pub blocks_done: usize,
     /// Per block: (index, first frame start, last frame end) in ns of virtual time.
     pub spans: Vec<(usize, u64, u64)>,
+    /// The chatter monitor's spectrum of every sound record, with the time it ended (s).
+    pub spectra: Vec<(f64, millac::monitor::chatter::Spectrum)>,
 }
 
 /// The programmed feed of a block in ipm (0 for rapids and dwells).
-fn programmed_ipm(settings: &Settings, b: &Block) -> f64 {
+pub fn programmed_ipm(settings: &Settings, b: &Block) -> f64 {
     match b.motion {
         Motion::Linear(l) => feed_ipm(settings, l.f),
         Motion::Arc(c) => feed_ipm(settings, c.f),
@@ -118,6 +269,8 @@ struct HostAdc {
     injector: crate::fault::Injector,
     sample_hz: u32,
     truth: Vec<(f64, f64)>,
+    /// The codes the controller got at every sample (None: a missed conversion).
+    codes: Vec<Option<[u16; 3]>>,
 }
 
 impl HostAdc {
@@ -127,13 +280,20 @@ impl HostAdc {
     }
 }
 
-/// The sampler body of the firmware (`millac::rt::ac::sample`) over the host ADC: the codes the
-/// controller gets (None for a missed conversion) and the AC period due, if any.
-fn sample(adc: &mut HostAdc, status: &Status, per_period: u32) -> (Option<[u16; 3]>, Option<u32>) {
+/// What one sample gave the controller: the codes (None for a missed conversion), the AC period
+/// due, if any, and the sound channel's codes (None: no microphone).
+type HostSampled = (
+    Option<[u16; 3]>,
+    Option<u32>,
+    Option<[u16; millac::wire::SOUND_PER_SAMPLE]>,
+);
+
+/// The sampler body of the firmware (`millac::rt::ac::sample`) over the host ADC.
+fn sample(adc: &mut HostAdc, status: &Status, per_period: u32) -> HostSampled {
     match rt_ac::sample(adc, status, per_period) {
-        rt_ac::Sampled::Codes { codes, due } => (codes, due),
+        rt_ac::Sampled::Codes { codes, due, sound } => (codes, due, sound),
         // Not reached: the host ADC never goes away.
-        rt_ac::Sampled::Lost { due } => (None, due),
+        rt_ac::Sampled::Lost { due } => (None, due, None),
     }
 }
 
@@ -142,10 +302,17 @@ impl ForceTorqueAdc for HostAdc {
         let t_s = self.time_s(index);
         let s = self.process.sample(t_s, encoder.map(i64::from));
         self.truth.push((s.f_true_n, s.t_true_nm));
-        match self.injector.apply(t_s, s.codes) {
+        let codes = self.injector.apply(t_s, s.codes);
+        self.codes.push(codes);
+        match codes {
             Some(codes) => Conversion::Fresh(codes),
             None => Conversion::Missed,
         }
+    }
+
+    /// The flexible tool's microphone, the same block per sample the QEMU board's ADC delivers.
+    fn sound(&mut self) -> Option<[u16; millac::wire::SOUND_PER_SAMPLE]> {
+        self.process.take_sound_block()
     }
 }
 
@@ -209,6 +376,22 @@ pub fn run_with_faults(
     anti_windup: bool,
     faults: &[crate::fault::Fault],
 ) -> Result<HostRun> {
+    run_monitored(prog, settings, cut, ac, anti_windup, faults, None)
+}
+
+/// As [`run_with_faults`], with the AC period's chatter monitor on the sound channel
+/// (`chatter`: its settings; `millac::rt::ac::AcPeriod::with_chatter`, the firmware's code) at the
+/// cut's spindle speed and flutes. The monitor needs the AC (`ac`).
+#[allow(clippy::too_many_arguments)]
+pub fn run_monitored(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    ac: Option<AcSettings>,
+    anti_windup: bool,
+    faults: &[crate::fault::Fault],
+    chatter: Option<millac::monitor::chatter::ChatterSettings>,
+) -> Result<HostRun> {
     let mut frame = Frame::new(FrameConfig::from_settings(settings));
     // An enabled AC's feed ceiling, as the firmware's tape applies it (the same function).
     let cfg = FrameConfig::from_settings(settings);
@@ -224,7 +407,12 @@ pub fn run_with_faults(
     let mut period = match ac {
         Some(s) => {
             let ctl = AcController::new(s).map_err(|e| anyhow!("AC settings: {}", e.message()))?;
-            let p = AcPeriod::new(ctl, *settings, true, &status);
+            let mut p = AcPeriod::new(ctl, *settings, true, &status);
+            if let Some(c) = chatter {
+                p = p
+                    .with_chatter(c, cut.spindle_rpm.round() as u32, cut.tool.flutes)
+                    .map_err(|e| anyhow!("{}", e.message()))?;
+            }
             Some(if anti_windup {
                 p
             } else {
@@ -238,6 +426,7 @@ pub fn run_with_faults(
         injector: crate::fault::Injector::new(faults, acs.cal.map(|c| f64::from(c.offset))),
         sample_hz: acs.sample_hz,
         truth: Vec::new(),
+        codes: Vec::new(),
     };
     let per_period = acs.samples_per_period();
     let sample_ns = 1_000_000_000 / acs.sample_hz as u64;
@@ -293,15 +482,30 @@ pub fn run_with_faults(
         let mut halt = false;
         while t >= next_sample {
             next_sample += sample_ns;
-            let (codes, due) = sample(&mut adc, &status, per_period);
+            let (codes, due, sound) = sample(&mut adc, &status, per_period);
             if let (Some(ac), Some(codes)) = (period.as_mut(), codes) {
                 ac.sample(codes);
             }
+            if let (Some(ac), Some(sound)) = (period.as_mut(), sound) {
+                ac.sound(&sound);
+                let last = ac.chatter().and_then(|m| m.last);
+                if let Some(spec) = last {
+                    if out
+                        .spectra
+                        .last()
+                        .is_none_or(|(_, s)| s.cycle != spec.cycle)
+                    {
+                        out.spectra.push((next_sample as f64 * 1e-9, spec));
+                    }
+                }
+            }
             let Some(due) = due else { continue };
             let d = [0, 1, 2].map(|k| pos[k] - period_start[k]);
+            let mut estimates = None;
             let (f_meas, t_meas, e, state) = match period.as_mut() {
                 Some(ac) => {
                     let r = ac.run(&status);
+                    estimates = ac.ctl.law_estimates();
                     halt = r.halt;
                     let o = r.out;
                     feed_cap = status.feed_cap.load(Relaxed);
@@ -334,6 +538,7 @@ pub fn run_with_faults(
                 e,
                 state,
                 feed_cap,
+                estimates,
             });
             period_start = pos;
         }
@@ -342,6 +547,7 @@ pub fn run_with_faults(
         }
     }
     out.samples = adc.truth;
+    out.codes = adc.codes;
     out.machining_time_s = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);
     out.final_position = pos;
     out.blocks_done = frame.blocks_done() as usize;
@@ -401,15 +607,28 @@ pub fn load_figures(
     }
 }
 
-/// The same program with every feed block at one constant feed number `f`.
+/// The fastest feed change of a sealed feed block, ipm/s: its acceleration ramp (Q8 feed numbers
+/// per frame) at the frame rate; 0 for rapids and dwells.
+pub fn ramp_ipm_s(settings: &Settings, b: &Block) -> f64 {
+    let ramp = match b.motion {
+        Motion::Linear(l) => l.ramp,
+        Motion::Arc(c) => c.ramp,
+        _ => return 0.0,
+    };
+    f64::from(ramp) / 256.0 * f64::from(settings.frame_hz) * feed_ipm(settings, 1)
+}
+
+/// The same program with every feed block at one constant feed number `f`, or at its own feed
+/// where that is lower (a feed block's feed is its ceiling: pass the blocks the AC runs,
+/// [`crate::acreport::ceiling_blocks`], to honour the AC's ceiling setting).
 pub fn with_constant_feed(prog: &[ProgBlock], f: u32, settings: &Settings) -> Vec<ProgBlock> {
     let cfg = FrameConfig::from_settings(settings);
     prog.iter()
         .map(|b| {
             let mut b = *b;
             match &mut b.block.motion {
-                Motion::Linear(l) => l.f = f,
-                Motion::Arc(c) => c.f = f,
+                Motion::Linear(l) => l.f = l.f.min(f),
+                Motion::Arc(c) => c.f = c.f.min(f),
                 _ => {}
             }
             b.block.seal(&cfg);

@@ -49,6 +49,19 @@ pub trait Plant {
     /// encoder positions (BLU) the firmware counted; None: no conversion for this sample (the
     /// ADC does not answer, a dropout).
     fn sample(&mut self, index: u32, t_s: f64, pos_blu: [i64; 3]) -> Option<[u16; 3]>;
+
+    /// The firmware's spindle now turns at `rpm` (the S of a spindle change in a serial
+    /// session; called before the first sample at the new speed). A plant without a spindle
+    /// ignores it.
+    fn spindle_rpm(&mut self, _rpm: u32) -> Result<()> {
+        Ok(())
+    }
+
+    /// The sound channel's codes since the previous sample (after `sample`), oldest first; all
+    /// [`wire::NO_SOUND`] for a plant without a microphone (the default).
+    fn sound(&mut self) -> [u16; wire::SOUND_PER_SAMPLE] {
+        [wire::NO_SOUND; wire::SOUND_PER_SAMPLE]
+    }
 }
 
 /// One request and its answer.
@@ -161,16 +174,30 @@ fn serve(
         return Ok(log);
     }
     let mut q = [0u8; Request::LEN];
+    // The spindle speed of the last request (0: none commanded).
+    let mut rpm = 0;
     loop {
         match input.read_exact(&mut q) {
             Ok(()) => {}
             Err(e) if e.kind() == ErrorKind::UnexpectedEof => break,
             Err(e) => return Err(e).context("reading adc.req"),
         }
-        let Request { index, encoder } = Request::parse(&q);
+        let Request {
+            index,
+            encoder,
+            spindle_rpm,
+        } = Request::parse(&q);
+        if spindle_rpm != 0 && spindle_rpm != rpm {
+            plant.spindle_rpm(spindle_rpm)?;
+            rpm = spindle_rpm;
+        }
         let pos_blu = encoder.map(i64::from);
         let codes = plant.sample(index, f64::from(index) / f64::from(sample_hz), pos_blu);
-        let r = wire::emit_response(codes);
+        let r = wire::Response {
+            codes,
+            sound: plant.sound(),
+        }
+        .emit();
         log.push(Exchange {
             index,
             pos_blu,

@@ -173,6 +173,14 @@ impl<P: Plant> Plant for Faulty<P> {
         let at = (f64::from(index) + 1.0) / f64::from(self.sample_hz);
         self.injector.apply(at, codes)
     }
+
+    fn spindle_rpm(&mut self, rpm: u32) -> anyhow::Result<()> {
+        self.plant.spindle_rpm(rpm)
+    }
+
+    fn sound(&mut self) -> [u16; millac::wire::SOUND_PER_SAMPLE] {
+        self.plant.sound()
+    }
 }
 
 #[cfg(test)]

@@ -16,14 +16,20 @@
 //!   the firmware's ADC) and the `ac.log` parser; [`acsim`] runs the core's frame and AC
 //!   controller natively on the host against the plant; [`fault`] injects sensor faults into the
 //!   transducer codes; [`acreport`] compares AC, constant feeds and the plant's oracle (the path
-//!   from the NC program) and writes ac.csv and the plot.
+//!   from the NC program) and writes ac.csv and the plot; [`bench`] is the AC benchmark (every
+//!   feed law, every benchmark program, both drives, against the bound); [`repro`] reproduces
+//!   the papers' feed-law experiments (depth steps, TIIM, the pocket, entry and exit) per
+//!   strategy.
 //!
 //! Pins (GPIO port B, PL061 at 0x4000_5000): PB0 X_STEP, PB1 Y_STEP, PB2 Z_STEP, PB3 X_SIGN,
 //! PB4 Y_SIGN, PB5 Z_SIGN. Sign high = positive direction; a rising step edge = one BLU.
 pub mod acreport;
 pub mod acsim;
 pub mod analysis;
+pub mod bench;
+pub mod breaklab;
 pub mod capture;
+pub mod chatterlab;
 pub mod cosim;
 pub mod defmtlog;
 pub mod elf;
@@ -31,6 +37,7 @@ pub mod f446;
 pub mod fault;
 pub mod firmware;
 pub mod plugin;
+pub mod repro;
 pub mod runner;
 pub mod serve;
 pub mod sigrok;

@@ -95,7 +95,7 @@ struct CutArgs {
     /// under QEMU (run, demo) and on the host (host); millac_qemu::fault lists each alarm.
     #[arg(long = "fault", value_name = "KIND@SECONDS")]
     faults: Vec<millac_qemu::fault::Fault>,
-    /// The AC's feed law ($251) [default: paper]: the same settings reach the firmware (a
+    /// The AC's feed law ($251) [default: gpc]: the same settings reach the firmware (a
     /// settings record in the run directory) and the host's simulation, replay and report. In
     /// `serve` it is stored in the session's record OUT/settings.bin (not with --settings).
     #[arg(long, value_enum)]
@@ -104,6 +104,40 @@ struct CutArgs {
     /// the thesis' servo position loop (wn^2 = 60318, 2 zeta wn = 400: the tool lags).
     #[arg(long, value_enum, default_value = "stepper")]
     drive: DriveArg,
+    /// Kienzle exponent m of the steel's specific cutting pressure, Ks(h) = 2000 N/mm^2 x
+    /// (h / 0.1 mm)^-m, 0 <= m < 1 (steel's usual m is about 0.25): the thesis' "non linear
+    /// region" of the cutting forces, the force growing as the feed per tooth to the 1 - m.
+    /// 0 (the default) keeps Ks constant.
+    #[arg(long, default_value_t = 0.0, value_name = "M")]
+    ks_exponent: f64,
+    /// A whole cut set-up: `thesis-table-3.2` is Munasinghe's chatter test (a 15.875 mm 2-flute
+    /// end mill, 76.2 mm overhang, flexible in X and Y with a 1600 Hz mode and heard by a
+    /// microphone at 5 kHz; Al 7075; 1500 rpm unless the program's S says otherwise): chatter at
+    /// 8.89 mm depth, stable at 2.54 mm (millac_plant::chatter::thesis_table_3_2).
+    #[arg(long, value_enum)]
+    preset: Option<PresetArg>,
+    /// Tooth N (counted from 0 in cutting order: tooth 0 on +X at t = 0, tooth 1 the next to cut)
+    /// breaks at SECONDS of virtual time: it cuts nothing from then on and the next tooth takes
+    /// its chip (repeatable), e.g. --break-tooth 1@2.5. millac_plant::teeth has the model.
+    #[arg(long = "break-tooth", value_name = "N@SECONDS", value_parser = millac_qemu::acsim::parse_break_tooth)]
+    break_tooth: Vec<millac_plant::ToothEvent>,
+    /// Tooth N's edge chips at SECONDS: it loses DEPTH_MM of radius (default 0.05 mm), the next
+    /// tooth takes it (repeatable; a tooth's deepest chip so far counts), e.g.
+    /// --chip-tooth 0@3:0.1.
+    #[arg(long = "chip-tooth", value_name = "N@SECONDS[:DEPTH_MM]", value_parser = millac_qemu::acsim::parse_chip_tooth)]
+    chip_tooth: Vec<millac_plant::ToothEvent>,
+    /// Radial run-out of the teeth in micrometres, one value per tooth from tooth 0 (signed, +
+    /// cuts deeper; |value| <= 1000), e.g. --runout 10,0,0,0.
+    #[arg(long, value_name = "UM,UM,...")]
+    runout: Option<millac_qemu::acsim::RunoutUm>,
+}
+
+/// `--preset`: a whole simulated cut set-up.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum PresetArg {
+    /// Munasinghe 1994, table 3.2: the chatter test.
+    #[value(name = "thesis-table-3.2")]
+    ThesisTable32,
 }
 
 /// `--drive`: `millac_plant::DriveModel` on the command line.
@@ -148,13 +182,13 @@ impl From<StrategyArg> for millac::ac::law::Strategy {
 }
 
 impl CutArgs {
-    /// The run's AC settings: the defaults with the strategy.
+    /// The run's AC settings: the defaults with the strategy (without `--strategy`, the
+    /// default feed law, `$251`'s default).
     fn ac_settings(&self) -> millac::ac::AcSettings {
+        let d = millac::ac::AcSettings::default();
         millac::ac::AcSettings {
-            strategy: self
-                .strategy
-                .map_or(millac::ac::law::Strategy::Paper, Into::into),
-            ..Default::default()
+            strategy: self.strategy.map_or(d.strategy, Into::into),
+            ..d
         }
     }
 }
@@ -171,6 +205,11 @@ fn main() {
                 faults: Vec::new(),
                 strategy: None,
                 drive: DriveArg::Stepper,
+                ks_exponent: 0.0,
+                break_tooth: Vec::new(),
+                chip_tooth: Vec::new(),
+                runout: None,
+                preset: None,
             },
         ),
         Some(Cmd::Demo { out, cut }) => demo(&out, &cut),
@@ -296,6 +335,9 @@ fn serve(
     use std::sync::atomic::Ordering;
     let ac = match cut {
         Some(c) => Some(runner::AcRun {
+            // The program arrives over the serial line during the session: the simulated
+            // spindle starts at the default 600 rpm and takes the S of every spindle change
+            // the firmware makes (through the ADC's requests).
             cut: cut_setup("", c)?,
             ac: !c.no_ac,
             faults: c.faults.clone(),
@@ -336,7 +378,7 @@ fn serve(
 }
 
 fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
-    use millac_plant::{Stock, DEFAULT_RPM};
+    use millac_plant::{Material, Stock};
     let stock = match &args.stock {
         Some(p) => Stock::parse(
             &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
@@ -344,12 +386,53 @@ fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
         .map_err(|e| anyhow::anyhow!("{e}"))?,
         None => Stock::default(),
     };
-    let rpm = analysis::spindle_rpm(text, &Settings::default());
-    Ok(millac_qemu::acsim::Cut {
-        spindle_rpm: if rpm > 0 { rpm as f64 } else { DEFAULT_RPM },
+    let cut = millac_qemu::acsim::Cut {
         drive: args.drive.into(),
+        material: Material {
+            ks_exponent: args.ks_exponent,
+            ..Material::STEEL
+        },
+        runout_mm: args.runout.clone().map_or_else(Vec::new, |r| r.0),
+        tooth_events: args
+            .chip_tooth
+            .iter()
+            .chain(&args.break_tooth)
+            .copied()
+            .collect(),
         ..millac_qemu::acsim::Cut::steel(stock, args.seed)
-    })
+    };
+    let cut = match args.preset {
+        None => cut.at_program_rpm(text, &Settings::default()),
+        Some(PresetArg::ThesisTable32) => {
+            use millac_plant::chatter::thesis_table_3_2 as t;
+            let preset = millac_qemu::acsim::Cut {
+                tool: millac_plant::Tool {
+                    diameter_mm: t::DIAMETER_MM,
+                    flutes: t::FLUTES,
+                    ..cut.tool
+                },
+                material: Material {
+                    ks_exponent: args.ks_exponent,
+                    ..Material::ALUMINIUM
+                },
+                spindle_rpm: t::RPM,
+                modes: Some((vec![t::MODE], vec![t::MODE])),
+                ..cut
+            };
+            // The program's S, when it has one, sets the speed as in any run.
+            match analysis::spindle_rpm(text, &Settings::default()) {
+                0 => preset,
+                rpm => millac_qemu::acsim::Cut {
+                    spindle_rpm: f64::from(rpm),
+                    ..preset
+                },
+            }
+        }
+    };
+    // The plant's own checks (e.g. the Ks exponent's range, the teeth of --break-tooth,
+    // --chip-tooth and --runout against the tool's flutes), before anything runs.
+    cut.process()?;
+    Ok(cut)
 }
 
 fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {

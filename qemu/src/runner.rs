@@ -186,6 +186,18 @@ impl cosim::Plant for ProcessPlant {
         }
         Some(s.codes)
     }
+
+    fn spindle_rpm(&mut self, rpm: u32) -> Result<()> {
+        self.process
+            .set_spindle_rpm(f64::from(rpm))
+            .map_err(|e| anyhow::anyhow!("spindle S{rpm}: {}", e.0))
+    }
+
+    fn sound(&mut self) -> [u16; millac::wire::SOUND_PER_SAMPLE] {
+        self.process
+            .take_sound_block()
+            .unwrap_or([millac::wire::NO_SOUND; millac::wire::SOUND_PER_SAMPLE])
+    }
 }
 
 /// The cutting process of `a` as the firmware's simulated ADC, with `a`'s faults injected (the
@@ -444,6 +456,7 @@ pub fn ac_rows(
                     .as_ref()
                     .map_or("run".to_string(), |h| format!("hold:{h}")),
                 feed_cap: r.feed_cap,
+                estimates: None,
             }
         })
         .collect()

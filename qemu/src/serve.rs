@@ -173,7 +173,14 @@ pub fn serve(
     );
     let hold = runner::firmware_hold(&cap.result);
     let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
-    let ac_in = ac.map(|a| runner::AcInput {
+    // The host's comparison runs (constant feeds, the bound) at the session's spindle speed: the
+    // last S of its log (the plant followed every spindle change live; a session that changes
+    // S mid-way is compared at its last one).
+    let report = ac.map(|a| AcRun {
+        cut: a.cut.clone().at_program_rpm(&log, &settings),
+        ..a.clone()
+    });
+    let ac_in = report.as_ref().map(|a| runner::AcInput {
         run: a,
         samples,
         truth: &truth,

@@ -330,10 +330,27 @@ fn default_experiment_controller_believes_the_plant() {
     let limits = OracleLimits::for_tool(&tool);
     assert_eq!(limits.f0_n as f32, ac.f0_n());
     assert_eq!(limits.t0_nm as f32, ac.t0_nm());
-    // fdot_m: feed numbers per second -> ipm/s (f = q0 * FR / FRM).
+    // fdot_m: feed numbers per second -> ipm/s (f = q0 * FR / FRM). The bound changes the feed at
+    // the machine's acceleration (the frame ramps every change); the AC's fdot_m must fit within
+    // it on every axis, or the frame, not fdot_m, would set the AC's rise.
     let s = Settings::default();
     let ipm_per_f = s.max_feed_blu_per_min() as f64 / s.q0 as f64 / 10_000.0;
-    assert_eq!(limits.fdot_m_ipm_s, ac.fdot_m as f64 * ipm_per_f);
+    assert!((acsim::feed_ipm(&s, 1) - ipm_per_f).abs() < 1e-12);
+    let prog = analysis::load_program("G20 G91\nG1 X1 F10\nG1 Y1\nG1 Z-1\nM2\n", &s).unwrap();
+    for b in &prog {
+        let accel = acsim::ramp_ipm_s(&s, &b.block);
+        assert!(
+            accel >= ac.fdot_m as f64 * ipm_per_f,
+            "line {}: ramp {accel} ipm/s below fdot_m",
+            b.block.line
+        );
+        // One axis moves: its own limit, in/s^2 * 60 = ipm/s (the Q8 ramp's rounding aside).
+        let axis_ipm_s = s.accel_blu_s2[0] as f64 / 10_000.0 * 60.0;
+        assert!(
+            (accel / axis_ipm_s - 1.0).abs() < 0.01,
+            "{accel} vs {axis_ipm_s}"
+        );
+    }
 }
 
 /// Issue 9: with the thesis' servo drive the tool lags the pulses (2 zeta / wn = 6.6 ms of
@@ -358,4 +375,34 @@ fn a_servo_drive_enters_the_cut_after_the_pulses() {
     // The pulses (the logged position) are further along when the lagging tool first cuts.
     assert!(t_servo > t_step, "{t_servo} <= {t_step}");
     assert!(x_servo > x_step, "{x_servo} <= {x_step}");
+}
+
+/// The program's S word sets the simulated spindle speed (`Cut::at_program_rpm`, the one helper
+/// of run, demo, host and the benchmarks): at the same feed, S1200 cuts half the chip per tooth
+/// of S600, so half the force; a program without S runs at the default 600 rpm.
+#[test]
+fn the_s_word_sets_the_spindle_speed() {
+    let settings = Settings::default();
+    let slot = |s_word: &str| {
+        let text = format!("G20 G90 {s_word}\nG0 X-0.5 Y1.5\nG0 Z-0.2\nG1 X2 F12\nM2\n");
+        let c = cut("blank X0 Y0 W5 H3 Z0\n", Material::STEEL).at_program_rpm(&text, &settings);
+        let prog = analysis::load_program(&text, &settings).unwrap();
+        let run = acsim::run(&prog, &settings, &c, None).unwrap();
+        // The steady slot: the samples with the tool fully in (X 0.6..1.9 in at 12 ipm is
+        // 3.0..9.5 s after the cut starts; take the middle of the run's samples).
+        let n = run.samples.len();
+        let mid = &run.samples[n * 2 / 5..n * 3 / 5];
+        let f = mid.iter().map(|s| s.0).sum::<f64>() / mid.len() as f64;
+        (c.spindle_rpm, f)
+    };
+    let (rpm_none, f_none) = slot("");
+    let (rpm600, f600) = slot("S600 M3");
+    let (rpm1200, f1200) = slot("S1200 M3");
+    assert_eq!((rpm_none, rpm600, rpm1200), (600.0, 600.0, 1200.0));
+    assert_eq!(f_none, f600);
+    let r = f1200 / f600;
+    assert!(
+        (r - 0.5).abs() < 0.02,
+        "force ratio {r} ({f1200} / {f600} N)"
+    );
 }

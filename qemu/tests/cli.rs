@@ -107,7 +107,7 @@ fn host_rejects_a_bad_program_like_run() {
 }
 
 /// `host --strategy integral` runs the integral law (summary.json `ac.strategy`, its own feeds:
-/// ac.csv differs from the default, the paper's); `serve` refuses `--strategy` with `--settings`
+/// ac.csv differs from the default law's, GPC); `serve` refuses `--strategy` with `--settings`
 /// before anything starts.
 #[test]
 fn host_runs_the_strategy_it_is_given() {
@@ -121,7 +121,7 @@ fn host_runs_the_strategy_it_is_given() {
     let stock = dir.join("stock.txt");
     std::fs::write(&stock, "blank X0 Y0 W5 H3 Z0\n").unwrap();
     let mut csv = Vec::new();
-    for (strategy, name) in [(None, "paper"), (Some("integral"), "integral")] {
+    for (strategy, name) in [(None, "gpc"), (Some("integral"), "integral")] {
         let out = dir.join(name);
         let mut args: Vec<&std::ffi::OsStr> = vec![
             "host".as_ref(),
@@ -165,4 +165,128 @@ fn host_runs_the_strategy_it_is_given() {
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(!settings.exists() && !out.exists());
+}
+
+/// Bad tooth options are refused with a clear message (status 2) before anything runs or writes:
+/// a tooth the 4-flute tool does not have, a run-out list of the wrong length, a malformed or
+/// negative value; by `run`, `host`, `demo` and `serve` alike.
+#[test]
+fn bad_tooth_options_are_refused_before_anything_runs() {
+    let dir = scratch("teeth-refused");
+    let prog = dir.join("slot.nc");
+    std::fs::write(&prog, "G20 G90\nG0 X-0.5 Y1.5\nG1 X0.6 F22\nM2\n").unwrap();
+    let cases: [(&[&str], &str); 6] = [
+        (&["--break-tooth", "7@1"], "tooth 7 does not exist"),
+        (&["--chip-tooth", "4@1"], "tooth 4 does not exist"),
+        (&["--runout", "10,0"], "one value per tooth"),
+        (&["--runout", "10,x,0,0"], "not a run-out"),
+        (&["--chip-tooth", "1@2:-0.1"], "depth"),
+        (&["--break-tooth", "1"], "N@SECONDS"),
+    ];
+    for (i, (opts, msg)) in cases.iter().enumerate() {
+        let out = dir.join(format!("out{i}"));
+        let cmds: [Vec<&std::ffi::OsStr>; 4] = [
+            vec!["host".as_ref(), prog.as_os_str()],
+            vec!["run".as_ref(), prog.as_os_str()],
+            vec!["demo".as_ref()],
+            vec!["serve".as_ref(), "--tcp".as_ref(), "127.0.0.1:0".as_ref()],
+        ];
+        for mut args in cmds {
+            args.extend::<[&std::ffi::OsStr; 2]>(["--out".as_ref(), out.as_os_str()]);
+            args.extend(opts.iter().map(std::ffi::OsStr::new));
+            let o = millac(&args);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+            assert!(err.contains(msg), "{args:?}: {err} lacks {msg}");
+            assert!(!out.exists(), "{args:?} wrote {}", out.display());
+        }
+    }
+}
+
+/// `host` cuts with the tool it is given: with 10 um of run-out (and -5 um on tooth 2) the slot
+/// completes with other true forces than the intact tool's (ac.csv); with tooth 1 breaking at
+/// 1 s, the next tooth's doubled chip overloads the cutter under the AC's feed and the run ends in
+/// the overload hold (status 1).
+#[test]
+fn host_cuts_with_the_damaged_tool_it_is_given() {
+    let dir = scratch("teeth-host");
+    let prog = dir.join("slot.nc");
+    std::fs::write(
+        &prog,
+        "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n",
+    )
+    .unwrap();
+    let stock = dir.join("stock.txt");
+    std::fs::write(&stock, "blank X0 Y0 W5 H3 Z0\n").unwrap();
+    let host = |name: &str, opts: &[&str]| {
+        let out = dir.join(name);
+        let mut args: Vec<&std::ffi::OsStr> = vec![
+            "host".as_ref(),
+            prog.as_os_str(),
+            "--out".as_ref(),
+            out.as_os_str(),
+            "--stock".as_ref(),
+            stock.as_os_str(),
+        ];
+        args.extend(opts.iter().map(std::ffi::OsStr::new));
+        let o = millac(&args);
+        let csv = std::fs::read_to_string(out.join("ac.csv")).unwrap();
+        (o, summary(&out), csv)
+    };
+    let (o, s, intact) = host("intact", &[]);
+    assert!(o.status.success(), "{s:#}");
+    let (o, s, runout) = host("runout", &["--runout", "10,0,-5,0"]);
+    assert!(o.status.success(), "{s:#}");
+    assert_eq!(s["completed"], true, "{s:#}");
+    assert_ne!(intact, runout, "the run-out changed nothing");
+    let (o, s, _) = host("broken", &["--break-tooth", "1@1"]);
+    assert_eq!(o.status.code(), Some(1), "{s:#}");
+    assert_eq!(s["completed"], false, "{s:#}");
+    let alarm = s["hold"]["alarm"].as_str().unwrap();
+    assert!(alarm.starts_with("overload hold"), "{alarm}");
+    assert!(s["ac"]["time_s"].as_f64().unwrap() > 1.0, "{s:#}");
+}
+
+/// `--preset thesis-table-3.2` (issue 10) cuts with the table 3.2 tool, flexible in X and Y: a
+/// slot at 8.89 mm chatters (its peak force is more than twice what the depth ratio to the
+/// 2.54 mm slot would give a rigid tool), the 2.54 mm slot does not.
+#[test]
+fn the_thesis_preset_chatters_at_8_89_mm_and_not_at_2_54() {
+    let dir = scratch("preset");
+    let stock = dir.join("al.stock");
+    std::fs::write(&stock, "blank X0 Y0 W4 H2 Z0\nhole X0.2 Y1 D0.625 Z-0.4\n").unwrap();
+    let mut peaks = Vec::new();
+    for (name, z) in [("stable", "-0.1"), ("chatter", "-0.35")] {
+        let prog = dir.join(format!("{name}.nc"));
+        std::fs::write(
+            &prog,
+            format!("G20 G90\nG0 X0.2 Y1\nG0 Z{z}\nG1 X2 F6\nG0 Z0.1\nM2\n"),
+        )
+        .unwrap();
+        let out = dir.join(name);
+        let o = millac(&[
+            "host".as_ref(),
+            prog.as_os_str(),
+            "--out".as_ref(),
+            out.as_os_str(),
+            "--stock".as_ref(),
+            stock.as_os_str(),
+            "--preset".as_ref(),
+            "thesis-table-3.2".as_ref(),
+            "--no-ac".as_ref(),
+        ]);
+        assert!(
+            o.status.success(),
+            "{}\n{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let s = summary(&out);
+        peaks.push(s["ac"]["peak_force_ratio"].as_f64().unwrap());
+    }
+    let depth_ratio = 0.35 / 0.1;
+    assert!(
+        peaks[1] > 2.0 * depth_ratio * peaks[0],
+        "peaks {peaks:?}: no chatter at 8.89 mm?"
+    );
 }

@@ -180,8 +180,14 @@ fn ac_converges_to_f0_exact_end_deterministic_and_replayable() {
         a.cap.stdout
     );
     assert_eq!(vcd_path(&a.cap.pins).last().unwrap().1, [END_X, 0, 0]);
-    // (a) the measured force settles near F0, from below: the periods from 1 s on while cutting.
+    // (a) the measured force settles on F0: the periods from 1 s on while cutting. The default
+    // law (GPC) regulates on F0 itself (the paper's FRC settled below it, in its dead zone), so
+    // the band is the toy plant's resolution: its force is the travel over a 10 ms window in
+    // whole BLU, and one BLU more or less is a quantum of F0 / (BLU per window at the F0 feed),
+    // 2.4 % at 25 ipm. The law dithers between 40 and 43 BLU per window (a feed change reaches the
+    // window a period late): every settled period within 2 quanta, the mean within half a quantum.
     let f0 = AcSettings::default().f0_n();
+    let quantum = 1.0 / (25.0 * 10_000.0 / 60.0 * 0.010);
     let settled: Vec<&AcRecord> = a
         .records
         .iter()
@@ -190,7 +196,7 @@ fn ac_converges_to_f0_exact_end_deterministic_and_replayable() {
     assert!(settled.len() >= 20, "{} settled periods", settled.len());
     for r in &settled {
         assert!(
-            r.f_n >= 0.95 * f0 && r.f_n <= 1.03 * f0,
+            (r.f_n / f0 - 1.0).abs() <= 2.0 * quantum,
             "t {} ms: F {} N, F0 {f0} N",
             r.t_ms,
             r.f_n
@@ -199,7 +205,7 @@ fn ac_converges_to_f0_exact_end_deterministic_and_replayable() {
     }
     let mean = settled.iter().map(|r| r.f_n).sum::<f32>() / settled.len() as f32;
     assert!(
-        mean <= f0 && mean >= 0.95 * f0,
+        (mean / f0 - 1.0).abs() <= 0.5 * quantum,
         "mean F {mean} N, F0 {f0} N"
     );
     // The feed was capped: slower than the programmed 30 ipm (feed number 3000).

@@ -1,6 +1,6 @@
 //! Sensor faults injected under QEMU (host): `millac run --fault KIND@SECONDS` feeds the firmware's
 //! lockstep ADC the codes of a failing transducer (the same `fault::Injector` as `millac host
-//! --fault`). A full-depth slot in the plain blank at F22 (near F0, cutting from about 0.3 s on),
+//! --fault`). A full-depth slot in the blank (from a start hole) at F22 (near F0, cutting from about 0.3 s on),
 //! each kind injected at 1.5 s: the firmware must hold with that kind's own alarm within the
 //! kind's bound, at an exact position (the capture ends where the hold says), the true force
 //! must stay below the permissible limit, and the run must leave all its report files and exit
@@ -12,8 +12,10 @@ use std::path::PathBuf;
 use std::process::Command;
 use std::sync::OnceLock;
 
-/// Stock: the plain Fig. 1 blank (no start hole).
-const STOCK: &str = "blank X0 Y0 W5 H3 Z0\n";
+/// Stock: the Fig. 1 blank with a start hole at the slot's start (the tool there overlaps the
+/// blank's edge by 0.15 in, and the end face cuts: without the hole the rapid down to full depth
+/// would be a crash into the edge, an overload hold before the fault).
+const STOCK: &str = "blank X0 Y0 W5 H3 Z0\nhole X-0.1 Y1.5 D0.5 Z-0.3\n";
 /// Beside the blank at full depth, then a straight slot at F22.
 const SLOT: &str = "G20 G90\nG0 X-0.1 Y1.5\nG0 Z-0.3\nG1 X3 F22\nM2\n";
 /// The fault's time: well inside the cut, after the entry has settled.

@@ -1148,3 +1148,74 @@ fn qemu_dies_with_the_tool_that_started_it() {
         std::thread::sleep(Duration::from_millis(50));
     }
 }
+
+/// The measured force (`f_n` of ac.log, N) of every AC period of a serve session that streams
+/// a 1 in full slot 0.3 in deep at F10 after `spindle` (e.g. `S1200 M3`), the ADC measuring only;
+/// and the peak force over the limit of the host's run of the session's program at its
+/// programmed feeds (summary.json `ac.programmed_peak_force_ratio`).
+fn slot_forces(tag: &str, spindle: &str) -> (Vec<f64>, f64) {
+    use millac_plant::Stock;
+    use millac_qemu::acsim::Cut;
+    use millac_qemu::runner::AcRun;
+    let out = fresh(tag);
+    let settings_file = serve::default_settings(&out);
+    let addr = format!("127.0.0.1:{}", free_port());
+    let stop = Arc::new(AtomicBool::new(false));
+    let server = {
+        let (out, addr, stop) = (out.clone(), addr.clone(), stop.clone());
+        std::thread::spawn(move || {
+            let ac = AcRun {
+                cut: Cut::steel(Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(), 3),
+                ac: false,
+                faults: Vec::new(),
+                settings: millac::ac::AcSettings::default(),
+            };
+            serve::serve(&out, &settings_file, &addr, 4, Some(&ac), stop)
+        })
+    };
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    banner(&mut w, &mut r);
+    let program = format!("G20 G90\n{spindle}\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.5 F10\nG0 Z0.1\n");
+    let mut seen = Vec::new();
+    for line in program.lines() {
+        assert_eq!(send_line(&mut w, &mut r, line, &mut seen), "ok", "{line}");
+    }
+    poll_idle(&mut w, &mut r);
+    stop.store(true, Ordering::SeqCst);
+    let served = server.join().unwrap().expect("serve");
+    let log = std::fs::read_to_string(out.join("ac.log")).unwrap();
+    let forces = log
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').nth(6)?.parse().ok())
+        .collect();
+    let host = served.summary["ac"]["programmed_peak_force_ratio"]
+        .as_f64()
+        .unwrap();
+    (forces, host)
+}
+
+/// Issue 9: the S word a sender streams sets the simulated spindle speed in `serve` (the
+/// firmware's spindle change reaches the plant through the ADC's requests, after the motion
+/// before it): at the same feed, S1200 cuts half the chip per tooth of S600, so about half the
+/// force. Before, the plant turned at 600 rpm whatever S the session sent.
+#[test]
+fn the_s_word_of_a_session_sets_the_simulated_spindle_speed() {
+    let peak = |f: &[f64]| f.iter().copied().fold(0.0, f64::max);
+    let (f600, host600) = slot_forces("s600", "S600 M3");
+    let (f1200, host1200) = slot_forces("s1200", "S1200 M3");
+    let (p600, p1200) = (peak(&f600), peak(&f1200));
+    eprintln!(
+        "peak measured force: S600 {p600:.0} N, S1200 {p1200:.0} N; host runs {host600:.3}, \
+         {host1200:.3} of the limit"
+    );
+    assert!(p600 > 1000.0, "S600: {p600} N (no cut?)");
+    let ratio = p1200 / p600;
+    assert!((ratio - 0.5).abs() < 0.05, "S1200 / S600 = {ratio}");
+    // The report's host runs cut at the session's speed too (the default tool: 4000 N).
+    for (p, host) in [(p600, host600), (p1200, host1200)] {
+        assert!((host * 4000.0 / p - 1.0).abs() < 0.1, "{host} vs {p} N");
+    }
+}

@@ -375,6 +375,20 @@ impl FeedLaw {
         }
     }
 
+    /// The law's on-line estimates, for plots and logs (host): GPC's theta = [a1, a2, b0, b1, b2]
+    /// (the thesis' Fig. 5.11), MRAC's [p^, b^, 0, 0, 0]; None for the fixed laws (paper,
+    /// integral). Reads the state only: the control is the same with or without the call.
+    pub fn estimates(&self) -> Option<[f32; 5]> {
+        match self {
+            FeedLaw::Gpc(l) => Some(l.rls.theta),
+            FeedLaw::Mrac(l) => {
+                let [p, b] = l.rls.theta;
+                Some([p, b, 0.0, 0.0, 0.0])
+            }
+            FeedLaw::Paper | FeedLaw::Integral(_) => None,
+        }
+    }
+
     /// After a hold, the law restarts from the controller's f_min: the reference model from the
     /// load now (0: the machine stands), the estimate kept.
     pub fn resume(&mut self) {
@@ -507,6 +521,42 @@ mod tests {
             let worst = seg.iter().map(|v| (v - 1.0).abs()).fold(0.0, f32::max);
             assert!(worst < 0.02, "{worst}");
         }
+    }
+
+    /// The estimates a run can plot: the fixed laws have none; MRAC and GPC start at their
+    /// nominal model and report the estimator's theta as it moves.
+    #[test]
+    fn estimates_are_the_estimators_theta() {
+        let (f_nom, f_max) = (1500u32, 3000u32);
+        let b = (1.0 - NOMINAL_POLE) / 0.5;
+        for s in [Strategy::Paper, Strategy::Integral] {
+            assert_eq!(FeedLaw::new(s, f_nom, f_max, 1.0).estimates(), None);
+        }
+        let mut mrac = FeedLaw::new(Strategy::Mrac, f_nom, f_max, 1.0);
+        assert_eq!(mrac.estimates(), Some([NOMINAL_POLE, b, 0.0, 0.0, 0.0]));
+        let mut gpc = FeedLaw::new(Strategy::Gpc, f_nom, f_max, 1.0);
+        assert_eq!(gpc.estimates(), Some([-NOMINAL_POLE, 0.0, b, 0.0, 0.0]));
+        // A process twice the nominal gain moves the estimates away from the nominal.
+        let (mut y, mut f) = (0.0f32, f_nom);
+        for _ in 0..50 {
+            y = NOMINAL_POLE * y + 2.0 * b * (f as f32 / f_max as f32);
+            f = mrac.next(f, 1.0 - y, f, 750.0, 1, f_max);
+        }
+        let FeedLaw::Mrac(l) = mrac else { panic!() };
+        assert_eq!(mrac.estimates().unwrap()[..2], l.rls.theta);
+        assert!(
+            mrac.estimates().unwrap()[1] > 1.5 * b,
+            "{:?}",
+            mrac.estimates()
+        );
+        let (mut y, mut f) = (0.0f32, f_nom);
+        for _ in 0..50 {
+            y = NOMINAL_POLE * y + 2.0 * b * (f as f32 / f_max as f32);
+            f = gpc.next(f, 1.0 - y, f, 750.0, 1, f_max);
+        }
+        let FeedLaw::Gpc(l) = gpc else { panic!() };
+        assert_eq!(gpc.estimates(), Some(l.rls.theta));
+        assert_ne!(l.rls.theta, [-NOMINAL_POLE, 0.0, b, 0.0, 0.0]);
     }
 
     #[test]

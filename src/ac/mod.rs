@@ -62,6 +62,13 @@ pub enum Alarm {
         hi: f32,
         periods: u32,
     },
+    /// The process monitor heard chatter (`crate::monitor::chatter`): the largest amplitude of
+    /// the sound spectrum away from the tooth harmonics, its frequency and the threshold.
+    Chatter {
+        freq_hz: f32,
+        amplitude: f32,
+        threshold: f32,
+    },
 }
 
 impl Alarm {
@@ -75,6 +82,7 @@ impl Alarm {
             Alarm::Sensor(SensorFault::Frozen { .. }) => "sensor frozen while the axes feed",
             Alarm::NoSamples => "no fresh sensor samples in an AC period",
             Alarm::ForceTorqueMismatch { .. } => "force and torque disagree (transducer gain)",
+            Alarm::Chatter { .. } => "chatter: the sound spectrum above its threshold",
         }
     }
 }
@@ -133,6 +141,14 @@ impl core::fmt::Display for Alarm {
                 w,
                 "sensor hold: force and torque disagree: F*R/T = {ratio:.2} outside \
                  {lo:.2}..{hi:.2} for {periods} periods (F = {f_n:.1} N, T = {t_nm:.2} N*m)"
+            ),
+            Alarm::Chatter {
+                freq_hz,
+                amplitude,
+                threshold,
+            } => write!(
+                w,
+                "chatter hold: {amplitude:.1} at {freq_hz:.0} Hz above the threshold {threshold:.1}"
             ),
         }
     }
@@ -247,6 +263,12 @@ impl AcController {
         self
     }
 
+    /// The feed law's on-line estimates (see [`law::FeedLaw::estimates`]), for the host's runs
+    /// and plots; the firmware does not call it.
+    pub fn law_estimates(&self) -> Option<[f32; 5]> {
+        self.law.estimates()
+    }
+
     /// Anti-windup (beyond the paper). The frame takes min(programmed feed, cap), so while the
     /// programmed feed binds, the paper's FRC would keep raising f towards f_max with nothing to
     /// show for it, and the next block with a higher programmed feed would start at f_max: a step
@@ -271,6 +293,16 @@ impl AcController {
             AcState::Run => self.f,
             AcState::Hold(_) => 0,
         }
+    }
+
+    /// Holds the feed for a process monitor's alarm (chatter; cap 0 from now on, until an
+    /// explicit resume, as every hold). True when it entered the hold, false when already held.
+    pub fn hold(&mut self, alarm: Alarm) -> bool {
+        if self.state != AcState::Run {
+            return false;
+        }
+        self.state = AcState::Hold(alarm);
+        true
     }
 
     /// One conversion [T, Fu, Fv] (12-bit codes), at the sample rate. A faulty sample is kept
@@ -346,17 +378,29 @@ impl AcController {
                 (None, _) if mismatch.is_some() => mismatch,
                 (None, None) => Some(Alarm::NoSamples),
                 (None, Some(_)) => {
+                    // The paper's FRC lowers the feed on the latest window alone: the held peak
+                    // (see `peak_windows`) keeps an overload for windows after the feed has cut
+                    // it, and the FRC's tenfold deceleration would take the feed to f_min for
+                    // it (a limit cycle behind a lagging feed drive). Above F0 in the held peak
+                    // but not in the latest window: no change. Raises still wait for the held
+                    // peak.
+                    let e = if matches!(self.law, law::FeedLaw::Paper) && self.e < 0.0 {
+                        let w = self.drr.window_peak();
+                        ecr::errors(w.f_n, w.t_nm, self.f0_n, self.t0_nm).e.min(0.0)
+                    } else {
+                        self.e
+                    };
                     let f = self.law.next(
                         self.f,
-                        self.e,
+                        e,
                         achieved.unwrap_or(self.f),
                         self.step,
                         self.s.f_min,
                         self.s.f_max,
                     );
                     // Every law raises the feed by at most fdot_m x dt per period (the paper's
-                    // FRC does so by construction: E <= 1): the machine's feed acceleration, the
-                    // bound's too. A law may lower it faster (the safe direction).
+                    // FRC does so by construction: E <= 1). A law may lower it faster (the safe
+                    // direction); the frame ramps both at the axes' acceleration.
                     let f = f.min(self.f.saturating_add(self.step as u32));
                     // While force and torque disagree the measured load may be too low: no raise.
                     self.f = if self.s.ft_periods > 0 && out_of_band {

@@ -112,16 +112,33 @@ pub struct AcSettings {
     /// What the frame's feed ceiling is while the AC runs: the programmed feed (default, the
     /// frame takes min(programmed, cap)) or FRM, so the AC alone sets the feed up to `f_max`.
     pub ceiling: FeedCeiling,
-    /// The feed law (`$251`, see `super::law`): the paper's FRC by default.
+    /// The feed law (`$251`, see `super::law`): GPC by default, the fastest law of the AC
+    /// benchmark that finished every program without a hold with both feed drives (README, "AC
+    /// benchmark"); the paper's FRC is `$251=0`.
     pub strategy: super::law::Strategy,
     /// The nominal feed of the integral and MRAC laws (`$264`), feed number: the feed at which
     /// the nominal cut reaches F0 (their gain and initial estimate come from it). Default 1500 =
     /// 15 ipm, in [f_min, f_max].
     pub nominal_feed: u32,
     /// The GPC law's control weight lambda (`$265`, on the normalised feed): larger is gentler.
-    /// Default 5.0 (the AC benchmark: within 1.1 % of the bound on the Fig. 1 cavity and the
-    /// pocket with no hold, where 1.0 held on the pocket's entry and 20 was slower); 0..=1e6.
+    /// Default 10 (the AC benchmark with the stepper and the servo drive: no hold on any program,
+    /// where 5 held on the pocket's entry behind the servo and 15 was slower); 0..=1e6.
     pub gpc_lambda: f32,
+    /// Process monitoring (issue 10, `crate::monitor`). The tool's flutes (`$267`, 1..=8): the
+    /// tooth period the breakage detector averages over and the tooth harmonics the chatter
+    /// detector leaves out. Default 4.
+    pub flutes: u32,
+    /// The spindle speed the monitors assume until the program commands one (`$269`, rpm,
+    /// 1..=100000). Default 600 (the paper's).
+    pub monitor_rpm: u32,
+    /// Chatter detection (`$266`): the threshold of the sound spectrum's largest amplitude away
+    /// from the tooth harmonics, in sound codes about mid-scale; 0 (the default) turns chatter
+    /// detection off (a board without a microphone). Set it from a chatter-free cut (the thesis'
+    /// rule: twice its largest amplitude).
+    pub chatter_threshold: f32,
+    /// Tool breakage detection (`$268`, `crate::monitor::breakage` with its defaults). Off by
+    /// default.
+    pub breakage: bool,
 }
 
 /// The feed ceiling under adaptive control (see [`AcSettings::ceiling`]).
@@ -177,9 +194,13 @@ impl Default for AcSettings {
             ft_periods: 5,
             peak_windows: 3,
             ceiling: FeedCeiling::Programmed,
-            strategy: super::law::Strategy::Paper,
+            strategy: super::law::Strategy::Gpc,
             nominal_feed: 1500,
-            gpc_lambda: 5.0,
+            gpc_lambda: 10.0,
+            flutes: 4,
+            monitor_rpm: 600,
+            chatter_threshold: 0.0,
+            breakage: false,
         }
     }
 }
@@ -207,6 +228,9 @@ pub enum AcSettingsError {
     ForceTorquePeriods,
     NominalFeed,
     GpcLambda,
+    /// The monitors' flutes (1..=8), spindle speed (1..=100000 rpm) or chatter threshold
+    /// (finite, >= 0).
+    Monitor,
 }
 
 impl AcSettingsError {
@@ -240,6 +264,9 @@ impl AcSettingsError {
             }
             AcSettingsError::NominalFeed => "the nominal feed must be within [f_min, f_max]",
             AcSettingsError::GpcLambda => "the GPC weight lambda must be 0..=1e6",
+            AcSettingsError::Monitor => {
+                "monitors: flutes 1..=8, spindle speed 1..=100000 rpm, chatter threshold >= 0"
+            }
             AcSettingsError::ForceTorquePeriods => {
                 "force/torque mismatch count must be 0 (off) ..=100000 AC periods"
             }
@@ -299,6 +326,13 @@ impl AcSettings {
         }
         if !(0.0..=1.0e6).contains(&self.gpc_lambda) {
             return Err(AcSettingsError::GpcLambda);
+        }
+        let monitors_ok = (1..=crate::monitor::MAX_FLUTES as u32).contains(&self.flutes)
+            && (1..=100_000).contains(&self.monitor_rpm)
+            && self.chatter_threshold.is_finite()
+            && self.chatter_threshold >= 0.0;
+        if !monitors_ok {
+            return Err(AcSettingsError::Monitor);
         }
         let o = self.overload_e;
         if !(o.is_finite() && (-1.0..0.0).contains(&o)) {

@@ -7,6 +7,14 @@ use proptest::prelude::*;
 
 pub(super) const MID: u16 = 2048;
 
+/// The default settings with the paper's FRC as the feed law: the law these tests check.
+pub(super) fn paper() -> AcSettings {
+    AcSettings {
+        strategy: law::Strategy::Paper,
+        ..AcSettings::default()
+    }
+}
+
 pub(super) fn ctl(s: AcSettings) -> AcController {
     AcController::new(s).expect("valid settings")
 }
@@ -62,7 +70,7 @@ fn fig7_curve_point_by_point() {
 #[test]
 fn one_period_changes_f_by_fdot_dt() {
     // fdot in ipm/s * 0.01 s * 100 feed numbers per ipm, truncated toward zero.
-    let s = AcSettings::default();
+    let s = paper();
     let step = s.step_per_period();
     assert_eq!(step, 750.0);
     for (e, d) in [
@@ -118,14 +126,14 @@ fn dead_zone_leaves_f_unchanged() {
 
 #[test]
 fn drr_calibration_to_engineering_units() {
-    let d = Drr::new(&AcSettings::default());
+    let d = Drr::new(&paper());
     assert_eq!(d.convert([MID; 3]), (0.0, 0.0, 0.0));
     assert_eq!(
         d.convert([MID + 200, MID + 400, MID - 300]),
         (10.0, 1000.0, -750.0)
     );
     assert_eq!(d.convert([4095, 0, 4095]), (102.35, -5120.0, 5117.5));
-    let mut s = AcSettings::default();
+    let mut s = paper();
     s.cal[1] = Calibration {
         gain: -4.0,
         offset: 100.0,
@@ -136,7 +144,7 @@ fn drr_calibration_to_engineering_units() {
 
 #[test]
 fn drr_latest_and_peak() {
-    let s = AcSettings::default();
+    let s = paper();
     let mut d = Drr::new(&s);
     // F per sample: 1000, 1000 (components swapped), 2000, 500; |T|: 5, 20 (negative), 1, 2.
     let samples = [
@@ -173,7 +181,7 @@ fn drr_latest_and_peak() {
     // With one window (the paper's 10 ms window alone) the peak is the window's own.
     let one = AcSettings {
         peak_windows: 1,
-        ..AcSettings::default()
+        ..paper()
     };
     let mut d = Drr::new(&one);
     d.sample(codes(0.0, 1000.0, 0.0)).unwrap();
@@ -196,7 +204,7 @@ fn drr_latest_and_peak() {
 
 #[test]
 fn pick_setting_reaches_the_ecr() {
-    let mut s = AcSettings::default();
+    let mut s = paper();
     let spike = codes(0.0, 3600.0, 0.0); // F0 exactly
     let base = codes(0.0, 1800.0, 0.0);
     for (pick, e) in [(Pick::Peak, 0.0f32), (Pick::Latest, 0.5)] {
@@ -226,7 +234,7 @@ fn ecr_force_and_smaller_error() {
     // can make, F*R/T = 0.21: the force/torque check is off).
     let mut c = ctl(AcSettings {
         ft_periods: 0,
-        ..AcSettings::default()
+        ..paper()
     });
     let out = window(&mut c, codes(54.0, 1800.0, 0.0));
     assert_eq!(out.e, 0.25);
@@ -248,7 +256,7 @@ fn overload_holds_within_one_period_and_resume_restarts_at_f_min() {
     // Force and torque set freely (F*R/T up to 2.7): the force/torque check is off.
     let s = AcSettings {
         ft_periods: 0,
-        ..AcSettings::default()
+        ..paper()
     };
     let mut c = ctl(s);
     let air = codes(1.0, 100.0, 0.0);
@@ -315,7 +323,7 @@ fn overload_holds_within_one_period_and_resume_restarts_at_f_min() {
 
 #[test]
 fn torque_overload_holds() {
-    let mut c = ctl(AcSettings::default());
+    let mut c = ctl(paper());
     let out = window(&mut c, codes(80.0, 0.0, 0.0)); // E = 1 - 80/72 = -0.11
     assert!(matches!(out.state, AcState::Hold(Alarm::Overload { t_nm, .. }) if t_nm == 80.0));
 }
@@ -335,7 +343,7 @@ fn stuck_at_rail_holds() {
         force_limit_n: 1.0e5,
         torque_limit_nm: 1.0e4,
         ft_floor_nm: 1.0e7,
-        ..AcSettings::default()
+        ..paper()
     };
     for (ch, rail) in [(0usize, 4095u16), (1, 0), (2, 4095)] {
         let mut c = ctl(s);
@@ -378,7 +386,7 @@ fn stuck_at_rail_holds() {
 
 #[test]
 fn no_fresh_samples_holds() {
-    let mut c = ctl(AcSettings::default());
+    let mut c = ctl(paper());
     assert_eq!(window(&mut c, [MID; 3]).state, AcState::Run);
     let out = c.period();
     assert_eq!((out.feed_cap, out.alarm), (0, Some(Alarm::NoSamples)));
@@ -391,7 +399,7 @@ fn no_fresh_samples_holds() {
 
 #[test]
 fn implausible_jump_holds() {
-    let s = AcSettings::default();
+    let s = paper();
     let mut c = ctl(s);
     c.sample([MID; 3]);
     c.sample([MID, MID, MID + 1500]); // exactly the limit: no jump
@@ -414,7 +422,7 @@ fn implausible_jump_holds() {
 
 #[test]
 fn code_out_of_range_holds() {
-    let mut c = ctl(AcSettings::default());
+    let mut c = ctl(paper());
     c.sample([MID; 3]);
     c.sample([4096, MID, MID]);
     c.sample([MID; 3]);
@@ -428,7 +436,7 @@ fn code_out_of_range_holds() {
 
 #[test]
 fn hold_keeps_the_feed_cap_at_zero_until_resume() {
-    let mut c = ctl(AcSettings::default());
+    let mut c = ctl(paper());
     c.period(); // no samples: hold
     for _ in 0..20 {
         assert_eq!(window(&mut c, [MID; 3]).feed_cap, 0);
@@ -490,7 +498,7 @@ fn settings_validation() {
 
 /// Runs the FRC and ECR on F = k * f (no torque) from `f_start`; returns the force per period.
 fn toy_loop(k: f32, f_start: u32, periods: usize) -> Vec<(u32, f32)> {
-    let s = AcSettings::default();
+    let s = paper();
     let mut f = f_start;
     let mut trace = Vec::new();
     for _ in 0..periods {
@@ -528,7 +536,7 @@ fn check_settles_from_below(trace: &[(u32, f32)]) {
 
 #[test]
 fn closed_loop_settles_for_a_few_k() {
-    let f0 = AcSettings::default().f0_n();
+    let f0 = paper().f0_n();
     for f_star in [800.0f32, 1200.0, 2000.0, 2750.0, 2999.0] {
         let k = f0 / f_star;
         check_settles_from_below(&toy_loop(k, 100, 400));
@@ -545,7 +553,7 @@ fn closed_loop_settles_for_a_few_k() {
 #[test]
 fn closed_loop_through_the_controller() {
     // The same toy process through the ADC codes (quantised by 2.5 N) and the whole controller.
-    let s = AcSettings::default();
+    let s = paper();
     for f_star in [900.0f32, 1500.0, 2500.0] {
         let k = s.f0_n() / f_star;
         let mut c = ctl(s);
@@ -578,7 +586,7 @@ proptest! {
 
     #[test]
     fn closed_loop_settles_for_any_k(f_star in 800.0f32..3000.0, f_start in 100u32..700) {
-        let k = AcSettings::default().f0_n() / f_star;
+        let k = paper().f0_n() / f_star;
         check_settles_from_below(&toy_loop(k, f_start, 300));
     }
 
@@ -587,7 +595,7 @@ proptest! {
         samples in proptest::collection::vec(
             (0u16..=4095, 0u16..=4095, 0u16..=4095, 0u8..12), 1..60)
     ) {
-        let s = AcSettings { stuck_samples: 0, jump_codes: 4095, ..AcSettings::default() };
+        let s = AcSettings { stuck_samples: 0, jump_codes: 4095, ..paper() };
         let mut c = ctl(s);
         for (t, u, v, n) in samples {
             for _ in 0..n {
@@ -621,12 +629,12 @@ fn achieved_feed_in_frame_units() {
 fn anti_windup_keeps_f_one_step_above_the_achieved_feed() {
     let air = codes(0.0, 0.0, 0.0);
     // Without the achieved feed the FRC runs to f_max in air (the paper's behaviour).
-    let mut free = ctl(AcSettings::default());
+    let mut free = ctl(paper());
     let out = settle(&mut free, air, 20);
-    assert_eq!(out.feed_cap, AcSettings::default().f_max);
+    assert_eq!(out.feed_cap, paper().f_max);
     // With the programmed feed binding at 12 ipm, the cap stays one step (7.5 ipm) above it. The
     // axes feed, so the transducer must look alive (2 codes of noise), or it is frozen.
-    let mut c = ctl(AcSettings::default());
+    let mut c = ctl(paper());
     let mut last = 0;
     for _ in 0..20 {
         c.set_achieved(1200);
@@ -696,4 +704,49 @@ fn every_law_raises_the_feed_by_at_most_one_frc_step_per_period() {
             assert_eq!(f, want, "{strategy:?} rises at the limit in air");
         }
     }
+}
+
+/// The paper's FRC lowers the feed on the latest window: once the feed has cut an overload, a
+/// window back under F0 leaves the feed where it is, although the held peak (3 windows) still
+/// shows the overload. Before: the held peak drove two more tenfold decelerations (E = -0.08:
+/// -480 feed numbers each), taking the feed to f_min in a limit cycle behind the servo drive's
+/// lag (Fig. 1 with the servo: 64.74 s, 1.087 of the bound; 60.78 s after).
+#[test]
+fn the_frc_lowers_the_feed_on_the_latest_window_not_the_held_peak() {
+    // Force without torque: the force/torque check off.
+    let s = AcSettings {
+        ft_periods: 0,
+        ..paper()
+    };
+    assert_eq!(s.peak_windows, 3);
+    let mut c = ctl(s);
+    c.f = 2000;
+    let f0 = s.f0_n();
+    // One window 8 % above F0: the tenfold deceleration.
+    let over = window(&mut c, codes(0.0, 1.08 * f0, 0.0));
+    let after_over = c.f;
+    assert!(after_over < 2000 - 400, "decelerated to {after_over}");
+    assert!(over.e < -0.07);
+    // Two windows at 0.98 F0: the held peak still reads 1.08 F0 (E < 0), the latest does not.
+    for _ in 0..2 {
+        let out = window(&mut c, codes(0.0, 0.98 * f0, 0.0));
+        assert!(out.e < -0.07, "the held peak: E = {}", out.e);
+        assert_eq!(
+            c.f, after_over,
+            "the feed stays while the latest window is under F0"
+        );
+    }
+    // A window above F0 again lowers it, by its own (smaller) error.
+    window(&mut c, codes(0.0, 1.02 * f0, 0.0));
+    assert!(c.f < after_over);
+    // The other laws see the held peak, unchanged: the integral law lowers the feed on it.
+    let mut c = ctl(AcSettings {
+        strategy: law::Strategy::Integral,
+        ..s
+    });
+    c.f = 2000;
+    window(&mut c, codes(0.0, 1.08 * f0, 0.0));
+    let f1 = c.f;
+    window(&mut c, codes(0.0, 0.98 * f0, 0.0));
+    assert!(c.f < f1, "integral on the held peak: {} after {f1}", c.f);
 }

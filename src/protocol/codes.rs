@@ -162,6 +162,8 @@ pub mod alarm {
     pub const AC_NO_SAMPLES: u8 = 105;
     /// Adaptive control, sensor hold: force and torque disagree (transducer gain).
     pub const AC_MISMATCH: u8 = 106;
+    /// Process monitor, chatter hold: the sound spectrum above its threshold.
+    pub const AC_CHATTER: u8 = 107;
     /// The frame ISR took more cycles than the board's stated limit (`BoardLimits::frame_work_ns`,
     /// which the settings validation assumed): the pulse and sign timing the validation promised
     /// may not hold. The feed is held; lower W0 (`$201`) or the rapid rate (`$110`) and restart.
@@ -186,5 +188,6 @@ pub const fn ac_alarm(a: &Alarm) -> u8 {
         Alarm::Sensor(SensorFault::Frozen { .. }) => alarm::AC_SENSOR_FROZEN,
         Alarm::NoSamples => alarm::AC_NO_SAMPLES,
         Alarm::ForceTorqueMismatch { .. } => alarm::AC_MISMATCH,
+        Alarm::Chatter { .. } => alarm::AC_CHATTER,
     }
 }

@@ -51,8 +51,25 @@ use core::sync::atomic::Ordering::Relaxed;
 
 use super::status::Status;
 use crate::ac::{achieved_feed, AcController, AcOutput, AcState};
+use crate::monitor::chatter::{ChatterDetector, ChatterSettings, Spectrum};
 use crate::ports::{Codes, Conversion, ForceTorqueAdc};
 use crate::settings::Settings;
+use crate::wire::SOUND_PER_SAMPLE;
+
+/// The sound channel's code of silence (a 12-bit ADC's mid-scale): the chatter detector takes
+/// code - this.
+pub const SOUND_MIDSCALE: f32 = 2048.0;
+
+/// The chatter monitor of an AC period ([`AcPeriod::with_chatter`]): the detector, the spindle it
+/// judges for, and the last record's verdict not yet acted on.
+pub struct ChatterMonitor {
+    pub detector: ChatterDetector,
+    pub rpm: u32,
+    pub flutes: u32,
+    pending: Option<Spectrum>,
+    /// Every record's spectrum so far: (cycle, peak Hz, amplitude), the last one.
+    pub last: Option<Spectrum>,
+}
 
 /// AC periods in hold with the encoder unchanged before a run stops (1 s at 10 ms).
 pub const HOLD_EXIT_PERIODS: u32 = 100;
@@ -76,10 +93,12 @@ pub enum Sampled {
     /// conversion (`due` likewise), so the AC periods hold with NoSamples.
     Lost { due: Option<u32> },
     /// The codes (None: no fresh conversion this tick, nothing for the AC period); `due`: an AC
-    /// period is due with this deadline base (the sample count).
+    /// period is due with this deadline base (the sample count); `sound`: the sound channel's
+    /// codes since the previous sample (None: no microphone).
     Codes {
         codes: Option<Codes>,
         due: Option<u32>,
+        sound: Option<[u16; SOUND_PER_SAMPLE]>,
     },
 }
 
@@ -91,12 +110,18 @@ pub fn sample(adc: &mut impl ForceTorqueAdc, status: &Status, per_period: u32) -
     let n = i.wrapping_add(1);
     status.samples.store(n, Relaxed);
     let due = (n % per_period.max(1) == 0).then_some(n);
+    let sound = adc.sound();
     match conversion {
         Conversion::Fresh(c) => Sampled::Codes {
             codes: Some(c),
             due,
+            sound,
         },
-        Conversion::Missed => Sampled::Codes { codes: None, due },
+        Conversion::Missed => Sampled::Codes {
+            codes: None,
+            due,
+            sound,
+        },
         Conversion::Lost => Sampled::Lost { due },
     }
 }
@@ -112,6 +137,8 @@ pub struct AcPeriod {
     anti_windup: bool,
     last: [i32; 3],
     still: u32,
+    /// Chatter detection on the sound channel (None: off).
+    chatter: Option<ChatterMonitor>,
 }
 
 /// What one period did.
@@ -137,6 +164,51 @@ impl AcPeriod {
             anti_windup: true,
             last: [0; 3],
             still: 0,
+            chatter: None,
+        }
+    }
+
+    /// Judges the sound channel for chatter with `settings` at `rpm` and `flutes` (the tooth
+    /// harmonics it leaves out): a record above the threshold holds the feed at the next period
+    /// with `Alarm::Chatter` (the thesis' first reaction; the depth reduction and the re-planned
+    /// passes are still to come). Init context.
+    pub fn with_chatter(
+        mut self,
+        settings: ChatterSettings,
+        rpm: u32,
+        flutes: u32,
+    ) -> Result<Self, crate::monitor::chatter::ChatterSettingsError> {
+        self.chatter = Some(ChatterMonitor {
+            detector: ChatterDetector::new(settings)?,
+            rpm,
+            flutes,
+            pending: None,
+            last: None,
+        });
+        Ok(self)
+    }
+
+    /// The chatter monitor, if on.
+    pub fn chatter(&self) -> Option<&ChatterMonitor> {
+        self.chatter.as_ref()
+    }
+
+    /// The sound channel's codes of one sample (oldest first) into the chatter detector. AC task
+    /// (from the sampler's queue) or host.
+    pub fn sound(&mut self, codes: &[u16]) {
+        let Some(m) = self.chatter.as_mut() else {
+            return;
+        };
+        for &c in codes {
+            if let Some(s) = m
+                .detector
+                .push(f32::from(c) - SOUND_MIDSCALE, m.rpm, m.flutes)
+            {
+                m.last = Some(s);
+                if s.chatter && m.pending.is_none() {
+                    m.pending = Some(s);
+                }
+            }
         }
     }
 
@@ -171,7 +243,22 @@ impl AcPeriod {
             let factor = status.operator.load(Relaxed) & crate::nc::operator::FEED_MASK;
             self.ctl.set_achieved(unscale_override(achieved, factor));
         }
-        let out = self.ctl.period();
+        let mut out = self.ctl.period();
+        if let Some(s) = self.chatter.as_mut().and_then(|m| m.pending.take()) {
+            let a = crate::ac::Alarm::Chatter {
+                freq_hz: s.peak_hz,
+                amplitude: s.peak_amplitude,
+                threshold: self
+                    .chatter
+                    .as_ref()
+                    .map_or(0.0, |m| m.detector.settings().threshold),
+            };
+            if self.ctl.hold(a) {
+                out.state = AcState::Hold(a);
+                out.alarm = Some(a);
+                out.feed_cap = self.ctl.feed_cap();
+            }
+        }
         status.ac_state.store(
             match out.state {
                 AcState::Run => AC_RUN,
@@ -241,7 +328,7 @@ mod tests {
         let mut states = [None; 5];
         for p in 0..5 {
             for k in 0..per {
-                let Sampled::Codes { codes, due } = sample(&mut adc, &status, per) else {
+                let Sampled::Codes { codes, due, .. } = sample(&mut adc, &status, per) else {
                     panic!("lost before its time");
                 };
                 let i = p * per + k;

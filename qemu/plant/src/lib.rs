@@ -2,7 +2,8 @@
 //! on the host. Today that is the cutting process, the thing the simulated ADC measures: a flat end
 //! mill cuts a height-map stock ([`stock`]); at every ADC sample [`Process::sample`] ([`process`])
 //! computes the instantaneous cutting force and torque from the engagement at that instant
-//! (mechanistic model of Munasinghe 1994, eq. 3.1 to 3.5: Ft = Ks a h, Fr = Kr Ft, h = c sin(phi)),
+//! (mechanistic model of Munasinghe 1994, eq. 3.1 to 3.5: Ft = Ks a h, Fr = Kr Ft, h = c sin(phi);
+//! optionally Kienzle's size effect Ks(h), and the end face cutting on plunges and ramps),
 //! resolves the force in the rotating tool holder (Tlusty, Koren and McNeil: Fu, Fv 90 degrees
 //! apart, F = sqrt(Fu^2 + Fv^2), torque T) and turns T, Fu, Fv into 12-bit ADC codes with seeded
 //! noise. [`oracle`] computes the fastest feed schedule any controller could run along a tool path
@@ -16,8 +17,9 @@
 //! experiment, so an honest evaluation can make the two disagree. The defaults happen to agree with
 //! the controller's defaults; millac-qemu's tests check that the default experiment is matched.
 //! The feed drives ([`drive`]: a stepper, or the thesis' servo position loop) turn the commanded
-//! position into where the tool really is; the wiring into runs comes with issue 9. Later models
-//! of the plant live here too: tool breakage, chatter.
+//! position into where the tool really is; the wiring into runs comes with issue 9. [`teeth`]:
+//! the cutter's per-tooth state, radial run-out and chipped or broken teeth (the thesis' section
+//! 3.2: the next tooth takes the rest). Later models of the plant live here too: chatter.
 //!
 //! Units: the controller speaks BLU (0.0001 in, integers) and ipm at the plant's boundary (tool tip
 //! positions in [`MM_PER_BLU`] steps, programmed feeds); inside, the plant works in SI: mm, s, N,
@@ -27,10 +29,13 @@
 //! Determinism: no hash maps, no clocks, no threads; noise from a seeded SplitMix64 and a sum of
 //! twelve uniforms (only + and *). Same inputs and seed give the same bytes on one platform (the
 //! force model uses `sin`/`cos`, whose last bits may differ between libm implementations).
+pub mod chatter;
 pub mod drive;
+pub mod lobes;
 pub mod oracle;
 pub mod process;
 pub mod stock;
+pub mod teeth;
 #[cfg(test)]
 mod tests;
 
@@ -38,6 +43,7 @@ pub use drive::{Drive, DriveModel};
 pub use oracle::{oracle_time, OracleLimits, OraclePoint, OracleResult};
 pub use process::{Process, Sample};
 pub use stock::{Stock, StockError};
+pub use teeth::{Damage, Teeth, ToothEvent};
 
 /// mm per BLU (0.0001 in).
 pub const MM_PER_BLU: f64 = 0.00254;
@@ -52,7 +58,9 @@ pub const DEFAULT_RPM: f64 = 600.0;
 /// A flat end mill. The helix is ignored: every flute is a straight line along the tool axis, so
 /// a flute's whole engaged depth cuts at one angle (the force per tooth is `Ks a h` with `a` the
 /// full axial engagement; a real helix spreads it over a range of angles and smooths the peaks).
-/// The flute length is taken as unlimited; the end face does not cut (plunges give no force).
+/// The flute length is taken as unlimited. The end face cuts when the tool moves down into
+/// material (plunges and ramps, see [`process`]): the end mill is taken as center cutting, every
+/// end tooth reaching from the axis to the rim.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tool {
     pub diameter_mm: f64,
@@ -77,30 +85,71 @@ impl Default for Tool {
 }
 
 /// Workpiece material: specific cutting pressure `ks` (N/mm^2, tangential force per chip area)
-/// and radial force ratio `kr` = Fr / Ft.
+/// at the reference chip thickness [`H_REF_MM`], its size-effect exponent `ks_exponent`, the
+/// radial force ratio `kr` = Fr / Ft of the side teeth and the axial force ratio `ka` = Fa / Ft
+/// of the end teeth.
 ///
 /// The thesis gives the model but no coefficient values (its tests cut Al 7075-T6 with HSS), so
 /// the presets are textbook choices: steel Ks = 2000 N/mm^2 (medium-carbon steel such as AISI 1045
 /// at chips around 0.1 mm: Kienzle kc1.1 about 1700..2200 N/mm^2), aluminium Ks = 800 N/mm^2 (Al
 /// 7075-T6: Altintas' mechanistic Ktc about 800 N/mm^2, the Munasinghe/Altintas lab material),
-/// and Kr = 0.3 for both (Tlusty's usual ratio for sharp end mills). Ks is constant: no size
-/// effect, so the force is exactly proportional to the feed per tooth (the thesis' "non linear
-/// region" at small chips is not modelled).
+/// and Kr = 0.3 for both (Tlusty's usual ratio for sharp end mills).
+///
+/// Size effect (the thesis' "non linear region of the cutting forces", section 5.3.1), Kienzle's
+/// form: `Ks(h) = ks * (max(h, H_MIN_MM) / H_REF_MM)^(-ks_exponent)`, so `ks` is the value at
+/// h = 0.1 mm and the tooth force `Ks(h) a h` grows as `h^(1 - m)`. `ks_exponent` = 0 (the
+/// presets) keeps Ks constant, the force exactly proportional to the feed per tooth. Steel's
+/// usual Kienzle exponent is about 0.25 ([`Material::STEEL_KIENZLE`]). The clamp at
+/// [`H_MIN_MM`] = 0.005 mm (about the edge radius of a sharp tool) keeps Ks finite where a tooth
+/// enters or leaves the cut (h = c cos(alpha) -> 0): below it Ks stays at its 0.005 mm value and
+/// the force is linear in h.
+///
+/// End face: `ka` = 0.5 for both presets (axial force of the end teeth half their tangential
+/// force; drilling-like cutting at the end face of a flat end mill, textbook range 0.4..1). The
+/// end teeth's radial force is not modelled (Fr = 0 there).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
     pub ks_n_mm2: f64,
     pub kr: f64,
+    /// Kienzle exponent m of Ks(h) (0 = constant Ks), 0 <= m < 1.
+    pub ks_exponent: f64,
+    /// Axial force ratio of the end teeth, Fa / Ft, >= 0.
+    pub ka: f64,
 }
+
+/// Reference chip thickness of [`Material::ks_n_mm2`], mm.
+pub const H_REF_MM: f64 = 0.1;
+/// Smallest chip thickness the size effect sees, mm (see [`Material`]).
+pub const H_MIN_MM: f64 = 0.005;
 
 impl Material {
     pub const STEEL: Material = Material {
         ks_n_mm2: 2000.0,
         kr: 0.3,
+        ks_exponent: 0.0,
+        ka: 0.5,
+    };
+    /// Steel with the size effect: the same Ks at 0.1 mm, Kienzle exponent 0.25.
+    pub const STEEL_KIENZLE: Material = Material {
+        ks_exponent: 0.25,
+        ..Material::STEEL
     };
     pub const ALUMINIUM: Material = Material {
         ks_n_mm2: 800.0,
         kr: 0.3,
+        ks_exponent: 0.0,
+        ka: 0.5,
     };
+
+    /// Specific cutting pressure at chip thickness `h_mm`, N/mm^2 (see the type's docs).
+    #[inline]
+    pub fn ks_at(&self, h_mm: f64) -> f64 {
+        if self.ks_exponent == 0.0 {
+            self.ks_n_mm2
+        } else {
+            self.ks_n_mm2 * (h_mm.max(H_MIN_MM) / H_REF_MM).powf(-self.ks_exponent)
+        }
+    }
 }
 
 /// The force/torque transducer and its ADC, as they really are (the controller's calibration is
@@ -167,7 +216,21 @@ pub(crate) fn validate(tool: &Tool, material: &Material, rpm: f64) -> Result<(),
             "material Ks must be finite and > 0, Kr finite and >= 0".into(),
         ));
     }
-    if !(pos(rpm) && rpm <= 100_000.0) {
+    if !((0.0..1.0).contains(&material.ks_exponent)
+        && material.ka.is_finite()
+        && material.ka >= 0.0)
+    {
+        return Err(CutError(format!(
+            "material Ks exponent must be in [0, 1) (got {}), Ka finite and >= 0 (got {})",
+            material.ks_exponent, material.ka
+        )));
+    }
+    validate_rpm(rpm)
+}
+
+/// Checks a spindle speed: (0, 100000] rpm.
+pub(crate) fn validate_rpm(rpm: f64) -> Result<(), CutError> {
+    if !(rpm.is_finite() && rpm > 0.0 && rpm <= 100_000.0) {
         return Err(CutError(format!(
             "spindle speed must be in (0, 100000] rpm, got {rpm}"
         )));

@@ -1,35 +1,65 @@
 //! The oracle (host; the evaluation calls it with the path of a program): the fastest feed schedule
 //! along a tool path that keeps the force F <= F0 and the torque T <= T0 everywhere, never exceeds
-//! the programmed feed and changes the feed by at most fdot_m (750 ipm/s by default, up and down),
-//! computed with full knowledge of the stock. Its time is the bound no honest adaptive controller
-//! can beat.
+//! the ceiling of each point (the programmed feed, or FRM when the AC's ceiling setting says so:
+//! the caller gives it) and changes the feed by at most the machine's acceleration on each move
+//! (up and down: the fastest any schedule can change it, since the frame ramps every feed change,
+//! the AC's included, so an AC's fdot_m above it has no effect), computed with full knowledge of the stock. Its
+//! time is the bound no schedule within F0, T0 and the ceilings can beat.
 //!
 //! Algorithm:
 //! 1. Walk the path once, cutting the stock as the process does (the removal does not depend on
 //!    the feed, so the engagement is computed once). At each point, with the feed direction of
 //!    the segment arriving there, scan the spindle angle over one tooth pitch (1 degree steps or
-//!    finer) at unit feed per tooth and keep the peak resultant force and peak torque per mm of
-//!    feed per tooth. F and T are linear in the feed per tooth in this model (constant Ks), so
-//!    the safe feed at the point is `min(F0 / F_per_c, T0 / T_per_c) * z * rpm / 60`, divided by
-//!    the XY share of the path direction; capped by the programmed feed of the point.
+//!    finer) and keep the peak resultant force and peak torque. The feed per tooth along the
+//!    path `c = v / (z rpm / 60)` splits into the side chip `c_xy = c * XY share` and, moving
+//!    down, the end-face chip `c_z = c * (-Z share)`; the peaks include the end teeth (see
+//!    [`crate::process`]), so a plunge into material is limited by T0 (and by F0 where the end
+//!    face is partly engaged). With a constant Ks every tooth's force is linear in `c`, so the
+//!    peaks are computed once at unit `c` and the safe feed at the point is
+//!    `min(F0 / F_per_c, T0 / T_per_c) * z * rpm / 60`; capped by the programmed feed of the
+//!    point. With Kienzle's Ks(h) (exponent m > 0) every tooth's force is `Ks1 a h^(1-m)` with
+//!    `h` proportional to `c`, so all teeth scale by the same `c^(1-m)` except those whose chip
+//!    is below the clamp [`crate::H_MIN_MM`] (near entry and exit angles), which scale linearly,
+//!    faster than `c^(1-m)` going up. So the point's limit is found by evaluation: the peaks at
+//!    the programmed feed; if over a limit, the `c^(1-m)` estimate of the feed that meets it,
+//!    re-evaluated and lowered again (by the same rule: going down, every tooth's force falls by
+//!    at least the factor `c^(1-m)` predicts, so the torque, a sum of positive tooth torques,
+//!    meets T0 after one step; the resultant force is checked the same way, up to 50 steps)
+//!    until the evaluated peaks are within F0 and T0. The reported peaks are re-evaluated at the
+//!    scheduled feed along a second walk of the path.
 //! 2. Forward and backward passes of the classic velocity-profile algorithm:
-//!    `v_i <= sqrt(v_{i-1}^2 + 2 a s_i)` and `v_i <= sqrt(v_{i+1}^2 + 2 a s_{i+1})`.
+//!    `v_i <= sqrt(v_{i-1}^2 + 2 a_i s_i)` and `v_i <= sqrt(v_{i+1}^2 + 2 a_{i+1} s_{i+1})`, with
+//!    `a_i` the acceleration of the move arriving at point i.
 //! 3. Time: constant acceleration between points, `sum 2 s_i / (v_{i-1} + v_i)`.
+//!
+//! Direction: the segment arriving at the point (one pulse, as the path comes from the pulses),
+//! except where the tip moved down along a straight stretch (its middle point within 2 BLU of the
+//! chord) of the last [`DIR_WINDOW_MM`] of the path: there the direction is that of the window (a ramp's pulses alternate between the axes, so one pulse's
+//! direction would see the whole feed in Z at one point and in XY at the next; the process
+//! averages over one tooth period in the same way). Moves without Z descent keep the one-pulse
+//! direction, so side-cutting figures are the same as before the end face was modelled.
 //!
 //! Approximations: limits are enforced at the path points only (fine spacing, e.g. 1..100 BLU,
 //! keeps the error small); the peak is over continuous spindle angles (the AC sees 1 kHz samples,
-//! so it can only do worse); the feed per tooth is taken from the instantaneous path direction
-//! (the process averages it over one tooth period, which matters only at sharp corners); the
-//! noise and the transducer quantisation are ignored.
-use crate::process::Cutter;
+//! so it can only do worse); the feed per tooth is taken from the path direction (the process
+//! averages it over one tooth period, which matters only at sharp corners); the noise and the
+//! transducer quantisation are ignored. No axial limit: the tool's strength is given as F (bending)
+//! and T (twist) only, and the transducer does not measure the axial force. The frame's
+//! exponential deceleration at the end of blocks with the paper's deceleration flag is not ramped
+//! (it can slow down faster than the acceleration): it only slows a schedule at a block end, and
+//! the bound does not slow there.
+use crate::process::{Cutter, EndCut};
 use crate::{validate, CutError, Material, Stock, Tool, MM_PER_BLU, MM_S_PER_IPM};
 
-/// One point of the tool path: tool tip position (BLU) and the programmed feed (ipm) of the move
-/// arriving at it, the ceiling of the schedule there.
+/// One point of the tool path: tool tip position (BLU), the ceiling of the schedule there (ipm:
+/// the programmed feed of the move arriving at it, or FRM) and that move's acceleration limit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OraclePoint {
     pub pos_blu: [i64; 3],
     pub feed_ipm: f64,
+    /// The fastest feed change on the move arriving here, ipm/s (up and down): the machine's path
+    /// acceleration in that direction.
+    pub accel_ipm_s: f64,
 }
 
 /// The constraints of the schedule.
@@ -39,21 +69,18 @@ pub struct OracleLimits {
     pub f0_n: f64,
     /// T0, N*m.
     pub t0_nm: f64,
-    /// fdot_m, ipm/s (feed change per second, up and down).
-    pub fdot_m_ipm_s: f64,
     /// Start and end at rest (feed 0) instead of at the point limits.
     pub from_rest: bool,
 }
 
 impl OracleLimits {
     /// The paper's constraints for `tool`: F0, T0 = 0.9 x permissible ("around 90 percent"),
-    /// fdot_m = 750 ipm/s, starting and ending at rest. (The AC core's defaults are the same
-    /// numbers; millac-qemu's tests check it, the plant does not know the controller.)
+    /// starting and ending at rest. (The AC core's defaults are the same numbers; millac-qemu's
+    /// tests check it, the plant does not know the controller.)
     pub fn for_tool(tool: &Tool) -> OracleLimits {
         OracleLimits {
             f0_n: 0.9 * tool.f_max_n,
             t0_nm: 0.9 * tool.t_max_nm,
-            fdot_m_ipm_s: 750.0,
             from_rest: true,
         }
     }
@@ -66,25 +93,86 @@ pub struct OracleResult {
     pub time_s: f64,
     /// Feed at each point, ipm.
     pub feed_profile: Vec<f64>,
-    /// Largest feed allowed by force, torque and the programmed feed at each point (before the
+    /// Largest feed allowed by force, torque and the ceiling at each point (before the
     /// acceleration passes), ipm.
     pub limit_ipm: Vec<f64>,
+    /// Largest feed allowed by force and torque alone at each point, ipm (infinite where the tool
+    /// cuts nothing): the smallest is the largest constant feed safe along the whole path.
+    pub cut_limit_ipm: Vec<f64>,
     /// Peak force and torque at each point at the scheduled feed, N and N*m.
     pub f_peak_n: Vec<f64>,
     pub t_peak_nm: Vec<f64>,
 }
 
-/// Peak force and torque per mm of feed per tooth over one tooth pitch of spindle angles.
-fn peak_per_c(cut: &Cutter, stock: &Stock, tip: [f64; 3], u: [f64; 2]) -> (f64, f64) {
+/// Path length over which a descending tip's direction is averaged, mm (see the module docs).
+pub const DIR_WINDOW_MM: f64 = 0.25;
+
+/// With Kienzle's Ks(h), the feed (ipm) the search for a point's force and torque limit starts
+/// from: far above any feed a cut allows, so the limit does not depend on the ceiling.
+const KIENZLE_PROBE_IPM: f64 = 10_000.0;
+
+/// Peak resultant force and peak torque over one tooth pitch of spindle angles at side feed per
+/// tooth `c` and end cut `end`, and whether the end face met material.
+fn peak(
+    cut: &Cutter,
+    stock: &Stock,
+    tip: [f64; 3],
+    u: [f64; 2],
+    c: f64,
+    end: EndCut,
+) -> (f64, f64, bool) {
     let pitch = std::f64::consts::TAU / cut.flutes as f64;
     let steps = (360 / cut.flutes).max(8);
-    let (mut f, mut t) = (0.0f64, 0.0f64);
+    let (mut f, mut t, mut engaged) = (0.0f64, 0.0f64, false);
     for i in 0..steps {
-        let [fx, fy, tq] = cut.forces(stock, tip, pitch * i as f64 / steps as f64, u, 1.0);
-        f = f.max(fx.hypot(fy));
-        t = t.max(tq);
+        let r = cut.forces(
+            stock,
+            tip,
+            pitch * i as f64 / steps as f64,
+            u,
+            c,
+            end,
+            None,
+            None,
+        );
+        f = f.max(r.fx.hypot(r.fy));
+        t = t.max(r.t);
+        engaged |= r.end_engaged;
     }
-    (f, t)
+    (f, t, engaged)
+}
+
+/// Whether `m` lies within 2 BLU of the line through `w` along `d` (a window of the path without
+/// a corner: a plunge followed by a side move is not a ramp).
+fn straight(m: &[f64; 3], w: &[f64; 3], d: &[f64; 3]) -> bool {
+    let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let e = [m[0] - w[0], m[1] - w[1], m[2] - w[2]];
+    let s = (e[0] * d[0] + e[1] * d[1] + e[2] * d[2]) / d2;
+    let dev2: f64 = (0..3).map(|k| (e[k] - s * d[k]).powi(2)).sum();
+    dev2 <= (2.0 * MM_PER_BLU).powi(2)
+}
+
+/// The cut at one point per mm of feed per tooth along the path: XY direction, XY share, -Z share
+/// (> 0 moving down) and the end face's material test.
+#[derive(Clone, Copy, Debug)]
+struct PointCut {
+    tip: [f64; 3],
+    u: [f64; 2],
+    share: f64,
+    share_z: f64,
+    hold: bool,
+}
+
+impl PointCut {
+    /// Peaks at feed per tooth `c` (mm) along the path.
+    fn peak(&self, cut: &Cutter, stock: &Stock, c: f64) -> (f64, f64, bool) {
+        let end = if self.share_z > 0.0 {
+            EndCut::new(c * self.share_z, self.tip[2], self.hold)
+        } else {
+            EndCut::NONE
+        };
+        peak(cut, stock, self.tip, self.u, c * self.share, end)
+    }
 }
 
 /// The fastest schedule along `path` cutting `stock` (taken by value: it is cut along the way).
@@ -98,10 +186,8 @@ pub fn oracle_time(
 ) -> Result<OracleResult, CutError> {
     validate(tool, material, spindle_rpm)?;
     let l = limits;
-    if !(l.f0_n > 0.0 && l.t0_nm > 0.0 && l.fdot_m_ipm_s > 0.0 && l.fdot_m_ipm_s.is_finite()) {
-        return Err(CutError(
-            "oracle limits F0, T0 and fdot_m must be > 0".into(),
-        ));
+    if !(l.f0_n > 0.0 && l.t0_nm > 0.0) {
+        return Err(CutError("oracle limits F0 and T0 must be > 0".into()));
     }
     if let Some(p) = path
         .iter()
@@ -112,14 +198,30 @@ pub fn oracle_time(
             p.feed_ipm, p.pos_blu
         )));
     }
+    if let Some(p) = path
+        .iter()
+        .find(|p| !(p.accel_ipm_s > 0.0 && p.accel_ipm_s.is_finite()))
+    {
+        return Err(CutError(format!(
+            "oracle: acceleration must be finite and > 0, got {} ipm/s at {:?}",
+            p.accel_ipm_s, p.pos_blu
+        )));
+    }
     let cut = Cutter::new(tool, material, &stock);
     let n = path.len();
     let mm = |p: &OraclePoint| p.pos_blu.map(|v| v as f64 * MM_PER_BLU);
     // Tooth passes per second: feed per tooth c = v / teeth_hz.
     let teeth_hz = tool.flutes as f64 * spindle_rpm / 60.0;
     let mut s = vec![0.0; n]; // length of the segment arriving at each point, mm
-    let mut per_c = vec![(0.0, 0.0, 0.0); n]; // (F per c, T per c, XY share of the path)
+    let mut per_c = vec![(0.0, 0.0, 0.0); n]; // (F per c, T per c, multiplier), constant Ks
+    let mut pcs = Vec::with_capacity(n);
     let mut limit = vec![0.0; n];
+    let mut cut_limit = vec![f64::INFINITY; n];
+    let kienzle = material.ks_exponent > 0.0;
+    let expo = 1.0 / (1.0 - material.ks_exponent);
+    let start_stock = kienzle.then(|| stock.clone());
+    let c_of = |v_ipm: f64| v_ipm * MM_S_PER_IPM / teeth_hz;
+    let mut end_engaged = false;
     for i in 0..n {
         let p = mm(&path[i]);
         // Direction: the segment arriving here (the first point looks at the next one).
@@ -132,40 +234,105 @@ pub fn oracle_time(
         };
         let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        let dxy = d[0].hypot(d[1]);
         if i > 0 {
             s[i] = len;
         }
-        let (fc, tc) = if dxy > 0.0 {
-            peak_per_c(&cut, &stock, p, [d[0] / dxy, d[1] / dxy])
+        // Descending over the window: the window's direction.
+        let mut dir = d;
+        if i > 0 {
+            let (mut j, mut acc) = (i, 0.0);
+            while j > 0 && acc < DIR_WINDOW_MM {
+                acc += s[j];
+                j -= 1;
+            }
+            let w = mm(&path[j]);
+            let dw = [p[0] - w[0], p[1] - w[1], p[2] - w[2]];
+            if dw[2] < 0.0 && straight(&mm(&path[(i + j) / 2]), &w, &dw) {
+                dir = dw;
+            }
+        }
+        let dlen = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        let dxy = dir[0].hypot(dir[1]);
+        let u = if dxy > 0.0 {
+            [dir[0] / dxy, dir[1] / dxy]
+        } else {
+            [0.0; 2]
+        };
+        let (share, share_z) = if dlen > 0.0 {
+            (dxy / dlen, (-dir[2]).max(0.0) / dlen)
         } else {
             (0.0, 0.0)
         };
-        let share = if len > 0.0 { dxy / len } else { 0.0 };
-        per_c[i] = (fc, tc, share);
-        let mut v = path[i].feed_ipm;
-        if fc * share > 0.0 {
-            v = v.min(l.f0_n / (fc * share) * teeth_hz / MM_S_PER_IPM);
+        let hold = end_engaged && i > 0 && a[2] == p[2];
+        let pc = PointCut {
+            tip: p,
+            u,
+            share,
+            share_z,
+            hold,
+        };
+        // The force and torque limit alone (infinite where nothing is cut), then the ceiling.
+        let mut v = f64::INFINITY;
+        if !kienzle {
+            let (fc, tc, mult) = if share_z > 0.0 {
+                let (fc, tc, e) = pc.peak(&cut, &stock, 1.0);
+                end_engaged = e;
+                (fc, tc, 1.0)
+            } else if dxy > 0.0 {
+                end_engaged = false;
+                let (fc, tc, _) = peak(&cut, &stock, p, u, 1.0, EndCut::NONE);
+                (fc, tc, share)
+            } else {
+                end_engaged = false;
+                (0.0, 0.0, share)
+            };
+            per_c[i] = (fc, tc, mult);
+            if fc * mult > 0.0 {
+                v = v.min(l.f0_n / (fc * mult) * teeth_hz / MM_S_PER_IPM);
+            }
+            if tc * mult > 0.0 {
+                v = v.min(l.t0_nm / (tc * mult) * teeth_hz / MM_S_PER_IPM);
+            }
+        } else if dxy > 0.0 || share_z > 0.0 {
+            // From a feed far above any cut's limit down by the c^(1-m) estimate.
+            v = KIENZLE_PROBE_IPM;
+            let (mut f, mut t, e) = pc.peak(&cut, &stock, c_of(v));
+            if f == 0.0 && t == 0.0 {
+                v = f64::INFINITY;
+            }
+            end_engaged = e;
+            let mut steps = 0;
+            while (f > l.f0_n || t > l.t0_nm) && steps < 50 {
+                let ratio = (l.f0_n / f).min(l.t0_nm / t);
+                v *= ratio.powf(expo) * (1.0 - 1e-12);
+                (f, t, _) = pc.peak(&cut, &stock, c_of(v));
+                steps += 1;
+            }
+            if f > l.f0_n || t > l.t0_nm {
+                v = 0.0;
+            }
+        } else {
+            end_engaged = false;
         }
-        if tc * share > 0.0 {
-            v = v.min(l.t0_nm / (tc * share) * teeth_hz / MM_S_PER_IPM);
-        }
-        limit[i] = v;
+        pcs.push(pc);
+        cut_limit[i] = v;
+        limit[i] = v.min(path[i].feed_ipm);
         let from = if i > 0 { mm(&path[i - 1]) } else { p };
         stock.cut_capsule(from, p, cut.r_mm);
     }
-    // Acceleration passes, in ipm and ipm/s: v^2 grows by at most 2 a s with s in inches.
-    let a2 = |s_mm: f64| 2.0 * l.fdot_m_ipm_s * 60.0 * s_mm / 25.4;
+    // Acceleration passes, in ipm and ipm/s: v^2 grows by at most 2 a s with s in inches; the
+    // move arriving at point i has the acceleration of point i.
+    let a2 = |i: usize| 2.0 * path[i].accel_ipm_s * 60.0 * s[i] / 25.4;
     let mut v = limit.clone();
     if n > 0 && l.from_rest {
         v[0] = 0.0;
         v[n - 1] = 0.0;
     }
     for i in 1..n {
-        v[i] = v[i].min((v[i - 1] * v[i - 1] + a2(s[i])).sqrt());
+        v[i] = v[i].min((v[i - 1] * v[i - 1] + a2(i)).sqrt());
     }
     for i in (0..n.saturating_sub(1)).rev() {
-        v[i] = v[i].min((v[i + 1] * v[i + 1] + a2(s[i + 1])).sqrt());
+        v[i] = v[i].min((v[i + 1] * v[i + 1] + a2(i + 1)).sqrt());
     }
     let mut time_s = 0.0;
     for i in 1..n {
@@ -178,12 +345,34 @@ pub fn oracle_time(
             };
         }
     }
-    let c = |i: usize| v[i] * MM_S_PER_IPM * per_c[i].2 / teeth_hz;
+    let (f_peak_n, t_peak_nm) = match start_stock {
+        None => {
+            let c = |i: usize| v[i] * MM_S_PER_IPM * per_c[i].2 / teeth_hz;
+            (
+                (0..n).map(|i| per_c[i].0 * c(i)).collect(),
+                (0..n).map(|i| per_c[i].1 * c(i)).collect(),
+            )
+        }
+        Some(mut stock) => {
+            // Re-evaluated at the scheduled feed along a second walk.
+            let (mut fp, mut tp) = (vec![0.0; n], vec![0.0; n]);
+            for i in 0..n {
+                let p = mm(&path[i]);
+                if v[i] > 0.0 {
+                    (fp[i], tp[i], _) = pcs[i].peak(&cut, &stock, c_of(v[i]));
+                }
+                let from = if i > 0 { mm(&path[i - 1]) } else { p };
+                stock.cut_capsule(from, p, cut.r_mm);
+            }
+            (fp, tp)
+        }
+    };
     Ok(OracleResult {
         time_s,
-        f_peak_n: (0..n).map(|i| per_c[i].0 * c(i)).collect(),
-        t_peak_nm: (0..n).map(|i| per_c[i].1 * c(i)).collect(),
+        f_peak_n,
+        t_peak_nm,
         feed_profile: v,
         limit_ipm: limit,
+        cut_limit_ipm: cut_limit,
     })
 }

@@ -10,7 +10,7 @@
 //! - Feed per tooth `c` and feed direction `u` (XY) from the tool motion over the last tooth
 //!   period `60 / (rpm z)` (the chip is the material between this tooth's path and the previous
 //!   one's): `c = |d_xy| / (z rpm / 60 * dt)`. The window also smooths the BLU quantisation of
-//!   the position. Z motion does not make chips (the end face does not cut).
+//!   the position. Z motion down makes the end-face chip `c_z = -dz / (z rpm / 60 * dt)` (below).
 //! - Tooth k cuts when it faces the feed (`cos(alpha) = r_k . u > 0`, so entry and exit angles
 //!   come from the geometry) and material is there: the axial depth is `a = top - max(tip Z,
 //!   floor)` read in the cell of the material this edge meets next: from the edge point one cell
@@ -25,17 +25,43 @@
 //!   already cut a second pass still reads the material beyond its end. When the motion stops,
 //!   `c` falls to zero over one tooth period (a real tool also cuts its last, thinning chips).
 //!   Chip `h = c cos(alpha)` (the paper's `c sin(phi)` with phi measured from the entry side);
-//!   `Ft = Ks a h`, `Fr = Kr Ft`.
+//!   `Ft = Ks(h) a h`, `Fr = Kr Ft` (`Ks(h)` = [`Material::ks_at`]: constant unless the material
+//!   has a size-effect exponent).
+//! - End face (plunges and ramps; a simple mechanistic model of our own, the thesis has none):
+//!   when the tip moved down over the window (`c_z > 0`), each end tooth k (center cutting: an
+//!   edge from the axis to R at the angle `psi_k`) cuts a chip of thickness `c_z` over its engaged
+//!   radial width `w_k`: the length along its edge where the stock has material above the tip
+//!   (sampled at cell spacing, only cells whose centre is within R of the axis, the cells the
+//!   removal cuts; material below the blank's floor does not count). `Ft_k = Ks(c_z) c_z w_k`
+//!   against the cutting speed, acting over the edge, so its torque is `Ks(c_z) c_z sum(r dr)`
+//!   (= `Ft_k r_mean`, r_mean = R / 2 for a full-width edge); axial force `Fa = Ka sum Ft_k`
+//!   (up on the tool; [`Material`]'s `ka`); no radial component. The tangential forces of
+//!   symmetric teeth cancel in a full plunge (F = 0: the plunge loads the spindle, T, and the
+//!   axis, Fa); a partly engaged end face (the rim of a hole) leaves a net radial force. A ramp
+//!   gets both the side and the end contributions. The material above the tip is read with a
+//!   1e-6 mm tolerance (a tip landing on a prepared floor of the same nominal height cuts
+//!   nothing), and when the tip did not step down since the previous sample (a slow plunge
+//!   between two Z steps), material at the tip's height counts if the end face cut at the
+//!   previous sample (the removal has just lowered it to the tip: it is the layer the next tooth
+//!   meets). Fa is the plant's truth only: the transducer measures T, Fu, Fv (the paper's), so a
+//!   controller sees a plunge through its torque.
 //! - Force on the tool: `Ft` against the cutting speed, `Fr` towards the axis; X/Y resultant
 //!   summed over the teeth; torque `T = R sum Ft`. `Fu`, `Fv`: the resultant in the holder frame
 //!   rotating with the spindle (`u` axis at world angle `-theta`, `v` 90 degrees
 //!   counter-clockwise from it), so `F = sqrt(Fu^2 + Fv^2)` is invariant.
+//! - Run-out and damaged teeth ([`crate::teeth`]): each tooth's chip `h_k` replaces `c cos(alpha)`
+//!   (and its end chip `c_z`) as that module describes; the intact tool without run-out keeps the
+//!   arithmetic above.
 //! - Removal after the force: cells within R of the segment from the previous sample's position
 //!   to this one get `top = min(top, tip Z)`.
 use std::collections::VecDeque;
 
 use crate::drive::{Drive, DriveModel};
+use crate::teeth::{Damage, Teeth, ToothEvent};
 use crate::{validate, CutError, Material, Stock, Tool, Transducer, MM_PER_BLU};
+
+/// Tolerance of the end face's "material above the tip" test, mm (see the module docs).
+const END_EPS_MM: f64 = 1e-6;
 
 /// One ADC sample of the process.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -47,8 +73,46 @@ pub struct Sample {
     /// Force components in the rotating holder frame, N (`f_true_n = hypot(fu_n, fv_n)`).
     pub fu_n: f64,
     pub fv_n: f64,
+    /// True axial force of the end teeth, N (positive = pushing the tool up); not measured by the
+    /// transducer.
+    pub fa_n: f64,
     /// 12-bit ADC codes [T, Fu, Fv] with noise.
     pub codes: [u16; 3],
+}
+
+/// The end-face chip at one instant: feed per tooth along -Z (mm, 0 = no end cut) and the height
+/// above which the stock's material engages the end teeth (mm; see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct EndCut {
+    pub cz: f64,
+    pub z_min: f64,
+}
+
+impl EndCut {
+    pub const NONE: EndCut = EndCut {
+        cz: 0.0,
+        z_min: f64::INFINITY,
+    };
+
+    /// The end cut of a tip at `z` moving down `cz` per tooth: material strictly above the tip,
+    /// or (`hold`) at its height too.
+    pub fn new(cz: f64, z: f64, hold: bool) -> EndCut {
+        EndCut {
+            cz,
+            z_min: if hold { z - END_EPS_MM } else { z + END_EPS_MM },
+        }
+    }
+}
+
+/// Forces on the tool at one instant: (Fx, Fy) N in XY, torque N*m, axial force N, and whether
+/// an end tooth met material.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Forces {
+    pub fx: f64,
+    pub fy: f64,
+    pub t: f64,
+    pub fa: f64,
+    pub end_engaged: bool,
 }
 
 /// Geometry and model constants shared by the process and the oracle.
@@ -56,8 +120,7 @@ pub struct Sample {
 pub(crate) struct Cutter {
     pub r_mm: f64,
     pub flutes: u32,
-    pub ks: f64,
-    pub kr: f64,
+    pub material: Material,
     /// Probe margin (one cell), see the module docs.
     pub probe_mm: f64,
 }
@@ -67,15 +130,19 @@ impl Cutter {
         Cutter {
             r_mm: tool.diameter_mm / 2.0,
             flutes: tool.flutes,
-            ks: material.ks_n_mm2,
-            kr: material.kr,
+            material: *material,
             probe_mm: stock.cell_mm(),
         }
     }
 
-    /// Force (Fx, Fy) in N on the tool and torque in N*m of all teeth at spindle angle `theta`
-    /// (rad, clockwise), tool tip at `tip` (mm), unit feed direction `u` (XY), feed per tooth
-    /// `c` (mm).
+    /// Forces of all teeth at spindle angle `theta` (rad, clockwise), tool tip at `tip` (mm),
+    /// unit feed direction `u` (XY; [0, 0] when the tool does not move in XY), feed per tooth
+    /// `c` (mm, XY) and the end-face chip `end`. `teeth`: the teeth's radius offsets (mm, -inf =
+    /// broken; [`crate::teeth`]), None for the intact tool without run-out (the original
+    /// arithmetic, bit for bit). `wave`: the flexible tool's deflection now minus one tooth
+    /// period ago (mm, XY; [`Process::with_tool_modes`]), added to every side chip along the
+    /// tooth's radial direction (the regenerative chip); None for a rigid tool.
+    #[allow(clippy::too_many_arguments)]
     pub fn forces(
         &self,
         stock: &Stock,
@@ -83,15 +150,31 @@ impl Cutter {
         theta: f64,
         u: [f64; 2],
         c: f64,
-    ) -> [f64; 3] {
-        let (mut fx, mut fy, mut t) = (0.0, 0.0, 0.0);
+        end: EndCut,
+        teeth: Option<&[f64]>,
+        wave: Option<[f64; 2]>,
+    ) -> Forces {
+        let mut f = Forces::default();
         let base = tip[2].max(stock.floor_mm());
         let pitch = std::f64::consts::TAU / self.flutes as f64;
+        let m = &self.material;
         for k in 0..self.flutes {
             let psi = -theta - k as f64 * pitch;
             let (s, co) = psi.sin_cos();
             let cos_a = co * u[0] + s * u[1];
             if cos_a <= 0.0 {
+                continue;
+            }
+            let mut h = teeth.map(|d| crate::teeth::chip_mm(k as usize, c * cos_a, d));
+            if let Some(w) = wave {
+                let h0 = h.unwrap_or(c * cos_a);
+                h = Some(if h0 > 0.0 {
+                    h0 + w[0] * co + w[1] * s
+                } else {
+                    0.0
+                });
+            }
+            if h.is_some_and(|h| h <= 0.0) {
                 continue;
             }
             // The edge point a cell inside the tool (y: lateral offset from the path line), then
@@ -107,13 +190,55 @@ impl Cutter {
             if a <= 0.0 {
                 continue;
             }
-            let ft = self.ks * a * c * cos_a;
-            let fr = self.kr * ft;
-            fx += -ft * s - fr * co;
-            fy += ft * co - fr * s;
-            t += ft * self.r_mm / 1000.0;
+            let ft = match h {
+                None => m.ks_at(c * cos_a) * a * c * cos_a,
+                Some(h) => m.ks_at(h) * a * h,
+            };
+            let fr = m.kr * ft;
+            f.fx += -ft * s - fr * co;
+            f.fy += ft * co - fr * s;
+            f.t += ft * self.r_mm / 1000.0;
         }
-        [fx, fy, t]
+        if end.cz > 0.0 && tip[2] >= stock.floor_mm() {
+            // Each end tooth's edge sampled at (about) cell spacing from the axis to the rim.
+            let n = (self.r_mm / self.probe_mm).ceil().max(1.0);
+            let dr = self.r_mm / n;
+            let ks = m.ks_at(end.cz);
+            for k in 0..self.flutes {
+                // A broken end tooth cuts nothing; the next intact one takes its share.
+                let (cz, ks) = match teeth.map(|d| crate::teeth::end_share(k as usize, d)) {
+                    None => (end.cz, ks),
+                    Some(0.0) => continue,
+                    Some(n) => (n * end.cz, m.ks_at(n * end.cz)),
+                };
+                let psi = -theta - k as f64 * pitch;
+                let (s, co) = psi.sin_cos();
+                let (mut w, mut moment) = (0.0, 0.0);
+                for j in 0..n as usize {
+                    let r = (j as f64 + 0.5) * dr;
+                    let top = stock.top_in_disc(
+                        tip[0] + r * co,
+                        tip[1] + r * s,
+                        tip[0],
+                        tip[1],
+                        self.r_mm,
+                    );
+                    if top > end.z_min {
+                        w += dr;
+                        moment += r * dr;
+                    }
+                }
+                if w > 0.0 {
+                    let ft = ks * cz * w;
+                    f.fx += -ft * s;
+                    f.fy += ft * co;
+                    f.t += ks * cz * moment / 1000.0;
+                    f.fa += m.ka * ft;
+                    f.end_engaged = true;
+                }
+            }
+        }
+        f
     }
 }
 
@@ -122,6 +247,10 @@ impl Cutter {
 pub(crate) struct SplitMix64(u64);
 
 impl SplitMix64 {
+    pub(crate) fn new(seed: u64) -> SplitMix64 {
+        SplitMix64(seed)
+    }
+
     fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
@@ -131,7 +260,7 @@ impl SplitMix64 {
     }
 
     /// Gaussian-ish: the sum of twelve uniforms on [0, 1) minus 6 (mean 0, variance 1, |x| < 6).
-    fn gaussish(&mut self) -> f64 {
+    pub(crate) fn gaussish(&mut self) -> f64 {
         (0..12)
             .map(|_| (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64))
             .sum::<f64>()
@@ -153,6 +282,51 @@ pub struct Process {
     /// The feed drives: the commanded position (pulses) to where the tool is.
     drive_model: DriveModel,
     drive: Option<Drive>,
+    /// Whether the end face met material at the previous sample (see the module docs).
+    end_engaged: bool,
+    /// The teeth's run-out and damage ([`crate::teeth`]).
+    teeth: Teeth,
+    /// The flexible tool and its microphone (None: a rigid tool, no sound).
+    flex: Option<Flex>,
+}
+
+/// A flexible tool in the process ([`Process::with_tool_modes`]): its modes in X and Y, the
+/// deflections of the last tooth period at the fine step, and the microphone.
+#[derive(Clone, Debug)]
+struct Flex {
+    x: crate::chatter::Axis,
+    y: crate::chatter::Axis,
+    /// The highest natural frequency, Hz (sets the fine step).
+    f_max_hz: f64,
+    /// Deflections (mm) of the last tooth period, the oldest at `at`; the fine step divides the
+    /// tooth period into `ring.len()` steps.
+    ring: Vec<[f64; 2]>,
+    at: usize,
+    dt: f64,
+    /// The fine time (s): the dynamics have been integrated up to here.
+    t: f64,
+    /// The tooth period the ring was made for, s.
+    tooth_s: f64,
+    listener: crate::chatter::Listener,
+    /// The microphone's codes not yet taken, oldest first.
+    sound: VecDeque<u16>,
+    /// The microphone's code of silence (its offset), to pad a short block.
+    silence: u16,
+}
+
+impl Flex {
+    /// A ring for tooth period `tooth_s` at 40 steps per period of the fastest mode.
+    fn size_for(&mut self, tooth_s: f64) {
+        let steps = ((tooth_s * self.f_max_hz * 40.0).ceil() as usize).max(16);
+        self.ring = vec![[0.0; 2]; steps];
+        self.at = 0;
+        self.dt = tooth_s / steps as f64;
+        self.tooth_s = tooth_s;
+    }
+
+    fn deflection_mm(&self) -> [f64; 2] {
+        [self.x.displacement() * 1e3, self.y.displacement() * 1e3]
+    }
 }
 
 impl Process {
@@ -186,6 +360,9 @@ impl Process {
             hist: VecDeque::new(),
             drive_model: DriveModel::Stepper,
             drive: None,
+            end_engaged: false,
+            flex: None,
+            teeth: Teeth::default(),
         })
     }
 
@@ -195,6 +372,142 @@ impl Process {
         self.drive_model = model;
         self.drive = None;
         self
+    }
+
+    /// The process with tooth k's radial run-out `runout_mm[k]` (mm, one value per tooth, signed,
+    /// finite, within +-[`crate::teeth::MAX_RUNOUT_MM`]; see [`crate::teeth`]).
+    pub fn with_runout(mut self, runout_mm: &[f64]) -> Result<Self, CutError> {
+        self.teeth.set_runout(self.tool.flutes, runout_mm)?;
+        Ok(self)
+    }
+
+    /// The process with tooth `tooth` (from 0) broken from virtual time `t_s` on: it cuts nothing,
+    /// the next tooth takes its chip ([`crate::teeth`]).
+    pub fn break_tooth(self, tooth: u32, t_s: f64) -> Result<Self, CutError> {
+        self.with_tooth_event(ToothEvent {
+            tooth,
+            t_s,
+            damage: Damage::Broken,
+        })
+    }
+
+    /// The process with tooth `tooth` (from 0) chipped from virtual time `t_s` on: its edge loses
+    /// `depth_mm` of radius (finite, >= 0; [`crate::teeth::DEFAULT_CHIP_MM`] is the CLI's
+    /// default).
+    pub fn chip_tooth(self, tooth: u32, t_s: f64, depth_mm: f64) -> Result<Self, CutError> {
+        self.with_tooth_event(ToothEvent {
+            tooth,
+            t_s,
+            damage: Damage::Chipped { depth_mm },
+        })
+    }
+
+    /// The process with a tooth's damage `event` (checked against the tool's flutes).
+    pub fn with_tooth_event(mut self, event: ToothEvent) -> Result<Self, CutError> {
+        self.teeth.add(self.tool.flutes, event)?;
+        Ok(self)
+    }
+
+    /// The teeth's run-out and damage.
+    pub fn teeth(&self) -> &Teeth {
+        &self.teeth
+    }
+
+    /// The tool flexible in X and Y with `x` and `y` modes (issue 10; [`crate::chatter`]'s model
+    /// inside the process): between ADC samples the deflection is integrated at a fine step (40
+    /// per period of the fastest mode, a whole number per tooth period), every side chip gets the
+    /// regenerative term (the deflection now minus one tooth period ago, along the tooth's
+    /// radius), the forces at the sample are those of the deflected tool, the stock is cut where
+    /// the deflected tool is, and `mic` hears the tool's vibration at `sound_hz`
+    /// ([`Process::take_sound`]). Without it the tool is rigid (the default, the same bytes).
+    pub fn with_tool_modes(
+        mut self,
+        x: &[crate::lobes::Mode],
+        y: &[crate::lobes::Mode],
+        mic: crate::chatter::Microphone,
+        sound_hz: f64,
+        seed: u64,
+    ) -> Result<Self, CutError> {
+        let ok = |m: &crate::lobes::Mode| {
+            m.fn_hz.is_finite()
+                && m.fn_hz > 0.0
+                && m.fn_hz <= 50_000.0
+                && m.zeta.is_finite()
+                && m.zeta > 0.0
+                && m.zeta < 1.0
+                && m.k_n_m.is_finite()
+                && m.k_n_m > 0.0
+        };
+        if !(x.iter().chain(y.iter()).all(ok) && !(x.is_empty() && y.is_empty())) {
+            return Err(CutError(
+                "tool modes: at least one; frequency in (0, 50000] Hz, damping in (0, 1), \
+                 stiffness > 0"
+                    .into(),
+            ));
+        }
+        if !(sound_hz.is_finite() && (1000.0..=200_000.0).contains(&sound_hz)) {
+            return Err(CutError(format!(
+                "sound sample rate must be 1000..=200000 Hz, got {sound_hz}"
+            )));
+        }
+        let f_max_hz = x
+            .iter()
+            .chain(y.iter())
+            .map(|m| m.fn_hz)
+            .fold(0.0, f64::max);
+        let mut flex = Flex {
+            x: crate::chatter::Axis::new(x),
+            y: crate::chatter::Axis::new(y),
+            f_max_hz,
+            ring: Vec::new(),
+            at: 0,
+            dt: 0.0,
+            t: 0.0,
+            tooth_s: 0.0,
+            listener: crate::chatter::Listener::new(mic, sound_hz, seed),
+            sound: VecDeque::new(),
+            silence: mic.offset.round().clamp(0.0, 4095.0) as u16,
+        };
+        flex.size_for(60.0 / (self.rpm * self.cutter.flutes as f64));
+        self.flex = Some(flex);
+        Ok(self)
+    }
+
+    /// The microphone's codes since the last call (empty for a rigid tool).
+    pub fn take_sound(&mut self) -> Vec<u16> {
+        self.flex
+            .as_mut()
+            .map(|f| f.sound.drain(..).collect())
+            .unwrap_or_default()
+    }
+
+    /// The next `N` microphone codes, oldest first, for an ADC that delivers exactly `N` per
+    /// sample (the sound rate `N` times the sample rate): short of codes (the fine step's rounding
+    /// may leave one for the next sample), the block is padded with silence. None for a rigid
+    /// tool (no microphone).
+    pub fn take_sound_block<const N: usize>(&mut self) -> Option<[u16; N]> {
+        let flex = self.flex.as_mut()?;
+        let mut out = [flex.silence; N];
+        for slot in out.iter_mut() {
+            match flex.sound.pop_front() {
+                Some(c) => *slot = c,
+                None => break,
+            }
+        }
+        Some(out)
+    }
+
+    /// The spindle now turns at `rpm` (from the next sample on): a program's S in a session
+    /// whose program arrives as it runs. Refused outside (0, 100000] rpm, the speed unchanged.
+    pub fn set_spindle_rpm(&mut self, rpm: f64) -> Result<(), CutError> {
+        crate::validate_rpm(rpm)?;
+        self.rpm = rpm;
+        Ok(())
+    }
+
+    /// The spindle speed, rpm.
+    pub fn spindle_rpm(&self) -> f64 {
+        self.rpm
     }
 
     /// The stock as cut so far.
@@ -233,17 +546,75 @@ impl Process {
         let dxy = dx.hypot(dy);
         let dt = t_s - t_old;
         let theta = std::f64::consts::TAU * self.rpm * t_s / 60.0;
-        let [fx, fy, t] = if dt > 0.0 && dxy > 0.0 {
-            let c = dxy / (z * self.rpm / 60.0 * dt);
-            self.cutter
-                .forces(&self.stock, p, theta, [dx / dxy, dy / dxy], c)
+        let cz = if dt > 0.0 {
+            (q[2] - p[2]).max(0.0) / (z * self.rpm / 60.0 * dt)
         } else {
-            [0.0; 3]
+            0.0
         };
-        if let Some(a) = prev {
-            self.stock.cut_capsule(a, p, self.cutter.r_mm);
+        let f = if dt > 0.0 && (dxy > 0.0 || cz > 0.0) {
+            let (c, u) = if dxy > 0.0 {
+                (dxy / (z * self.rpm / 60.0 * dt), [dx / dxy, dy / dxy])
+            } else {
+                (0.0, [0.0; 2])
+            };
+            let hold = self.end_engaged && prev.is_some_and(|a| a[2] == p[2]);
+            let end = EndCut::new(cz, p[2], hold);
+            let mut d = [0.0; crate::teeth::MAX_FLUTES];
+            let teeth = self
+                .teeth
+                .offsets(self.cutter.flutes, t_s, &mut d)
+                .then_some(&d[..self.cutter.flutes as usize]);
+            match self.flex.as_mut() {
+                None => self
+                    .cutter
+                    .forces(&self.stock, p, theta, u, c, end, teeth, None),
+                Some(flex) => flex_to(
+                    flex,
+                    &self.cutter,
+                    &self.stock,
+                    t_s,
+                    self.rpm,
+                    p,
+                    u,
+                    c,
+                    end,
+                    teeth,
+                ),
+            }
         } else {
-            self.stock.cut_capsule(p, p, self.cutter.r_mm);
+            // Not cutting: a flexible tool still rings down (and is heard).
+            if let Some(flex) = self.flex.as_mut() {
+                let none = EndCut::new(0.0, p[2], false);
+                flex_to(
+                    flex,
+                    &self.cutter,
+                    &self.stock,
+                    t_s,
+                    self.rpm,
+                    p,
+                    [0.0; 2],
+                    0.0,
+                    none,
+                    None,
+                );
+            }
+            Forces::default()
+        };
+        self.end_engaged = f.end_engaged;
+        let (fx, fy, t) = (f.fx, f.fy, f.t);
+        // The stock is cut where the tool is: a flexible tool's deflection moves it.
+        let defl = |q: [f64; 3], f: Option<&Flex>| match f {
+            Some(f) => {
+                let d = f.deflection_mm();
+                [q[0] + d[0], q[1] + d[1], q[2]]
+            }
+            None => q,
+        };
+        let here = defl(p, self.flex.as_ref());
+        if let Some(a) = prev {
+            self.stock.cut_capsule(a, here, self.cutter.r_mm);
+        } else {
+            self.stock.cut_capsule(here, here, self.cutter.r_mm);
         }
         // Holder frame: u at world angle -theta, v 90 degrees counter-clockwise from u.
         let (s, co) = theta.sin_cos();
@@ -262,7 +633,54 @@ impl Process {
             t_true_nm: t,
             fu_n: fu,
             fv_n: fv,
+            fa_n: f.fa,
             codes,
         }
     }
+}
+
+/// Integrates the flexible tool from its fine time to `t_s` (the commanded tip `p`, feed
+/// direction `u`, feed per tooth `c` and end cut `end` held over the sample interval, the spindle
+/// angle advancing), feeding the microphone; the forces at `t_s` of the deflected tool.
+#[allow(clippy::too_many_arguments)]
+fn flex_to(
+    flex: &mut Flex,
+    cutter: &Cutter,
+    stock: &Stock,
+    t_s: f64,
+    rpm: f64,
+    p: [f64; 3],
+    u: [f64; 2],
+    c: f64,
+    end: EndCut,
+    teeth: Option<&[f64]>,
+) -> Forces {
+    let tooth_s = 60.0 / (rpm * cutter.flutes as f64);
+    if (tooth_s - flex.tooth_s).abs() > 1e-12 * tooth_s {
+        // A new spindle speed: a new delay (the old surface's waviness is forgotten).
+        flex.size_for(tooth_s);
+    }
+    let at = |flex: &Flex, theta: f64| {
+        let now = flex.deflection_mm();
+        let past = flex.ring.get(flex.at).copied().unwrap_or(now);
+        let wave = [now[0] - past[0], now[1] - past[1]];
+        cutter.forces(stock, p, theta, u, c, end, teeth, Some(wave))
+    };
+    while flex.t + flex.dt <= t_s {
+        let theta = std::f64::consts::TAU * rpm * flex.t / 60.0;
+        let f = at(flex, theta);
+        let now = flex.deflection_mm();
+        if let Some(slot) = flex.ring.get_mut(flex.at) {
+            *slot = now;
+        }
+        flex.at = (flex.at + 1) % flex.ring.len().max(1);
+        flex.x.step(f.fx, flex.dt);
+        flex.y.step(f.fy, flex.dt);
+        flex.t += flex.dt;
+        let (vx, vy) = (flex.x.velocity(), flex.y.velocity());
+        if let Some(code) = flex.listener.hear_at(flex.t, vx, vy) {
+            flex.sound.push_back(code);
+        }
+    }
+    at(flex, std::f64::consts::TAU * rpm * t_s / 60.0)
 }

@@ -295,6 +295,25 @@ impl Stock {
         self.top[fy as usize * self.nx + fx as usize]
     }
 
+    /// Material top (mm) of the cell containing (x, y) mm when that cell's centre lies within
+    /// `r_mm` of (cx, cy) (the cells [`Stock::cut_capsule`] would cut under a tool there),
+    /// `NEG_INFINITY` otherwise, for air or outside.
+    #[inline]
+    pub fn top_in_disc(&self, x_mm: f64, y_mm: f64, cx: f64, cy: f64, r_mm: f64) -> f64 {
+        let fx = (x_mm - self.x0_mm) / self.cell_mm;
+        let fy = (y_mm - self.y0_mm) / self.cell_mm;
+        if fx < 0.0 || fy < 0.0 || fx >= self.nx as f64 || fy >= self.ny as f64 {
+            return f64::NEG_INFINITY;
+        }
+        let (i, j) = (fx as usize, fy as usize);
+        let (x, y) = self.center(i, j);
+        let (px, py) = (cx - x, cy - y);
+        if px * px + py * py > r_mm * r_mm {
+            return f64::NEG_INFINITY;
+        }
+        self.top[j * self.nx + i]
+    }
+
     /// Volume of material above `z_ref_mm` (mm^3), for tests and reports.
     pub fn volume_above_mm3(&self, z_ref_mm: f64) -> f64 {
         let a = self.cell_mm * self.cell_mm;

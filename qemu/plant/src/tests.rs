@@ -360,12 +360,16 @@ fn stock_parse_and_errors() {
     assert!(Process::new(blank(), Tool::default(), Material::STEEL, 0.0, 1, quiet()).is_err());
 }
 
+/// Acceleration of the test paths, ipm/s (the paper's fdot_m).
+const ACCEL_IPM_S: f64 = 750.0;
+
 fn line(a: [i64; 3], b: [i64; 3], step: i64, ipm: f64) -> Vec<OraclePoint> {
     let n = (b[0] - a[0]).abs().max((b[1] - a[1]).abs()) / step;
     (0..=n)
         .map(|i| OraclePoint {
             pos_blu: [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * i / n),
             feed_ipm: ipm,
+            accel_ipm_s: ACCEL_IPM_S,
         })
         .collect()
 }
@@ -397,7 +401,7 @@ fn check_oracle(path: &[OraclePoint], r: &OracleResult, lim: &OracleLimits) {
                 .sum::<f64>()
                 .sqrt();
             let dv2 = (r.feed_profile[i].powi(2) - r.feed_profile[i - 1].powi(2)).abs();
-            assert!(dv2 <= 2.0 * lim.fdot_m_ipm_s * 60.0 * ds_in * (1.0 + 1e-9) + 1e-9);
+            assert!(dv2 <= 2.0 * path[i].accel_ipm_s * 60.0 * ds_in * (1.0 + 1e-9) + 1e-9);
         }
     }
 }
@@ -425,8 +429,8 @@ fn oracle_respects_limits_and_beats_the_safe_constant_feed() {
         .unwrap();
         check_oracle(&path, &r, &lim);
         let v_const = r.limit_ipm.iter().cloned().fold(f64::INFINITY, f64::min);
-        // Constant feed over the 2.15 in (plus, from rest, the ramps up and down at fdot_m).
-        let ramps = if rest { v_const / 750.0 } else { 0.0 };
+        // Constant feed over the 2.15 in (plus, from rest, the ramps up and down).
+        let ramps = if rest { v_const / ACCEL_IPM_S } else { 0.0 };
         let t_const = 2.15 / (v_const / 60.0) + ramps;
         assert!(r.time_s <= t_const, "{} vs {t_const}", r.time_s);
         assert!(r.time_s.is_finite() && r.time_s > 2.0 / (16.0 / 60.0));
@@ -475,4 +479,672 @@ fn oracle_cost() {
     // 4041 N at 12 ipm in the full 0.6 in slot: the safe feed is 12 x 3600 / 4041 = 10.7 ipm.
     let mid = r.feed_profile[path.len() / 2];
     assert!((mid / (12.0 * 3600.0 / 4041.0) - 1.0).abs() < 0.02, "{mid}");
+}
+
+/// Straight plunge (XY fixed) from above the stock to `z_end` (BLU) at `ipm`, at X2.5 Y1.5 in.
+fn plunge(p: &mut Process, z_end: i64, ipm: f64) -> Vec<(f64, Sample)> {
+    let s = run(p, 0.0, [25000, 15000, 1000], [25000, 15000, z_end], ipm);
+    // `run` reports X; the plunge's samples are told apart by time: the tip is in material after
+    // 0.1 in of travel plus one tooth period.
+    let t_in = 0.1 / (ipm / 60.0) + 0.05;
+    s.into_iter()
+        .enumerate()
+        .filter(|(i, _)| *i as f64 / RATE > t_in)
+        .map(|(_, s)| s)
+        .collect()
+}
+
+/// End face, hand calculation: a full plunge of the 0.5 in four-flute end mill in steel at
+/// 10 ipm, 600 rpm: c_z = 4.2333 mm/s / 40 teeth/s = 0.10583 mm; each end tooth cuts over
+/// w = R = 6.35 mm, torque Ks c_z R^2 / 2 per tooth, T = 4 x 2000 x 0.10583 x 6.35^2 / 2 =
+/// 17.07 N*m; Fa = Ka sum Ft = 0.5 x 4 x 2000 x 0.10583 x 6.35 = 2688 N; the radial forces of the
+/// symmetric teeth cancel. Half the plunge feed, half the torque.
+#[test]
+fn plunge_into_solid_stock_makes_torque_proportional_to_the_plunge_feed() {
+    let steady = |ipm: f64| {
+        let mut p = steel(blank(), 1);
+        let s = plunge(&mut p, -3000, ipm);
+        // While plunging (the last tooth period slows down).
+        let n = s.len();
+        let inside = &s[..n - 60];
+        assert!(inside.len() > 500, "{}", inside.len());
+        (
+            mean(inside.iter().map(|(_, s)| s.t_true_nm)),
+            mean(inside.iter().map(|(_, s)| s.fa_n)),
+            inside.iter().map(|(_, s)| s.f_true_n).fold(0.0, f64::max),
+            inside
+                .iter()
+                .map(|(_, s)| s.t_true_nm)
+                .fold(f64::INFINITY, f64::min),
+        )
+    };
+    let cz = 10.0 * 25.4 / 60.0 / 40.0;
+    let t_hand = 4.0 * 2000.0 * cz * 6.35 * 6.35 / 2.0 / 1000.0;
+    let fa_hand = 0.5 * 4.0 * 2000.0 * cz * 6.35;
+    let (t10, fa10, f10, t10_min) = steady(10.0);
+    assert!((t10 / t_hand - 1.0).abs() < 0.03, "T {t10} vs {t_hand}");
+    assert!(
+        (fa10 / fa_hand - 1.0).abs() < 0.03,
+        "Fa {fa10} vs {fa_hand}"
+    );
+    assert!(
+        f10 < 0.02 * fa_hand,
+        "radial force {f10} N in a full plunge"
+    );
+    // Every sample in the material sees the torque (no gaps between Z steps).
+    assert!(t10_min > 0.8 * t_hand, "min T {t10_min}");
+    let (t5, ..) = steady(5.0);
+    assert!((t10 / t5 - 2.0).abs() < 0.04, "ratio {}", t10 / t5);
+    // Slow plunge, fewer Z steps than samples: the torque does not drop between the steps.
+    let (t2, _, _, t2_min) = steady(2.0);
+    assert!((t2 / (t_hand / 5.0) - 1.0).abs() < 0.05, "T {t2}");
+    assert!(t2_min > 0.5 * t2, "min T {t2_min} vs mean {t2}");
+}
+
+#[test]
+fn plunge_into_air_or_a_drilled_hole_cuts_nothing() {
+    // A hole deeper than the plunge, as wide as the tool.
+    let st = Stock::parse("blank X0 Y0 W5 H3 Z0\nhole X2.5 Y1.5 D0.5 Z-0.4").unwrap();
+    let mut p = steel(st, 1);
+    let s = plunge(&mut p, -3000, 10.0);
+    assert!(s
+        .iter()
+        .all(|(_, s)| s.t_true_nm == 0.0 && s.fa_n == 0.0 && s.f_true_n == 0.0));
+    // The same plunge into the blank does cut (the test can fail).
+    let mut p = steel(blank(), 1);
+    let s = plunge(&mut p, -3000, 10.0);
+    assert!(s.iter().any(|(_, s)| s.t_true_nm > 10.0));
+    // Landing on the bottom of a hole of the same depth: nothing either.
+    let st = Stock::parse("blank X0 Y0 W5 H3 Z0\nhole X2.5 Y1.5 D0.5 Z-0.3").unwrap();
+    let mut p = steel(st, 1);
+    let s = plunge(&mut p, -3000, 10.0);
+    assert!(s.iter().all(|(_, s)| s.t_true_nm == 0.0 && s.fa_n == 0.0));
+    // A hole half the tool's width: the rest of the end face cuts, with a net radial force.
+    let st = Stock::parse("blank X0 Y0 W5 H3 Z0\nhole X2.5 Y1.5 D0.25 Z-0.4").unwrap();
+    let mut p = steel(st, 1);
+    let s = plunge(&mut p, -3000, 10.0);
+    let t = s.iter().map(|(_, s)| s.t_true_nm).fold(0.0, f64::max);
+    assert!(t > 10.0 && t < 18.0, "{t}");
+}
+
+/// A ramp (X and Z together) into the blank gets the side and the end-face contributions: the
+/// axial force of the end face with the Z share of the feed, and side forces.
+#[test]
+fn a_ramp_cuts_with_the_side_and_the_end_face() {
+    let mut p = steel(blank(), 1);
+    // 1 in along X while going down 0.1 in, at 12 ipm.
+    let s = run(&mut p, 0.0, [2000, 15000, 0], [12000, 15000, -1000], 12.0);
+    let f = s.iter().map(|(_, s)| s.f_true_n).fold(0.0, f64::max);
+    assert!(f > 100.0, "side force {f}");
+    // The end-face part alone: c_z = 12 ipm x (0.1 / 1.005) / 40 per tooth.
+    let cz = 12.0 * 25.4 / 60.0 * (0.1 / 1.01f64.sqrt()) / 40.0;
+    let fa_hand = 0.5 * 4.0 * 2000.0 * cz * 6.35;
+    let fa_mean = mean(
+        s.iter()
+            .filter(|(x, _)| (0.5..1.0).contains(x))
+            .map(|(_, s)| s.fa_n),
+    );
+    assert!(
+        (fa_mean / fa_hand - 1.0).abs() < 0.03,
+        "{fa_mean} vs {fa_hand}"
+    );
+}
+
+fn z_line(x: i64, y: i64, z0: i64, z1: i64, ipm: f64) -> Vec<OraclePoint> {
+    let step = if z1 < z0 { -1 } else { 1 };
+    (0..=(z1 - z0).abs())
+        .map(|i| OraclePoint {
+            pos_blu: [x, y, z0 + step * i],
+            feed_ipm: ipm,
+            accel_ipm_s: ACCEL_IPM_S,
+        })
+        .collect()
+}
+
+/// The oracle limits a plunge into solid stock by T0: 17.07 N*m at 10 ipm (the hand calculation
+/// above), so T0 = 72 N*m allows 42.2 ipm; into the drilled hole the programmed feed.
+#[test]
+fn oracle_limits_a_plunge_by_t0() {
+    let tool = Tool::default();
+    let lim = OracleLimits::for_tool(&tool);
+    let path = z_line(25000, 15000, 1000, -3000, 100.0);
+    let r = oracle_time(blank(), &tool, &Material::STEEL, 600.0, &path, &lim).unwrap();
+    check_oracle(&path, &r, &lim);
+    let cz10 = 10.0 * 25.4 / 60.0 / 40.0;
+    let t10 = 4.0 * 2000.0 * cz10 * 6.35 * 6.35 / 2.0 / 1000.0;
+    let hand = 10.0 * 72.0 / t10;
+    let deep = r.limit_ipm[3000];
+    assert!((deep / hand - 1.0).abs() < 0.03, "{deep} vs {hand}");
+    assert_eq!(r.limit_ipm[500], 100.0); // above the stock
+    let st = Stock::parse("blank X0 Y0 W5 H3 Z0\nhole X2.5 Y1.5 D0.5 Z-0.4").unwrap();
+    let r = oracle_time(st, &tool, &Material::STEEL, 600.0, &path, &lim).unwrap();
+    assert!(r.limit_ipm.iter().all(|&l| l == 100.0));
+}
+
+/// Kienzle's Ks(h): doubling the feed multiplies the force by 2^(1 - m) (side and end face).
+#[test]
+fn kienzle_force_grows_as_feed_to_the_one_minus_m() {
+    let m = Material::STEEL_KIENZLE;
+    let proc_ = |st: Stock| Process::new(st, Tool::default(), m, DEFAULT_RPM, 1, quiet()).unwrap();
+    let f_at = |ipm: f64| {
+        let mut p = proc_(blank());
+        let s = run(
+            &mut p,
+            0.0,
+            [-5000, 15000, -2000],
+            [15000, 15000, -2000],
+            ipm,
+        );
+        mean(
+            s.iter()
+                .filter(|(x, _)| (0.6..1.4).contains(x))
+                .map(|(_, s)| s.f_true_n),
+        )
+    };
+    let expect = 2f64.powf(1.0 - m.ks_exponent);
+    let r = f_at(12.0) / f_at(6.0);
+    assert!((r / expect - 1.0).abs() < 0.01, "ratio {r} vs {expect}");
+    assert!((r - 2.0).abs() > 0.2);
+    let t_at = |ipm: f64| {
+        let mut p = proc_(blank());
+        let s = plunge(&mut p, -3000, ipm);
+        mean(s[..s.len() - 60].iter().map(|(_, s)| s.t_true_nm))
+    };
+    let r = t_at(10.0) / t_at(5.0);
+    assert!(
+        (r / expect - 1.0).abs() < 0.02,
+        "plunge ratio {r} vs {expect}"
+    );
+    // m = 0 is today's constant Ks; the Ks at 0.1 mm is the preset's.
+    assert_eq!(Material::STEEL.ks_at(0.02), 2000.0);
+    assert!((m.ks_at(0.1) - 2000.0).abs() < 1e-9);
+    assert_eq!(m.ks_at(0.001), m.ks_at(H_MIN_MM));
+    let bad = Material {
+        ks_exponent: 1.0,
+        ..Material::STEEL
+    };
+    assert!(Process::new(blank(), Tool::default(), bad, 600.0, 1, quiet()).is_err());
+}
+
+/// With Kienzle's Ks(h) the oracle's schedule keeps F <= F0 and T <= T0 at its points when
+/// re-evaluated at the scheduled feeds (check_oracle), on the Fig. 1 cuts A and b and on a
+/// plunge into solid stock; and the process at the oracle's slot limit peaks at F0.
+#[test]
+fn kienzle_oracle_stays_within_the_limits() {
+    let tool = Tool::default();
+    let m = Material::STEEL_KIENZLE;
+    let lim = OracleLimits::for_tool(&tool);
+    let mut path = line([12500, 15000, -6000], [22500, 15000, -6000], 10, 12.0);
+    path.extend(line([22500, 15000, -4500], [32500, 15000, -4500], 10, 16.0));
+    let r = oracle_time(Stock::default(), &tool, &m, 600.0, &path, &lim).unwrap();
+    check_oracle(&path, &r, &lim);
+    let plunge_path = z_line(25000, 15000, 1000, -3000, 100.0);
+    let r = oracle_time(blank(), &tool, &m, 600.0, &plunge_path, &lim).unwrap();
+    check_oracle(&plunge_path, &r, &lim);
+    assert!(r.t_peak_nm.iter().any(|&t| t > 0.99 * lim.t0_nm));
+    // Slot: the limit, run in the process, peaks at F0 (1 kHz samples: within a few percent).
+    let path = line([-5000, 15000, -2000], [20000, 15000, -2000], 10, 60.0);
+    let r = oracle_time(blank(), &tool, &m, 600.0, &path, &lim).unwrap();
+    let v = r.limit_ipm[path.len() / 2];
+    assert!(v < 60.0);
+    let mut p = Process::new(blank(), tool, m, 600.0, 1, quiet()).unwrap();
+    let s = run(&mut p, 0.0, [-5000, 15000, -2000], [20000, 15000, -2000], v);
+    let f = s
+        .iter()
+        .filter(|(x, _)| (0.6..1.9).contains(x))
+        .map(|(_, s)| s.f_true_n)
+        .fold(0.0, f64::max);
+    assert!(
+        f <= lim.f0_n * 1.001 && f > 0.97 * lim.f0_n,
+        "{f} vs {}",
+        lim.f0_n
+    );
+}
+
+// Run-out and damaged teeth (crate::teeth).
+
+/// The chip of tooth `n` (cutting order) for an intact-tool chip `cc`, with `teeth` at `t_s`.
+fn chip_of(teeth: &Teeth, z: u32, t_s: f64, n: u32, cc: f64) -> f64 {
+    let mut d = [0.0; teeth::MAX_FLUTES];
+    teeth.offsets(z, t_s, &mut d);
+    teeth::chip_mm(((z - n) % z) as usize, cc, &d[..z as usize])
+}
+
+/// Hand calculation of the run-out model on four teeth at an intact chip of 0.1 mm: +10 um of
+/// run-out on tooth 1 gives it 0.11 mm and tooth 2 (the next) 0.09 mm; tooth 1 broken gives it 0
+/// and tooth 2 0.2 mm; a 0.05 mm chip on tooth 1 gives it 0.05 and tooth 2 0.15 mm. Where the
+/// intact chip (0.004 mm) is thinner than the run-out, tooth 1 takes the surface of tooth 0
+/// (0.014 mm) and tooth 2 nothing.
+#[test]
+fn runout_and_damage_chip_hand_calculation() {
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+    let intact = Teeth::default();
+    for n in 0..4 {
+        assert_eq!(chip_of(&intact, 4, 0.0, n, 0.1), 0.1);
+    }
+    let mut ro = Teeth::default();
+    ro.set_runout(4, &[0.0, 0.010, 0.0, 0.0]).unwrap();
+    let h: Vec<f64> = (0..4).map(|n| chip_of(&ro, 4, 0.0, n, 0.1)).collect();
+    assert!(
+        close(h[0], 0.1) && close(h[1], 0.11) && close(h[2], 0.09) && close(h[3], 0.1),
+        "{h:?}"
+    );
+    let thin: Vec<f64> = (0..4).map(|n| chip_of(&ro, 4, 0.0, n, 0.004)).collect();
+    assert!(close(thin[1], 0.014) && thin[2] == 0.0, "{thin:?}");
+    // The sum over a revolution is z c cos(alpha) whatever the offsets.
+    assert!(close(thin.iter().sum(), 0.016), "{thin:?}");
+    let mut br = Teeth::default();
+    br.add(
+        4,
+        ToothEvent {
+            tooth: 1,
+            t_s: 2.0,
+            damage: Damage::Broken,
+        },
+    )
+    .unwrap();
+    assert_eq!(chip_of(&br, 4, 1.999, 2, 0.1), 0.1, "before the break");
+    let h: Vec<f64> = (0..4).map(|n| chip_of(&br, 4, 2.0, n, 0.1)).collect();
+    assert_eq!(h, vec![0.1, 0.0, 0.2, 0.1]);
+    let mut ch = Teeth::default();
+    ch.add(
+        4,
+        ToothEvent {
+            tooth: 1,
+            t_s: 0.0,
+            damage: Damage::Chipped { depth_mm: 0.05 },
+        },
+    )
+    .unwrap();
+    let h: Vec<f64> = (0..4).map(|n| chip_of(&ch, 4, 0.0, n, 0.1)).collect();
+    assert!(
+        close(h[0], 0.1) && close(h[1], 0.05) && close(h[2], 0.15) && close(h[3], 0.1),
+        "{h:?}"
+    );
+    // Two teeth broken in a row: the next intact one takes three chips.
+    let mut two = br.clone();
+    two.add(
+        4,
+        ToothEvent {
+            tooth: 2,
+            t_s: 0.0,
+            damage: Damage::Broken,
+        },
+    )
+    .unwrap();
+    let h: Vec<f64> = (0..4).map(|n| chip_of(&two, 4, 2.0, n, 0.1)).collect();
+    assert!(close(h[3], 0.3) && h[1] == 0.0 && h[2] == 0.0, "{h:?}");
+}
+
+fn two_flutes(seed: u64) -> Process {
+    Process::new(
+        blank(),
+        Tool {
+            flutes: 2,
+            ..Tool::default()
+        },
+        Material::STEEL,
+        DEFAULT_RPM,
+        seed,
+        quiet(),
+    )
+    .unwrap()
+}
+
+/// Start of [`slot`]: half a sample, so the samples of a tooth period sit symmetrically about
+/// the angles where teeth enter and leave the cut (the entering and the leaving tooth's halves
+/// of a period are sampled alike).
+const SLOT_T0: f64 = 0.5 / RATE;
+
+/// A full-width slot at 12 ipm, 0.2 in deep (as `full_slot_matches_hand_calculation`) from
+/// X-0.5 to X1.5 in (10 s), sampled from [`SLOT_T0`].
+fn slot(p: &mut Process) -> Vec<(f64, Sample)> {
+    run(
+        p,
+        SLOT_T0,
+        [-5000, 15000, -2000],
+        [15000, 15000, -2000],
+        12.0,
+    )
+}
+
+/// Per tooth period (start time, tooth that entered the cut in it, mean of `v`) of the complete
+/// periods of a [`slot`], with the tool fully in the cut (X in
+/// 0.4..1.4 in). The tooth n (cutting order, at the world angle -theta + n 2 pi / z) enters at
+/// +90 degrees, so in period floor(z (theta / 2 pi + 1/4)).
+fn tooth_periods(s: &[(f64, Sample)], z: u32, v: impl Fn(&Sample) -> f64) -> Vec<(f64, u32, f64)> {
+    let mut out: Vec<(i64, f64, f64, usize)> = Vec::new();
+    for (i, (x, smp)) in s.iter().enumerate() {
+        if !(0.4..1.4).contains(x) {
+            continue;
+        }
+        let t = SLOT_T0 + i as f64 / RATE;
+        let q = DEFAULT_RPM / 60.0 * t + 0.25;
+        let period = (z as f64 * q).floor() as i64;
+        match out.last_mut() {
+            Some(o) if o.0 == period => {
+                o.2 += v(smp);
+                o.3 += 1;
+            }
+            _ => out.push((period, t, v(smp), 1)),
+        }
+    }
+    let full = (RATE * 60.0 / DEFAULT_RPM / z as f64).round() as usize;
+    out.into_iter()
+        .filter(|o| o.3 == full)
+        .map(|(p, t, sum, n)| (t, p.rem_euclid(z as i64) as u32, sum / n as f64))
+        .collect()
+}
+
+/// The thesis' section 3.2 on a two-flute cutter (one tooth in the cut at a time): before the
+/// break every tooth period's mean resultant force is the intact tool's; from the break of tooth 1
+/// at 7 s on, tooth 1's periods carry no force and tooth 0's (the tooth after it) twice the intact
+/// force ("the next tooth has to remove the material the damaged tooth left").
+#[test]
+fn a_broken_tooth_cuts_nothing_and_the_next_takes_twice_its_chip() {
+    let t_break = 7.0;
+    let intact = tooth_periods(&slot(&mut two_flutes(1)), 2, |s| s.f_true_n);
+    let mut p = two_flutes(1).break_tooth(1, t_break).unwrap();
+    let broken = tooth_periods(&slot(&mut p), 2, |s| s.f_true_n);
+    assert_eq!(intact.len(), broken.len());
+    assert!(intact.len() > 80, "{}", intact.len());
+    let (mut before, mut zero, mut twice) = (0, 0, 0);
+    for (a, b) in intact.iter().zip(&broken) {
+        assert_eq!((a.0, a.1), (b.0, b.1));
+        assert!(a.2 > 500.0, "intact period {a:?}");
+        let end = a.0 + 0.05;
+        if end <= t_break {
+            assert_eq!(a.2, b.2, "before the break {a:?} {b:?}");
+            before += 1;
+        } else if a.0 >= t_break && a.1 == 1 {
+            assert!(b.2 < 1e-9 * a.2, "broken tooth's period {a:?} {b:?}");
+            zero += 1;
+        } else if a.0 >= t_break {
+            assert!((b.2 / a.2 - 2.0).abs() < 0.01, "next tooth {a:?} {b:?}");
+            twice += 1;
+        }
+    }
+    assert!(
+        before > 20 && zero > 20 && twice > 20,
+        "{before} {zero} {twice}"
+    );
+}
+
+/// On four flutes two teeth share each tooth period (the one entering, the one leaving, each
+/// carrying half of the period's torque in a slot): with tooth 1 broken the periods in which
+/// teeth 1, 2, 3, 0 enter carry 0.5, 1, 1.5 and 1 times the intact torque (tooth 2, the one after
+/// the broken tooth, takes its chip), and the mean torque over a revolution is unchanged (the same
+/// material is removed).
+#[test]
+fn a_broken_tooth_of_four_passes_its_chip_to_the_tooth_after_it() {
+    let intact = tooth_periods(&slot(&mut steel(blank(), 1)), 4, |s| s.t_true_nm);
+    let mut p = steel(blank(), 1).break_tooth(1, 0.0).unwrap();
+    let broken = tooth_periods(&slot(&mut p), 4, |s| s.t_true_nm);
+    let expect = [1.0, 0.5, 1.0, 1.5];
+    assert!(intact.len() > 150);
+    for (a, b) in intact.iter().zip(&broken) {
+        let r = b.2 / a.2;
+        assert!(
+            (r - expect[a.1 as usize]).abs() < 0.02,
+            "tooth {} entering: {r}",
+            a.1
+        );
+    }
+    let revs = intact.len() / 4 * 4;
+    let sum = |v: &[(f64, u32, f64)]| v[..revs].iter().map(|o| o.2).sum::<f64>();
+    let r = sum(&broken) / sum(&intact);
+    assert!((r - 1.0).abs() < 1e-3, "revolution mean ratio {r}");
+}
+
+/// Mean over a tooth's engagement (-90..90 degrees) of min(d, c cos(alpha)), mm: what a radius
+/// offset d moves from one tooth to the next at feed per tooth c (the whole d where c cos(alpha)
+/// exceeds it, beyond alpha0 = acos(d / c) the thinner chip).
+fn moved_mm(d: f64, c: f64) -> f64 {
+    let a0 = (d / c).acos();
+    (2.0 * a0 * d + 2.0 * c * (1.0 - a0.sin())) / std::f64::consts::PI
+}
+
+/// Per tooth period, the mean torque of `p`'s slot minus the intact tool's, with the tooth in cut.
+fn torque_change(p: Process) -> Vec<(u32, f64)> {
+    let intact = tooth_periods(&slot(&mut two_flutes(1)), 2, |s| s.t_true_nm);
+    let mut p = p;
+    let other = tooth_periods(&slot(&mut p), 2, |s| s.t_true_nm);
+    intact
+        .iter()
+        .zip(&other)
+        .map(|(a, b)| (a.1, b.2 - a.2))
+        .collect()
+}
+
+/// Two flutes, c = 5.08 mm/s / (2 x 10 rev/s) = 0.254 mm, a = 5.08 mm: +10 um of run-out on tooth
+/// 0 raises its chip by 10 um and lowers tooth 1's (the next) by as much, where the chip is
+/// thicker than 10 um; over a period the mean moves by `moved_mm(0.010, 0.254)` = 9.97 um, the
+/// torque by R Ks a 9.97 um = 0.643 N*m.
+#[test]
+fn runout_of_ten_microns_moves_ten_microns_of_chip_to_the_tooth_that_runs_out() {
+    let d = 0.010;
+    let expect = 6.35e-3 * 2000.0 * 5.08 * moved_mm(d, 0.254);
+    let ch = torque_change(two_flutes(1).with_runout(&[d, 0.0]).unwrap());
+    assert_moved(&ch, expect);
+}
+
+/// Every tooth period's torque change (tooth, N*m) is +`expect` for tooth 0 and -`expect` for
+/// tooth 1, within 2 %, over more than 80 periods.
+fn assert_moved(ch: &[(u32, f64)], expect: f64) {
+    assert!(ch.len() > 80, "{}", ch.len());
+    for &(tooth, dt) in ch {
+        let sign = if tooth == 0 { 1.0 } else { -1.0 };
+        assert!(
+            (dt / (sign * expect) - 1.0).abs() < 0.02,
+            "tooth {tooth}: {dt} N*m vs {}",
+            sign * expect
+        );
+    }
+}
+
+/// A 0.05 mm chip on tooth 1 from the start: its chip loses 0.05 mm (less where the chip is
+/// thinner) and tooth 0, the next, gains it: `moved_mm(0.05, 0.254)` = 46.9 um on average, the
+/// torque R Ks a x 46.9 um = 3.02 N*m.
+#[test]
+fn a_chipped_tooth_loses_its_chip_depth_to_the_next_tooth() {
+    let d = 0.05;
+    let expect = 6.35e-3 * 2000.0 * 5.08 * moved_mm(d, 0.254);
+    let ch = torque_change(two_flutes(1).chip_tooth(1, 0.0, d).unwrap());
+    assert_moved(&ch, expect);
+}
+
+fn sample_bits(s: &[(f64, Sample)]) -> Vec<u64> {
+    s.iter()
+        .flat_map(|(_, s)| {
+            [s.f_true_n, s.t_true_nm, s.fu_n, s.fv_n, s.fa_n]
+                .map(f64::to_bits)
+                .into_iter()
+                .chain(s.codes.map(u64::from))
+        })
+        .collect()
+}
+
+/// The intact tool without run-out stated explicitly (zero run-out, a zero-depth chip, damage
+/// after the cut) gives the bytes of the default process: the default model is untouched.
+#[test]
+fn intact_teeth_without_runout_give_the_default_bytes() {
+    let noisy = |seed| {
+        Process::new(
+            blank(),
+            Tool::default(),
+            Material::STEEL_KIENZLE,
+            DEFAULT_RPM,
+            seed,
+            Transducer::default(),
+        )
+        .unwrap()
+    };
+    let base = sample_bits(&slot(&mut noisy(5)));
+    let mut p = noisy(5)
+        .with_runout(&[0.0; 4])
+        .unwrap()
+        .chip_tooth(2, 0.0, 0.0)
+        .unwrap()
+        .break_tooth(3, 100.0)
+        .unwrap();
+    assert_eq!(sample_bits(&slot(&mut p)), base);
+    let mut q = noisy(5).break_tooth(3, 5.0).unwrap();
+    assert_ne!(sample_bits(&slot(&mut q)), base, "a break must show");
+}
+
+/// Run-out, a chip and a break with noise: the same seed gives the same bytes.
+#[test]
+fn damaged_teeth_are_deterministic() {
+    let make = || {
+        Process::new(
+            blank(),
+            Tool::default(),
+            Material::STEEL_KIENZLE,
+            DEFAULT_RPM,
+            9,
+            Transducer::default(),
+        )
+        .unwrap()
+        .with_runout(&[0.01, -0.005, 0.0, 0.002])
+        .unwrap()
+        .chip_tooth(0, 3.0, 0.05)
+        .unwrap()
+        .break_tooth(2, 6.0)
+        .unwrap()
+    };
+    let a = sample_bits(&slot(&mut make()));
+    let b = sample_bits(&slot(&mut make()));
+    assert_eq!(a, b);
+}
+
+/// A full plunge at 10 ipm with tooth 1 broken: the end teeth remove the same material (the mean
+/// torque stays the hand calculation's 17.07 N*m of the intact plunge), but no longer
+/// symmetrically: a radial force appears (tooth 2 takes twice its end chip, tooth 1 none).
+#[test]
+fn a_broken_tooth_passes_its_end_chip_to_the_next() {
+    let steady = |p: Process| {
+        let mut p = p;
+        let s = plunge(&mut p, -3000, 10.0);
+        let inside = &s[..s.len() - 60];
+        (
+            mean(inside.iter().map(|(_, s)| s.t_true_nm)),
+            mean(inside.iter().map(|(_, s)| s.f_true_n)),
+        )
+    };
+    let (t_intact, f_intact) = steady(steel(blank(), 1));
+    let (t_broken, f_broken) = steady(steel(blank(), 1).break_tooth(1, 0.0).unwrap());
+    assert!(
+        (t_broken / t_intact - 1.0).abs() < 0.01,
+        "{t_broken} vs {t_intact}"
+    );
+    // Two of the four end teeth's tangential forces no longer cancel: Ft = Ks c_z R per tooth,
+    // the resultant of 2 Ft at one angle and Ft at +-90 degrees from it: |2 - 1| Ft... at least Ft.
+    let ft = 2000.0 * (10.0 * 25.4 / 60.0 / 40.0) * 6.35;
+    assert!(f_intact < 0.02 * ft, "{f_intact}");
+    assert!(f_broken > 0.9 * ft, "{f_broken} vs Ft {ft}");
+}
+
+#[test]
+fn tooth_arguments_are_checked() {
+    let err = |r: Result<Process, CutError>| r.unwrap_err().0;
+    assert!(err(steel(blank(), 1).break_tooth(4, 1.0)).contains("tooth 4 does not exist"));
+    assert!(err(steel(blank(), 1).chip_tooth(0, -1.0, 0.05)).contains("time"));
+    assert!(err(steel(blank(), 1).chip_tooth(0, f64::NAN, 0.05)).contains("time"));
+    assert!(err(steel(blank(), 1).chip_tooth(0, 1.0, -0.01)).contains("depth"));
+    assert!(err(steel(blank(), 1).chip_tooth(0, 1.0, f64::INFINITY)).contains("depth"));
+    assert!(err(steel(blank(), 1).with_runout(&[0.0; 3])).contains("one value per tooth"));
+    assert!(err(steel(blank(), 1).with_runout(&[0.0, 0.0, f64::NAN, 0.0])).contains("finite"));
+    assert!(err(steel(blank(), 1).with_runout(&[0.0, 2.0, 0.0, 0.0])).contains("within"));
+    assert!(steel(blank(), 1)
+        .with_runout(&[0.0, -0.02, 0.0, 0.01])
+        .is_ok());
+}
+
+/// The thesis' table 3.2 preset's tool in a process: a slot in an aluminium blank at `depth_mm`,
+/// the preset's feed per tooth, with the process's sound; the sound codes of the last 0.5 s of
+/// a 2 s cut, and the process's peak true force over it.
+fn preset_slot(depth_mm: f64, modes: Option<crate::lobes::Mode>) -> (Vec<u16>, f64) {
+    use crate::chatter::{thesis_table_3_2 as t, Microphone};
+    let tool = Tool {
+        diameter_mm: t::DIAMETER_MM,
+        flutes: t::FLUTES,
+        ..Tool::default()
+    };
+    let z_blu = -(depth_mm / MM_PER_BLU).round() as i64;
+    let mut p = Process::new(blank(), tool, Material::ALUMINIUM, t::RPM, 1, quiet()).unwrap();
+    if let Some(m) = modes {
+        p = p
+            .with_tool_modes(&[m], &[m], Microphone::default(), 5000.0, 3)
+            .unwrap();
+    }
+    let ipm = t::FEED_PER_TOOTH_MM * f64::from(t::FLUTES) * t::RPM / 25.4;
+    // From air at X -0.5 in into the blank along Y 1.5 in: 2 s of cut after the entry.
+    let samples = run(
+        &mut p,
+        0.0,
+        [-5000, 15000, z_blu],
+        [5000, 15000, z_blu],
+        ipm,
+    );
+    let n = samples.len();
+    let peak = samples[n - 500..]
+        .iter()
+        .map(|(_, s)| s.f_true_n)
+        .fold(0.0, f64::max);
+    let sound = p.take_sound();
+    let tail = sound[sound.len().saturating_sub(2500)..].to_vec();
+    (tail, peak)
+}
+
+fn rms_about(codes: &[u16], offset: f64) -> f64 {
+    (codes
+        .iter()
+        .map(|&c| (f64::from(c) - offset).powi(2))
+        .sum::<f64>()
+        / codes.len() as f64)
+        .sqrt()
+}
+
+/// Issue 10: the flexible tool inside the process. The table 3.2 preset's cut chatters at
+/// 8.89 mm (the microphone's vibration far above its noise, the force peaks far above the rigid
+/// tool's) and not at 2.54 mm (the sound at the noise, the force as the rigid tool's), as the
+/// standalone time-domain model (`chatter::tests`) says for the same mode.
+#[test]
+fn the_flexible_tool_chatters_in_the_process_as_the_model_says() {
+    use crate::chatter::thesis_table_3_2 as t;
+    let (quiet_sound, stable_peak) = preset_slot(2.54, Some(t::MODE));
+    let (_, rigid_peak) = preset_slot(2.54, None);
+    let (loud_sound, chatter_peak) = preset_slot(8.89, Some(t::MODE));
+    let (_, rigid_deep) = preset_slot(8.89, None);
+    let (q, l) = (
+        rms_about(&quiet_sound, 2048.0),
+        rms_about(&loud_sound, 2048.0),
+    );
+    eprintln!(
+        "sound RMS {q:.1} / {l:.1} codes; peaks 2.54 mm {stable_peak:.0} N (rigid {rigid_peak:.0}), \
+         8.89 mm {chatter_peak:.0} N (rigid {rigid_deep:.0})"
+    );
+    assert!(q < 5.0, "2.54 mm: {q} codes RMS");
+    assert!(l > 50.0, "8.89 mm: {l} codes RMS");
+    assert!(
+        (stable_peak / rigid_peak - 1.0).abs() < 0.1,
+        "{stable_peak} vs {rigid_peak}"
+    );
+    assert!(
+        chatter_peak > 1.3 * rigid_deep,
+        "{chatter_peak} vs {rigid_deep}"
+    );
+}
+
+/// A very stiff flexible tool cuts as the rigid one: the same forces within rounding.
+#[test]
+fn a_stiff_flexible_tool_cuts_like_the_rigid_one() {
+    use crate::chatter::thesis_table_3_2 as t;
+    let stiff = crate::lobes::Mode {
+        k_n_m: 1e13,
+        ..t::MODE
+    };
+    let (_, flex) = preset_slot(5.0, Some(stiff));
+    let (_, rigid) = preset_slot(5.0, None);
+    assert!((flex / rigid - 1.0).abs() < 1e-3, "{flex} vs {rigid}");
 }

@@ -26,9 +26,9 @@ use crate::ports::SettingsStorage;
 use crate::settings::{Blu, BoardLimits, Settings};
 
 pub const MAGIC: [u8; 4] = *b"MLST";
-pub const VERSION: u16 = 2;
+pub const VERSION: u16 = 3;
 pub const HEADER_LEN: usize = 8;
-pub const PAYLOAD_LEN: usize = 187;
+pub const PAYLOAD_LEN: usize = 200;
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF): the
@@ -245,6 +245,10 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     p.u32(s.spindle_max_rpm);
     p.u32(s.ac.nominal_feed);
     p.f32(s.ac.gpc_lambda);
+    p.u32(s.ac.flutes);
+    p.u32(s.ac.monitor_rpm);
+    p.f32(s.ac.chatter_threshold);
+    p.u8(s.ac.breakage as u8);
     let end = p.pos;
     let crc = crc32(img.get(..end).unwrap_or(&[]));
     let mut p = Put {
@@ -350,6 +354,9 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let spindle_max_rpm = t.u32()?;
     let nominal_feed = t.u32()?;
     let gpc_lambda = t.f32()?;
+    let (flutes, monitor_rpm) = (t.u32()?, t.u32()?);
+    let chatter_threshold = t.f32()?;
+    let breakage = t.bool()?;
     let build = || {
         Some(MachineSettings {
             nc: Settings {
@@ -391,6 +398,10 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
                 strategy: strategy?,
                 nominal_feed,
                 gpc_lambda,
+                flutes,
+                monitor_rpm,
+                chatter_threshold,
+                breakage: breakage?,
             },
             ac_enabled: ac_enabled?,
             report: ReportSettings {

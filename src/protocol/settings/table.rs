@@ -143,7 +143,7 @@ macro_rules! mirror {
 /// millac's own from `$200` (NC) and `$250` (adaptive control). `$200` (the BLU) comes first: the
 /// settings listed in mm are kept in BLU, so a listing restored line by line onto the defaults
 /// changes the BLU before it sets them.
-pub static TABLE: [Entry; 56] = [
+pub static TABLE: [Entry; 60] = [
     Entry {
         number: 200,
         name: "BLU",
@@ -448,6 +448,40 @@ pub static TABLE: [Entry; 56] = [
         ac.nominal_feed
     ),
     real!(265, "GPC weight lambda", "1", false, ac.gpc_lambda),
+    real!(
+        266,
+        "chatter threshold (0 off)",
+        "code",
+        false,
+        ac.chatter_threshold
+    ),
+    int!(
+        267,
+        "tool flutes",
+        "teeth",
+        Unit::One,
+        u32,
+        false,
+        ac.flutes
+    ),
+    flag!(
+        268,
+        "breakage detection (0 off, 1 on)",
+        |m| m.ac.breakage as i64,
+        |m, v| {
+            m.ac.breakage = choice(v, 2)? == 1;
+            Some(())
+        }
+    ),
+    int!(
+        269,
+        "monitors' spindle speed until an S",
+        "rpm",
+        Unit::One,
+        u32,
+        false,
+        ac.monitor_rpm
+    ),
     real!(270, "T gain", "N*m/code", true, ac.cal[0].gain),
     real!(271, "Fu gain", "N/code", true, ac.cal[1].gain),
     real!(272, "Fv gain", "N/code", true, ac.cal[2].gain),

@@ -1,0 +1,151 @@
+//! Tool breakage detection on the simulated cut (host, issue 10): the Fig. 1 cavity and the
+//! pocket with run-out, measured by the firmware's DRR calibration, judged by the core's breakage
+//! detector (its defaults): no false alarm over a whole program with a sound tool (5/-3 um and
+//! 10/-6 um run-out), and a broken tooth detected within two spindle revolutions at several break
+//! times (ignored: not met yet at every break time).
+use millac::ac::AcSettings;
+use millac::monitor::BreakageSettings;
+use millac::Settings;
+use millac_plant::teeth::{Damage, ToothEvent};
+use millac_plant::DriveModel;
+use millac_qemu::acsim::Cut;
+use millac_qemu::{bench, breaklab};
+
+/// 5, 0, -3, 0 um: the run-out of a 4-flute end mill in a good collet.
+const RUNOUT_MM: [f64; 4] = [0.005, 0.0, -0.003, 0.0];
+
+fn cut(case: &bench::Case, events: Vec<ToothEvent>) -> Cut {
+    cut_with(case, events, &RUNOUT_MM)
+}
+
+fn cut_with(case: &bench::Case, events: Vec<ToothEvent>, runout_mm: &[f64]) -> Cut {
+    let s = Settings::default();
+    Cut {
+        runout_mm: runout_mm.to_vec(),
+        tooth_events: events,
+        ..case
+            .cut(&s, DriveModel::Stepper, millac_plant::Material::STEEL)
+            .unwrap()
+    }
+}
+
+#[test]
+fn no_false_alarm_over_the_cavity_and_the_pocket_with_a_sound_tool() {
+    let s = Settings::default();
+    for case in &bench::CASES[..2] {
+        let prog = case.load(&s).unwrap();
+        for ac in [None, Some(AcSettings::default())] {
+            let sound = breaklab::run(
+                &prog,
+                &s,
+                &cut(case, vec![]),
+                ac,
+                BreakageSettings::default(),
+            )
+            .unwrap();
+            eprintln!(
+                "{} ({}): sound tool, {} samples, {:.2} s, detection {:?}",
+                case.name,
+                if ac.is_some() {
+                    "AC"
+                } else {
+                    "programmed feeds"
+                },
+                sound.run.codes.len(),
+                sound.run.machining_time_s,
+                sound.detection
+            );
+            assert!(sound.detection.is_none(), "{}: false alarm", case.name);
+        }
+        // 10 um of run-out at the programmed feeds (with the AC its overload hold stops the
+        // cavity's entry: run-out adds to the peak the AC regulates).
+        let r = breaklab::run(
+            &prog,
+            &s,
+            &cut_with(case, vec![], &[0.01, 0.0, -0.006, 0.0]),
+            None,
+            BreakageSettings::default(),
+        )
+        .unwrap();
+        eprintln!("{}: 10 um run-out, detection {:?}", case.name, r.detection);
+        assert!(r.detection.is_none(), "{}: false alarm, 10 um", case.name);
+    }
+}
+
+#[test]
+#[ignore = "not met yet (11 of 24 breaks late or missed): see the measured figures in \
+            millac::monitor::breakage's module docs"]
+fn broken_tooth_detected_within_two_revolutions_on_the_cavity_and_the_pocket() {
+    let s = Settings::default();
+    let mut all_bad = Vec::new();
+    for case in &bench::CASES[..2] {
+        let prog = case.load(&s).unwrap();
+        // Breaks at several times in the cut, programmed feeds (the AC's overload hold would
+        // stop the feed first: a broken tooth doubles the next tooth's chip).
+        let sound = breaklab::run(
+            &prog,
+            &s,
+            &cut(case, vec![]),
+            None,
+            BreakageSettings::default(),
+        )
+        .unwrap();
+        let rev_s = 60.0 / sound_rpm(case);
+        let mut tested = 0;
+        let mut bad = Vec::new();
+        for frac in [0.15, 0.3, 0.45, 0.6, 0.75, 0.9] {
+            let t = frac * sound.run.machining_time_s;
+            // In the cut: the true force there above 1000 N.
+            let i = (t * 1000.0) as usize;
+            if sound.run.samples.get(i).is_none_or(|x| x.0 < 1000.0) {
+                continue;
+            }
+            for tooth in [0, 1] {
+                let events = vec![ToothEvent {
+                    tooth,
+                    t_s: t,
+                    damage: Damage::Broken,
+                }];
+                let r = breaklab::run(
+                    &prog,
+                    &s,
+                    &cut(case, events),
+                    None,
+                    BreakageSettings::default(),
+                )
+                .unwrap();
+                let Some((at, b)) = r.detection else {
+                    bad.push(format!(
+                        "{}: tooth {tooth} at {t:.2} s: not detected",
+                        case.name
+                    ));
+                    continue;
+                };
+                let delay = (at - t) / rev_s;
+                eprintln!(
+                    "{}: tooth {tooth} broken at {t:.2} s, detected at {at:.3} s ({delay:.2} rev): {b}",
+                    case.name
+                );
+                if at < t || delay > 2.0 {
+                    bad.push(format!(
+                        "{}: tooth {tooth} at {t:.2} s: {delay:.2} rev",
+                        case.name
+                    ));
+                }
+                tested += 1;
+            }
+        }
+        assert!(
+            tested >= 6,
+            "{}: only {tested} breaks in the cut",
+            case.name
+        );
+        all_bad.extend(bad);
+    }
+    assert!(all_bad.is_empty(), "{all_bad:#?}");
+    {}
+}
+
+fn sound_rpm(case: &bench::Case) -> f64 {
+    cut(case, vec![]).spindle_rpm
+}
