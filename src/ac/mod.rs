@@ -69,6 +69,10 @@ pub enum Alarm {
         amplitude: f32,
         threshold: f32,
     },
+    /// The process monitor declared a tool breakage (`crate::monitor::breakage`): the tooth
+    /// period of the declaration and the residuals and thresholds that made it. The reaction
+    /// stops the spindle as well as the feed (`Status::spindle_stop`).
+    ToolBreakage(crate::monitor::Breakage),
 }
 
 impl Alarm {
@@ -83,6 +87,7 @@ impl Alarm {
             Alarm::NoSamples => "no fresh sensor samples in an AC period",
             Alarm::ForceTorqueMismatch { .. } => "force and torque disagree (transducer gain)",
             Alarm::Chatter { .. } => "chatter: the sound spectrum above its threshold",
+            Alarm::ToolBreakage(b) => b.message(),
         }
     }
 }
@@ -150,6 +155,7 @@ impl core::fmt::Display for Alarm {
                 w,
                 "chatter hold: {amplitude:.1} at {freq_hz:.0} Hz above the threshold {threshold:.1}"
             ),
+            Alarm::ToolBreakage(b) => write!(w, "breakage hold, spindle stopped: {b}"),
         }
     }
 }

@@ -164,6 +164,9 @@ pub mod alarm {
     pub const AC_MISMATCH: u8 = 106;
     /// Process monitor, chatter hold: the sound spectrum above its threshold.
     pub const AC_CHATTER: u8 = 107;
+    /// Process monitor, tool breakage: the feed held and the spindle stopped; `$X` restarts the
+    /// spindle as it was and resumes the AC (after the tool is changed), a reset ends the job.
+    pub const AC_BREAKAGE: u8 = 108;
     /// The frame ISR took more cycles than the board's stated limit (`BoardLimits::frame_work_ns`,
     /// which the settings validation assumed): the pulse and sign timing the validation promised
     /// may not hold. The feed is held; lower W0 (`$201`) or the rapid rate (`$110`) and restart.
@@ -189,5 +192,6 @@ pub const fn ac_alarm(a: &Alarm) -> u8 {
         Alarm::NoSamples => alarm::AC_NO_SAMPLES,
         Alarm::ForceTorqueMismatch { .. } => alarm::AC_MISMATCH,
         Alarm::Chatter { .. } => alarm::AC_CHATTER,
+        Alarm::ToolBreakage(_) => alarm::AC_BREAKAGE,
     }
 }

@@ -52,6 +52,7 @@ use core::sync::atomic::Ordering::Relaxed;
 use super::status::Status;
 use crate::ac::{achieved_feed, AcController, AcOutput, AcState};
 use crate::monitor::chatter::{ChatterDetector, ChatterSettings, Spectrum};
+use crate::monitor::{Breakage, BreakageDetector, BreakageSettings};
 use crate::ports::{Codes, Conversion, ForceTorqueAdc};
 use crate::settings::Settings;
 use crate::wire::SOUND_PER_SAMPLE;
@@ -69,6 +70,29 @@ pub struct ChatterMonitor {
     pending: Option<Spectrum>,
     /// Every record's spectrum so far: (cycle, peak Hz, amplitude), the last one.
     pub last: Option<Spectrum>,
+}
+
+/// The breakage monitor of an AC period ([`AcPeriod::with_breakage`]): the detector fed every
+/// sample's resultant force, and a declaration not yet acted on.
+pub struct BreakageMonitor {
+    pub detector: BreakageDetector,
+    pending: Option<Breakage>,
+}
+
+/// Why the process monitors could not be set up from the settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MonitorError {
+    Chatter(crate::monitor::chatter::ChatterSettingsError),
+    Breakage(crate::monitor::BreakageSettingsError),
+}
+
+impl MonitorError {
+    pub fn message(&self) -> &'static str {
+        match self {
+            MonitorError::Chatter(e) => e.message(),
+            MonitorError::Breakage(e) => e.message(),
+        }
+    }
 }
 
 /// AC periods in hold with the encoder unchanged before a run stops (1 s at 10 ms).
@@ -139,6 +163,12 @@ pub struct AcPeriod {
     still: u32,
     /// Chatter detection on the sound channel (None: off).
     chatter: Option<ChatterMonitor>,
+    /// Tool breakage detection on the force (None: off).
+    breakage: Option<BreakageMonitor>,
+    /// The spindle speed the monitors judge for (`Status::spindle_rpm`, or `$269` until one is
+    /// commanded), and the flutes (`$267`).
+    monitor_rpm: u32,
+    flutes: u32,
 }
 
 /// What one period did.
@@ -165,6 +195,84 @@ impl AcPeriod {
             last: [0; 3],
             still: 0,
             chatter: None,
+            breakage: None,
+            monitor_rpm: 0,
+            flutes: 0,
+        }
+    }
+
+    /// The process monitors the AC settings turn on (issue 10): chatter detection when `$266` (the
+    /// threshold) is above 0, breakage detection when `$268` is 1, both for `$267` flutes at
+    /// `$269` rpm until the machine is commanded a speed (`Status::spindle_rpm`). The firmware and
+    /// the host simulation build them with this one function. Init context.
+    pub fn with_monitors(mut self, s: &crate::ac::AcSettings) -> Result<Self, MonitorError> {
+        if s.chatter_threshold > 0.0 {
+            self = self
+                .with_chatter(
+                    ChatterSettings {
+                        threshold: s.chatter_threshold,
+                        ..ChatterSettings::default()
+                    },
+                    s.monitor_rpm,
+                    s.flutes,
+                )
+                .map_err(MonitorError::Chatter)?;
+        }
+        if s.breakage {
+            self = self
+                .with_breakage(
+                    BreakageSettings {
+                        sample_hz: s.sample_hz,
+                        ..BreakageSettings::default()
+                    },
+                    s.monitor_rpm,
+                    s.flutes,
+                )
+                .map_err(MonitorError::Breakage)?;
+        }
+        Ok(self)
+    }
+
+    /// Judges the resultant force of every sample for tool breakage (`crate::monitor::breakage`)
+    /// at `rpm` and `flutes`: a declaration holds the feed at the next period with
+    /// `Alarm::ToolBreakage` and asks the loader to stop the spindle (`Status::spindle_stop`), the
+    /// thesis' reaction. Init context.
+    pub fn with_breakage(
+        mut self,
+        settings: BreakageSettings,
+        rpm: u32,
+        flutes: u32,
+    ) -> Result<Self, crate::monitor::BreakageSettingsError> {
+        let mut detector = BreakageDetector::new(settings)?;
+        let teeth = u8::try_from(flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1);
+        detector.set_spindle(rpm as f32, teeth);
+        self.breakage = Some(BreakageMonitor {
+            detector,
+            pending: None,
+        });
+        self.monitor_rpm = rpm;
+        self.flutes = flutes;
+        Ok(self)
+    }
+
+    /// The breakage monitor, if on.
+    pub fn breakage(&self) -> Option<&BreakageMonitor> {
+        self.breakage.as_ref()
+    }
+
+    /// The machine's commanded spindle speed reaches the monitors (0: none yet, keep theirs).
+    fn follow_spindle(&mut self, rpm: u32) {
+        if rpm == 0 || rpm == self.monitor_rpm {
+            return;
+        }
+        self.monitor_rpm = rpm;
+        if let Some(m) = self.chatter.as_mut() {
+            m.rpm = rpm;
+        }
+        if let Some(b) = self.breakage.as_mut() {
+            let teeth =
+                u8::try_from(self.flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1);
+            b.detector.set_spindle(rpm as f32, teeth);
         }
     }
 
@@ -185,6 +293,8 @@ impl AcPeriod {
             pending: None,
             last: None,
         });
+        self.monitor_rpm = rpm;
+        self.flutes = flutes;
         Ok(self)
     }
 
@@ -223,9 +333,17 @@ impl AcPeriod {
         self.ctl.settings().samples_per_period()
     }
 
-    /// One conversion into the controller's window. AC task (from the sampler's queue) or host.
+    /// One conversion into the controller's window (and the breakage monitor's force). AC task
+    /// (from the sampler's queue) or host.
     pub fn sample(&mut self, codes: Codes) {
         self.ctl.sample(codes);
+        if let Some(m) = self.breakage.as_mut() {
+            let cal = &self.ctl.settings().cal;
+            let (fu, fv) = (cal[1].value(codes[1]), cal[2].value(codes[2]));
+            if let Some(b) = m.detector.sample_uv(fu, fv) {
+                m.pending.get_or_insert(b);
+            }
+        }
     }
 
     /// One AC period: reads the encoder, gives the controller the achieved feed, runs it, writes
@@ -235,7 +353,13 @@ impl AcPeriod {
         if status.ac_resume.swap(false, Relaxed) {
             self.ctl.resume();
             self.still = 0;
+            // A resumed cut is judged afresh (after a breakage: with the new tool).
+            if let Some(m) = self.breakage.as_mut() {
+                m.detector.reset();
+                m.pending = None;
+            }
         }
+        self.follow_spindle(status.spindle_rpm.load(Relaxed));
         if self.anti_windup {
             let d = [0, 1, 2].map(|k| i64::from(enc[k]) - i64::from(self.last[k]));
             let period_ms = self.ctl.settings().period_ms;
@@ -244,6 +368,18 @@ impl AcPeriod {
             self.ctl.set_achieved(unscale_override(achieved, factor));
         }
         let mut out = self.ctl.period();
+        if let Some(b) = self.breakage.as_mut().and_then(|m| m.pending.take()) {
+            let a = crate::ac::Alarm::ToolBreakage(b);
+            if self.ctl.hold(a) {
+                out.state = AcState::Hold(a);
+                out.alarm = Some(a);
+                out.feed_cap = self.ctl.feed_cap();
+            }
+            // The spindle stops also when another hold came first: the tool is broken.
+            if self.enabled {
+                status.spindle_stop.store(true, Relaxed);
+            }
+        }
         if let Some(s) = self.chatter.as_mut().and_then(|m| m.pending.take()) {
             let a = crate::ac::Alarm::Chatter {
                 freq_hz: s.peak_hz,
@@ -464,5 +600,92 @@ mod tests {
             cap > 0 && cap as f32 <= most,
             "resumed at {cap}, most {most}"
         );
+    }
+
+    /// `revs` spindle revolutions (600 rpm, 4 flutes: 25 samples a tooth at 1 kHz) of a cut whose
+    /// tooth k makes `loads[k]` N (on Fu, the torque to match on the default 0.5 in cutter, a
+    /// +-2 code dither), through the AC period; returns the first alarm and its period.
+    fn cut_revolutions(
+        period: &mut AcPeriod,
+        status: &Status,
+        revs: u32,
+        loads: [f32; 4],
+        from_period: &mut u32,
+    ) -> Option<(u32, Alarm)> {
+        let s = AcSettings::default();
+        let code = |v: f32, gain: f32, d: f32| (2048.0 + v / gain + d).round() as u16;
+        let mut first = None;
+        for i in 0..revs * 100 {
+            let f = loads[(i / 25 % 4) as usize];
+            let d = [0.0, 2.0, 0.0, -2.0][(i % 4) as usize];
+            let t = f * s.tool_radius_mm * 1e-3;
+            period.sample([
+                code(t, s.cal[0].gain, d),
+                code(f, s.cal[1].gain, d),
+                code(0.0, s.cal[2].gain, -d),
+            ]);
+            if i % 10 == 9 {
+                let out = period.run(status);
+                *from_period += 1;
+                if first.is_none() {
+                    first = out.out.alarm.map(|a| (*from_period, a));
+                }
+            }
+        }
+        first
+    }
+
+    /// `$268=1`: the AC period feeds every sample's force to the breakage detector; a sound tool
+    /// with run-out cuts on; a broken tooth (its chip taken by the next) holds the feed with
+    /// `Alarm::ToolBreakage` (`ALARM:108`) within two revolutions and asks the loader to stop the
+    /// spindle; the operator's resume restarts the detector. With `$268=0` the same break cuts on.
+    #[test]
+    fn a_broken_tooth_holds_the_feed_and_stops_the_spindle() {
+        let sound = [1050.0, 980.0, 1030.0, 950.0];
+        let broken = [1050.0, 0.0, 2010.0, 950.0];
+        for on in [true, false] {
+            let status = Status::new();
+            status.start();
+            let s = AcSettings {
+                breakage: on,
+                ..AcSettings::default()
+            };
+            let ctl = AcController::new(s).unwrap();
+            let mut period = AcPeriod::new(ctl, Settings::default(), true, &status)
+                .with_monitors(&s)
+                .unwrap();
+            assert_eq!(period.breakage().is_some(), on);
+            let mut n = 0;
+            let early = cut_revolutions(&mut period, &status, 40, sound, &mut n);
+            assert_eq!(early, None, "sound tool");
+            let broke_at = n;
+            let hold = cut_revolutions(&mut period, &status, 5, broken, &mut n);
+            if !on {
+                assert_eq!(hold, None);
+                assert!(!status.spindle_stop.load(Relaxed));
+                continue;
+            }
+            let Some((at, Alarm::ToolBreakage(b))) = hold else {
+                panic!("{hold:?}");
+            };
+            // Two revolutions are 20 periods; the hold acts in the period after the declaration.
+            assert!(
+                at - broke_at <= 21,
+                "held {} periods after the break",
+                at - broke_at
+            );
+            assert!(b.e1.abs() > b.th1 && b.e2.abs() > b.th2, "{b}");
+            assert!(status.spindle_stop.load(Relaxed));
+            assert_eq!(
+                status.ac_state.load(Relaxed),
+                crate::protocol::codes::alarm::AC_BREAKAGE
+            );
+            assert_eq!(status.feed_cap.load(Relaxed), 0);
+            // The operator resumes (a new tool): the detector starts afresh and learns again.
+            status.ac_resume.store(true, Relaxed);
+            let again = cut_revolutions(&mut period, &status, 20, sound, &mut n);
+            assert_eq!(again, None);
+            assert_eq!(status.ac_state.load(Relaxed), AC_RUN);
+        }
     }
 }

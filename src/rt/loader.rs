@@ -216,6 +216,8 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
     // The spindle output as last applied, and a line waiting to change it.
     let mut spindle = (Spindle::Off, 0u32);
     let mut deferred: Option<Deferred> = None;
+    // The spindle as it was when a tool breakage stopped it (restored by `$X`).
+    let mut stopped: Option<(Spindle, u32)> = None;
     // The longest frame already reported over the board's limit (said again only when a longer
     // one comes).
     let mut overrun = 0u32;
@@ -233,6 +235,14 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                     ),
                 );
             }
+        }
+        // A tool breakage (the AC task's request): the spindle stops at once; `$X` turns it
+        // back on as it was before the feed resumes (after the operator has changed the tool),
+        // a reset leaves it off.
+        if status.spindle_stop.swap(false, Relaxed) && spindle.0 != Spindle::Off {
+            stopped = Some(spindle);
+            spindle = (Spindle::Off, 0);
+            board.spindle(Spindle::Off, 0, table.settings.spindle_max_rpm);
         }
         // AC holds: said once each, as they come.
         while let Some(a) = ac_alarms.dequeue() {
@@ -281,6 +291,10 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             if idle && !tape.holds_a_block() {
                 board.spindle(d.spindle, d.rpm, table.settings.spindle_max_rpm);
                 spindle = (d.spindle, d.rpm);
+                stopped = None;
+                if d.rpm != 0 {
+                    status.spindle_rpm.store(d.rpm, Relaxed);
+                }
                 let result = tape
                     .line(d.no, &d.line, |b| enqueue(blocks, b, &mut last_feed))
                     .map(|()| board.log_gcode(&d.line))
@@ -450,6 +464,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 // The spindle first (the parser goes back to power-up modes, M5), then the
                 // queue.
                 spindle = (Spindle::Off, 0);
+                stopped = None;
                 board.spindle(Spindle::Off, 0, table.settings.spindle_max_rpm);
                 board.log_reset();
                 let (at, signs) = abort(blocks, status, board);
@@ -493,7 +508,12 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                         continue;
                     }
                 }
-                // `$X` also clears an AC sensor hold: the AC resumes from f_min.
+                // `$X` also clears an AC sensor hold: the AC resumes from f_min. After a tool
+                // breakage the spindle first turns again as it was.
+                if let Some((state, rpm)) = stopped.take() {
+                    board.spindle(state, rpm, table.settings.spindle_max_rpm);
+                    spindle = (state, rpm);
+                }
                 if ac_held {
                     status.ac_resume.store(true, Relaxed);
                 }

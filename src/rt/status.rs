@@ -64,6 +64,13 @@ pub struct Status {
     /// read by the loader through [`Status::frame_cycles`].
     pub frame_cycles_min: AtomicU32,
     pub frame_cycles_max: AtomicU32,
+    /// The spindle speed the machine was last commanded (rpm; 0: none yet), for the process
+    /// monitors' tooth period (`rt::ac`; until one is known they assume `$269`). Written by the
+    /// loader when it applies a spindle change; read by the AC task.
+    pub spindle_rpm: AtomicU32,
+    /// The AC task asks the loader to stop the spindle (a tool breakage): set by the AC task,
+    /// taken (swapped back to false) by the loader, which turns the spindle off at once.
+    pub spindle_stop: AtomicBool,
 }
 
 impl Default for Status {
@@ -93,6 +100,8 @@ impl Status {
             samples_dropped: AtomicU32::new(0),
             frame_cycles_min: AtomicU32::new(0),
             frame_cycles_max: AtomicU32::new(0),
+            spindle_rpm: AtomicU32::new(0),
+            spindle_stop: AtomicBool::new(false),
         }
     }
 

@@ -13,7 +13,7 @@ use std::vec::Vec;
 
 use core::sync::atomic::Ordering::Relaxed;
 
-use heapless::spsc::{Consumer, Queue};
+use heapless::spsc::{Consumer, Producer, Queue};
 
 use super::loader::{run, LoaderBoard};
 use super::{FrameTask, Reloads, Status};
@@ -122,6 +122,10 @@ struct Bench {
     /// The board's frame limit and the frame cycles it "measures" from a frame number on.
     frame_limit: Option<u32>,
     slow_frames_at: Option<(u64, u32)>,
+    /// The AC task's side of a tool breakage at a frame number: the hold, the spindle stop
+    /// request and the alarm for the loader, as `rt::ac::AcPeriod::run` makes them.
+    breakage_at: Option<u64>,
+    alarms: Producer<'static, Alarm, A>,
 }
 
 impl Bench {
@@ -145,6 +149,20 @@ impl Bench {
             _ => 400,
         };
         let s = self.status;
+        if self.breakage_at == Some(self.frames) {
+            let b = crate::monitor::Breakage {
+                tooth_period: 1234,
+                e1: -900.0,
+                e2: -950.0,
+                th1: 300.0,
+                th2: 200.0,
+            };
+            s.feed_cap.store(0, Relaxed);
+            s.ac_state
+                .store(crate::protocol::codes::alarm::AC_BREAKAGE, Relaxed);
+            s.spindle_stop.store(true, Relaxed);
+            let _ = self.alarms.enqueue(Alarm::ToolBreakage(b));
+        }
         if s.frame_cycles_min.load(Relaxed) == 0 || cycles < s.frame_cycles_min.load(Relaxed) {
             s.frame_cycles_min.store(cycles, Relaxed);
         }
@@ -256,7 +274,7 @@ fn session_with(
     frames: u64,
     trip: Trip,
 ) -> Bench {
-    session_full(sends, inputs, release_at, frames, trip, None)
+    session_full(sends, inputs, release_at, frames, trip, None, None)
 }
 
 fn session_full(
@@ -266,12 +284,13 @@ fn session_full(
     frames: u64,
     trip: Trip,
     frame_limit: Option<(u32, u64, u32)>,
+    breakage_at: Option<u64>,
 ) -> Bench {
     let status: &'static Status = Box::leak(Box::new(Status::new()));
     status.start();
     let (blocks_tx, blocks) = Box::leak(Box::new(Queue::<Block, Q>::new())).split();
     let (tx_p, tx) = Box::leak(Box::new(Queue::<u8, T>::new())).split();
-    let (_alarm_tx, mut alarms) = Box::leak(Box::new(Queue::<Alarm, A>::new())).split();
+    let (alarm_tx, mut alarms) = Box::leak(Box::new(Queue::<Alarm, A>::new())).split();
     let (rx, task) = Box::leak(Box::new(RxShared::new())).split();
     let (mut table, _) = Persistent::load(NoStorage);
     let settings = table.settings.nc;
@@ -303,6 +322,8 @@ fn session_full(
         trip,
         frame_limit: frame_limit.map(|(l, _, _)| l),
         slow_frames_at: frame_limit.map(|(_, at, c)| (at, c)),
+        breakage_at,
+        alarms: alarm_tx,
     };
     run(
         &mut blocks_tx,
@@ -473,6 +494,7 @@ fn a_frame_over_the_boards_limit_holds_the_feed_and_raises_alarm_111() {
         2000,
         ESTOP,
         Some((500, 300, 600)),
+        None,
     );
     assert_eq!(b.out.matches("ALARM:111\r\n").count(), 1, "{}", b.out);
     assert!(
@@ -496,6 +518,7 @@ fn a_frame_over_the_boards_limit_holds_the_feed_and_raises_alarm_111() {
         1000,
         ESTOP,
         Some((500, 300, 450)),
+        None,
     );
     assert!(!b.out.contains("ALARM"), "{}", b.out);
     assert_eq!(b.status.encoder(), [100, 0, 0]);
@@ -562,7 +585,15 @@ fn no_spindle_on_in_the_turn_of_a_trip() {
 #[test]
 fn resume_waits_for_unlock_after_alarm_111() {
     let run = |sends: &[(u64, &str)], inputs: &[(u64, Events)]| {
-        session_full(sends, inputs, None, 4000, ESTOP, Some((500, 300, 600)))
+        session_full(
+            sends,
+            inputs,
+            None,
+            4000,
+            ESTOP,
+            Some((500, 300, 600)),
+            None,
+        )
     };
     let held = run(&[(1, "G91 G1 F30 X1\n")], &[]);
     let start = Events {
@@ -583,4 +614,52 @@ fn resume_waits_for_unlock_after_alarm_111() {
         "{}",
         resumed.out
     );
+}
+
+/// A tool breakage (the AC task's hold, spindle stop request and alarm): the loader stops the
+/// spindle at once, says `ALARM:108` with the residuals in a `[MSG:...]`, refuses `~`; `$X` turns
+/// the spindle back on as it was before it asks the AC to resume. The commanded speed reaches
+/// `Status::spindle_rpm` (the monitors' tooth period).
+#[test]
+fn a_tool_breakage_stops_the_spindle_and_unlock_restores_it() {
+    let sends = [(1, "M3 S1000\n"), (2, "G91 G1 F30 X1\n"), (2500, "~")];
+    let b = session_full(&sends, &[], None, 3000, ESTOP, None, Some(2000));
+    let calls: Vec<(Spindle, u32)> = b.spindle.iter().map(|c| (c.state, c.rpm)).collect();
+    assert_eq!(
+        calls,
+        [(Spindle::Cw, 1000), (Spindle::Off, 0)],
+        "{:?}",
+        b.spindle
+    );
+    // Off within a loader turn or two of the request, with the feed held mid-block.
+    assert!(b.spindle[1].frame >= 2000 && b.spindle[1].frame <= 2010);
+    assert_eq!(b.status.spindle_rpm.load(Relaxed), 1000);
+    assert!(b.out.contains("ALARM:108\r\n"), "{}", b.out);
+    assert!(
+        b.out.contains(
+            "[MSG:AC hold: breakage hold, spindle stopped: tool breakage at tooth period 1234"
+        ),
+        "{}",
+        b.out
+    );
+    assert!(
+        !b.status.ac_resume.load(Relaxed),
+        "~ refused under the alarm"
+    );
+    let sends = [(1, "M3 S1000\n"), (2, "G91 G1 F30 X1\n"), (2500, "$X\n")];
+    let b = session_full(&sends, &[], None, 3000, ESTOP, None, Some(2000));
+    let calls: Vec<(Spindle, u32)> = b.spindle.iter().map(|c| (c.state, c.rpm)).collect();
+    assert_eq!(
+        calls,
+        [(Spindle::Cw, 1000), (Spindle::Off, 0), (Spindle::Cw, 1000)],
+        "{:?}",
+        b.spindle
+    );
+    assert!(
+        b.status.ac_resume.load(Relaxed),
+        "the AC is asked to resume"
+    );
+    // Without a breakage the spindle just runs.
+    let b = session_full(&sends[..2], &[], None, 3000, ESTOP, None, None);
+    assert_eq!(b.spindle.len(), 1);
 }
