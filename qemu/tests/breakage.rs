@@ -73,7 +73,7 @@ fn no_false_alarm_over_the_cavity_and_the_pocket_with_a_sound_tool() {
 }
 
 #[test]
-#[ignore = "not met yet (11 of 24 breaks late or missed): see the measured figures in \
+#[ignore = "not met yet (6 of 18 breaks late or missed): see the measured figures in \
             millac::monitor::breakage's module docs"]
 fn broken_tooth_detected_within_two_revolutions_on_the_cavity_and_the_pocket() {
     let s = Settings::default();
