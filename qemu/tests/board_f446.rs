@@ -53,6 +53,22 @@ fn f446_fits_its_flash_and_ram_budgets() {
         m.flash
     );
     assert!(m.flash <= flash, "flash {} > budget {flash}", m.flash);
+    // Linked with the board's own memory map (hal/nucleo-f446re/memory.x): the vector table at
+    // the start of the F446's flash, where probe-rs flashes it (a memory.x in the linker's
+    // working directory, the workspace root, used to win: the LM3S map, flash at 0).
+    use object::{Object, ObjectSection};
+    let data = std::fs::read(&elf).unwrap();
+    let file = object::File::parse(&*data).unwrap();
+    let vt = file.section_by_name(".vector_table").unwrap();
+    assert_eq!(vt.address(), 0x0800_0000, "vector table address");
+    // flip-link puts the statics at the top of RAM (the stack below them): they end at the end
+    // of the F446's 128 KiB.
+    let top = file
+        .sections()
+        .filter(|s| s.address() >= 0x2000_0000)
+        .map(|s| s.address() + s.size())
+        .max();
+    assert_eq!(top, Some(0x2000_0000 + 128 * 1024), "end of the statics");
     assert!(m.ram <= ram, "RAM {} > budget {ram}", m.ram);
 }
 
