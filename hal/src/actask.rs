@@ -15,10 +15,18 @@ use millac::ac::{AcState, Alarm};
 use millac::ports::{Codes, ForceTorqueAdc};
 use millac::rt::ac::{self as body, AcPeriod};
 use millac::rt::Status;
-use millac::wire::{AcLogLine, LogState, AC_LOG_HEADER};
+use millac::wire::{AcLogLine, LogState, AC_LOG_HEADER, SOUND_PER_SAMPLE};
 
 /// Sample queue slots (holds one less): three periods of samples at the defaults.
 pub const SAMPLE_QUEUE: usize = 32;
+
+/// One sample tick for the AC task: the conversion (None: missed) and the sound channel's codes
+/// since the previous tick (None: no microphone). A tick with neither is not queued.
+#[derive(Clone, Copy)]
+pub struct Tick {
+    pub codes: Option<Codes>,
+    pub sound: Option<[u16; SOUND_PER_SAMPLE]>,
+}
 /// Alarm queue slots from the AC task to the serial loader (holds one less; an alarm that does not
 /// fit is still in ac.log and in the AC state word).
 pub const ALARM_QUEUE: usize = 4;
@@ -38,7 +46,7 @@ impl LogSink for () {
 pub struct Sampler<D: ForceTorqueAdc> {
     status: &'static Status,
     adc: D,
-    queue: Producer<'static, Codes, SAMPLE_QUEUE>,
+    queue: Producer<'static, Tick, SAMPLE_QUEUE>,
     per_period: u32,
 }
 
@@ -55,7 +63,7 @@ impl<D: ForceTorqueAdc> Sampler<D> {
     pub fn new(
         status: &'static Status,
         adc: D,
-        queue: Producer<'static, Codes, SAMPLE_QUEUE>,
+        queue: Producer<'static, Tick, SAMPLE_QUEUE>,
         per_period: u32,
     ) -> Self {
         Sampler {
@@ -66,19 +74,17 @@ impl<D: ForceTorqueAdc> Sampler<D> {
         }
     }
 
-    /// One sample (the core's body), codes into the queue (a full queue counts
-    /// `samples_dropped`; a missed conversion queues nothing, so the period sees no fresh sample
-    /// for it). Sampler task.
+    /// One sample (the core's body), codes and sound into the queue (a full queue counts
+    /// `samples_dropped`; a missed conversion queues no codes, so the period sees no fresh
+    /// sample for it). Sampler task.
     pub fn sample(&mut self) -> Sampled {
         match body::sample(&mut self.adc, self.status, self.per_period) {
             body::Sampled::Lost { due } => Sampled::Lost(due),
-            // The sound channel is not yet judged in the firmware (issue 10: the chatter
-            // monitor runs on the host so far).
-            body::Sampled::Codes { codes, due, .. } => {
-                if let Some(c) = codes {
-                    if self.queue.enqueue(c).is_err() {
-                        self.status.samples_dropped.fetch_add(1, Relaxed);
-                    }
+            body::Sampled::Codes { codes, due, sound } => {
+                if (codes.is_some() || sound.is_some())
+                    && self.queue.enqueue(Tick { codes, sound }).is_err()
+                {
+                    self.status.samples_dropped.fetch_add(1, Relaxed);
                 }
                 Sampled::Ok(due)
             }
@@ -90,7 +96,7 @@ impl<D: ForceTorqueAdc> Sampler<D> {
 pub struct AcTask<W: LogSink> {
     status: &'static Status,
     period: AcPeriod,
-    samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
+    samples: Consumer<'static, Tick, SAMPLE_QUEUE>,
     alarms: Producer<'static, Alarm, ALARM_QUEUE>,
     log: W,
     per_period: u32,
@@ -111,7 +117,7 @@ impl<W: LogSink> AcTask<W> {
     pub fn new(
         status: &'static Status,
         period: AcPeriod,
-        samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
+        samples: Consumer<'static, Tick, SAMPLE_QUEUE>,
         alarms: Producer<'static, Alarm, ALARM_QUEUE>,
         mut log: W,
     ) -> Self {
@@ -136,8 +142,13 @@ impl<W: LogSink> AcTask<W> {
 
     /// One AC period with deadline base `due` (the sample count when it was spawned). AC task.
     pub fn run(&mut self, due: u32) -> Period {
-        while let Some(codes) = self.samples.dequeue() {
-            self.period.sample(codes);
+        while let Some(tick) = self.samples.dequeue() {
+            if let Some(c) = tick.codes {
+                self.period.sample(c);
+            }
+            if let Some(sound) = tick.sound {
+                self.period.sound(&sound);
+            }
         }
         let p = self.period.run(self.status);
         // Late: the next deadline passed while this period worked.

@@ -376,13 +376,13 @@ pub fn run_with_faults(
     anti_windup: bool,
     faults: &[crate::fault::Fault],
 ) -> Result<HostRun> {
-    run_monitored(prog, settings, cut, ac, anti_windup, faults, None)
+    run_monitored(prog, settings, cut, ac, anti_windup, faults)
 }
 
-/// As [`run_with_faults`], with the AC period's chatter monitor on the sound channel
-/// (`chatter`: its settings; `millac::rt::ac::AcPeriod::with_chatter`, the firmware's code) at the
-/// cut's spindle speed and flutes. The monitor needs the AC (`ac`).
-#[allow(clippy::too_many_arguments)]
+/// As [`run_with_faults`]: the AC period's process monitors run as the AC settings say (`$266`
+/// chatter threshold, `$268` breakage, `$267` flutes; `millac::rt::ac::AcPeriod::with_monitors`,
+/// the firmware's code) at the cut's spindle speed (the program's S, as the firmware's tape
+/// tells the monitors). The monitors need the AC (`ac`).
 pub fn run_monitored(
     prog: &[ProgBlock],
     settings: &Settings,
@@ -390,7 +390,6 @@ pub fn run_monitored(
     ac: Option<AcSettings>,
     anti_windup: bool,
     faults: &[crate::fault::Fault],
-    chatter: Option<millac::monitor::chatter::ChatterSettings>,
 ) -> Result<HostRun> {
     let mut frame = Frame::new(FrameConfig::from_settings(settings));
     // An enabled AC's feed ceiling, as the firmware's tape applies it (the same function).
@@ -404,15 +403,15 @@ pub fn run_monitored(
     // The firmware's sampler and AC period (`millac::rt::ac`) over a host status and ADC.
     let status = Status::new();
     status.start();
+    status
+        .spindle_rpm
+        .store(cut.spindle_rpm.round() as u32, Relaxed);
     let mut period = match ac {
         Some(s) => {
             let ctl = AcController::new(s).map_err(|e| anyhow!("AC settings: {}", e.message()))?;
-            let mut p = AcPeriod::new(ctl, *settings, true, &status);
-            if let Some(c) = chatter {
-                p = p
-                    .with_chatter(c, cut.spindle_rpm.round() as u32, cut.tool.flutes)
-                    .map_err(|e| anyhow!("{}", e.message()))?;
-            }
+            let p = AcPeriod::new(ctl, *settings, true, &status)
+                .with_monitors(&s)
+                .map_err(|e| anyhow!("monitor settings: {}", e.message()))?;
             Some(if anti_windup {
                 p
             } else {

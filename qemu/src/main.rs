@@ -130,6 +130,17 @@ struct CutArgs {
     /// cuts deeper; |value| <= 1000), e.g. --runout 10,0,0,0.
     #[arg(long, value_name = "UM,UM,...")]
     runout: Option<millac_qemu::acsim::RunoutUm>,
+    /// Tool breakage detection in the AC task ($268=1): a declared breakage holds the feed
+    /// (ALARM:108) and stops the spindle; the tool's flutes and the program's S set its tooth
+    /// period. `run`, `demo`, `host` (in `serve`, set $268 in the session).
+    #[arg(long)]
+    monitor_breakage: bool,
+    /// Chatter detection in the AC task ($266): the threshold of the sound spectrum's largest
+    /// amplitude away from the tooth harmonics, in sound codes (set it from a chatter-free cut:
+    /// twice its largest amplitude); a record above it holds the feed (ALARM:107). Needs a
+    /// microphone (`--preset thesis-table-3.2`). `run`, `demo`, `host` (in `serve`, set $266).
+    #[arg(long, value_name = "CODES")]
+    chatter_threshold: Option<f32>,
 }
 
 /// `--preset`: a whole simulated cut set-up.
@@ -184,10 +195,21 @@ impl From<StrategyArg> for millac::ac::law::Strategy {
 impl CutArgs {
     /// The run's AC settings: the defaults with the strategy (without `--strategy`, the
     /// default feed law, `$251`'s default).
-    fn ac_settings(&self) -> millac::ac::AcSettings {
+    /// With a process monitor on (`--monitor-breakage`, `--chatter-threshold`), `$267` is the
+    /// cut's tool's flutes and `$269` its spindle speed.
+    fn ac_settings(&self, cut: &millac_qemu::acsim::Cut) -> millac::ac::AcSettings {
         let d = millac::ac::AcSettings::default();
+        let monitors = self.monitor_breakage || self.chatter_threshold.is_some();
         millac::ac::AcSettings {
             strategy: self.strategy.map_or(d.strategy, Into::into),
+            breakage: self.monitor_breakage,
+            chatter_threshold: self.chatter_threshold.unwrap_or(d.chatter_threshold),
+            flutes: if monitors { cut.tool.flutes } else { d.flutes },
+            monitor_rpm: if monitors {
+                cut.spindle_rpm.round() as u32
+            } else {
+                d.monitor_rpm
+            },
             ..d
         }
     }
@@ -210,6 +232,8 @@ fn main() {
                 chip_tooth: Vec::new(),
                 runout: None,
                 preset: None,
+                monitor_breakage: false,
+                chatter_threshold: None,
             },
         ),
         Some(Cmd::Demo { out, cut }) => demo(&out, &cut),
@@ -275,7 +299,7 @@ fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
             (false, None) => "with adaptive control".to_string(),
             (false, Some(_)) => format!(
                 "with adaptive control (strategy {})",
-                cut.ac_settings().strategy.name()
+                cut.strategy.map_or(millac::ac::AcSettings::default().strategy, Into::into).name()
             ),
         }
     );
@@ -284,12 +308,15 @@ fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
 
 fn run(text: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> Result<bool> {
     let ac = match cut {
-        Some(c) => Some(runner::AcRun {
-            cut: cut_setup(text, c)?,
-            ac: !c.no_ac,
-            faults: c.faults.clone(),
-            settings: c.ac_settings(),
-        }),
+        Some(c) => {
+            let cut = cut_setup(text, c)?;
+            Some(runner::AcRun {
+                settings: c.ac_settings(&cut),
+                cut,
+                ac: !c.no_ac,
+                faults: c.faults.clone(),
+            })
+        }
         None => None,
     };
     let o = runner::run_with(text, out, shift, ac.as_ref())?;
@@ -341,7 +368,14 @@ fn serve(
             cut: cut_setup("", c)?,
             ac: !c.no_ac,
             faults: c.faults.clone(),
-            settings: c.ac_settings(),
+            settings: {
+                anyhow::ensure!(
+                    !c.monitor_breakage && c.chatter_threshold.is_none(),
+                    "serve: set the process monitors in the session ($268=1 breakage, $266=CODES \
+                     chatter threshold, $267 flutes)"
+                );
+                c.ac_settings(&millac_qemu::acsim::Cut::steel(Default::default(), c.seed))
+            },
         }),
         None => None,
     };
@@ -449,7 +483,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
         }
     };
     let cut = cut_setup(text, args)?;
-    let acs = args.ac_settings();
+    let acs = args.ac_settings(&cut);
     std::fs::create_dir_all(out)?;
     let run = acsim::run_with_faults(
         &prog,

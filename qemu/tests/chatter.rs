@@ -41,7 +41,6 @@ fn table_3_2_chatter_is_detected_within_two_cycles_and_the_stable_cut_never() {
 /// 0.0508 mm per tooth at 1500 rpm), run on the host with the AC (default settings) and the chatter
 /// monitor at `threshold` (None: no monitor); `modes` false: a rigid tool.
 fn preset_run(depth_in: f64, threshold: Option<f32>, modes: bool) -> millac_qemu::acsim::HostRun {
-    use millac::monitor::chatter::ChatterSettings;
     use millac_plant::{Material, Stock, Tool};
     use millac_qemu::{acsim, analysis};
     let s = millac::Settings::default();
@@ -62,12 +61,13 @@ fn preset_run(depth_in: f64, threshold: Option<f32>, modes: bool) -> millac_qemu
         modes: modes.then(|| (vec![t::MODE], vec![t::MODE])),
         ..acsim::Cut::steel(stock, 1)
     };
-    let chatter = threshold.map(|threshold| ChatterSettings {
-        threshold,
-        ..ChatterSettings::default()
-    });
-    let acs = millac::ac::AcSettings::default();
-    acsim::run_monitored(&prog, &s, &cut, Some(acs), true, &[], chatter).unwrap()
+    // The monitor as the firmware builds it from its settings ($266 threshold, $267 flutes).
+    let acs = millac::ac::AcSettings {
+        chatter_threshold: threshold.unwrap_or(0.0),
+        flutes: t::FLUTES,
+        ..millac::ac::AcSettings::default()
+    };
+    acsim::run_monitored(&prog, &s, &cut, Some(acs), true, &[]).unwrap()
 }
 
 /// The AC period's chatter monitor (`millac::rt::ac::AcPeriod::with_chatter`, the firmware's

@@ -179,33 +179,58 @@ impl ChatterDetector {
         let spectrum = rfft_256(&mut x);
         let bin_hz = self.s.sound_hz as f32 / RECORD as f32;
         let tooth_hz = rpm as f32 * flutes as f32 / 60.0;
-        let (mut peak_hz, mut peak) = (0.0f32, 0.0f32);
+        // The bins left out, marked once per record in bin numbers (a soft-float compare per bin
+        // and harmonic cost about a fifth of a 10 ms period on the Cortex-M3).
+        let left_out = self.left_out(tooth_hz, bin_hz);
+        // The largest power |X|^2 of the judged bins; one square root at the end (the amplitude
+        // is monotonic in it), not one per bin.
+        let (mut peak_k, mut peak_p) = (0usize, 0.0f32);
         // Bin 0 holds DC and, packed in its imaginary part, Nyquist: never judged.
-        for (k, c) in spectrum.iter().enumerate().skip(1) {
-            let f = k as f32 * bin_hz;
-            if f < self.s.min_hz || self.near_harmonic(f, tooth_hz, bin_hz) {
+        for (k, (c, out)) in spectrum.iter().zip(left_out.iter()).enumerate().skip(1) {
+            if *out {
                 continue;
             }
-            let a = libm::sqrtf(c.re * c.re + c.im * c.im) * self.scale;
-            if a > peak {
-                (peak_hz, peak) = (f, a);
+            let p = c.re * c.re + c.im * c.im;
+            if p > peak_p {
+                (peak_k, peak_p) = (k, p);
             }
         }
+        let peak = libm::sqrtf(peak_p) * self.scale;
         Spectrum {
             cycle: self.cycle,
-            peak_hz,
+            peak_hz: peak_k as f32 * bin_hz,
             peak_amplitude: peak,
             chatter: peak > self.s.threshold,
         }
     }
 
-    /// Whether `f` lies within the left-out bins of one of the first harmonics of `tooth_hz`.
-    fn near_harmonic(&self, f: f32, tooth_hz: f32, bin_hz: f32) -> bool {
-        if tooth_hz.is_nan() || tooth_hz <= 0.0 {
-            return false;
+    /// The bins not judged: below `min_hz`, and within `harmonic_bins` (+ half a bin) of one of
+    /// the first `harmonics` multiples of `tooth_hz` (none when it is not a positive frequency).
+    fn left_out(&self, tooth_hz: f32, bin_hz: f32) -> [bool; RECORD / 2] {
+        let mut out = [false; RECORD / 2];
+        // min_hz is validated finite, >= 0 and below Nyquist: 0 ..= RECORD / 2 bins.
+        let k_min = libm::ceilf(self.s.min_hz / bin_hz) as usize;
+        for o in out.iter_mut().take(k_min) {
+            *o = true;
         }
-        let band = (self.s.harmonic_bins as f32 + 0.5) * bin_hz;
-        (1..=self.s.harmonics).any(|h| (f - h as f32 * tooth_hz).abs() <= band)
+        if !(tooth_hz > 0.0 && tooth_hz.is_finite()) {
+            return out;
+        }
+        let band = self.s.harmonic_bins as f32 + 0.5;
+        for h in 1..=self.s.harmonics {
+            let centre = h as f32 * tooth_hz / bin_hz;
+            let lo = libm::ceilf(centre - band).max(0.0);
+            let hi = libm::floorf(centre + band);
+            if lo >= (RECORD / 2) as f32 {
+                break;
+            }
+            // Both finite and within 0..RECORD/2 here: the casts are exact.
+            let (lo, hi) = (lo as usize, hi.min((RECORD / 2 - 1) as f32) as usize);
+            for o in out.iter_mut().take(hi + 1).skip(lo) {
+                *o = true;
+            }
+        }
+        out
     }
 }
 

@@ -137,7 +137,7 @@ mod app {
     use millac::ac::{AcController, FeedCeiling};
     use millac::gcode::tape::Tape;
     use millac::nc::{Block, Frame, FrameConfig};
-    use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
+    use millac::ports::{BlockSource, SampleClock, TimerClock};
     use millac::protocol::rx::{RxIsr, RxShared};
     use millac::protocol::settings::record::{LoadStatus, RecordError};
     use millac::protocol::settings::Persistent;
@@ -146,7 +146,7 @@ mod app {
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
     use millac::wire::FLAG_AC_ENABLED;
     use millac::Settings;
-    use millac_hal::actask::{AcTask, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
+    use millac_hal::actask::{AcTask, Sampled, Sampler, Tick, ALARM_QUEUE, SAMPLE_QUEUE};
     use millac_hal::lm3s6965 as board;
     use millac_hal::semihost;
     use millac_hal::simadc::{LogFile, SimAdc};
@@ -202,7 +202,7 @@ mod app {
 
     #[init(local = [
         queue: Queue<Block, QUEUE> = Queue::new(),
-        samples: Queue<Codes, SAMPLE_QUEUE> = Queue::new(),
+        samples: Queue<Tick, SAMPLE_QUEUE> = Queue::new(),
         serial_rx: RxShared = RxShared::new(),
         serial_tx: Queue<u8, TX_QUEUE> = Queue::new(),
         alarms: Queue<Alarm, ALARM_QUEUE> = Queue::new(),
@@ -248,7 +248,12 @@ mod app {
             if enabled {
                 ceiling = Some(ac_settings.ceiling);
             }
-            let period = AcPeriod::new(ctl, settings, enabled, &STATUS);
+            // The process monitors the settings turn on ($266 chatter, $268 breakage).
+            let period =
+                match AcPeriod::new(ctl, settings, enabled, &STATUS).with_monitors(&ac_settings) {
+                    Ok(p) => p,
+                    Err(e) => fail(format_args!("monitor settings: {}", e.message())),
+                };
             let task = AcTask::new(&STATUS, period, rx, alarm_tx, log);
             sampler = Some(Sampler::new(&STATUS, adc, tx, task.per_period()));
             ac = Some(task);
@@ -506,6 +511,13 @@ mod app {
             if let Err(e) = result {
                 refuse(format_args!("{}", e));
                 ok = false;
+            }
+            // The program's spindle speed (its last S word read so far) for the process
+            // monitors: a tape has no spindle output to sync with the motion, so the speed
+            // reaches them when the loader reads it, up to a queue of blocks early.
+            let rpm = tape.parser().spindle_rpm();
+            if rpm != 0 {
+                STATUS.spindle_rpm.store(rpm, Relaxed);
             }
             if tape.done() {
                 break;

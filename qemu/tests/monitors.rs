@@ -1,0 +1,184 @@
+//! The process monitors in the firmware under QEMU (host, issue 10): the AC task of the QEMU app
+//! runs the breakage and chatter monitors its settings turn on (`$268`, `$266`; the record a
+//! run writes), on the simulated cut's force and sound channels. A broken tooth holds the feed
+//! with the breakage alarm within two revolutions, in the same AC period as the host
+//! simulation of the same code; a sound tool cuts the slot to its end. The thesis' table 3.2
+//! cut chatters at 8.89 mm and is held with the chatter alarm; at 2.54 mm it is not. No AC period
+//! overruns its 10 ms with the monitors' work in it (the cost is printed: instructions of the AC
+//! task per period).
+use millac::ac::AcSettings;
+use millac::Settings;
+use millac_plant::chatter::thesis_table_3_2 as t;
+use millac_plant::teeth::{Damage, ToothEvent};
+use millac_plant::{Material, Stock, Tool};
+use millac_qemu::acsim::{self, Cut};
+use millac_qemu::{analysis, runner};
+use std::path::PathBuf;
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("millac-monitors-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+const SLOT: &str = include_str!("../programs/breakage-slot.nc");
+/// When tooth 1 breaks in the slot (s of virtual time; the tool is in the full slot from 0.5 s).
+const BREAK_S: f64 = 6.0;
+
+/// The slot in steel with 5/0/-3/0 um of run-out, tooth 1 broken at `BREAK_S` or sound.
+fn slot_cut(broken: bool) -> Cut {
+    let stock = Stock::parse(include_str!("../programs/entry-exit.stock")).unwrap();
+    Cut {
+        runout_mm: vec![0.005, 0.0, -0.003, 0.0],
+        tooth_events: if broken {
+            vec![ToothEvent {
+                tooth: 1,
+                t_s: BREAK_S,
+                damage: Damage::Broken,
+            }]
+        } else {
+            Vec::new()
+        },
+        ..Cut::steel(stock, 1).at_program_rpm(SLOT, &Settings::default())
+    }
+}
+
+/// The firmware's run (QEMU) with the AC settings `acs`: its outcome.
+fn qemu_run(name: &str, text: &str, cut: Cut, acs: AcSettings) -> runner::Outcome {
+    let ac = runner::AcRun {
+        cut,
+        ac: true,
+        faults: Vec::new(),
+        settings: acs,
+    };
+    runner::run_with(text, &out_dir(name), 4, Some(&ac)).unwrap()
+}
+
+/// The AC task's instructions per period (SSI0) and the overrun count of the run's last period.
+fn cost(o: &runner::Outcome, name: &str) {
+    let cap = o.capture.as_ref().unwrap();
+    eprintln!(
+        "{name}: AC period instructions {} over {} periods",
+        runner::stats(&cap.handlers[3].1),
+        o.ac_log.len()
+    );
+    let last = o.ac_log.last().expect("AC periods ran");
+    assert_eq!(last.overruns, 0, "{name}: AC periods overran");
+}
+
+/// The first held period of the firmware's AC log: its time and the hold's text.
+fn first_hold(o: &runner::Outcome) -> Option<(u64, String)> {
+    o.ac_log
+        .iter()
+        .find_map(|r| r.hold.clone().map(|h| (r.t_ms, h)))
+}
+
+#[test]
+fn a_broken_tooth_is_held_by_the_firmware_within_two_revolutions_as_on_the_host() {
+    let acs = AcSettings {
+        breakage: true,
+        ..AcSettings::default()
+    };
+    // A sound tool: the whole slot, no alarm.
+    let sound = qemu_run("sound", SLOT, slot_cut(false), acs);
+    cost(&sound, "sound tool");
+    assert_eq!(first_hold(&sound), None);
+    assert_eq!(sound.summary["completed"], true, "{}", sound.summary);
+    // Tooth 1 breaks: held with the breakage alarm, the residuals named.
+    let broken = qemu_run("broken", SLOT, slot_cut(true), acs);
+    cost(&broken, "broken tooth");
+    let (t_ms, text) = first_hold(&broken).expect("held");
+    assert!(text.contains("tool breakage"), "{text}");
+    let alarm = broken.summary["hold"]["alarm"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert!(
+        alarm.starts_with("breakage hold, spindle stopped: tool breakage at tooth period")
+            && alarm.contains("e1 =")
+            && alarm.contains("e2 ="),
+        "{alarm}"
+    );
+    // At 600 rpm a revolution is 100 ms.
+    let delay_rev = (t_ms as f64 / 1000.0 - BREAK_S) / 0.1;
+    eprintln!("broken at {BREAK_S} s, held at {t_ms} ms: {delay_rev:.2} revolutions; {alarm}");
+    assert!(
+        delay_rev > 0.0 && delay_rev <= 2.0,
+        "{delay_rev} revolutions"
+    );
+    // The same code on the host holds in the same period.
+    let s = Settings::default();
+    let prog = analysis::load_program(SLOT, &s).unwrap();
+    let host = acsim::run_monitored(&prog, &s, &slot_cut(true), Some(acs), true, &[]).unwrap();
+    let host_hold = host
+        .rows
+        .iter()
+        .find(|r| r.state.starts_with("hold"))
+        .map(|r| r.t_ms);
+    assert_eq!(host_hold, Some(t_ms));
+}
+
+/// The table 3.2 preset in an aluminium block: a slot at `depth_in` from X0.2 to `to_x` at F6
+/// (its 0.0508 mm per tooth at 1500 rpm).
+fn preset(depth_in: f64, to_x: f64) -> (String, Cut) {
+    let text = format!("G20 G90\nG0 X0.2 Y1\nG0 Z-{depth_in}\nG1 X{to_x} F6\nG0 Z0.1\nM2\n");
+    let stock = Stock::parse("blank X0 Y0 W4 H2 Z0\nhole X0.2 Y1 D0.625 Z-0.4\n").unwrap();
+    let cut = Cut {
+        tool: Tool {
+            diameter_mm: t::DIAMETER_MM,
+            flutes: t::FLUTES,
+            ..Tool::default()
+        },
+        material: Material::ALUMINIUM,
+        spindle_rpm: t::RPM,
+        modes: Some((vec![t::MODE], vec![t::MODE])),
+        ..Cut::steel(stock, 1)
+    };
+    (text, cut)
+}
+
+#[test]
+fn the_firmware_holds_the_chattering_cut_and_not_the_stable_one() {
+    // The threshold by the thesis' rule on the host: twice the largest amplitude of a
+    // chatter-free cut (2.54 mm) heard by the same detector.
+    let s = Settings::default();
+    let (text, cut) = preset(0.1, 2.0);
+    let prog = analysis::load_program(&text, &s).unwrap();
+    let listen = AcSettings {
+        chatter_threshold: f32::MAX,
+        flutes: t::FLUTES,
+        monitor_rpm: t::RPM as u32,
+        ..AcSettings::default()
+    };
+    let quiet = acsim::run_monitored(&prog, &s, &cut, Some(listen), true, &[])
+        .unwrap()
+        .spectra
+        .iter()
+        .map(|(_, sp)| sp.peak_amplitude)
+        .fold(0.0, f32::max);
+    let acs = AcSettings {
+        chatter_threshold: 2.0 * quiet,
+        ..listen
+    };
+    // 2.54 mm under QEMU (a shorter slot): no alarm.
+    let (text, cut) = preset(0.1, 0.8);
+    let stable = qemu_run("stable", &text, cut, acs);
+    cost(&stable, "2.54 mm");
+    assert_eq!(first_hold(&stable), None);
+    assert_eq!(stable.summary["completed"], true);
+    // 8.89 mm: held with the chatter alarm near the tool's mode.
+    let (text, cut) = preset(0.35, 2.0);
+    let deep = qemu_run("deep", &text, cut, acs);
+    cost(&deep, "8.89 mm");
+    let (t_ms, hold) = first_hold(&deep).expect("held");
+    let alarm = deep.summary["hold"]["alarm"].as_str().unwrap().to_string();
+    eprintln!("threshold {:.2}: held at {t_ms} ms: {alarm}", 2.0 * quiet);
+    assert!(hold.starts_with("chatter"), "{hold}");
+    let hz: f32 = alarm
+        .split(" at ")
+        .nth(1)
+        .and_then(|r| r.split(" Hz").next())
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{alarm}"));
+    assert!((hz / t::MODE.fn_hz as f32 - 1.0).abs() < 0.1, "{hz} Hz");
+}
