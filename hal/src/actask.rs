@@ -1,5 +1,6 @@
-//! The adaptive-control side of the QEMU app: the sampler (TIMER_2A hardware task, priority 2,
-//! below the frame) and the AC period (software task, priority 1, above the idle loader). The RTIC
+//! The adaptive-control side of the QEMU app: the sampler (TIMER_2A hardware task, priority 3,
+//! below the frame), the AC period (software task, priority 2) and the chatter monitor (software
+//! task, priority 1, above the idle loader: the AC period preempts its record's FFT). The RTIC
 //! app in `bin/millac-lm3s6965.rs` binds them; the bodies are the core's (`millac::rt::ac`, the
 //! same code the host simulation runs); this module adds what is the QEMU board's own: the sample
 //! queue between the two tasks, the overrun count and `ac.log` (its line format is
@@ -12,21 +13,26 @@ use core::sync::atomic::Ordering::Relaxed;
 
 use heapless::spsc::{Consumer, Producer};
 use millac::ac::{AcState, Alarm};
+use millac::monitor::chatter::Spectrum;
 use millac::ports::{Codes, ForceTorqueAdc};
 use millac::rt::ac::{self as body, AcPeriod};
+use millac::rt::monitor::ChatterTask;
 use millac::rt::Status;
 use millac::wire::{AcLogLine, LogState, AC_LOG_HEADER, SOUND_PER_SAMPLE};
 
 /// Sample queue slots (holds one less): three periods of samples at the defaults.
 pub const SAMPLE_QUEUE: usize = 32;
 
-/// One sample tick for the AC task: the conversion (None: missed) and the sound channel's codes
-/// since the previous tick (None: no microphone). A tick with neither is not queued.
-#[derive(Clone, Copy)]
-pub struct Tick {
-    pub codes: Option<Codes>,
-    pub sound: Option<[u16; SOUND_PER_SAMPLE]>,
-}
+/// Sound queue slots (holds one less): the sound codes of 63 samples (63 ms at 1 kHz), more than
+/// the chatter monitor needs for a record's FFT (about 7 ms of CPU under QEMU's clock, preempted
+/// by everything above it).
+pub const SOUND_QUEUE: usize = 64;
+/// Verdict queue slots from the chatter monitor to the AC task (holds one less).
+pub const VERDICT_QUEUE: usize = 4;
+
+/// One sample's sound codes (the microphone's, since the previous sample).
+pub type Sound = [u16; SOUND_PER_SAMPLE];
+
 /// Alarm queue slots from the AC task to the serial loader (holds one less; an alarm that does not
 /// fit is still in ac.log and in the AC state word).
 pub const ALARM_QUEUE: usize = 4;
@@ -46,7 +52,9 @@ impl LogSink for () {
 pub struct Sampler<D: ForceTorqueAdc> {
     status: &'static Status,
     adc: D,
-    queue: Producer<'static, Tick, SAMPLE_QUEUE>,
+    queue: Producer<'static, Codes, SAMPLE_QUEUE>,
+    /// The chatter monitor's sound queue (None: no chatter monitor).
+    sound: Option<Producer<'static, Sound, SOUND_QUEUE>>,
     per_period: u32,
 }
 
@@ -63,30 +71,78 @@ impl<D: ForceTorqueAdc> Sampler<D> {
     pub fn new(
         status: &'static Status,
         adc: D,
-        queue: Producer<'static, Tick, SAMPLE_QUEUE>,
+        queue: Producer<'static, Codes, SAMPLE_QUEUE>,
         per_period: u32,
     ) -> Self {
         Sampler {
             status,
             adc,
             queue,
+            sound: None,
             per_period,
         }
     }
 
-    /// One sample (the core's body), codes and sound into the queue (a full queue counts
-    /// `samples_dropped`; a missed conversion queues no codes, so the period sees no fresh
-    /// sample for it). Sampler task.
+    /// Queues the sound channel's codes for the chatter monitor. Init context.
+    pub fn with_sound(mut self, sound: Producer<'static, Sound, SOUND_QUEUE>) -> Self {
+        self.sound = Some(sound);
+        self
+    }
+
+    /// One sample (the core's body), codes into the AC task's queue and sound into the chatter
+    /// monitor's (a full queue counts `samples_dropped`; a missed conversion queues no codes, so
+    /// the period sees no fresh sample for it). Sampler task.
     pub fn sample(&mut self) -> Sampled {
         match body::sample(&mut self.adc, self.status, self.per_period) {
             body::Sampled::Lost { due } => Sampled::Lost(due),
             body::Sampled::Codes { codes, due, sound } => {
-                if (codes.is_some() || sound.is_some())
-                    && self.queue.enqueue(Tick { codes, sound }).is_err()
-                {
-                    self.status.samples_dropped.fetch_add(1, Relaxed);
+                if let Some(c) = codes {
+                    if self.queue.enqueue(c).is_err() {
+                        self.status.samples_dropped.fetch_add(1, Relaxed);
+                    }
+                }
+                if let (Some(q), Some(s)) = (self.sound.as_mut(), sound) {
+                    if q.enqueue(s).is_err() {
+                        self.status.samples_dropped.fetch_add(1, Relaxed);
+                    }
                 }
                 Sampled::Ok(due)
+            }
+        }
+    }
+}
+
+/// The chatter monitor's task: the sound the sampler queued into the detector; each record's
+/// verdict to the AC task (`millac::rt::monitor`).
+pub struct MonitorTask {
+    status: &'static Status,
+    chatter: ChatterTask,
+    sound: Consumer<'static, Sound, SOUND_QUEUE>,
+    verdicts: Producer<'static, Spectrum, VERDICT_QUEUE>,
+}
+
+impl MonitorTask {
+    pub fn new(
+        status: &'static Status,
+        chatter: ChatterTask,
+        sound: Consumer<'static, Sound, SOUND_QUEUE>,
+        verdicts: Producer<'static, Spectrum, VERDICT_QUEUE>,
+    ) -> Self {
+        MonitorTask {
+            status,
+            chatter,
+            sound,
+            verdicts,
+        }
+    }
+
+    /// Everything queued since the last run; a record's spectrum goes to the AC task (a full
+    /// verdict queue drops it: the AC task has four records' verdicts it has not read yet).
+    /// Monitor task.
+    pub fn run(&mut self) {
+        while let Some(s) = self.sound.dequeue() {
+            if let Some(v) = self.chatter.sound(&s, self.status) {
+                let _ = self.verdicts.enqueue(v);
             }
         }
     }
@@ -96,7 +152,9 @@ impl<D: ForceTorqueAdc> Sampler<D> {
 pub struct AcTask<W: LogSink> {
     status: &'static Status,
     period: AcPeriod,
-    samples: Consumer<'static, Tick, SAMPLE_QUEUE>,
+    samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
+    /// The chatter monitor's verdicts (None: no chatter monitor).
+    verdicts: Option<Consumer<'static, Spectrum, VERDICT_QUEUE>>,
     alarms: Producer<'static, Alarm, ALARM_QUEUE>,
     log: W,
     per_period: u32,
@@ -117,7 +175,7 @@ impl<W: LogSink> AcTask<W> {
     pub fn new(
         status: &'static Status,
         period: AcPeriod,
-        samples: Consumer<'static, Tick, SAMPLE_QUEUE>,
+        samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
         alarms: Producer<'static, Alarm, ALARM_QUEUE>,
         mut log: W,
     ) -> Self {
@@ -128,11 +186,18 @@ impl<W: LogSink> AcTask<W> {
             per_period: period.per_period(),
             period,
             samples,
+            verdicts: None,
             alarms,
             log,
             sample_hz,
             late: 0,
         }
+    }
+
+    /// Takes the chatter monitor's verdicts. Init context.
+    pub fn with_verdicts(mut self, verdicts: Consumer<'static, Spectrum, VERDICT_QUEUE>) -> Self {
+        self.verdicts = Some(verdicts);
+        self
     }
 
     /// Samples per AC period.
@@ -142,12 +207,12 @@ impl<W: LogSink> AcTask<W> {
 
     /// One AC period with deadline base `due` (the sample count when it was spawned). AC task.
     pub fn run(&mut self, due: u32) -> Period {
-        while let Some(tick) = self.samples.dequeue() {
-            if let Some(c) = tick.codes {
-                self.period.sample(c);
-            }
-            if let Some(sound) = tick.sound {
-                self.period.sound(&sound);
+        while let Some(codes) = self.samples.dequeue() {
+            self.period.sample(codes);
+        }
+        if let Some(v) = self.verdicts.as_mut() {
+            while let Some(s) = v.dequeue() {
+                self.period.heard(s);
             }
         }
         let p = self.period.run(self.status);

@@ -380,8 +380,8 @@ pub fn run_with_faults(
 }
 
 /// As [`run_with_faults`]: the AC period's process monitors run as the AC settings say (`$266`
-/// chatter threshold, `$268` breakage, `$267` flutes; `millac::rt::ac::AcPeriod::with_monitors`,
-/// the firmware's code) at the cut's spindle speed (the program's S, as the firmware's tape
+/// chatter threshold, `$268` breakage, `$267` flutes; `millac::rt::ac::AcPeriod::with_monitors`
+/// and `millac::rt::monitor::ChatterTask`, the firmware's code) at the cut's spindle speed (the program's S, as the firmware's tape
 /// tells the monitors). The monitors need the AC (`ac`).
 pub fn run_monitored(
     prog: &[ProgBlock],
@@ -418,6 +418,11 @@ pub fn run_monitored(
                 p.without_anti_windup()
             })
         }
+        None => None,
+    };
+    let mut chatter = match ac {
+        Some(s) => millac::rt::monitor::ChatterTask::from_settings(&s)
+            .map_err(|e| anyhow!("chatter settings: {}", e.message()))?,
         None => None,
     };
     let mut adc = HostAdc {
@@ -485,16 +490,13 @@ pub fn run_monitored(
             if let (Some(ac), Some(codes)) = (period.as_mut(), codes) {
                 ac.sample(codes);
             }
-            if let (Some(ac), Some(sound)) = (period.as_mut(), sound) {
-                ac.sound(&sound);
-                let last = ac.chatter().and_then(|m| m.last);
-                if let Some(spec) = last {
-                    if out
-                        .spectra
-                        .last()
-                        .is_none_or(|(_, s)| s.cycle != spec.cycle)
-                    {
-                        out.spectra.push((next_sample as f64 * 1e-9, spec));
+            // The chatter monitor's task (its own in the firmware, below the AC task): each
+            // record's spectrum, a verdict for the AC period's next run.
+            if let (Some(m), Some(sound)) = (chatter.as_mut(), sound) {
+                if let Some(spec) = m.sound(&sound, &status) {
+                    out.spectra.push((next_sample as f64 * 1e-9, spec));
+                    if let Some(ac) = period.as_mut() {
+                        ac.heard(spec);
                     }
                 }
             }

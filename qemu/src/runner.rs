@@ -39,7 +39,8 @@ pub fn execute(text: &str, out: &Path, shift: u32) -> Result<Capture> {
 }
 
 /// Builds the firmware, writes program.nc and returns the capture spec (handlers: TIMER_0A frame,
-/// TIMER_1A pulse end, TIMER_2A sampler, SSI0 the AC period's dispatcher).
+/// TIMER_1A pulse end, TIMER_2A sampler, SSI0 the AC period's dispatcher, I2C0 the chatter
+/// monitor's).
 fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
     // The firmware would run the program on a stored record (see `serve`), while the checks here
     // assume the defaults: refuse rather than report false mismatches, and delete nothing.
@@ -61,6 +62,7 @@ fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
         HandlerSpec::from_elf(&elf, "TIMER_1A")?,
         HandlerSpec::from_elf(&elf, "TIMER_2A")?,
         HandlerSpec::from_elf(&elf, "SSI0")?,
+        HandlerSpec::from_elf(&elf, "I2C0")?,
     ];
     Ok(spec)
 }

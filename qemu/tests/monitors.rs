@@ -58,9 +58,11 @@ fn qemu_run(name: &str, text: &str, cut: Cut, acs: AcSettings) -> runner::Outcom
 fn cost(o: &runner::Outcome, name: &str) {
     let cap = o.capture.as_ref().unwrap();
     eprintln!(
-        "{name}: AC period instructions {} over {} periods",
+        "{name}: AC period instructions {} over {} periods; chatter monitor task {} over {} runs",
         runner::stats(&cap.handlers[3].1),
-        o.ac_log.len()
+        o.ac_log.len(),
+        runner::stats(&cap.handlers[4].1),
+        cap.handlers[4].1.len(),
     );
     let last = o.ac_log.last().expect("AC periods ran");
     assert_eq!(last.overruns, 0, "{name}: AC periods overran");

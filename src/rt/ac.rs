@@ -51,48 +51,17 @@ use core::sync::atomic::Ordering::Relaxed;
 
 use super::status::Status;
 use crate::ac::{achieved_feed, AcController, AcOutput, AcState};
-use crate::monitor::chatter::{ChatterDetector, ChatterSettings, Spectrum};
+use crate::monitor::chatter::Spectrum;
 use crate::monitor::{Breakage, BreakageDetector, BreakageSettings};
 use crate::ports::{Codes, Conversion, ForceTorqueAdc};
 use crate::settings::Settings;
 use crate::wire::SOUND_PER_SAMPLE;
-
-/// The sound channel's code of silence (a 12-bit ADC's mid-scale): the chatter detector takes
-/// code - this.
-pub const SOUND_MIDSCALE: f32 = 2048.0;
-
-/// The chatter monitor of an AC period ([`AcPeriod::with_chatter`]): the detector, the spindle it
-/// judges for, and the last record's verdict not yet acted on.
-pub struct ChatterMonitor {
-    pub detector: ChatterDetector,
-    pub rpm: u32,
-    pub flutes: u32,
-    pending: Option<Spectrum>,
-    /// Every record's spectrum so far: (cycle, peak Hz, amplitude), the last one.
-    pub last: Option<Spectrum>,
-}
 
 /// The breakage monitor of an AC period ([`AcPeriod::with_breakage`]): the detector fed every
 /// sample's resultant force, and a declaration not yet acted on.
 pub struct BreakageMonitor {
     pub detector: BreakageDetector,
     pending: Option<Breakage>,
-}
-
-/// Why the process monitors could not be set up from the settings.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MonitorError {
-    Chatter(crate::monitor::chatter::ChatterSettingsError),
-    Breakage(crate::monitor::BreakageSettingsError),
-}
-
-impl MonitorError {
-    pub fn message(&self) -> &'static str {
-        match self {
-            MonitorError::Chatter(e) => e.message(),
-            MonitorError::Breakage(e) => e.message(),
-        }
-    }
 }
 
 /// AC periods in hold with the encoder unchanged before a run stops (1 s at 10 ms).
@@ -161,8 +130,8 @@ pub struct AcPeriod {
     anti_windup: bool,
     last: [i32; 3],
     still: u32,
-    /// Chatter detection on the sound channel (None: off).
-    chatter: Option<ChatterMonitor>,
+    /// A chatter verdict of the monitor task not yet acted on ([`AcPeriod::heard`]).
+    chatter: Option<Spectrum>,
     /// Tool breakage detection on the force (None: off).
     breakage: Option<BreakageMonitor>,
     /// The spindle speed the monitors judge for (`Status::spindle_rpm`, or `$269` until one is
@@ -201,36 +170,26 @@ impl AcPeriod {
         }
     }
 
-    /// The process monitors the AC settings turn on (issue 10): chatter detection when `$266` (the
-    /// threshold) is above 0, breakage detection when `$268` is 1, both for `$267` flutes at
-    /// `$269` rpm until the machine is commanded a speed (`Status::spindle_rpm`). The firmware and
-    /// the host simulation build them with this one function. Init context.
-    pub fn with_monitors(mut self, s: &crate::ac::AcSettings) -> Result<Self, MonitorError> {
-        if s.chatter_threshold > 0.0 {
-            self = self
-                .with_chatter(
-                    ChatterSettings {
-                        threshold: s.chatter_threshold,
-                        ..ChatterSettings::default()
-                    },
-                    s.monitor_rpm,
-                    s.flutes,
-                )
-                .map_err(MonitorError::Chatter)?;
+    /// The breakage monitor when the AC settings turn it on (`$268`), for `$267` flutes at
+    /// `$269` rpm until the machine is commanded a speed (`Status::spindle_rpm`); the firmware
+    /// and the host simulation build it with this one function. (Chatter is judged by its own
+    /// task, `crate::rt::monitor`, whose verdicts come in through [`AcPeriod::heard`].) Init
+    /// context.
+    pub fn with_monitors(
+        self,
+        s: &crate::ac::AcSettings,
+    ) -> Result<Self, crate::monitor::BreakageSettingsError> {
+        if !s.breakage {
+            return Ok(self);
         }
-        if s.breakage {
-            self = self
-                .with_breakage(
-                    BreakageSettings {
-                        sample_hz: s.sample_hz,
-                        ..BreakageSettings::default()
-                    },
-                    s.monitor_rpm,
-                    s.flutes,
-                )
-                .map_err(MonitorError::Breakage)?;
-        }
-        Ok(self)
+        self.with_breakage(
+            BreakageSettings {
+                sample_hz: s.sample_hz,
+                ..BreakageSettings::default()
+            },
+            s.monitor_rpm,
+            s.flutes,
+        )
     }
 
     /// Judges the resultant force of every sample for tool breakage (`crate::monitor::breakage`)
@@ -266,9 +225,6 @@ impl AcPeriod {
             return;
         }
         self.monitor_rpm = rpm;
-        if let Some(m) = self.chatter.as_mut() {
-            m.rpm = rpm;
-        }
         if let Some(b) = self.breakage.as_mut() {
             let teeth =
                 u8::try_from(self.flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1);
@@ -276,49 +232,12 @@ impl AcPeriod {
         }
     }
 
-    /// Judges the sound channel for chatter with `settings` at `rpm` and `flutes` (the tooth
-    /// harmonics it leaves out): a record above the threshold holds the feed at the next period
-    /// with `Alarm::Chatter` (the thesis' first reaction; the depth reduction and the re-planned
-    /// passes are still to come). Init context.
-    pub fn with_chatter(
-        mut self,
-        settings: ChatterSettings,
-        rpm: u32,
-        flutes: u32,
-    ) -> Result<Self, crate::monitor::chatter::ChatterSettingsError> {
-        self.chatter = Some(ChatterMonitor {
-            detector: ChatterDetector::new(settings)?,
-            rpm,
-            flutes,
-            pending: None,
-            last: None,
-        });
-        self.monitor_rpm = rpm;
-        self.flutes = flutes;
-        Ok(self)
-    }
-
-    /// The chatter monitor, if on.
-    pub fn chatter(&self) -> Option<&ChatterMonitor> {
-        self.chatter.as_ref()
-    }
-
-    /// The sound channel's codes of one sample (oldest first) into the chatter detector. AC task
-    /// (from the sampler's queue) or host.
-    pub fn sound(&mut self, codes: &[u16]) {
-        let Some(m) = self.chatter.as_mut() else {
-            return;
-        };
-        for &c in codes {
-            if let Some(s) = m
-                .detector
-                .push(f32::from(c) - SOUND_MIDSCALE, m.rpm, m.flutes)
-            {
-                m.last = Some(s);
-                if s.chatter && m.pending.is_none() {
-                    m.pending = Some(s);
-                }
-            }
+    /// A record's spectrum from the chatter monitor (`crate::rt::monitor::ChatterTask`): a
+    /// record above its threshold holds the feed at the next period with `Alarm::Chatter` (the
+    /// thesis' first reaction). AC task (from the monitor task's verdicts) or host.
+    pub fn heard(&mut self, s: Spectrum) {
+        if s.chatter && self.chatter.is_none() {
+            self.chatter = Some(s);
         }
     }
 
@@ -380,14 +299,11 @@ impl AcPeriod {
                 status.spindle_stop.store(true, Relaxed);
             }
         }
-        if let Some(s) = self.chatter.as_mut().and_then(|m| m.pending.take()) {
+        if let Some(s) = self.chatter.take() {
             let a = crate::ac::Alarm::Chatter {
                 freq_hz: s.peak_hz,
                 amplitude: s.peak_amplitude,
-                threshold: self
-                    .chatter
-                    .as_ref()
-                    .map_or(0.0, |m| m.detector.settings().threshold),
+                threshold: self.ctl.settings().chatter_threshold,
             };
             if self.ctl.hold(a) {
                 out.state = AcState::Hold(a);

@@ -11,6 +11,7 @@
 pub mod ac;
 pub mod isr;
 pub mod loader;
+pub mod monitor;
 pub mod status;
 #[cfg(test)]
 mod tests_loader;

@@ -36,14 +36,14 @@ mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::{AcController, Alarm};
     use millac::nc::{Block, Frame, FrameConfig};
-    use millac::ports::{BlockSource, SampleClock, TimerClock};
+    use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
     use millac::protocol::rx::{RxIsr, RxShared};
     use millac::protocol::settings::record::LoadStatus;
     use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
     use millac::rt::ac::AcPeriod;
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
-    use millac_hal::actask::{AcTask, LogSink, Sampled, Sampler, Tick, ALARM_QUEUE, SAMPLE_QUEUE};
+    use millac_hal::actask::{AcTask, LogSink, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use stm32f4xx_hal::prelude::*;
     #[cfg(not(feature = "qemu"))]
     use stm32f4xx_hal::rcc::Config;
@@ -106,7 +106,7 @@ mod app {
 
     #[init(local = [
         queue: Queue<Block, QUEUE> = Queue::new(),
-        samples: Queue<Tick, SAMPLE_QUEUE> = Queue::new(),
+        samples: Queue<Codes, SAMPLE_QUEUE> = Queue::new(),
         serial_rx: RxShared = RxShared::new(),
         serial_tx: Queue<u8, TX_QUEUE> = Queue::new(),
         alarms: Queue<Alarm, ALARM_QUEUE> = Queue::new(),
@@ -196,8 +196,8 @@ mod app {
         let period_samples = ac_settings.samples_per_period();
         let ac = if table.settings.ac_enabled {
             match AcController::new(ac_settings) {
-                // The process monitors the settings turn on ($266, $268): breakage on the
-                // force channels; chatter needs a sound channel this board does not have.
+                // The breakage monitor when the settings turn it on ($268), on the force
+                // channels; chatter ($266) needs a sound channel this board does not have.
                 Ok(ctl) => match AcPeriod::new(ctl, settings, true, &STATUS)
                     .with_monitors(&ac_settings)
                 {

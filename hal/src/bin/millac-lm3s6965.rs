@@ -6,9 +6,11 @@
 //!
 //! # Adaptive control (only when the host serves the simulated ADC, see `millac_hal::simadc`)
 //!
-//! Priorities: frame and pulse-end 3; the sampler (TIMER_2A, `sample_hz`) 2; the AC period
-//! (software task, dispatcher SSI0, spawned by the sampler every `period_ms`) 1; the idle loader
-//! 0. The pulse-end ISR counts the pulses on the pins into the encoder counts (`STATUS.encoder`,
+//! Priorities: frame and pulse-end 4; the sampler (TIMER_2A, `sample_hz`) and UART0 3; the AC
+//! period (software task, dispatcher SSI0, spawned by the sampler every `period_ms`) 2; the
+//! chatter monitor (software task, dispatcher I2C0, spawned with the AC period when `$266` turns
+//! it on: a record's FFT is most of a 10 ms period in soft-float, so it runs below the AC period,
+//! which preempts it) 1; the idle loader 0. The pulse-end ISR counts the pulses on the pins into the encoder counts (`STATUS.encoder`,
 //! a `millac::rt::Status`); the sampler exchanges them for ADC codes with the host in lockstep and
 //! queues them; the AC task runs the `AcController` on them, writes the feed cap
 //! (`STATUS.feed_cap`, when enabled) and `ac.log`, reports `alarm: ..` on a hold and stops the run
@@ -127,7 +129,9 @@ fn panic(info: &PanicInfo) -> ! {
     exit(false)
 }
 
-#[rtic::app(device = lm3s6965, peripherals = false, dispatchers = [SSI0])]
+// RTIC gives the dispatchers to the software tasks' priorities from the lowest up: I2C0 the
+// chatter monitor (1), SSI0 the AC period (2; the host's instruction counts name SSI0).
+#[rtic::app(device = lm3s6965, peripherals = false, dispatchers = [I2C0, SSI0])]
 mod app {
     use core::sync::atomic::Ordering::Relaxed;
 
@@ -136,17 +140,22 @@ mod app {
     use millac::ac::Alarm;
     use millac::ac::{AcController, FeedCeiling};
     use millac::gcode::tape::Tape;
+    use millac::monitor::chatter::Spectrum;
     use millac::nc::{Block, Frame, FrameConfig};
-    use millac::ports::{BlockSource, SampleClock, TimerClock};
+    use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
     use millac::protocol::rx::{RxIsr, RxShared};
     use millac::protocol::settings::record::{LoadStatus, RecordError};
     use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
     use millac::rt::ac::AcPeriod;
+    use millac::rt::monitor::ChatterTask;
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
     use millac::wire::FLAG_AC_ENABLED;
     use millac::Settings;
-    use millac_hal::actask::{AcTask, Sampled, Sampler, Tick, ALARM_QUEUE, SAMPLE_QUEUE};
+    use millac_hal::actask::{
+        AcTask, MonitorTask, Sampled, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE,
+        VERDICT_QUEUE,
+    };
     use millac_hal::lm3s6965 as board;
     use millac_hal::semihost;
     use millac_hal::simadc::{LogFile, SimAdc};
@@ -189,6 +198,8 @@ mod app {
         ceiling: Option<FeedCeiling>,
         sampler: Option<Sampler<SimAdc>>,
         ac: Option<AcTask<LogFile>>,
+        /// The chatter monitor (`$266` above 0 and the simulated ADC served).
+        monitor: Option<MonitorTask>,
         /// UART0 task's ends: received bytes into the protocol's ring (realtime bytes taken out
         /// there), bytes to send out.
         uart_rx: RxIsr<'static>,
@@ -202,7 +213,9 @@ mod app {
 
     #[init(local = [
         queue: Queue<Block, QUEUE> = Queue::new(),
-        samples: Queue<Tick, SAMPLE_QUEUE> = Queue::new(),
+        samples: Queue<Codes, SAMPLE_QUEUE> = Queue::new(),
+        sound: Queue<Sound, SOUND_QUEUE> = Queue::new(),
+        verdicts: Queue<Spectrum, VERDICT_QUEUE> = Queue::new(),
         serial_rx: RxShared = RxShared::new(),
         serial_tx: Queue<u8, TX_QUEUE> = Queue::new(),
         alarms: Queue<Alarm, ALARM_QUEUE> = Queue::new(),
@@ -232,7 +245,7 @@ mod app {
         B::init(reloads.feed, pulse);
 
         // The simulated ADC and the AC, if the host serves them (blocks until it is ready).
-        let (mut sampler, mut ac, mut ceiling) = (None, None, None);
+        let (mut sampler, mut ac, mut ceiling, mut monitor) = (None, None, None, None);
         let (alarm_tx, ac_alarms) = cx.local.alarms.split();
         if let Some((adc, flags)) = SimAdc::open() {
             let ac_settings = table.settings.ac;
@@ -248,14 +261,27 @@ mod app {
             if enabled {
                 ceiling = Some(ac_settings.ceiling);
             }
-            // The process monitors the settings turn on ($266 chatter, $268 breakage).
+            // The breakage monitor the settings turn on ($268), in the AC period.
             let period =
                 match AcPeriod::new(ctl, settings, enabled, &STATUS).with_monitors(&ac_settings) {
                     Ok(p) => p,
-                    Err(e) => fail(format_args!("monitor settings: {}", e.message())),
+                    Err(e) => fail(format_args!("breakage settings: {}", e.message())),
                 };
-            let task = AcTask::new(&STATUS, period, rx, alarm_tx, log);
-            sampler = Some(Sampler::new(&STATUS, adc, tx, task.per_period()));
+            let mut task = AcTask::new(&STATUS, period, rx, alarm_tx, log);
+            let mut s = Sampler::new(&STATUS, adc, tx, task.per_period());
+            // The chatter monitor ($266), its own task.
+            match ChatterTask::from_settings(&ac_settings) {
+                Ok(Some(c)) => {
+                    let (sound_tx, sound_rx) = cx.local.sound.split();
+                    let (verdict_tx, verdict_rx) = cx.local.verdicts.split();
+                    s = s.with_sound(sound_tx);
+                    task = task.with_verdicts(verdict_rx);
+                    monitor = Some(MonitorTask::new(&STATUS, c, sound_rx, verdict_tx));
+                }
+                Ok(None) => {}
+                Err(e) => fail(format_args!("chatter settings: {}", e.message())),
+            }
+            sampler = Some(s);
             ac = Some(task);
             board::sample_timer_start(B::reload(clocks_for_hz(B::TIMER_HZ, ac_settings.sample_hz)));
         }
@@ -284,12 +310,13 @@ mod app {
                 ceiling,
                 sampler,
                 ac,
+                monitor,
             },
         )
     }
 
-    /// The frame ISR: highest priority (3). No locks, logging, allocation or panics.
-    #[task(binds = TIMER_0A, priority = 3, local = [frame, consumer])]
+    /// The frame ISR: highest priority (4). No locks, logging, allocation or panics.
+    #[task(binds = TIMER_0A, priority = 4, local = [frame, consumer])]
     fn frame(cx: frame::Context) {
         let src = &mut Source(cx.local.consumer);
         cx.local.frame.run(&mut B, &mut B, &mut B, src, &STATUS);
@@ -313,7 +340,7 @@ mod app {
 
     /// UART0 (serial mode only: its interrupts are enabled by the loader): received bytes to the
     /// loader, queued bytes out. Priority 2, below the frame.
-    #[task(binds = UART0, priority = 2, local = [uart_rx, uart_tx])]
+    #[task(binds = UART0, priority = 3, local = [uart_rx, uart_tx])]
     fn uart0(cx: uart0::Context) {
         let rx = cx.local.uart_rx;
         // A byte the ring cannot take is counted there; the loader raises the overflow alarm.
@@ -323,14 +350,15 @@ mod app {
     }
 
     /// The pulse-end ISR: same priority as the frame, so it runs after the frame has finished.
-    #[task(binds = TIMER_1A, priority = 3)]
+    #[task(binds = TIMER_1A, priority = 4)]
     fn pulse_end(_: pulse_end::Context) {
         rt::pulse_end(&mut B, &mut B, &STATUS);
     }
 
     /// The sampler: one lockstep exchange with the host's simulated ADC per Timer 2 period,
-    /// priority 2 (below the frame). Spawns the AC period every N samples.
-    #[task(binds = TIMER_2A, priority = 2, local = [sampler])]
+    /// priority 3 (below the frame). Spawns the AC period (and the chatter monitor) every N
+    /// samples.
+    #[task(binds = TIMER_2A, priority = 3, local = [sampler])]
     fn sample(cx: sample::Context) {
         SampleClock::ack(&mut B);
         let Some(s) = cx.local.sampler.as_mut() else {
@@ -350,11 +378,23 @@ mod app {
             if ac_period::spawn(due).is_err() {
                 STATUS.ac_missed.fetch_add(1, Relaxed);
             }
+            // Still busy with a record's FFT: it drains the queue when it is done (the queue
+            // holds 63 ms of sound).
+            let _ = monitor::spawn();
         }
     }
 
-    /// The AC period: priority 1 (above the idle loader, below the sampler).
-    #[task(priority = 1, local = [ac])]
+    /// The chatter monitor: priority 1 (above the idle loader, below the AC period). Without
+    /// a chatter monitor it returns at once.
+    #[task(priority = 1, local = [monitor])]
+    async fn monitor(cx: monitor::Context) {
+        if let Some(m) = cx.local.monitor.as_mut() {
+            m.run();
+        }
+    }
+
+    /// The AC period: priority 2 (above the chatter monitor, below the sampler).
+    #[task(priority = 2, local = [ac])]
     async fn ac_period(cx: ac_period::Context, due: u32) {
         let Some(task) = cx.local.ac.as_mut() else {
             return;
