@@ -10,6 +10,30 @@ use millac::ac::AcSettings;
 use millac::monitor::{Breakage, BreakageDetector, BreakageSettings};
 use millac::Settings;
 
+/// The breakage slot (`programs/breakage-slot.nc`): a full slot 0.3 in deep in steel at F8, so
+/// that a broken tooth (which doubles the next tooth's chip) stays below the AC's overload hold.
+pub const SLOT: &str = include_str!("../programs/breakage-slot.nc");
+
+/// The slot's cut (stock `programs/entry-exit.stock`) with 5/0/-3/0 um of run-out; tooth 1
+/// breaks at `break_s` s of virtual time, or never.
+pub fn slot_cut(break_s: Option<f64>) -> Cut {
+    use millac_plant::teeth::{Damage, ToothEvent};
+    let stock = millac_plant::Stock::parse(include_str!("../programs/entry-exit.stock"))
+        .expect("entry-exit.stock parses");
+    Cut {
+        runout_mm: vec![0.005, 0.0, -0.003, 0.0],
+        tooth_events: break_s
+            .map(|t_s| ToothEvent {
+                tooth: 1,
+                t_s,
+                damage: Damage::Broken,
+            })
+            .into_iter()
+            .collect(),
+        ..Cut::steel(stock, 1).at_program_rpm(SLOT, &Settings::default())
+    }
+}
+
 /// The detector's verdict on a run: the first breakage declared and when (s of virtual time, the
 /// sample's), and the average force of every tooth period it judged.
 #[derive(Clone, Debug)]

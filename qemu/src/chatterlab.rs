@@ -9,6 +9,29 @@ use millac_plant::chatter::{thesis_table_3_2 as t, Listener, Microphone};
 use plotters::prelude::*;
 use std::path::Path;
 
+/// The table 3.2 preset as a simulated cut of a program: a slot at `depth_in` from X0.2 to
+/// `to_x` at F6 (the preset's 0.0508 mm per tooth at 1500 rpm) in an aluminium block, started in
+/// a drilled hole; the tool flexible with the preset's mode in X and Y, heard by the microphone.
+/// The program's text and the cut (for `acsim` and the QEMU runs alike).
+pub fn preset_slot(depth_in: f64, to_x: f64) -> (String, crate::acsim::Cut) {
+    use millac_plant::{Material, Stock, Tool};
+    let text = format!("G20 G90\nG0 X0.2 Y1\nG0 Z-{depth_in}\nG1 X{to_x} F6\nG0 Z0.1\nM2\n");
+    let stock = Stock::parse("blank X0 Y0 W4 H2 Z0\nhole X0.2 Y1 D0.625 Z-0.4\n")
+        .expect("the preset's stock parses");
+    let cut = crate::acsim::Cut {
+        tool: Tool {
+            diameter_mm: t::DIAMETER_MM,
+            flutes: t::FLUTES,
+            ..Tool::default()
+        },
+        material: Material::ALUMINIUM,
+        spindle_rpm: t::RPM,
+        modes: Some((vec![t::MODE], vec![t::MODE])),
+        ..crate::acsim::Cut::steel(stock, 1)
+    };
+    (text, cut)
+}
+
 /// Sound sample rate, Hz (the detector's default).
 pub const SOUND_HZ: u32 = 5000;
 

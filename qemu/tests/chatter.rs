@@ -41,25 +41,14 @@ fn table_3_2_chatter_is_detected_within_two_cycles_and_the_stable_cut_never() {
 /// 0.0508 mm per tooth at 1500 rpm), run on the host with the AC (default settings) and the chatter
 /// monitor at `threshold` (None: no monitor); `modes` false: a rigid tool.
 fn preset_run(depth_in: f64, threshold: Option<f32>, modes: bool) -> millac_qemu::acsim::HostRun {
-    use millac_plant::{Material, Stock, Tool};
     use millac_qemu::{acsim, analysis};
     let s = millac::Settings::default();
-    let prog = analysis::load_program(
-        &format!("G20 G90\nG0 X0.2 Y1\nG0 Z-{depth_in}\nG1 X2 F6\nG0 Z0.1\nM2\n"),
-        &s,
-    )
-    .unwrap();
-    let stock = Stock::parse("blank X0 Y0 W4 H2 Z0\nhole X0.2 Y1 D0.625 Z-0.4\n").unwrap();
+    let (text, cut) = millac_qemu::chatterlab::preset_slot(depth_in, 2.0);
+    let prog = analysis::load_program(&text, &s).unwrap();
+    // modes false: the same cut with a rigid tool.
     let cut = acsim::Cut {
-        tool: Tool {
-            diameter_mm: t::DIAMETER_MM,
-            flutes: t::FLUTES,
-            ..Tool::default()
-        },
-        material: Material::ALUMINIUM,
-        spindle_rpm: t::RPM,
-        modes: modes.then(|| (vec![t::MODE], vec![t::MODE])),
-        ..acsim::Cut::steel(stock, 1)
+        modes: if modes { cut.modes } else { None },
+        ..cut
     };
     // The monitor as the firmware builds it from its settings ($266 threshold, $267 flutes).
     let acs = millac::ac::AcSettings {

@@ -9,9 +9,9 @@
 use millac::ac::AcSettings;
 use millac::Settings;
 use millac_plant::chatter::thesis_table_3_2 as t;
-use millac_plant::teeth::{Damage, ToothEvent};
-use millac_plant::{Material, Stock, Tool};
 use millac_qemu::acsim::{self, Cut};
+use millac_qemu::breaklab::{slot_cut, SLOT};
+use millac_qemu::chatterlab::preset_slot as preset;
 use millac_qemu::{analysis, runner};
 use std::path::PathBuf;
 
@@ -21,27 +21,8 @@ fn out_dir(name: &str) -> PathBuf {
     d
 }
 
-const SLOT: &str = include_str!("../programs/breakage-slot.nc");
 /// When tooth 1 breaks in the slot (s of virtual time; the tool is in the full slot from 0.5 s).
 const BREAK_S: f64 = 6.0;
-
-/// The slot in steel with 5/0/-3/0 um of run-out, tooth 1 broken at `BREAK_S` or sound.
-fn slot_cut(broken: bool) -> Cut {
-    let stock = Stock::parse(include_str!("../programs/entry-exit.stock")).unwrap();
-    Cut {
-        runout_mm: vec![0.005, 0.0, -0.003, 0.0],
-        tooth_events: if broken {
-            vec![ToothEvent {
-                tooth: 1,
-                t_s: BREAK_S,
-                damage: Damage::Broken,
-            }]
-        } else {
-            Vec::new()
-        },
-        ..Cut::steel(stock, 1).at_program_rpm(SLOT, &Settings::default())
-    }
-}
 
 /// The firmware's run (QEMU) with the AC settings `acs`: its outcome.
 fn qemu_run(name: &str, text: &str, cut: Cut, acs: AcSettings) -> runner::Outcome {
@@ -82,12 +63,12 @@ fn a_broken_tooth_is_held_by_the_firmware_within_two_revolutions_as_on_the_host(
         ..AcSettings::default()
     };
     // A sound tool: the whole slot, no alarm.
-    let sound = qemu_run("sound", SLOT, slot_cut(false), acs);
+    let sound = qemu_run("sound", SLOT, slot_cut(None), acs);
     cost(&sound, "sound tool");
     assert_eq!(first_hold(&sound), None);
     assert_eq!(sound.summary["completed"], true, "{}", sound.summary);
     // Tooth 1 breaks: held with the breakage alarm, the residuals named.
-    let broken = qemu_run("broken", SLOT, slot_cut(true), acs);
+    let broken = qemu_run("broken", SLOT, slot_cut(Some(BREAK_S)), acs);
     cost(&broken, "broken tooth");
     let (t_ms, text) = first_hold(&broken).expect("held");
     assert!(text.contains("tool breakage"), "{text}");
@@ -111,32 +92,14 @@ fn a_broken_tooth_is_held_by_the_firmware_within_two_revolutions_as_on_the_host(
     // The same code on the host holds in the same period.
     let s = Settings::default();
     let prog = analysis::load_program(SLOT, &s).unwrap();
-    let host = acsim::run_monitored(&prog, &s, &slot_cut(true), Some(acs), true, &[]).unwrap();
+    let host =
+        acsim::run_monitored(&prog, &s, &slot_cut(Some(BREAK_S)), Some(acs), true, &[]).unwrap();
     let host_hold = host
         .rows
         .iter()
         .find(|r| r.state.starts_with("hold"))
         .map(|r| r.t_ms);
     assert_eq!(host_hold, Some(t_ms));
-}
-
-/// The table 3.2 preset in an aluminium block: a slot at `depth_in` from X0.2 to `to_x` at F6
-/// (its 0.0508 mm per tooth at 1500 rpm).
-fn preset(depth_in: f64, to_x: f64) -> (String, Cut) {
-    let text = format!("G20 G90\nG0 X0.2 Y1\nG0 Z-{depth_in}\nG1 X{to_x} F6\nG0 Z0.1\nM2\n");
-    let stock = Stock::parse("blank X0 Y0 W4 H2 Z0\nhole X0.2 Y1 D0.625 Z-0.4\n").unwrap();
-    let cut = Cut {
-        tool: Tool {
-            diameter_mm: t::DIAMETER_MM,
-            flutes: t::FLUTES,
-            ..Tool::default()
-        },
-        material: Material::ALUMINIUM,
-        spindle_rpm: t::RPM,
-        modes: Some((vec![t::MODE], vec![t::MODE])),
-        ..Cut::steel(stock, 1)
-    };
-    (text, cut)
 }
 
 #[test]
