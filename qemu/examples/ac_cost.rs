@@ -131,7 +131,7 @@ fn monitors() -> Result<()> {
     };
     let (text, cut) = chatterlab::preset_slot(0.1, 2.0);
     let prog = analysis::load_program(&text, &s).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let quiet = acsim::run_monitored(&prog, &s, &cut, Some(listen), true, &[])?
+    let quiet = acsim::run_with_faults(&prog, &s, &cut, Some(listen), true, &[])?
         .spectra
         .iter()
         .map(|(_, sp)| sp.peak_amplitude)

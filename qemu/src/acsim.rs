@@ -367,23 +367,12 @@ pub fn run_with(
 
 /// As [`run_with`], with sensor faults injected into the codes the controller samples (see
 /// [`crate::fault`]; the zero-force codes are the AC calibration's offsets). The true force and
-/// torque of `HostRun::samples` are the process's.
+/// torque of `HostRun::samples` are the process's. The process monitors run as the AC settings
+/// say (`$266` chatter threshold, `$268` breakage, `$267` flutes;
+/// `millac::rt::ac::AcPeriod::with_monitors` and `millac::rt::monitor::ChatterTask`, the
+/// firmware's code) at the cut's spindle speed (the program's S, as the firmware's tape tells the
+/// monitors); they need the AC (`ac`).
 pub fn run_with_faults(
-    prog: &[ProgBlock],
-    settings: &Settings,
-    cut: &Cut,
-    ac: Option<AcSettings>,
-    anti_windup: bool,
-    faults: &[crate::fault::Fault],
-) -> Result<HostRun> {
-    run_monitored(prog, settings, cut, ac, anti_windup, faults)
-}
-
-/// As [`run_with_faults`]: the AC period's process monitors run as the AC settings say (`$266`
-/// chatter threshold, `$268` breakage, `$267` flutes; `millac::rt::ac::AcPeriod::with_monitors`
-/// and `millac::rt::monitor::ChatterTask`, the firmware's code) at the cut's spindle speed (the program's S, as the firmware's tape
-/// tells the monitors). The monitors need the AC (`ac`).
-pub fn run_monitored(
     prog: &[ProgBlock],
     settings: &Settings,
     cut: &Cut,

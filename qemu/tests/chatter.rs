@@ -56,7 +56,7 @@ fn preset_run(depth_in: f64, threshold: Option<f32>, modes: bool) -> millac_qemu
         flutes: t::FLUTES,
         ..millac::ac::AcSettings::default()
     };
-    acsim::run_monitored(&prog, &s, &cut, Some(acs), true, &[]).unwrap()
+    acsim::run_with_faults(&prog, &s, &cut, Some(acs), true, &[]).unwrap()
 }
 
 /// The AC period's chatter monitor (`millac::rt::ac::AcPeriod::with_chatter`, the firmware's

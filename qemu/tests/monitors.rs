@@ -93,7 +93,7 @@ fn a_broken_tooth_is_held_by_the_firmware_within_two_revolutions_as_on_the_host(
     let s = Settings::default();
     let prog = analysis::load_program(SLOT, &s).unwrap();
     let host =
-        acsim::run_monitored(&prog, &s, &slot_cut(Some(BREAK_S)), Some(acs), true, &[]).unwrap();
+        acsim::run_with_faults(&prog, &s, &slot_cut(Some(BREAK_S)), Some(acs), true, &[]).unwrap();
     let host_hold = host
         .rows
         .iter()
@@ -115,7 +115,7 @@ fn the_firmware_holds_the_chattering_cut_and_not_the_stable_one() {
         monitor_rpm: t::RPM as u32,
         ..AcSettings::default()
     };
-    let quiet = acsim::run_monitored(&prog, &s, &cut, Some(listen), true, &[])
+    let quiet = acsim::run_with_faults(&prog, &s, &cut, Some(listen), true, &[])
         .unwrap()
         .spectra
         .iter()

@@ -58,6 +58,45 @@ fn read_until(r: &mut BufReader<TcpStream>, done: impl Fn(&str) -> bool) -> Vec<
 
 /// Soft resets until a whole banner comes (the first one went out before we connected, or while
 /// we did, and the firmware may still be starting): what a sender does.
+/// `serve` with the simulated cut of a 5 x 3 in steel block (transducer noise `seed`; `ac`: the
+/// AC applies its cap, else it measures only) in `out`, connected and past the banner: the stop
+/// flag, the server thread and the connection's two ends.
+#[allow(clippy::type_complexity)]
+fn serve_steel_block(
+    out: &std::path::Path,
+    seed: u64,
+    ac: bool,
+) -> (
+    Arc<AtomicBool>,
+    std::thread::JoinHandle<anyhow::Result<serve::Served>>,
+    TcpStream,
+    BufReader<TcpStream>,
+) {
+    use millac_plant::Stock;
+    use millac_qemu::acsim::Cut;
+    use millac_qemu::runner::AcRun;
+    let settings_file = serve::default_settings(out);
+    let addr = format!("127.0.0.1:{}", free_port());
+    let stop = Arc::new(AtomicBool::new(false));
+    let server = {
+        let (out, addr, stop) = (out.to_path_buf(), addr.clone(), stop.clone());
+        std::thread::spawn(move || {
+            let ac = AcRun {
+                cut: Cut::steel(Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(), seed),
+                ac,
+                faults: Vec::new(),
+                settings: millac::ac::AcSettings::default(),
+            };
+            serve::serve(&out, &settings_file, &addr, 4, Some(&ac), stop)
+        })
+    };
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    banner(&mut w, &mut r);
+    (stop, server, w, r)
+}
+
 fn banner(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> Vec<String> {
     r.get_ref()
         .set_read_timeout(Some(Duration::from_secs(2)))
@@ -675,30 +714,9 @@ fn poll_until(
 #[test]
 fn ac_holds_and_operator_holds_resume_in_the_cut() {
     use millac::Settings;
-    use millac_plant::Stock;
-    use millac_qemu::acsim::Cut;
     use millac_qemu::analysis;
-    use millac_qemu::runner::AcRun;
     let out = fresh("ac");
-    let settings_file = serve::default_settings(&out);
-    let addr = format!("127.0.0.1:{}", free_port());
-    let stop = Arc::new(AtomicBool::new(false));
-    let server = {
-        let (out, addr, stop) = (out.clone(), addr.clone(), stop.clone());
-        std::thread::spawn(move || {
-            let ac = AcRun {
-                cut: Cut::steel(Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(), 7),
-                ac: true,
-                faults: Vec::new(),
-                settings: millac::ac::AcSettings::default(),
-            };
-            serve::serve(&out, &settings_file, &addr, 4, Some(&ac), stop)
-        })
-    };
-    let stream = connect(&addr);
-    let mut w = stream.try_clone().unwrap();
-    let mut r = BufReader::new(stream);
-    banner(&mut w, &mut r);
+    let (stop, server, mut w, mut r) = serve_steel_block(&out, 7, true);
     let program = "G20 G90\nG0 X-1 Y1.5\nG0 Z-0.3\nG1 X1 F30\nG0 Z0.1\n";
     let mut seen = Vec::new();
     for line in program.lines() {
@@ -1154,29 +1172,8 @@ fn qemu_dies_with_the_tool_that_started_it() {
 /// and the peak force over the limit of the host's run of the session's program at its
 /// programmed feeds (summary.json `ac.programmed_peak_force_ratio`).
 fn slot_forces(tag: &str, spindle: &str) -> (Vec<f64>, f64) {
-    use millac_plant::Stock;
-    use millac_qemu::acsim::Cut;
-    use millac_qemu::runner::AcRun;
     let out = fresh(tag);
-    let settings_file = serve::default_settings(&out);
-    let addr = format!("127.0.0.1:{}", free_port());
-    let stop = Arc::new(AtomicBool::new(false));
-    let server = {
-        let (out, addr, stop) = (out.clone(), addr.clone(), stop.clone());
-        std::thread::spawn(move || {
-            let ac = AcRun {
-                cut: Cut::steel(Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap(), 3),
-                ac: false,
-                faults: Vec::new(),
-                settings: millac::ac::AcSettings::default(),
-            };
-            serve::serve(&out, &settings_file, &addr, 4, Some(&ac), stop)
-        })
-    };
-    let stream = connect(&addr);
-    let mut w = stream.try_clone().unwrap();
-    let mut r = BufReader::new(stream);
-    banner(&mut w, &mut r);
+    let (stop, server, mut w, mut r) = serve_steel_block(&out, 3, false);
     let program = format!("G20 G90\n{spindle}\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.5 F10\nG0 Z0.1\n");
     let mut seen = Vec::new();
     for line in program.lines() {
