@@ -147,3 +147,69 @@ fn the_firmware_holds_the_chattering_cut_and_not_the_stable_one() {
         .unwrap_or_else(|| panic!("{alarm}"));
     assert!((hz / t::MODE.fn_hz as f32 - 1.0).abs() < 0.1, "{hz} Hz");
 }
+
+/// A stiff mode for the default 0.5 in cutter (2500 Hz, 5 % damping, 4e8 N/m in X and Y): the
+/// zero-order lobes put its full-slot limit in steel at 600 rpm near 10 mm, beyond the pocket's
+/// 6.35 mm, so the pocket is a chatter-free cut the microphone still hears.
+const STIFF: millac_plant::lobes::Mode = millac_plant::lobes::Mode {
+    fn_hz: 2500.0,
+    zeta: 0.05,
+    k_n_m: 4.0e8,
+};
+
+/// The thesis' three functions together (its chapter 5): the pocket under QEMU with the AC,
+/// breakage detection and chatter detection on, the tool with 5/0/-3/0 um of run-out, flexible
+/// (a stiff mode) and heard: no false alarm of either monitor, the pocket completed, no AC
+/// period overrun, and the same machining time as the host simulation of the same code.
+#[test]
+fn ac_breakage_and_chatter_together_on_the_pocket() {
+    use millac_qemu::bench;
+    let s = Settings::default();
+    let case = &bench::CASES[1];
+    let prog = case.load(&s).unwrap();
+    let cut = Cut {
+        runout_mm: vec![0.005, 0.0, -0.003, 0.0],
+        modes: Some((vec![STIFF], vec![STIFF])),
+        ..case
+            .cut(
+                &s,
+                millac_plant::DriveModel::Stepper,
+                millac_plant::Material::STEEL,
+            )
+            .unwrap()
+    };
+    // The chatter threshold by the thesis' rule from this chatter-free cut on the host.
+    let listen = AcSettings {
+        chatter_threshold: f32::MAX,
+        ..AcSettings::default()
+    };
+    let quiet = acsim::run_with_faults(&prog, &s, &cut, Some(listen), true, &[])
+        .unwrap()
+        .spectra
+        .iter()
+        .map(|(_, sp)| sp.peak_amplitude)
+        .fold(0.0, f32::max);
+    let acs = AcSettings {
+        chatter_threshold: 2.0 * quiet,
+        breakage: true,
+        ..AcSettings::default()
+    };
+    let host = acsim::run_with_faults(&prog, &s, &cut, Some(acs), true, &[]).unwrap();
+    let o = qemu_run("pocket", case.program, cut, acs);
+    cost(&o, "pocket, three functions");
+    eprintln!(
+        "threshold {:.2} codes; machining time firmware {} s, host {:.3} s",
+        2.0 * quiet,
+        o.summary["machining_time_s"],
+        host.machining_time_s
+    );
+    assert_eq!(first_hold(&o), None);
+    assert!(host.alarm.is_none(), "{:?}", host.alarm);
+    assert_eq!(o.summary["completed"], true, "{}", o.summary);
+    let fw = o.summary["machining_time_s"].as_f64().unwrap();
+    assert!(
+        (fw - host.machining_time_s).abs() < 0.2,
+        "{fw} s against {}",
+        host.machining_time_s
+    );
+}
