@@ -90,8 +90,8 @@ impl<D: ForceTorqueAdc> Sampler<D> {
     }
 
     /// One sample (the core's body), codes into the AC task's queue and sound into the chatter
-    /// monitor's (a full queue counts `samples_dropped`; a missed conversion queues no codes, so
-    /// the period sees no fresh sample for it). Sampler task.
+    /// monitor's (a full queue counts `samples_dropped`, or `sound_dropped`; a missed conversion
+    /// queues no codes, so the period sees no fresh sample for it). Sampler task.
     pub fn sample(&mut self) -> Sampled {
         match body::sample(&mut self.adc, self.status, self.per_period) {
             body::Sampled::Lost { due } => Sampled::Lost(due),
@@ -101,9 +101,10 @@ impl<D: ForceTorqueAdc> Sampler<D> {
                         self.status.samples_dropped.fetch_add(1, Relaxed);
                     }
                 }
+                // A lost sample of sound makes the monitor restart its record (no gap judged).
                 if let (Some(q), Some(s)) = (self.sound.as_mut(), sound) {
                     if q.enqueue(s).is_err() {
-                        self.status.samples_dropped.fetch_add(1, Relaxed);
+                        self.status.sound_dropped.fetch_add(1, Relaxed);
                     }
                 }
                 Sampled::Ok(due)

@@ -414,6 +414,7 @@ pub fn run_with_faults(
             .map_err(|e| anyhow!("chatter settings: {}", e.message()))?,
         None => None,
     };
+    let mut verdict = None;
     let mut adc = HostAdc {
         process: cut.process()?,
         injector: crate::fault::Injector::new(faults, acs.cal.map(|c| f64::from(c.offset))),
@@ -480,21 +481,25 @@ pub fn run_with_faults(
                 ac.sample(codes);
             }
             // The chatter monitor's task (its own in the firmware, below the AC task): each
-            // record's spectrum, a verdict for the AC period's next run.
+            // record's spectrum. The firmware's monitor runs after the AC period of the tick that
+            // spawns them both, so a verdict reaches the AC period one period after the first
+            // period that follows the record: kept here until that period has run.
             if let (Some(m), Some(sound)) = (chatter.as_mut(), sound) {
                 if let Some(spec) = m.sound(&sound, &status) {
                     out.spectra.push((next_sample as f64 * 1e-9, spec));
-                    if let Some(ac) = period.as_mut() {
-                        ac.heard(spec);
-                    }
+                    verdict = verdict.or(Some(spec));
                 }
             }
             let Some(due) = due else { continue };
+            let heard = verdict.take();
             let d = [0, 1, 2].map(|k| pos[k] - period_start[k]);
             let mut estimates = None;
             let (f_meas, t_meas, e, state) = match period.as_mut() {
                 Some(ac) => {
                     let r = ac.run(&status);
+                    if let Some(v) = heard {
+                        ac.heard(v);
+                    }
                     estimates = ac.ctl.law_estimates();
                     halt = r.halt;
                     let o = r.out;

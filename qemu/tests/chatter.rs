@@ -59,7 +59,7 @@ fn preset_run(depth_in: f64, threshold: Option<f32>, modes: bool) -> millac_qemu
     acsim::run_with_faults(&prog, &s, &cut, Some(acs), true, &[]).unwrap()
 }
 
-/// The AC period's chatter monitor (`millac::rt::ac::AcPeriod::with_chatter`, the firmware's
+/// The chatter monitor (`millac::rt::monitor::ChatterTask` and `AcPeriod::heard`, the firmware's
 /// code) on the host with the flexible tool in the process: the thesis' threshold rule from a
 /// 2.54 mm cut; the 2.54 mm slot then runs to its end without a hold; the 8.89 mm slot is held
 /// with `Alarm::Chatter` near the tool's mode within two detection cycles (102.4 ms) of the

@@ -155,7 +155,7 @@ impl core::fmt::Display for Alarm {
                 w,
                 "chatter hold: {amplitude:.1} at {freq_hz:.0} Hz above the threshold {threshold:.1}"
             ),
-            Alarm::ToolBreakage(b) => write!(w, "breakage hold, spindle stopped: {b}"),
+            Alarm::ToolBreakage(b) => write!(w, "breakage hold: {b}"),
         }
     }
 }
@@ -305,6 +305,17 @@ impl AcController {
     /// explicit resume, as every hold). True when it entered the hold, false when already held.
     pub fn hold(&mut self, alarm: Alarm) -> bool {
         if self.state != AcState::Run {
+            return false;
+        }
+        self.state = AcState::Hold(alarm);
+        true
+    }
+
+    /// Holds the feed for a tool breakage whatever hold came before it (an overload from the
+    /// broken tooth's doubled chip, a sensor hold, chatter): the breakage is what the operator
+    /// must be told, and what a reset alone may end. True when the state changed.
+    pub fn hold_over(&mut self, alarm: Alarm) -> bool {
+        if self.state == AcState::Hold(alarm) {
             return false;
         }
         self.state = AcState::Hold(alarm);

@@ -1,5 +1,5 @@
 //! Chatter detection on the sound channel (Munasinghe 1994, section 3.3 and chapter 5): the
-//! sampler task pushes every sound sample; each full record of [`RECORD`] samples is windowed
+//! chatter monitor's task (`crate::rt::monitor`) pushes every sound sample; each full record of [`RECORD`] samples is windowed
 //! (Hann), transformed with a real FFT (`microfft`) and its largest amplitude away from the
 //! tooth-passing harmonics is compared with a threshold set from chatter-free cutting (the
 //! thesis' rule). One record is one detection cycle (256 samples: 51.2 ms at 5 kHz). no_std,

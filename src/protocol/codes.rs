@@ -164,8 +164,9 @@ pub mod alarm {
     pub const AC_MISMATCH: u8 = 106;
     /// Process monitor, chatter hold: the sound spectrum above its threshold.
     pub const AC_CHATTER: u8 = 107;
-    /// Process monitor, tool breakage: the feed held and the spindle stopped; `$X` restarts the
-    /// spindle as it was and resumes the AC (after the tool is changed), a reset ends the job.
+    /// Process monitor, tool breakage: the feed held and the spindle stopped; `$X` is refused
+    /// until a reset has ended the job (the queue dropped, the spindle left off), as after
+    /// grbl's hard limit.
     pub const AC_BREAKAGE: u8 = 108;
     /// The frame ISR took more cycles than the board's stated limit (`BoardLimits::frame_work_ns`,
     /// which the settings validation assumed): the pulse and sign timing the validation promised

@@ -113,8 +113,9 @@ pub struct Context<'a, T: SettingsTable + ?Sized> {
     /// The frame ISR's (fewest, most) cycles for `$I`, when the board measures them
     /// ([`crate::rt::Status::frame_cycles`]); None: no `[FRAME:...]` line.
     pub frame_cycles: Option<(u32, u32)>,
-    /// An alarm `$X` cannot clear now (the board's e-stop or a limit switch still active): `$X`
-    /// answers `error:9` with `[MSG:...]` and the alarm stays. None: `$X` unlocks.
+    /// An alarm `$X` cannot clear now (the board's e-stop or a limit switch still active, or a
+    /// tool breakage not yet followed by a reset): `$X` answers `error:9` with `[MSG:...]` and
+    /// the alarm stays. None: `$X` unlocks.
     pub interlock: Option<u8>,
 }
 
@@ -482,7 +483,11 @@ impl<'a> Protocol<'a> {
             "$" => sent(report::write_help(out)),
             "$G" => sent(report::write_modes(out, &cx.modes, cx.machine, opts.inches)),
             "$X" if cx.interlock.is_some() && self.alarm.is_some() => {
-                let _ = out.write_str("[MSG:E-stop or limit switch still active]\r\n");
+                let _ = out.write_str(if cx.interlock == Some(codes::alarm::AC_BREAKAGE) {
+                    "[MSG:Tool breakage: reset (Ctrl-X) first, then change the tool]\r\n"
+                } else {
+                    "[MSG:E-stop or limit switch still active]\r\n"
+                });
                 Err(GrblError::GCODE_LOCK)
             }
             "$X" => {

@@ -272,11 +272,14 @@ impl AcPeriod {
         if status.ac_resume.swap(false, Relaxed) {
             self.ctl.resume();
             self.still = 0;
-            // A resumed cut is judged afresh (after a breakage: with the new tool).
+            // A resumed cut is judged afresh (after a breakage: with the new tool), and so is the
+            // sound (`Status::resumes` restarts the chatter monitor's record).
             if let Some(m) = self.breakage.as_mut() {
                 m.detector.reset();
                 m.pending = None;
             }
+            self.chatter = None;
+            status.resumes.fetch_add(1, Relaxed);
         }
         self.follow_spindle(status.spindle_rpm.load(Relaxed));
         if self.anti_windup {
@@ -288,13 +291,13 @@ impl AcPeriod {
         }
         let mut out = self.ctl.period();
         if let Some(b) = self.breakage.as_mut().and_then(|m| m.pending.take()) {
+            // Over any other hold (the broken tooth's doubled chip may have made an overload
+            // first): the alarm the operator sees is the breakage, and the spindle stops.
             let a = crate::ac::Alarm::ToolBreakage(b);
-            if self.ctl.hold(a) {
-                out.state = AcState::Hold(a);
-                out.alarm = Some(a);
-                out.feed_cap = self.ctl.feed_cap();
-            }
-            // The spindle stops also when another hold came first: the tool is broken.
+            self.ctl.hold_over(a);
+            out.state = AcState::Hold(a);
+            out.alarm = Some(a);
+            out.feed_cap = self.ctl.feed_cap();
             if self.enabled {
                 status.spindle_stop.store(true, Relaxed);
             }
@@ -599,9 +602,20 @@ mod tests {
             assert_eq!(status.feed_cap.load(Relaxed), 0);
             // The operator resumes (a new tool): the detector starts afresh and learns again.
             status.ac_resume.store(true, Relaxed);
-            let again = cut_revolutions(&mut period, &status, 20, sound, &mut n);
+            status.spindle_stop.store(false, Relaxed);
+            let again = cut_revolutions(&mut period, &status, 40, sound, &mut n);
             assert_eq!(again, None);
             assert_eq!(status.ac_state.load(Relaxed), AC_RUN);
+            // The new tool breaks while another hold stands (a period without samples): the
+            // breakage replaces it, is said, and stops the spindle.
+            let held = period.run(&status);
+            assert_eq!(held.out.alarm, Some(Alarm::NoSamples));
+            let second = cut_revolutions(&mut period, &status, 5, broken, &mut n);
+            assert!(
+                matches!(second, Some((_, Alarm::ToolBreakage(_)))),
+                "{second:?}"
+            );
+            assert!(status.spindle_stop.load(Relaxed));
         }
     }
 }

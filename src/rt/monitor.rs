@@ -22,6 +22,8 @@ pub struct ChatterTask {
     flutes: u32,
     /// The last record's spectrum (cycle, peak Hz, amplitude).
     pub last: Option<Spectrum>,
+    /// `Status::resumes` and `Status::sound_dropped` as last seen: a change restarts the record.
+    seen: (u32, u32),
 }
 
 impl ChatterTask {
@@ -41,16 +43,26 @@ impl ChatterTask {
             rpm: s.monitor_rpm,
             flutes: s.flutes,
             last: None,
+            seen: (0, 0),
         }))
     }
 
     /// The sound channel's codes of one sample (oldest first): the spectrum of the record they
-    /// complete, if they do. The spindle speed follows `status` (0: none commanded, keep the
-    /// last). Monitor task or host.
+    /// complete, if they do (every record's, above the threshold or not: `Spectrum::chatter`
+    /// says). The spindle speed follows `status` (0: none commanded, keep the last); an AC resume
+    /// or lost sound since the last call restarts the record. Monitor task or host.
     pub fn sound(&mut self, codes: &[u16], status: &Status) -> Option<Spectrum> {
         let rpm = status.spindle_rpm.load(Relaxed);
         if rpm != 0 {
             self.rpm = rpm;
+        }
+        let seen = (
+            status.resumes.load(Relaxed),
+            status.sound_dropped.load(Relaxed),
+        );
+        if seen != self.seen {
+            self.seen = seen;
+            self.detector.restart();
         }
         let mut out = None;
         for &c in codes {
@@ -59,8 +71,8 @@ impl ChatterTask {
                     .push(f32::from(c) - SOUND_MIDSCALE, self.rpm, self.flutes)
             {
                 self.last = Some(s);
-                // A record above the threshold is the verdict to act on (a later one in the same
-                // call cannot come: a sample's codes are far fewer than a record).
+                // (A second record in the same call cannot come: a sample's codes are far fewer
+                // than a record.)
                 out = Some(s);
             }
         }
@@ -106,6 +118,19 @@ mod tests {
         assert_eq!(task.rpm(), 1500);
         // 3000 sound samples: 11 records, each closed by the sample that holds its 256th.
         assert_eq!(spectra.len(), 11);
+        // A resume restarts the record: the next spectrum comes a whole record after it.
+        let record = crate::monitor::chatter::RECORD as u32;
+        for (counter, at) in [(&status.resumes, 1000u32), (&status.sound_dropped, 2000)] {
+            counter.fetch_add(1, Relaxed);
+            let mut n = 0;
+            let first = loop {
+                n += 1;
+                if task.sound(&[2048; 5], &status).is_some() {
+                    break n;
+                }
+            };
+            assert_eq!(first, record / 5 + 1, "after the change at {at}");
+        }
         assert!(spectra.iter().all(|(_, sp)| sp.chatter), "{spectra:?}");
         assert!((spectra[0].1.peak_hz - 1600.0).abs() < 20.0, "{spectra:?}");
     }

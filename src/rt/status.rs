@@ -71,6 +71,12 @@ pub struct Status {
     /// The AC task asks the loader to stop the spindle (a tool breakage): set by the AC task,
     /// taken (swapped back to false) by the loader, which turns the spindle off at once.
     pub spindle_stop: AtomicBool,
+    /// AC resumes so far: written by the AC task when it leaves a hold; the chatter monitor
+    /// restarts its record when it changes (the sound before the hold is not judged after it).
+    pub resumes: AtomicU32,
+    /// Sound samples the sampler could not queue for the chatter monitor (its queue full): the
+    /// monitor restarts its record when it changes (a record with a gap is not judged).
+    pub sound_dropped: AtomicU32,
 }
 
 impl Default for Status {
@@ -102,6 +108,8 @@ impl Status {
             frame_cycles_max: AtomicU32::new(0),
             spindle_rpm: AtomicU32::new(0),
             spindle_stop: AtomicBool::new(false),
+            resumes: AtomicU32::new(0),
+            sound_dropped: AtomicU32::new(0),
         }
     }
 

@@ -617,16 +617,44 @@ fn resume_waits_for_unlock_after_alarm_111() {
 }
 
 /// A tool breakage (the AC task's hold, spindle stop request and alarm): the loader stops the
-/// spindle at once, says `ALARM:108` with the residuals in a `[MSG:...]`, refuses `~`; `$X` turns
-/// the spindle back on as it was before it asks the AC to resume. The commanded speed reaches
-/// `Status::spindle_rpm` (the monitors' tooth period).
+/// spindle at once, says `ALARM:108` with the residuals in a `[MSG:...]`; `~` and `$X` are
+/// refused (the broken tool is still in the cut) and a spindle line waiting for the motion is not
+/// applied; a reset drops the queue with the spindle off, and then `$X` unlocks. The commanded
+/// speed reaches `Status::spindle_rpm` (the monitors' tooth period).
 #[test]
-fn a_tool_breakage_stops_the_spindle_and_unlock_restores_it() {
-    let sends = [(1, "M3 S1000\n"), (2, "G91 G1 F30 X1\n"), (2500, "~")];
-    let b = session_full(&sends, &[], None, 3000, ESTOP, None, Some(2000));
-    let calls: Vec<(Spindle, u32)> = b.spindle.iter().map(|c| (c.state, c.rpm)).collect();
+fn a_tool_breakage_stops_the_spindle_and_only_a_reset_leads_on() {
+    let calls =
+        |b: &Bench| -> Vec<(Spindle, u32)> { b.spindle.iter().map(|c| (c.state, c.rpm)).collect() };
+    // A spindle line waiting for the motion is never applied (it would turn the spindle on).
+    // (A breakage declared in the loader turn where the block before the line has run out:
+    // that turn would apply the line.)
+    let sends = [(1, "M3 S1000\n"), (2, "G91 G1 F30 X0.01\n"), (3, "S2000\n")];
+    let free = session_full(&sends, &[], None, 3000, ESTOP, None, None);
+    assert_eq!(calls(&free), [(Spindle::Cw, 1000), (Spindle::Cw, 2000)]);
+    let b = session_full(
+        &sends,
+        &[],
+        None,
+        3000,
+        ESTOP,
+        None,
+        Some(free.spindle[1].frame),
+    );
     assert_eq!(
-        calls,
+        calls(&b),
+        [(Spindle::Cw, 1000), (Spindle::Off, 0)],
+        "{:?}",
+        b.spindle
+    );
+    let sends = [
+        (1, "M3 S1000\n"),
+        (2, "G91 G1 F30 X1\n"),
+        (2500, "~"),
+        (2600, "$X\n"),
+    ];
+    let b = session_full(&sends, &[], None, 3000, ESTOP, None, Some(2000));
+    assert_eq!(
+        calls(&b),
         [(Spindle::Cw, 1000), (Spindle::Off, 0)],
         "{:?}",
         b.spindle
@@ -635,30 +663,41 @@ fn a_tool_breakage_stops_the_spindle_and_unlock_restores_it() {
     assert!(b.spindle[1].frame >= 2000 && b.spindle[1].frame <= 2010);
     assert_eq!(b.status.spindle_rpm.load(Relaxed), 1000);
     assert!(b.out.contains("ALARM:108\r\n"), "{}", b.out);
+    assert!(b.out.contains("[MSG:Spindle stopped]"), "{}", b.out);
     assert!(
-        b.out.contains(
-            "[MSG:AC hold: breakage hold, spindle stopped: tool breakage at tooth period 1234"
-        ),
+        b.out
+            .contains("[MSG:AC hold: breakage hold: tool breakage at tooth period 1234"),
         "{}",
         b.out
     );
     assert!(
-        !b.status.ac_resume.load(Relaxed),
-        "~ refused under the alarm"
+        b.out
+            .contains("[MSG:Tool breakage: reset (Ctrl-X) first, then change the tool]")
+            && b.out.ends_with("error:9\r\n"),
+        "{}",
+        b.out
     );
-    let sends = [(1, "M3 S1000\n"), (2, "G91 G1 F30 X1\n"), (2500, "$X\n")];
+    assert!(!b.status.ac_resume.load(Relaxed), "~ and $X refused");
+    // A reset, then `$X`: unlocked, the queue dropped, the spindle left off.
+    let sends = [
+        (1, "M3 S1000\n"),
+        (2, "G91 G1 F30 X1\n"),
+        (2500, "\u{18}"),
+        (2700, "$X\n"),
+    ];
     let b = session_full(&sends, &[], None, 3000, ESTOP, None, Some(2000));
-    let calls: Vec<(Spindle, u32)> = b.spindle.iter().map(|c| (c.state, c.rpm)).collect();
     assert_eq!(
-        calls,
-        [(Spindle::Cw, 1000), (Spindle::Off, 0), (Spindle::Cw, 1000)],
+        calls(&b),
+        [(Spindle::Cw, 1000), (Spindle::Off, 0), (Spindle::Off, 0)],
         "{:?}",
         b.spindle
     );
+    assert!(b.out.contains("[MSG:Caution: Unlocked]"), "{}", b.out);
     assert!(
         b.status.ac_resume.load(Relaxed),
         "the AC is asked to resume"
     );
+    assert!(b.status.encoder()[0] < 10_000, "the block was dropped");
     // Without a breakage the spindle just runs.
     let b = session_full(&sends[..2], &[], None, 3000, ESTOP, None, None);
     assert_eq!(b.spindle.len(), 1);

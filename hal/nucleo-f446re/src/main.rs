@@ -194,10 +194,15 @@ mod app {
         let (alarm_tx, ac_alarms) = cx.local.alarms.split();
         let (sample_tx, sample_rx) = cx.local.samples.split();
         let period_samples = ac_settings.samples_per_period();
+        if ac_settings.chatter_threshold > 0.0 {
+            defmt::warn!("$266: this board has no sound channel; chatter detection is off");
+        }
         let ac = if table.settings.ac_enabled {
             match AcController::new(ac_settings) {
                 // The breakage monitor when the settings turn it on ($268), on the force
-                // channels; chatter ($266) needs a sound channel this board does not have.
+                // channels; chatter ($266) needs a sound channel this board does not have: a
+                // threshold set here is ignored (said once at start). Invalid monitor settings
+                // turn the AC off with a warning, as invalid AC settings do on this board.
                 Ok(ctl) => match AcPeriod::new(ctl, settings, true, &STATUS)
                     .with_monitors(&ac_settings)
                 {

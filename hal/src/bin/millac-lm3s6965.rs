@@ -8,8 +8,8 @@
 //!
 //! Priorities: frame and pulse-end 4; the sampler (TIMER_2A, `sample_hz`) and UART0 3; the AC
 //! period (software task, dispatcher SSI0, spawned by the sampler every `period_ms`) 2; the
-//! chatter monitor (software task, dispatcher I2C0, spawned with the AC period when `$266` turns
-//! it on: a record's FFT is most of a 10 ms period in soft-float, so it runs below the AC period,
+//! chatter monitor (software task, dispatcher I2C0, spawned with every AC period; it returns at
+//! once unless `$266` turned it on: a record's FFT is most of a 10 ms period in soft-float, so it runs below the AC period,
 //! which preempts it) 1; the idle loader 0. The pulse-end ISR counts the pulses on the pins into the encoder counts (`STATUS.encoder`,
 //! a `millac::rt::Status`); the sampler exchanges them for ADC codes with the host in lockstep and
 //! queues them; the AC task runs the `AcController` on them, writes the feed cap
@@ -261,7 +261,8 @@ mod app {
             if enabled {
                 ceiling = Some(ac_settings.ceiling);
             }
-            // The breakage monitor the settings turn on ($268), in the AC period.
+            // The breakage monitor the settings turn on ($268), in the AC period. Invalid monitor
+            // settings stop the firmware here, as invalid AC settings do.
             let period =
                 match AcPeriod::new(ctl, settings, enabled, &STATUS).with_monitors(&ac_settings) {
                     Ok(p) => p,
@@ -339,7 +340,7 @@ mod app {
     }
 
     /// UART0 (serial mode only: its interrupts are enabled by the loader): received bytes to the
-    /// loader, queued bytes out. Priority 2, below the frame.
+    /// loader, queued bytes out. Priority 3, below the frame.
     #[task(binds = UART0, priority = 3, local = [uart_rx, uart_tx])]
     fn uart0(cx: uart0::Context) {
         let rx = cx.local.uart_rx;
@@ -554,7 +555,10 @@ mod app {
             }
             // The program's spindle speed (its last S word read so far) for the process
             // monitors: a tape has no spindle output to sync with the motion, so the speed
-            // reaches them when the loader reads it, up to a queue of blocks early.
+            // reaches them once per 256-byte chunk, after the chunk's blocks are queued: up to
+            // a queue of blocks early or late. A program should set S before its first cut (the
+            // host simulation cuts the whole program at its S); the serial loader publishes it
+            // with the motion.
             let rpm = tape.parser().spindle_rpm();
             if rpm != 0 {
                 STATUS.spindle_rpm.store(rpm, Relaxed);
