@@ -572,6 +572,42 @@ fn breaks_inside_the_program_are_detected_within_two_revolutions() {
     }
 }
 
+/// A tooth broken on a slow entry ramp (0 -> 1 over 20 revolutions), 10 revolutions into it:
+/// the learning (steady revolutions only) has not ended, and the chip-transfer test sees the
+/// break within two revolutions, for every tooth and for chips down to half a tooth's load;
+/// the same ramp with a sound tool is judged by the random-program property.
+#[test]
+fn break_on_an_entry_ramp_while_learning_is_detected_within_two_revolutions() {
+    for c in [1.0, 0.5] {
+        for tooth in 0..Z {
+            let from = 60 + tooth;
+            let mut d = det(ThresholdMode::Adaptive);
+            let m = Model {
+                chip: Some((tooth, c, from)),
+                ..Model::new()
+            };
+            let eng = |j| ramp(j, 20, 100, 0.0, 1.0);
+            let mut noise = Noise(12345);
+            let mut first = None;
+            for j in 1..=from + 20 {
+                let learning = d.learning();
+                if let Some(b) = d.tooth_period(m.fa(j, eng(j), &mut noise)) {
+                    first = Some((b, learning));
+                    break;
+                }
+            }
+            let (b, learning) =
+                first.unwrap_or_else(|| panic!("chip {c} tooth {tooth}: not detected"));
+            assert!(learning, "chip {c} tooth {tooth}: learning had ended");
+            let dl = b.tooth_period as i64 - from as i64;
+            assert!(
+                (0..=2 * Z as i64).contains(&dl),
+                "chip {c} tooth {tooth}: {b:?}"
+            );
+        }
+    }
+}
+
 /// A random program: segments (hold length in tooth periods, engagement, transition length;
 /// engagement 0 is air).
 fn random_program(segs: &[(u32, f32, u32)]) -> impl Fn(u32) -> f32 + '_ {
