@@ -113,7 +113,7 @@ fn spread(v: &[u64]) -> (u64, u64, u64) {
 /// The process monitors' cost under QEMU (see the module docs).
 fn monitors() -> Result<()> {
     use millac_plant::chatter::thesis_table_3_2 as t;
-    use millac_qemu::{acsim, analysis, breaklab, chatterlab};
+    use millac_qemu::{analysis, breaklab, chatterlab};
     let base = std::env::var_os("CARGO_TARGET_DIR")
         .map_or_else(|| PathBuf::from("target"), PathBuf::from)
         .join("ac-cost");
@@ -124,20 +124,14 @@ fn monitors() -> Result<()> {
     // The chatter threshold by the thesis' rule: twice the largest amplitude of the 2.54 mm cut.
     let s = Settings::default();
     let listen = AcSettings {
-        chatter_threshold: f32::MAX,
         flutes: t::FLUTES,
         monitor_rpm: t::RPM as u32,
         ..AcSettings::default()
     };
     let (text, cut) = chatterlab::preset_slot(0.1, 2.0);
     let prog = analysis::load_program(&text, &s).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let quiet = acsim::run_with_faults(&prog, &s, &cut, Some(listen), true, &[])?
-        .spectra
-        .iter()
-        .map(|(_, sp)| sp.peak_amplitude)
-        .fold(0.0, f32::max);
     let chatter = AcSettings {
-        chatter_threshold: 2.0 * quiet,
+        chatter_threshold: chatterlab::thesis_threshold(&prog, &s, &cut, listen)?,
         ..listen
     };
     let runs = [

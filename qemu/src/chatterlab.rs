@@ -32,6 +32,27 @@ pub fn preset_slot(depth_in: f64, to_x: f64) -> (String, crate::acsim::Cut) {
     (text, cut)
 }
 
+/// The chatter threshold by the thesis' rule: twice the largest amplitude the chatter monitor
+/// hears (`AcSettings` `listen`, its threshold out of reach) over `prog` on `cut`, a chatter-free
+/// cut, run on the host with the firmware's code.
+pub fn thesis_threshold(
+    prog: &[crate::analysis::ProgBlock],
+    settings: &millac::Settings,
+    cut: &crate::acsim::Cut,
+    listen: millac::ac::AcSettings,
+) -> Result<f32> {
+    let listen = millac::ac::AcSettings {
+        chatter_threshold: f32::MAX,
+        ..listen
+    };
+    let quiet = crate::acsim::run_with_faults(prog, settings, cut, Some(listen), true, &[])?
+        .spectra
+        .iter()
+        .map(|(_, sp)| sp.peak_amplitude)
+        .fold(0.0, f32::max);
+    Ok(2.0 * quiet)
+}
+
 /// Sound sample rate, Hz (the detector's default).
 pub const SOUND_HZ: u32 = 5000;
 

@@ -11,7 +11,7 @@ use millac::Settings;
 use millac_plant::chatter::thesis_table_3_2 as t;
 use millac_qemu::acsim::{self, Cut};
 use millac_qemu::breaklab::{slot_cut, SLOT};
-use millac_qemu::chatterlab::preset_slot as preset;
+use millac_qemu::chatterlab::{self, preset_slot as preset};
 use millac_qemu::{analysis, runner};
 use std::path::PathBuf;
 
@@ -110,19 +110,13 @@ fn the_firmware_holds_the_chattering_cut_and_not_the_stable_one() {
     let (text, cut) = preset(0.1, 2.0);
     let prog = analysis::load_program(&text, &s).unwrap();
     let listen = AcSettings {
-        chatter_threshold: f32::MAX,
         flutes: t::FLUTES,
         monitor_rpm: t::RPM as u32,
         ..AcSettings::default()
     };
-    let quiet = acsim::run_with_faults(&prog, &s, &cut, Some(listen), true, &[])
-        .unwrap()
-        .spectra
-        .iter()
-        .map(|(_, sp)| sp.peak_amplitude)
-        .fold(0.0, f32::max);
+    let threshold = chatterlab::thesis_threshold(&prog, &s, &cut, listen).unwrap();
     let acs = AcSettings {
-        chatter_threshold: 2.0 * quiet,
+        chatter_threshold: threshold,
         ..listen
     };
     // 2.54 mm under QEMU (a shorter slot): no alarm.
@@ -137,7 +131,7 @@ fn the_firmware_holds_the_chattering_cut_and_not_the_stable_one() {
     cost(&deep, "8.89 mm");
     let (t_ms, hold) = first_hold(&deep).expect("held");
     let alarm = deep.summary["hold"]["alarm"].as_str().unwrap().to_string();
-    eprintln!("threshold {:.2}: held at {t_ms} ms: {alarm}", 2.0 * quiet);
+    eprintln!("threshold {:.2}: held at {t_ms} ms: {alarm}", threshold);
     assert!(hold.starts_with("chatter"), "{hold}");
     let hz: f32 = alarm
         .split(" at ")
@@ -190,18 +184,9 @@ fn ac_breakage_and_chatter_together_on_the_pocket() {
             .unwrap()
     };
     // The chatter threshold by the thesis' rule from this chatter-free cut on the host.
-    let listen = AcSettings {
-        chatter_threshold: f32::MAX,
-        ..AcSettings::default()
-    };
-    let quiet = acsim::run_with_faults(&prog, &s, &cut, Some(listen), true, &[])
-        .unwrap()
-        .spectra
-        .iter()
-        .map(|(_, sp)| sp.peak_amplitude)
-        .fold(0.0, f32::max);
+    let threshold = chatterlab::thesis_threshold(&prog, &s, &cut, AcSettings::default()).unwrap();
     let acs = AcSettings {
-        chatter_threshold: 2.0 * quiet,
+        chatter_threshold: threshold,
         breakage: true,
         ..AcSettings::default()
     };
@@ -210,9 +195,7 @@ fn ac_breakage_and_chatter_together_on_the_pocket() {
     cost(&o, "pocket, three functions");
     eprintln!(
         "threshold {:.2} codes; machining time firmware {} s, host {:.3} s",
-        2.0 * quiet,
-        o.summary["machining_time_s"],
-        host.machining_time_s
+        threshold, o.summary["machining_time_s"], host.machining_time_s
     );
     assert_eq!(first_hold(&o), None);
     assert!(host.alarm.is_none(), "{:?}", host.alarm);
