@@ -11,6 +11,19 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
+/// A full slot 0.3 in deep at F22 and its steel block, written into `dir`: (program, stock).
+fn slot_files(dir: &std::path::Path) -> (PathBuf, PathBuf) {
+    let prog = dir.join("slot.nc");
+    std::fs::write(
+        &prog,
+        "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n",
+    )
+    .unwrap();
+    let stock = dir.join("stock.txt");
+    std::fs::write(&stock, "blank X0 Y0 W5 H3 Z0\n").unwrap();
+    (prog, stock)
+}
+
 fn millac(args: &[&std::ffi::OsStr]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_millac-qemu"))
         .args(args)
@@ -112,14 +125,7 @@ fn host_rejects_a_bad_program_like_run() {
 #[test]
 fn host_runs_the_strategy_it_is_given() {
     let dir = scratch("strategy");
-    let prog = dir.join("slot.nc");
-    std::fs::write(
-        &prog,
-        "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n",
-    )
-    .unwrap();
-    let stock = dir.join("stock.txt");
-    std::fs::write(&stock, "blank X0 Y0 W5 H3 Z0\n").unwrap();
+    let (prog, stock) = slot_files(&dir);
     let mut csv = Vec::new();
     for (strategy, name) in [(None, "gpc"), (Some("integral"), "integral")] {
         let out = dir.join(name);
@@ -210,14 +216,7 @@ fn bad_tooth_options_are_refused_before_anything_runs() {
 #[test]
 fn host_cuts_with_the_damaged_tool_it_is_given() {
     let dir = scratch("teeth-host");
-    let prog = dir.join("slot.nc");
-    std::fs::write(
-        &prog,
-        "G20 G90\nG0 X-0.5 Y1.5\nG0 Z-0.3\nG1 X0.6 F22\nG0 Z0.1\nM2\n",
-    )
-    .unwrap();
-    let stock = dir.join("stock.txt");
-    std::fs::write(&stock, "blank X0 Y0 W5 H3 Z0\n").unwrap();
+    let (prog, stock) = slot_files(&dir);
     let host = |name: &str, opts: &[&str]| {
         let out = dir.join(name);
         let mut args: Vec<&std::ffi::OsStr> = vec![

@@ -56,6 +56,19 @@ fn first_hold(o: &runner::Outcome) -> Option<(u64, String)> {
         .find_map(|r| r.hold.clone().map(|h| (r.t_ms, h)))
 }
 
+/// The first held period (ms) of the host simulation of `text` on `cut` with `acs` (the
+/// firmware's code on the host).
+fn host_hold(text: &str, cut: &Cut, acs: AcSettings) -> Option<u64> {
+    let s = Settings::default();
+    let prog = analysis::load_program(text, &s).unwrap();
+    acsim::run_with_faults(&prog, &s, cut, Some(acs), true, &[])
+        .unwrap()
+        .rows
+        .iter()
+        .find(|r| r.state.starts_with("hold"))
+        .map(|r| r.t_ms)
+}
+
 #[test]
 fn a_broken_tooth_is_held_by_the_firmware_within_two_revolutions_as_on_the_host() {
     let acs = AcSettings {
@@ -90,16 +103,7 @@ fn a_broken_tooth_is_held_by_the_firmware_within_two_revolutions_as_on_the_host(
         "{delay_rev} revolutions"
     );
     // The same code on the host holds in the same period.
-    let s = Settings::default();
-    let prog = analysis::load_program(SLOT, &s).unwrap();
-    let host =
-        acsim::run_with_faults(&prog, &s, &slot_cut(Some(BREAK_S)), Some(acs), true, &[]).unwrap();
-    let host_hold = host
-        .rows
-        .iter()
-        .find(|r| r.state.starts_with("hold"))
-        .map(|r| r.t_ms);
-    assert_eq!(host_hold, Some(t_ms));
+    assert_eq!(host_hold(SLOT, &slot_cut(Some(BREAK_S)), acs), Some(t_ms));
 }
 
 #[test]
@@ -143,14 +147,7 @@ fn the_firmware_holds_the_chattering_cut_and_not_the_stable_one() {
     // The same code on the host holds in the same period (its verdict delayed as the firmware's
     // monitor task delays it).
     let (text, cut) = preset(0.35, 2.0);
-    let prog = analysis::load_program(&text, &s).unwrap();
-    let host = acsim::run_with_faults(&prog, &s, &cut, Some(acs), true, &[]).unwrap();
-    let host_hold = host
-        .rows
-        .iter()
-        .find(|r| r.state.starts_with("hold"))
-        .map(|r| r.t_ms);
-    assert_eq!(host_hold, Some(t_ms));
+    assert_eq!(host_hold(&text, &cut, acs), Some(t_ms));
 }
 
 /// A stiff mode for the default 0.5 in cutter (2500 Hz, 5 % damping, 4e8 N/m in X and Y): the

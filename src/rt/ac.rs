@@ -58,9 +58,12 @@ use crate::settings::Settings;
 use crate::wire::SOUND_PER_SAMPLE;
 
 /// The breakage monitor of an AC period ([`AcPeriod::with_breakage`]): the detector fed every
-/// sample's resultant force, and a declaration not yet acted on.
+/// sample's resultant force, the spindle speed and flutes it judges for, and a declaration not
+/// yet acted on.
 pub struct BreakageMonitor {
     pub detector: BreakageDetector,
+    rpm: u32,
+    teeth: u8,
     pending: Option<Breakage>,
 }
 
@@ -134,10 +137,14 @@ pub struct AcPeriod {
     chatter: Option<Spectrum>,
     /// Tool breakage detection on the force (None: off).
     breakage: Option<BreakageMonitor>,
-    /// The spindle speed the monitors judge for (`Status::spindle_rpm`, or `$269` until one is
-    /// commanded), and the flutes (`$267`).
-    monitor_rpm: u32,
-    flutes: u32,
+}
+
+/// A process monitor's hold entered in this period: the output says it (state, alarm to report,
+/// the held controller's cap).
+fn held(out: &mut AcOutput, a: crate::ac::Alarm, ctl: &AcController) {
+    out.state = AcState::Hold(a);
+    out.alarm = Some(a);
+    out.feed_cap = ctl.feed_cap();
 }
 
 /// What one period did.
@@ -165,8 +172,6 @@ impl AcPeriod {
             still: 0,
             chatter: None,
             breakage: None,
-            monitor_rpm: 0,
-            flutes: 0,
         }
     }
 
@@ -207,10 +212,10 @@ impl AcPeriod {
         detector.set_spindle(rpm as f32, teeth);
         self.breakage = Some(BreakageMonitor {
             detector,
+            rpm,
+            teeth,
             pending: None,
         });
-        self.monitor_rpm = rpm;
-        self.flutes = flutes;
         Ok(self)
     }
 
@@ -219,16 +224,14 @@ impl AcPeriod {
         self.breakage.as_ref()
     }
 
-    /// The machine's commanded spindle speed reaches the monitors (0: none yet, keep theirs).
+    /// The machine's commanded spindle speed reaches the breakage monitor (0: none yet, keep
+    /// its own; a change restarts its learning, so only a change is passed on).
     fn follow_spindle(&mut self, rpm: u32) {
-        if rpm == 0 || rpm == self.monitor_rpm {
-            return;
-        }
-        self.monitor_rpm = rpm;
         if let Some(b) = self.breakage.as_mut() {
-            let teeth =
-                u8::try_from(self.flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1);
-            b.detector.set_spindle(rpm as f32, teeth);
+            if rpm != 0 && rpm != b.rpm {
+                b.rpm = rpm;
+                b.detector.set_spindle(rpm as f32, b.teeth);
+            }
         }
     }
 
@@ -295,9 +298,7 @@ impl AcPeriod {
             // first): the alarm the operator sees is the breakage, and the spindle stops.
             let a = crate::ac::Alarm::ToolBreakage(b);
             self.ctl.hold_over(a);
-            out.state = AcState::Hold(a);
-            out.alarm = Some(a);
-            out.feed_cap = self.ctl.feed_cap();
+            held(&mut out, a, &self.ctl);
             if self.enabled {
                 status.spindle_stop.store(true, Relaxed);
             }
@@ -309,9 +310,7 @@ impl AcPeriod {
                 threshold: self.ctl.settings().chatter_threshold,
             };
             if self.ctl.hold(a) {
-                out.state = AcState::Hold(a);
-                out.alarm = Some(a);
-                out.feed_cap = self.ctl.feed_cap();
+                held(&mut out, a, &self.ctl);
             }
         }
         status.ac_state.store(
