@@ -242,7 +242,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             }
         }
         // A tool breakage (the AC task's request): the spindle stops at once and stays off; the
-        // job ends: only a reset (which drops the queue) leads on, then `$X` (see Unlock), as
+        // job ends: only a reset (which drops the queue) leads on, then `$X` (see `interlock`), as
         // grbl's hard limit. No waiting spindle line is applied meanwhile.
         if status.spindle_stop.swap(false, Relaxed) {
             broken = true;
