@@ -12,6 +12,7 @@ pub mod ac;
 pub mod isr;
 pub mod loader;
 pub mod monitor;
+pub mod replan;
 pub mod status;
 #[cfg(test)]
 mod tests_loader;

@@ -154,4 +154,18 @@ impl Status {
     pub fn position(&self) -> [i32; 3] {
         [0, 1, 2].map(|k| self.position[k].load(Relaxed))
     }
+
+    /// What the frame ISR publishes (`crate::rt::isr::FrameTask::run`), from a frame the host
+    /// runs itself: position, blocks done, velocity, ladder and idle, after every frame (the ISR
+    /// publishes them in the frames without pulses, which is where the host's readers look).
+    /// Host simulations and tests.
+    pub fn publish_frame(&self, frame: &crate::nc::Frame) {
+        for (p, v) in self.position.iter().zip(frame.position()) {
+            p.store(v, Relaxed);
+        }
+        self.blocks_done.store(frame.blocks_done(), Relaxed);
+        self.velocity_q8.store(frame.velocity_q8(), Relaxed);
+        self.ladder.store(frame.ladder(), Relaxed);
+        self.idle.store(frame.idle(), Relaxed);
+    }
 }

@@ -1,0 +1,553 @@
+//! Chatter suppression by depth reduction (Munasinghe 1994, sections 3.3 and 4.4.4, after Weck):
+//! the loader's record of the blocks it queued, and the re-plan it makes of them when the chatter
+//! monitor has held the feed (loader task of both modes; the host simulation runs the same code).
+//!
+//! # What the thesis does, and what this does
+//!
+//! On chatter the HOAM-CNC stops the axes, reads the NC block being executed and its start
+//! point, moves Z to reduce the depth of cut by a set amount, and rewrites the program so that the
+//! total depth is removed in more passes; then it cuts on and listens again, and reduces again
+//! while the chatter lasts. Here, once the chatter hold has brought the machine to a stop at Pc
+//! inside the block that ends at P1 (a straight feed move in the XY plane at height z):
+//!
+//! 1. Z up by the step d (`$276`), as a rapid: out of the cut;
+//! 2. Pc -> P1 at z + d, at the block's feed: the rest of the block at the reduced depth;
+//! 3. back P1 -> Pc at z + d, a rapid through the slot just cut;
+//! 4. Z down by d at Pc, a rapid: the tool's disc at Pc was cut to z before the hold;
+//! 5. Pc -> P1 at z, at the block's feed: the layer of thickness d left by step 2;
+//!
+//! then the blocks that were queued behind the held one, unchanged: the detour ends at P1, where
+//! the held block would have ended, and blocks are incremental. The frame's abort (the soft reset's
+//! bit) drops the queue at the stop (the position is exact: the machine stands), the detour and
+//! the copies of the dropped blocks are queued, and the AC resumes from f_min. If the upper pass
+//! chatters again, its own detour lifts it by another d, so the depth is reduced step by step
+//! until the chatter is gone, as in the thesis; every lower layer is d thick. The cutting direction
+//! of every pass is the programmed one (no plunge into material, no change from climb to
+//! conventional milling).
+//!
+//! # Choices (documented in the README)
+//!
+//! - Only a straight feed move without Z motion is re-planned (a slot or a pocket's pass). An arc
+//!   or a ramp held for chatter stays held with `ALARM:107` as without suppression (the operator
+//!   decides), and the report says why.
+//! - The lift is checked against the Z soft limit; a detour that would leave it is refused the
+//!   same way.
+//! - The machine's spindle and the program's modes are untouched; the parser still stands at the
+//!   end of the last line it read, where the machine will be once the queue has run.
+use core::sync::atomic::Ordering::Relaxed;
+
+use crate::nc::{isqrt, operator, Block, Dwell, FrameConfig, Linear, Motion, Rapid, X, Y, Z};
+use crate::protocol::codes::alarm;
+use crate::rt::Status;
+use crate::settings::Settings;
+
+/// Blocks of one detour.
+pub const DETOUR: usize = 5;
+
+/// Where the loader queues blocks: the producer end of the frame's queue. Loader task; host.
+pub trait Sink {
+    /// Blocks queued and not yet done by the frame (the running block included).
+    fn len(&self) -> usize;
+    /// Queues `b` if there is room.
+    fn try_push(&mut self, b: Block) -> Result<(), Block>;
+}
+
+impl<const Q: usize> Sink for heapless::spsc::Producer<'static, Block, Q> {
+    fn len(&self) -> usize {
+        heapless::spsc::Producer::len(self)
+    }
+    fn try_push(&mut self, b: Block) -> Result<(), Block> {
+        self.enqueue(b)
+    }
+}
+
+/// A bounded host queue of `cap` blocks as the loader's sink and the frame's block source (host
+/// simulations and tests; feature `std`), like the firmware's SPSC queue.
+#[cfg(any(test, feature = "std"))]
+#[derive(Clone, Debug, Default)]
+pub struct HostQueue {
+    pub blocks: std::collections::VecDeque<Block>,
+    pub cap: usize,
+}
+
+#[cfg(any(test, feature = "std"))]
+impl Sink for HostQueue {
+    fn len(&self) -> usize {
+        self.blocks.len()
+    }
+    fn try_push(&mut self, b: Block) -> Result<(), Block> {
+        if self.blocks.len() >= self.cap {
+            return Err(b);
+        }
+        self.blocks.push_back(b);
+        Ok(())
+    }
+}
+
+#[cfg(any(test, feature = "std"))]
+impl crate::ports::BlockSource for HostQueue {
+    fn front(&mut self) -> Option<&Block> {
+        self.blocks.front()
+    }
+    fn pop(&mut self) {
+        self.blocks.pop_front();
+    }
+}
+
+/// Why a chatter hold could not be re-planned (it stays a hold, `ALARM:107`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Refusal {
+    /// The held block is an arc, a rapid or a dwell.
+    NotLinear,
+    /// The held block moves Z (a ramp or a plunge): no depth to reduce.
+    MovesZ,
+    /// Z + the step would pass the Z soft limit (BLU).
+    SoftLimit { z: i32, max: i32 },
+}
+
+impl Refusal {
+    pub fn message(&self) -> &'static str {
+        match self {
+            Refusal::NotLinear => "the held block is not a straight feed move",
+            Refusal::MovesZ => "the held block moves Z",
+            Refusal::SoftLimit { .. } => "the lifted pass would pass the Z soft limit",
+        }
+    }
+}
+
+/// The position change of a block (BLU).
+pub fn displacement(b: &Block) -> [i32; 3] {
+    let signed = |steps: [u32; 3], signs: u8| {
+        [X, Y, Z].map(|k| {
+            let v = steps[k] as i32;
+            if signs & (1 << k) != 0 {
+                v
+            } else {
+                -v
+            }
+        })
+    };
+    match &b.motion {
+        Motion::Rapid(r) => signed(r.steps, r.signs),
+        Motion::Linear(l) => signed(l.steps, l.signs),
+        Motion::Arc(c) => {
+            let (a, bb) = c.plane.axes();
+            let end = c
+                .targets
+                .get(usize::from(c.n_targets).saturating_sub(1))
+                .copied()
+                .unwrap_or(c.start);
+            let mut d = [0; 3];
+            d[a] = end[0] - c.start[0];
+            d[bb] = end[1] - c.start[1];
+            d
+        }
+        Motion::Dwell(_) => [0; 3],
+    }
+}
+
+/// A rapid by `d` (BLU).
+fn rapid(line: u32, d: [i32; 3]) -> Block {
+    let mut signs = 0;
+    for (k, v) in d.iter().enumerate() {
+        if *v > 0 {
+            signs |= 1 << k;
+        }
+    }
+    Block {
+        line,
+        motion: Motion::Rapid(Rapid {
+            steps: d.map(i32::unsigned_abs),
+            signs,
+        }),
+    }
+}
+
+/// The straight feed move `l` re-made for the XY move `d` (BLU), sealed.
+fn feed_move(line: u32, l: &Linear, d: [i32; 2], decel: bool, cfg: &FrameConfig) -> Block {
+    let steps = [d[0].unsigned_abs(), d[1].unsigned_abs(), 0];
+    let q = isqrt(u64::from(steps[0]).pow(2) + u64::from(steps[1]).pow(2)) as u32;
+    let mut signs = 0;
+    for (k, v) in d.iter().enumerate() {
+        if *v > 0 {
+            signs |= 1 << k;
+        }
+    }
+    let mut b = Block {
+        line,
+        motion: Motion::Linear(Linear {
+            steps,
+            q: q.max(1),
+            signs,
+            decel,
+            ..*l
+        }),
+    };
+    b.seal(cfg);
+    b
+}
+
+/// The detour that removes the rest of `held` (a straight XY feed move ending at `p1`) in two
+/// layers from the stop `pc`: see the module docs. Empty when nothing of it is left in XY.
+pub fn detour(
+    held: &Block,
+    pc: [i32; 3],
+    p1: [i32; 3],
+    lift: u32,
+    nc: &Settings,
+    cfg: &FrameConfig,
+) -> Result<heapless::Vec<Block, DETOUR>, Refusal> {
+    let Motion::Linear(l) = &held.motion else {
+        return Err(Refusal::NotLinear);
+    };
+    if l.steps[Z] != 0 {
+        return Err(Refusal::MovesZ);
+    }
+    let mut out = heapless::Vec::new();
+    let d = [p1[X] - pc[X], p1[Y] - pc[Y]];
+    if d == [0, 0] {
+        return Ok(out);
+    }
+    let up = i32::try_from(lift).unwrap_or(i32::MAX);
+    let z = pc[Z].saturating_add(up);
+    if z > nc.soft_max[Z] {
+        return Err(Refusal::SoftLimit {
+            z,
+            max: nc.soft_max[Z],
+        });
+    }
+    let line = held.line;
+    for b in [
+        rapid(line, [0, 0, up]),
+        feed_move(line, l, d, true, cfg),
+        rapid(line, [-d[0], -d[1], 0]),
+        rapid(line, [0, 0, -up]),
+        feed_move(line, l, d, l.decel, cfg),
+    ] {
+        // DETOUR blocks fit.
+        let _ = out.push(b);
+    }
+    Ok(out)
+}
+
+/// One re-plan, for the report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Replanned {
+    /// Where the machine stopped (BLU).
+    pub at: [i32; 3],
+    /// The end of the held block (BLU).
+    pub to: [i32; 3],
+    /// The step (BLU).
+    pub lift: u32,
+    /// The held block's source line.
+    pub line: u32,
+    /// Re-plans so far in this run.
+    pub count: u32,
+}
+
+/// What a call of [`Replan::poll`] did, for the loader to report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Event {
+    None,
+    /// A chatter hold was re-planned; the AC resumes.
+    Replanned(Replanned),
+    /// A chatter hold that stays a hold (`ALARM:107`), and why.
+    Refused {
+        at: [i32; 3],
+        why: Refusal,
+    },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum State {
+    /// Watching for a chatter hold that has stopped the machine.
+    Watch,
+    /// The frame drops its queue (the abort bit is set).
+    Abort,
+    /// Done (re-planned or refused) for the hold that ended `Status::resumes` at this count:
+    /// waiting for the AC to resume.
+    Done { resumes: u32 },
+}
+
+/// A queued block and where it starts.
+#[derive(Clone, Copy, Debug)]
+struct Entry {
+    block: Block,
+    start: [i32; 3],
+}
+
+const EMPTY: Entry = Entry {
+    block: Block {
+        line: 0,
+        motion: Motion::Dwell(Dwell { frames: 0 }),
+    },
+    start: [0; 3],
+};
+
+/// The loader's record of the blocks it has queued and the frame has not yet done (by the
+/// frame's block count, `Status::blocks_done`), and blocks waiting for room in the queue (after a
+/// re-plan the detour and the copies may be more than the queue holds). `N` must exceed the
+/// queue's capacity by at least [`DETOUR`] (the record keeps `DETOUR - 1` entries free for a detour). Loader task; host.
+pub struct Replan<const N: usize> {
+    ring: [Entry; N],
+    /// Sequence number (the frame's block count) of the oldest entry kept.
+    base: u32,
+    /// Sequence number of the next block recorded, and of the next block handed to the queue.
+    issued: u32,
+    sent: u32,
+    /// Where the last recorded block ends.
+    end: [i32; 3],
+    /// The depth step, BLU (0: chatter holds stay holds).
+    lift: u32,
+    nc: Settings,
+    cfg: FrameConfig,
+    state: State,
+    count: u32,
+    /// The re-plan under way: the detour, the held block's sequence number, the stop.
+    path: heapless::Vec<Block, DETOUR>,
+    held_seq: u32,
+    at: [i32; 3],
+}
+
+impl<const N: usize> Replan<N> {
+    /// Starts at the machine's position `at` with the frame's block count `done`; `lift_mm` is
+    /// `$276` (0 or less: off). Init or loader task.
+    pub fn new(nc: Settings, lift_mm: f32, at: [i32; 3], done: u32) -> Self {
+        let (num, den) = nc.blu.per_mm();
+        let lift = if lift_mm > 0.0 {
+            (f64::from(lift_mm) * num as f64 / den as f64).round() as u32
+        } else {
+            0
+        };
+        Replan {
+            ring: [EMPTY; N],
+            base: done,
+            issued: done,
+            sent: done,
+            end: at,
+            lift,
+            nc,
+            cfg: FrameConfig::from_settings(&nc),
+            state: State::Watch,
+            count: 0,
+            path: heapless::Vec::new(),
+            held_seq: done,
+            at,
+        }
+    }
+
+    /// The step in BLU (0: off).
+    pub fn lift(&self) -> u32 {
+        self.lift
+    }
+
+    /// After the frame dropped the queue for another reason (a soft reset, a jog cancel): the
+    /// record starts again at `at`. Loader task.
+    pub fn restart(&mut self, at: [i32; 3], done: u32) {
+        self.base = done;
+        self.issued = done;
+        self.sent = done;
+        self.end = at;
+        self.state = State::Watch;
+    }
+
+    /// Blocks recorded and not yet handed to the queue.
+    pub fn pending(&self) -> bool {
+        self.sent != self.issued
+    }
+
+    /// The frame is dropping the queue for a re-plan: the loader must not change the operator's
+    /// word (its abort bit) until [`Replan::poll`] has finished it.
+    pub fn aborting(&self) -> bool {
+        self.state == State::Abort
+    }
+
+    /// Re-plans so far.
+    pub fn count(&self) -> u32 {
+        self.count
+    }
+
+    /// Records `b` and queues what fits; Err(b) when the record is full (the loader waits for
+    /// the frame, polling, and offers it again). Loader task.
+    pub fn offer(&mut self, sink: &mut impl Sink, b: Block, status: &Status) -> Result<(), Block> {
+        self.trim(status.blocks_done.load(Relaxed));
+        // DETOUR - 1 entries stay free: a re-plan puts the detour where the held block was.
+        if self.issued.wrapping_sub(self.base) as usize + DETOUR > N || self.state == State::Abort {
+            return Err(b);
+        }
+        self.record(b);
+        self.drain(sink);
+        Ok(())
+    }
+
+    /// Offers `b` until it is taken, polling meanwhile (`wait` runs between tries; `report` gets
+    /// every event). Loader task.
+    pub fn enqueue(
+        &mut self,
+        sink: &mut impl Sink,
+        b: Block,
+        status: &Status,
+        mut wait: impl FnMut(),
+        mut report: impl FnMut(Event),
+    ) {
+        let mut b = b;
+        while let Err(back) = self.offer(sink, b, status) {
+            b = back;
+            wait();
+            report(self.poll(sink, status));
+        }
+    }
+
+    fn record(&mut self, b: Block) {
+        let i = self.issued as usize % N;
+        if let Some(e) = self.ring.get_mut(i) {
+            *e = Entry {
+                block: b,
+                start: self.end,
+            };
+        }
+        let d = displacement(&b);
+        self.end = [X, Y, Z].map(|k| self.end[k].wrapping_add(d[k]));
+        self.issued = self.issued.wrapping_add(1);
+    }
+
+    /// Forgets the blocks the frame has done.
+    fn trim(&mut self, done: u32) {
+        // Only forward, and never past what was recorded.
+        if done.wrapping_sub(self.base) <= self.issued.wrapping_sub(self.base) {
+            self.base = done;
+        }
+    }
+
+    fn entry(&self, seq: u32) -> Option<Entry> {
+        (seq.wrapping_sub(self.base) < self.issued.wrapping_sub(self.base))
+            .then(|| self.ring.get(seq as usize % N).copied())
+            .flatten()
+    }
+
+    fn drain(&mut self, sink: &mut impl Sink) {
+        while self.sent != self.issued {
+            let Some(e) = self.entry(self.sent) else {
+                break;
+            };
+            if sink.try_push(e.block).is_err() {
+                break;
+            }
+            self.sent = self.sent.wrapping_add(1);
+        }
+    }
+
+    /// One step of the reaction (call it every turn of the loader; the host after every frame):
+    /// a chatter hold that has stopped the machine starts the frame's abort; the emptied queue
+    /// gets the detour and the copies, and the AC is told to resume; waiting blocks are queued as
+    /// room comes. Loader task.
+    pub fn poll(&mut self, sink: &mut impl Sink, status: &Status) -> Event {
+        let mut event = Event::None;
+        match self.state {
+            State::Watch => {
+                let chatter = status.ac_state.load(Relaxed) == alarm::AC_CHATTER;
+                if self.lift > 0 && chatter && status.stopped() {
+                    let done = status.blocks_done.load(Relaxed);
+                    self.trim(done);
+                    let at = status.position();
+                    let plan = match self.entry(done) {
+                        // Nothing left to cut: the AC simply resumes.
+                        None => Ok(heapless::Vec::new()),
+                        Some(e) => detour(&e.block, at, end_of(&e), self.lift, &self.nc, &self.cfg),
+                    };
+                    match plan {
+                        Ok(path) => {
+                            // The machine stands until the abort is done: the plan holds.
+                            self.path = path;
+                            self.held_seq = done;
+                            self.at = at;
+                            let w = status.operator.load(Relaxed);
+                            status.operator.store(w | operator::ABORT, Relaxed);
+                            self.state = State::Abort;
+                        }
+                        Err(why) => {
+                            self.state = State::Done {
+                                resumes: status.resumes.load(Relaxed),
+                            };
+                            event = Event::Refused { at, why };
+                        }
+                    }
+                }
+            }
+            State::Abort => {
+                if sink.len() == 0 && status.idle.load(Relaxed) {
+                    let w = status.operator.load(Relaxed);
+                    status.operator.store(w & !operator::ABORT, Relaxed);
+                    event = self.requeue();
+                    self.state = State::Done {
+                        resumes: status.resumes.load(Relaxed),
+                    };
+                    status.ac_resume.store(true, Relaxed);
+                }
+                // Nothing is queued while the frame drops the queue.
+                return event;
+            }
+            State::Done { resumes } => {
+                if status.resumes.load(Relaxed) != resumes {
+                    self.state = State::Watch;
+                }
+            }
+        }
+        self.drain(sink);
+        event
+    }
+
+    /// The queue is empty and the machine stands: the record restarts at the stop with the
+    /// detour in place of the held block, the blocks behind it unchanged (their starts too: the
+    /// detour ends where the held block ended).
+    fn requeue(&mut self) -> Event {
+        let done = self.held_seq;
+        let path = core::mem::take(&mut self.path);
+        let Some(held) = self.entry(done) else {
+            // Nothing was left to cut.
+            self.restart(self.end, done);
+            return Event::None;
+        };
+        let behind = self.issued.wrapping_sub(done).wrapping_sub(1);
+        let len = path.len() as u32;
+        // Move the blocks behind into their new places (towards the end when the detour is
+        // longer than one block: from the last one down; else from the first one up).
+        let from = done.wrapping_add(1);
+        let to = done.wrapping_add(len);
+        let slot = |seq: u32| seq as usize % N;
+        for i in 0..behind {
+            let i = if len > 1 { behind - 1 - i } else { i };
+            let e = self.ring.get(slot(from.wrapping_add(i))).copied();
+            if let (Some(e), Some(dst)) = (e, self.ring.get_mut(slot(to.wrapping_add(i)))) {
+                *dst = e;
+            }
+        }
+        let mut start = self.at;
+        for (i, b) in path.iter().enumerate() {
+            if let Some(dst) = self.ring.get_mut(slot(done.wrapping_add(i as u32))) {
+                *dst = Entry { block: *b, start };
+            }
+            let d = displacement(b);
+            start = [X, Y, Z].map(|k| start[k].wrapping_add(d[k]));
+        }
+        self.base = done;
+        self.sent = done;
+        self.issued = done.wrapping_add(len).wrapping_add(behind);
+        self.count = self.count.wrapping_add(1);
+        Event::Replanned(Replanned {
+            at: self.at,
+            to: end_of(&held),
+            lift: self.lift,
+            line: held.block.line,
+            count: self.count,
+        })
+    }
+}
+
+fn end_of(e: &Entry) -> [i32; 3] {
+    let d = displacement(&e.block);
+    [X, Y, Z].map(|k| e.start[k].wrapping_add(d[k]))
+}
+
+#[cfg(test)]
+mod tests;
