@@ -47,13 +47,13 @@ pub const DETOUR: usize = 5;
 /// Where the loader queues blocks: the producer end of the frame's queue. Loader task; host.
 pub trait Sink {
     /// Blocks queued and not yet done by the frame (the running block included).
-    fn len(&self) -> usize;
+    fn queued(&self) -> usize;
     /// Queues `b` if there is room.
     fn try_push(&mut self, b: Block) -> Result<(), Block>;
 }
 
 impl<const Q: usize> Sink for heapless::spsc::Producer<'static, Block, Q> {
-    fn len(&self) -> usize {
+    fn queued(&self) -> usize {
         heapless::spsc::Producer::len(self)
     }
     fn try_push(&mut self, b: Block) -> Result<(), Block> {
@@ -72,7 +72,7 @@ pub struct HostQueue {
 
 #[cfg(any(test, feature = "std"))]
 impl Sink for HostQueue {
-    fn len(&self) -> usize {
+    fn queued(&self) -> usize {
         self.blocks.len()
     }
     fn try_push(&mut self, b: Block) -> Result<(), Block> {
@@ -475,7 +475,7 @@ impl<const N: usize> Replan<N> {
                 }
             }
             State::Abort => {
-                if sink.len() == 0 && status.idle.load(Relaxed) {
+                if sink.queued() == 0 && status.idle.load(Relaxed) {
                     let w = status.operator.load(Relaxed);
                     status.operator.store(w & !operator::ABORT, Relaxed);
                     event = self.requeue();

@@ -84,7 +84,10 @@ impl Rig {
     }
 
     fn done(&self) -> bool {
-        self.program.is_empty() && !self.replan.pending() && self.q.len() == 0 && self.frame.idle()
+        self.program.is_empty()
+            && !self.replan.pending()
+            && self.q.queued() == 0
+            && self.frame.idle()
     }
 
     /// Runs to the end; `hold_when` says at which positions the chatter monitor holds.
@@ -248,7 +251,7 @@ fn holds_that_cannot_be_replanned_stay_holds() {
             r.step();
         }
         assert_eq!(r.frame.position(), at);
-        assert!(r.q.len() > 0);
+        assert!(r.q.queued() > 0);
         assert_eq!(r.status.operator.load(Relaxed) & operator::ABORT, 0);
     }
 }
