@@ -139,6 +139,11 @@ pub struct AcSettings {
     /// Tool breakage detection (`$268`, `crate::monitor::breakage` with its defaults). Off by
     /// default.
     pub breakage: bool,
+    /// Chatter suppression (`$276`, mm, 0..=50): the depth step a chatter hold lifts the rest of
+    /// the held pass by, the material below cut in an extra pass (`crate::rt::replan`, the
+    /// thesis' reaction); 0 leaves a chatter hold a hold (`ALARM:107`). Default 1.0 mm, the
+    /// thesis' step (Munasinghe 1994, section 5.3.2).
+    pub chatter_step_mm: f32,
 }
 
 /// The feed ceiling under adaptive control (see [`AcSettings::ceiling`]).
@@ -201,6 +206,7 @@ impl Default for AcSettings {
             monitor_rpm: 600,
             chatter_threshold: 0.0,
             breakage: false,
+            chatter_step_mm: 1.0,
         }
     }
 }
@@ -228,8 +234,8 @@ pub enum AcSettingsError {
     ForceTorquePeriods,
     NominalFeed,
     GpcLambda,
-    /// The monitors' flutes (1..=8), spindle speed (1..=100000 rpm) or chatter threshold
-    /// (finite, >= 0).
+    /// The monitors' flutes (1..=8), spindle speed (1..=100000 rpm), chatter threshold
+    /// (finite, >= 0) or chatter step (0..=50 mm).
     Monitor,
 }
 
@@ -265,7 +271,8 @@ impl AcSettingsError {
             AcSettingsError::NominalFeed => "the nominal feed must be within [f_min, f_max]",
             AcSettingsError::GpcLambda => "the GPC weight lambda must be 0..=1e6",
             AcSettingsError::Monitor => {
-                "monitors: flutes 1..=8, spindle speed 1..=100000 rpm, chatter threshold >= 0"
+                "monitors: flutes 1..=8, spindle speed 1..=100000 rpm, chatter threshold >= 0, \
+                 chatter step 0..=50 mm"
             }
             AcSettingsError::ForceTorquePeriods => {
                 "force/torque mismatch count must be 0 (off) ..=100000 AC periods"
@@ -330,7 +337,8 @@ impl AcSettings {
         let monitors_ok = (1..=crate::monitor::MAX_FLUTES as u32).contains(&self.flutes)
             && (1..=100_000).contains(&self.monitor_rpm)
             && self.chatter_threshold.is_finite()
-            && self.chatter_threshold >= 0.0;
+            && self.chatter_threshold >= 0.0
+            && (0.0..=50.0).contains(&self.chatter_step_mm);
         if !monitors_ok {
             return Err(AcSettingsError::Monitor);
         }

@@ -14,7 +14,7 @@
 //!
 //! Any change of the payload bumps [`VERSION`]; a record of another version loads as defaults with
 //! [`RecordError::Version`] (no migration yet). The CRC is computed bit by bit ([`crc32`]): the
-//! record is under 200 bytes and checked once at start-up and once per store, so a table (1 KiB of
+//! record is about 200 bytes and checked once at start-up and once per store, so a table (1 KiB of
 //! flash, or 16 KiB for the sliced tables of crc32fast) buys nothing, and 10 lines need no new
 //! dependency. CRC-32 detects every error burst up to 32 bits, so every single-bit flip; the exact
 //! length check detects every truncation.
@@ -26,9 +26,9 @@ use crate::ports::SettingsStorage;
 use crate::settings::{Blu, BoardLimits, Settings};
 
 pub const MAGIC: [u8; 4] = *b"MLST";
-pub const VERSION: u16 = 3;
+pub const VERSION: u16 = 4;
 pub const HEADER_LEN: usize = 8;
-pub const PAYLOAD_LEN: usize = 200;
+pub const PAYLOAD_LEN: usize = 204;
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF): the
@@ -249,6 +249,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     p.u32(s.ac.monitor_rpm);
     p.f32(s.ac.chatter_threshold);
     p.u8(s.ac.breakage as u8);
+    p.f32(s.ac.chatter_step_mm);
     let end = p.pos;
     let crc = crc32(img.get(..end).unwrap_or(&[]));
     let mut p = Put {
@@ -357,6 +358,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let (flutes, monitor_rpm) = (t.u32()?, t.u32()?);
     let chatter_threshold = t.f32()?;
     let breakage = t.bool()?;
+    let chatter_step_mm = t.f32()?;
     let build = || {
         Some(MachineSettings {
             nc: Settings {
@@ -402,6 +404,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
                 monitor_rpm,
                 chatter_threshold,
                 breakage: breakage?,
+                chatter_step_mm,
             },
             ac_enabled: ac_enabled?,
             report: ReportSettings {

@@ -143,7 +143,7 @@ macro_rules! mirror {
 /// millac's own from `$200` (NC) and `$250` (adaptive control). `$200` (the BLU) comes first: the
 /// settings listed in mm are kept in BLU, so a listing restored line by line onto the defaults
 /// changes the BLU before it sets them.
-pub static TABLE: [Entry; 60] = [
+pub static TABLE: [Entry; 61] = [
     Entry {
         number: 200,
         name: "BLU",
@@ -488,6 +488,13 @@ pub static TABLE: [Entry; 60] = [
     real!(273, "T offset", "code", false, ac.cal[0].offset),
     real!(274, "Fu offset", "code", false, ac.cal[1].offset),
     real!(275, "Fv offset", "code", false, ac.cal[2].offset),
+    real!(
+        276,
+        "chatter depth step (0 hold only)",
+        "mm",
+        false,
+        ac.chatter_step_mm
+    ),
     int!(
         280,
         "stuck samples",
