@@ -262,6 +262,12 @@ impl Stock {
         }
     }
 
+    /// The material top of every cell (mm), row by row (cell (i, j) at `j * nx + i`, see
+    /// [`Stock::dims`]), for comparing two cuts of the same stock.
+    pub fn tops(&self) -> &[f64] {
+        &self.top
+    }
+
     fn center(&self, i: usize, j: usize) -> (f64, f64) {
         (
             self.x0_mm + (i as f64 + 0.5) * self.cell_mm,
