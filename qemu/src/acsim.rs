@@ -12,6 +12,7 @@ use millac::gcode::tape::finish_block;
 use millac::nc::{Block, Frame, FrameConfig, Motion, Rate};
 use millac::ports::{Conversion, ForceTorqueAdc};
 use millac::rt::ac::{self as rt_ac, AcPeriod};
+use millac::rt::replan::{Event as ReplanEvent, HostQueue, Replan, Replanned};
 use millac::rt::Status;
 use millac::Settings;
 use millac_plant::{Damage, Material, Process, Stock, Tool, ToothEvent, Transducer};
@@ -249,7 +250,21 @@ pub struct HostRun {
     pub spans: Vec<(usize, u64, u64)>,
     /// The chatter monitor's spectrum of every sound record, with the time it ended (s).
     pub spectra: Vec<(f64, millac::monitor::chatter::Spectrum)>,
+    /// Chatter suppression's re-plans and refusals (`millac::rt::replan`, the loader's code),
+    /// with their virtual time (s).
+    pub replans: Vec<(f64, Replanned)>,
+    pub refused: Vec<(f64, millac::rt::replan::Refusal)>,
+    /// The stock as the run left it (the plant's height map).
+    pub stock: Option<Stock>,
 }
+
+/// The host's block queue: as many blocks as the QEMU board's (its 16-slot SPSC queue holds
+/// 15), so the loader's record sees the same queue.
+pub const HOST_QUEUE: usize = 15;
+
+/// The loader's record of the queued blocks (`millac::rt::replan::Replan`): the queue and a
+/// detour's room.
+pub const REPLAN_RECORD: usize = millac::rt::replan::record_len(HOST_QUEUE + 1);
 
 /// The programmed feed of a block in ipm (0 for rapids and dwells).
 pub fn programmed_ipm(settings: &Settings, b: &Block) -> f64 {
@@ -384,11 +399,23 @@ pub fn run_with_faults(
     // An enabled AC's feed ceiling, as the firmware's tape applies it (the same function).
     let cfg = FrameConfig::from_settings(settings);
     let ceiling = ac.map(|s| s.ceiling);
-    let mut queue: VecDeque<Block> = prog
+    // The program, fed to the queue through the loader's record as the firmware's loader feeds
+    // it (chatter suppression re-plans from that record).
+    let mut program: VecDeque<Block> = prog
         .iter()
         .map(|b| finish_block(b.block, ceiling, &cfg, settings.q0))
         .collect();
+    let mut queue = HostQueue {
+        blocks: VecDeque::new(),
+        cap: HOST_QUEUE,
+    };
     let acs = ac.unwrap_or_default();
+    let step_mm = if ac.is_some() {
+        acs.chatter_step_mm
+    } else {
+        0.0
+    };
+    let mut replan = Replan::<REPLAN_RECORD>::new(*settings, step_mm, [0; 3], 0);
     // The firmware's sampler and AC period (`millac::rt::ac`) over a host status and ADC.
     let status = Status::new();
     status.start();
@@ -432,16 +459,25 @@ pub fn run_with_faults(
     let (mut first, mut last) = (None, 0u64);
     let mut block_feed = 0.0;
     loop {
+        while let Some(b) = program.pop_front() {
+            if let Err(b) = replan.offer(&mut queue, b, &status) {
+                program.push_front(b);
+                break;
+            }
+        }
         if frame.idle() {
-            match queue.front() {
-                None => break,
+            match queue.blocks.front() {
+                None if program.is_empty() && !replan.pending() && !replan.aborting() => break,
+                None => {}
                 Some(b) => block_feed = programmed_ipm(settings, b),
             }
         }
         let rate = frame.rate();
         let was_idle = frame.idle();
         let done_before = frame.blocks_done();
-        let p = frame.tick(&mut queue, feed_cap);
+        let word = status.operator.load(Relaxed);
+        let p = frame.tick(&mut queue, (feed_cap, word));
+        status.publish_frame(&frame);
         let t0 = t;
         t += period_ns(settings, rate);
         if was_idle && !frame.idle() {
@@ -471,7 +507,10 @@ pub fn run_with_faults(
         }
         if chained {
             out.spans.push((out.spans.len(), t, t));
-            block_feed = queue.front().map_or(0.0, |b| programmed_ipm(settings, b));
+            block_feed = queue
+                .blocks
+                .front()
+                .map_or(0.0, |b| programmed_ipm(settings, b));
         }
         let mut halt = false;
         while t >= next_sample {
@@ -537,10 +576,17 @@ pub fn run_with_faults(
             });
             period_start = pos;
         }
+        // The loader's turn: chatter suppression.
+        match replan.poll(&mut queue, &status) {
+            ReplanEvent::None => {}
+            ReplanEvent::Replanned(r) => out.replans.push((t as f64 * 1e-9, r)),
+            ReplanEvent::Refused { why, .. } => out.refused.push((t as f64 * 1e-9, why)),
+        }
         if halt {
             break;
         }
     }
+    out.stock = Some(adc.process.stock().clone());
     out.samples = adc.truth;
     out.codes = adc.codes;
     out.machining_time_s = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);

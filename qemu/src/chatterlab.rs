@@ -32,6 +32,20 @@ pub fn preset_slot(depth_in: f64, to_x: f64) -> (String, crate::acsim::Cut) {
     (text, cut)
 }
 
+/// The table 3.2 cut as a through slot for chatter suppression: from a drilled hole at X0.2 out
+/// of a 1 in (25.4 mm) wide aluminium block at `depth_in`, F6, then up. The hole (20.3 mm) is
+/// wider than the tool (15.9 mm) and the slot runs out of the block, because the plant's side-chip
+/// probe reads up to about 2 mm ahead of the tool (see `millac_plant::process`): a re-plan's lower
+/// layer ending at a closed slot end, or a rapid back to a stop next to the wall of a hole of the
+/// tool's size, would read material the tool never reaches.
+pub fn through_slot(depth_in: f64) -> (String, crate::acsim::Cut) {
+    let (_, cut) = preset_slot(depth_in, 1.6);
+    let text = format!("G20 G90\nG0 X0.2 Y1\nG0 Z-{depth_in}\nG1 X1.6 F6\nG0 Z0.1\nM2\n");
+    let stock = millac_plant::Stock::parse("blank X0 Y0 W1 H2 Z0\nhole X0.2 Y1 D0.8 Z-0.4\n")
+        .expect("the slot's stock parses");
+    (text, crate::acsim::Cut { stock, ..cut })
+}
+
 /// The chatter threshold by the thesis' rule: twice the largest amplitude the chatter monitor
 /// hears (`AcSettings` `listen`, its threshold out of reach) over `prog` on `cut`, a chatter-free
 /// cut, run on the host with the firmware's code.
@@ -174,6 +188,122 @@ pub fn plot(path: &Path, runs: &[ChatterRun], threshold: f32) -> Result<()> {
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
     chart
         .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+/// Chatter suppression on the host (as the thesis' Fig. 5.15 with the passes): above, the largest
+/// sound amplitude of every detection cycle against time with the threshold and the re-plans;
+/// below, the tool's height and X position (mm) over the run, one AC period per point.
+pub fn plot_suppression(path: &Path, run: &crate::acsim::HostRun, threshold: f32) -> Result<()> {
+    let root = SVGBackend::new(path, (1000, 700)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (upper, lower) = root.split_vertically(340);
+    let t_end = run.rows.last().map_or(1.0, |r| r.t_ms as f64 / 1000.0);
+    let top = run
+        .spectra
+        .iter()
+        .map(|(_, s)| s.peak_amplitude)
+        .fold(threshold, f32::max) as f64
+        * 1.3;
+    let mut chart = ChartBuilder::on(&upper)
+        .caption(
+            "Table 3.2 slot at 8.89 mm, chatter suppressed by 1 mm depth steps: largest sound amplitude per detection cycle (as Fig. 5.15)",
+            ("sans-serif", 15),
+        )
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0f64..t_end, (0.1f64..top).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("time, s")
+        .y_desc("amplitude, codes (log)")
+        .draw()?;
+    chart
+        .draw_series(LineSeries::new(
+            run.spectra
+                .iter()
+                .map(|(t, s)| (*t, f64::from(s.peak_amplitude).max(0.1))),
+            BLUE.stroke_width(1),
+        ))?
+        .label("largest amplitude away from the tooth harmonics")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    chart
+        .draw_series(LineSeries::new(
+            [(0.0, f64::from(threshold)), (t_end, f64::from(threshold))],
+            BLACK.stroke_width(1),
+        ))?
+        .label("threshold (2 x the 2.54 mm cut's largest)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+    chart
+        .draw_series(
+            run.replans
+                .iter()
+                .map(|(t, _)| PathElement::new(vec![(*t, 0.1), (*t, top)], RED.stroke_width(1))),
+        )?
+        .label("re-plan: depth reduced by 1 mm")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    // The runs' BLU (the default settings').
+    let (num, den) = millac::Settings::default().blu.per_mm();
+    let mm = |blu: i64| blu as f64 * den as f64 / num as f64;
+    let x_max = run
+        .rows
+        .iter()
+        .map(|r| mm(r.pos_blu[0]))
+        .fold(1.0, f64::max);
+    let z_min = run
+        .rows
+        .iter()
+        .map(|r| mm(r.pos_blu[2]))
+        .fold(0.0, f64::min);
+    let mut chart = ChartBuilder::on(&lower)
+        .caption(
+            "Tool height Z and position X (mm): the passes",
+            ("sans-serif", 15),
+        )
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(55)
+        .right_y_label_area_size(55)
+        .build_cartesian_2d(0f64..t_end, (z_min - 0.5)..1.0)?
+        .set_secondary_coord(0f64..t_end, 0f64..x_max * 1.05);
+    chart
+        .configure_mesh()
+        .x_desc("time, s")
+        .y_desc("Z, mm")
+        .draw()?;
+    chart.configure_secondary_axes().y_desc("X, mm").draw()?;
+    chart
+        .draw_series(LineSeries::new(
+            run.rows
+                .iter()
+                .map(|r| (r.t_ms as f64 / 1000.0, mm(r.pos_blu[2]))),
+            RED.stroke_width(2),
+        ))?
+        .label("Z")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+    chart
+        .draw_secondary_series(LineSeries::new(
+            run.rows
+                .iter()
+                .map(|r| (r.t_ms as f64 / 1000.0, mm(r.pos_blu[0]))),
+            BLUE.stroke_width(1),
+        ))?
+        .label("X")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;

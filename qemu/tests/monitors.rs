@@ -7,6 +7,7 @@
 //! overruns its 10 ms with the monitors' work in it (the cost is printed: instructions of the AC
 //! task per period).
 use millac::ac::AcSettings;
+use millac::rt::replan::Replanned;
 use millac::Settings;
 use millac_plant::chatter::thesis_table_3_2 as t;
 use millac_qemu::acsim::{self, Cut};
@@ -119,8 +120,11 @@ fn the_firmware_holds_the_chattering_cut_and_not_the_stable_one() {
         ..AcSettings::default()
     };
     let threshold = chatterlab::thesis_threshold(&prog, &s, &cut, listen).unwrap();
+    // Detection alone (`$276=0`): a chatter hold stays a hold, so the run stops and reports it
+    // (the re-plan that follows with a step set: `chatter_suppression_in_the_firmware_as_on_the_host`).
     let acs = AcSettings {
         chatter_threshold: threshold,
+        chatter_step_mm: 0.0,
         ..listen
     };
     // 2.54 mm under QEMU (a shorter slot): no alarm.
@@ -203,4 +207,73 @@ fn ac_breakage_and_chatter_together_on_the_pocket() {
         "{fw} s against {}",
         host.machining_time_s
     );
+}
+
+/// Chatter suppression in the firmware (tape mode): the table 3.2 cut at 8.89 mm through the
+/// block, `$276` = 1 mm: the loader re-plans every chatter hold at the same level, with the same
+/// step, to the same end and as often as the host simulation of the same code, and the slot is
+/// cut to its end (the firmware reports each re-plan in its result file).
+#[test]
+fn chatter_suppression_in_the_firmware_as_on_the_host() {
+    let s = Settings::default();
+    let (text, cut) = chatterlab::through_slot(0.1);
+    let prog = analysis::load_program(&text, &s).unwrap();
+    let listen = AcSettings {
+        flutes: t::FLUTES,
+        monitor_rpm: t::RPM as u32,
+        chatter_step_mm: 1.0,
+        ..AcSettings::default()
+    };
+    let acs = AcSettings {
+        chatter_threshold: chatterlab::thesis_threshold(&prog, &s, &cut, listen).unwrap(),
+        ..listen
+    };
+    let (text, cut) = chatterlab::through_slot(0.35);
+    let prog = analysis::load_program(&text, &s).unwrap();
+    let host = acsim::run_with_faults(&prog, &s, &cut, Some(acs), true, &[]).unwrap();
+    let o = qemu_run("suppressed", &text, cut, acs);
+    cost(&o, "8.89 mm suppressed");
+    assert_eq!(o.summary["completed"], true, "{}", o.summary);
+    let result = &o.capture.as_ref().unwrap().result;
+    assert!(!result.contains("chatter: not re-planned"), "{result}");
+    let fw: Vec<Replanned> = result
+        .lines()
+        .filter_map(|l| l.strip_prefix("chatter: re-planned "))
+        .map(|l| parse_replanned(l).unwrap_or_else(|| panic!("{l}")))
+        .collect();
+    let host: Vec<Replanned> = host.replans.iter().map(|(_, r)| *r).collect();
+    eprintln!("firmware re-plans: {fw:?}\nhost re-plans:     {host:?}");
+    assert!(!host.is_empty());
+    // The same re-plans: levels, steps, ends and count; the first stop within 2 BLU (the
+    // firmware's AC task applies the hold a frame later or earlier than the host's period
+    // boundary), the later ones within 0.01 in as the chatter's growth diverges.
+    assert_eq!(fw.len(), host.len(), "{fw:?} {host:?}");
+    for (k, (f, h)) in fw.iter().zip(&host).enumerate() {
+        let (dx, tol) = ((f.at[0] - h.at[0]).abs(), if k == 0 { 2 } else { 100 });
+        assert!(dx <= tol, "re-plan {k}: {f:?} {h:?}");
+        assert_eq!(
+            (f.at[1], f.at[2], f.to, f.lift, f.count),
+            (h.at[1], h.at[2], h.to, h.lift, h.count)
+        );
+    }
+}
+
+/// A re-plan as the firmware writes it (`Replanned`'s `Display`).
+fn parse_replanned(l: &str) -> Option<Replanned> {
+    let n = |v: &str| v.parse::<i32>().ok();
+    let xyz = |v: &str| {
+        let mut it = v.split(',').map(n);
+        Some([it.next()??, it.next()??, it.next()??])
+    };
+    let w: Vec<&str> = l.split_whitespace().collect();
+    match w[..] {
+        [count, "at", at, "to", to, lift, line] => Some(Replanned {
+            count: count.parse().ok()?,
+            at: xyz(at)?,
+            to: xyz(to)?,
+            lift: lift.strip_prefix("lift=")?.parse().ok()?,
+            line: line.strip_prefix("line=")?.parse().ok()?,
+        }),
+        _ => None,
+    }
 }

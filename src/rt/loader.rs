@@ -40,6 +40,7 @@ use crate::protocol::rx::Overrides;
 use crate::protocol::settings::Persistent;
 use crate::protocol::{Context, Event, Protocol, SettingsTable};
 use crate::rt::ac::AC_RUN;
+use crate::rt::replan::{self, Replan};
 use crate::rt::Status;
 use heapless::spsc::{Consumer, Producer};
 
@@ -180,8 +181,16 @@ struct Deferred {
 // alone; LLVM stopped inlining it when it grew by a few lines in issue 10, and the firmware
 // overflowed its 256 KiB of flash by 27 KiB; the F446 build shrank by 14 KiB with it).
 #[inline(always)]
-pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B: LoaderBoard>(
+pub fn run<
+    const Q: usize,
+    const T: usize,
+    const A: usize,
+    const R: usize,
+    S: SettingsStorage,
+    B: LoaderBoard,
+>(
     blocks: &mut Producer<'static, Block, Q>,
+    replan: &mut Replan<R>,
     table: &mut Persistent<S>,
     ceiling: Option<FeedCeiling>,
     proto: &mut Protocol<'static>,
@@ -206,6 +215,10 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
     // The programmed feed of the block the loader queued last (the AC field's feed share).
     let mut last_feed = 0u32;
     let cfg = FrameConfig::from_settings(&settings);
+    let mm_per_blu = {
+        let (num, den) = settings.blu.per_mm();
+        den as f32 / num as f32
+    };
     // A jog is queued and has not finished yet (the state is Jog until the machine is idle).
     let mut jogging = false;
     // The operator's feed hold, and a jog cancel waiting for the jog to stop.
@@ -252,11 +265,49 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 proto.message(&mut out, format_args!("Spindle stopped"));
             }
         }
-        // AC holds: said once each, as they come.
+        // AC holds: said once each, as they come. A chatter hold with a depth step set is
+        // re-planned (below), not an alarm, unless the re-plan is refused.
         while let Some(a) = ac_alarms.dequeue() {
             proto.message(&mut out, format_args!("AC hold: {}", a));
-            if !matches!(a, Alarm::Overload { .. }) {
+            let replanned = matches!(a, Alarm::Chatter { .. }) && replan.lift() > 0;
+            if !matches!(a, Alarm::Overload { .. }) && !replanned {
                 proto.alarm(ac_alarm(&a), &mut out);
+            }
+        }
+        // Chatter suppression: a chatter hold that has stopped the machine is re-planned (the
+        // frame drops the queue, waited for here; the detour and the copies are queued; the AC
+        // resumes).
+        let mut event = replan.poll(blocks, status);
+        while replan.aborting() {
+            board.wait();
+            event = replan.poll(blocks, status);
+        }
+        match event {
+            replan::Event::None => {}
+            replan::Event::Replanned(r) => {
+                let mm = |blu: i32| blu as f32 * mm_per_blu;
+                proto.message(
+                    &mut out,
+                    format_args!(
+                        "Chatter: depth reduced by {:.3} mm from X{:.3} Y{:.3} Z{:.3}, the rest \
+                         of line {} in two passes to X{:.3} Y{:.3} (re-plan {})",
+                        r.lift as f32 * mm_per_blu,
+                        mm(r.at[0]),
+                        mm(r.at[1]),
+                        mm(r.at[2]),
+                        r.line,
+                        mm(r.to[0]),
+                        mm(r.to[1]),
+                        r.count
+                    ),
+                );
+            }
+            replan::Event::Refused { why, .. } => {
+                proto.alarm(alarm::AC_CHATTER, &mut out);
+                proto.message(
+                    &mut out,
+                    format_args!("Chatter: not re-planned: {}", why.message()),
+                );
             }
         }
         // Operator inputs: the buttons as `!` and `~`; an e-stop or a limit switch stops at
@@ -278,7 +329,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             hold = false;
             publish(hold, overrides);
         }
-        let idle = blocks.len() == 0 && status.idle.load(Relaxed);
+        let idle = blocks.len() == 0 && status.idle.load(Relaxed) && !replan.pending();
         if idle {
             jogging = false;
         }
@@ -287,6 +338,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             // The jog has stopped: drop it and any jog queued behind it. The parser keeps its
             // modes (a jog changes none) and stands where the machine stopped.
             let (at, signs) = abort(blocks, status, board);
+            replan.restart(at, status.blocks_done.load(Relaxed));
             tape.jogged_to(at, signs);
             cancel_jog = false;
             jogging = false;
@@ -303,13 +355,15 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                     status.spindle_rpm.store(d.rpm, Relaxed);
                 }
                 let result = tape
-                    .line(d.no, &d.line, |b| enqueue(blocks, b, &mut last_feed))
+                    .line(d.no, &d.line, |b| {
+                        enqueue(blocks, replan, status, b, &mut last_feed)
+                    })
                     .map(|()| board.log_gcode(&d.line))
                     .map_err(GrblError::from);
                 proto.reply(result, &mut out);
                 deferred = None;
             } else if idle {
-                run_held(&mut tape, board, blocks, &mut last_feed);
+                run_held(&mut tape, board, blocks, replan, status, &mut last_feed);
             }
         }
         let state = if hold || ac_held {
@@ -323,7 +377,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 (false, false) => State::Run,
             }
         };
-        let room = Q - 1 - blocks.len() >= ROOM_PER_LINE && deferred.is_none();
+        let room = Q - 1 - blocks.len() >= ROOM_PER_LINE && deferred.is_none() && !replan.pending();
         let mut cx = Context {
             table: &mut *table,
             modes: tape.parser().modes(),
@@ -352,7 +406,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             Event::None => {
                 // Nothing more has come: let the held block run once the machine would stop.
                 if room && idle {
-                    run_held(&mut tape, board, blocks, &mut last_feed);
+                    run_held(&mut tape, board, blocks, replan, status, &mut last_feed);
                 }
             }
             Event::Gcode { line, check } => {
@@ -371,7 +425,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                     // Wait for the machine (the `ok` comes when the line has run).
                     let mut text = heapless::String::new();
                     if text.push_str(line).is_ok() {
-                        run_held(&mut tape, board, blocks, &mut last_feed);
+                        run_held(&mut tape, board, blocks, replan, status, &mut last_feed);
                         deferred = Some(Deferred {
                             line: text,
                             no: line_no,
@@ -383,7 +437,9 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                     }
                 } else {
                     let result = tape
-                        .line(line_no, line, |b| enqueue(blocks, b, &mut last_feed))
+                        .line(line_no, line, |b| {
+                            enqueue(blocks, replan, status, b, &mut last_feed)
+                        })
                         .map(|()| board.log_gcode(line))
                         .map_err(GrblError::from);
                     proto.reply(result, &mut out);
@@ -392,7 +448,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
             Event::Jog(jog) => {
                 // The look-ahead's held block goes first (the parser already stands at its end,
                 // where the jog is planned from).
-                run_held(&mut tape, board, blocks, &mut last_feed);
+                run_held(&mut tape, board, blocks, replan, status, &mut last_feed);
                 // Planned on a copy of the parser (validated like any block, soft limits
                 // included); queued as it is (no AC ceiling: a jog is the operator's feed); the
                 // parser then stands at its end, its modes unchanged.
@@ -404,7 +460,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                         };
                         let b = finish_block(b, None, &cfg, settings.q0);
                         board.log_jog(&jog);
-                        enqueue(blocks, b, &mut last_feed);
+                        enqueue(blocks, replan, status, b, &mut last_feed);
                         tape.jogged_to(plan.end, signs);
                         jogging = true;
                     }
@@ -480,6 +536,7 @@ pub fn run<const Q: usize, const T: usize, const A: usize, S: SettingsStorage, B
                 board.spindle(Spindle::Off, 0, table.settings.spindle_max_rpm);
                 board.log_reset();
                 let (at, signs) = abort(blocks, status, board);
+                replan.restart(at, status.blocks_done.load(Relaxed));
                 tape.abort(at, signs);
                 // A line waiting for the spindle: a soft reset discards it with the stream (the
                 // protocol has done so); after a trip it is answered, refused.
@@ -557,15 +614,17 @@ fn spindle_change<B: LoaderBoard>(
 
 /// Queues the look-ahead's held block, if there is one, before the next line has come (logged
 /// as such, so the host's replay flushes it at the same place). Loader task.
-fn run_held<const Q: usize>(
+fn run_held<const Q: usize, const R: usize>(
     tape: &mut Tape,
     log: &mut impl LoaderBoard,
     blocks: &mut Producer<'static, Block, Q>,
+    replan: &mut Replan<R>,
+    status: &Status,
     last_feed: &mut u32,
 ) {
     if tape.holds_a_block() {
         log.log_flush();
-        tape.flush(|b| enqueue(blocks, b, last_feed));
+        tape.flush(|b| enqueue(blocks, replan, status, b, last_feed));
     }
 }
 
@@ -588,14 +647,22 @@ fn abort<const Q: usize>(
     (status.position(), status.next_signs.load(Relaxed))
 }
 
-/// [`enqueue_block`], remembering the block's programmed feed (for the status report).
-fn enqueue<const Q: usize>(blocks: &mut Producer<'static, Block, Q>, b: Block, feed: &mut u32) {
+/// Queues a block through the re-plan's record (see `crate::rt::replan`), remembering its
+/// programmed feed (for the status report). The loader takes a line only with room for it and
+/// nothing waiting in the record, so the record has room and this does not wait.
+fn enqueue<const Q: usize, const R: usize>(
+    blocks: &mut Producer<'static, Block, Q>,
+    replan: &mut Replan<R>,
+    status: &Status,
+    b: Block,
+    feed: &mut u32,
+) {
     *feed = match b.motion {
         Motion::Linear(l) => l.f,
         Motion::Arc(a) => a.f,
         _ => *feed,
     };
-    enqueue_block(blocks, b);
+    replan.enqueue(blocks, b, status, core::hint::spin_loop);
 }
 
 /// Queues a block, waiting while the queue is full (the frame drains it). Loader task, both modes.

@@ -29,7 +29,8 @@
 //!
 //! - Only a straight feed move without Z motion is re-planned (a slot or a pocket's pass). An arc
 //!   or a ramp held for chatter stays held with `ALARM:107` as without suppression (the operator
-//!   decides), and the report says why.
+//!   decides), and the report says why. A hold in a rapid or a dwell, or with nothing queued, is
+//!   a verdict on the cut before (the monitor judges a record after it ends): the AC resumes.
 //! - The lift is checked against the Z soft limit; a detour that would leave it is refused the
 //!   same way.
 //! - The machine's spindle and the program's modes are untouched; the parser still stands at the
@@ -43,6 +44,16 @@ use crate::settings::Settings;
 
 /// Blocks of one detour.
 pub const DETOUR: usize = 5;
+
+/// Detours inside detours a record of [`record_len`] holds: every re-plan while the blocks of the
+/// last one are still queued adds `DETOUR - 1` blocks (the thesis' pocket needed three steps;
+/// the table 3.2 cut here takes up to eight of 1 mm, see the README).
+pub const NESTED: usize = 8;
+
+/// The record a loader needs for a queue of `queue` slots: the queue, and [`NESTED`] detours.
+pub const fn record_len(queue: usize) -> usize {
+    queue + 1 + (DETOUR - 1) * NESTED
+}
 
 /// Where the loader queues blocks: the producer end of the frame's queue. Loader task; host.
 pub trait Sink {
@@ -97,21 +108,43 @@ impl crate::ports::BlockSource for HostQueue {
 /// Why a chatter hold could not be re-planned (it stays a hold, `ALARM:107`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Refusal {
-    /// The held block is an arc, a rapid or a dwell.
+    /// The held block is an arc.
     NotLinear,
     /// The held block moves Z (a ramp or a plunge): no depth to reduce.
     MovesZ,
     /// Z + the step would pass the Z soft limit (BLU).
     SoftLimit { z: i32, max: i32 },
+    /// The loader's record has no room for another detour ([`NESTED`] inside each other).
+    Nested,
+    /// The held block is a detour's layer (BLU) too thin to split again (below
+    /// [`MIN_LAYER_BLU`] per half).
+    Thin { layer: u32 },
 }
 
 impl Refusal {
     pub fn message(&self) -> &'static str {
         match self {
-            Refusal::NotLinear => "the held block is not a straight feed move",
+            Refusal::NotLinear => "the held block is an arc",
             Refusal::MovesZ => "the held block moves Z",
             Refusal::SoftLimit { .. } => "the lifted pass would pass the Z soft limit",
+            Refusal::Nested => "too many depth steps inside each other",
+            Refusal::Thin { .. } => "the layer is too thin to split again",
         }
+    }
+}
+
+/// The thinnest half a chattering layer is split into (BLU): 0.1 mm in 0.0001 in (0.04 mm in
+/// microns would be 40; a step this small is below any useful depth of cut either way).
+pub const MIN_LAYER_BLU: u32 = 40;
+
+/// The step of a re-plan of a block that cuts a layer of `layer` BLU (0: a programmed block, the
+/// layer unknown): the set step `lift` for a programmed block; half the layer for a detour's
+/// layer (lifting it by the whole step would leave its pass in air and cut the same layer again,
+/// for ever); None when that half is below [`MIN_LAYER_BLU`].
+pub fn step(layer: u32, lift: u32) -> Option<u32> {
+    match layer {
+        0 => Some(lift),
+        t => Some(t / 2).filter(|h| *h >= MIN_LAYER_BLU),
     }
 }
 
@@ -245,6 +278,19 @@ pub struct Replanned {
     pub count: u32,
 }
 
+/// The firmware's result-file form (tape mode, `chatter: re-planned ...`), parsed by the host's
+/// tests: `COUNT at X,Y,Z to X,Y,Z lift=BLU line=N` (BLU).
+impl core::fmt::Display for Replanned {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let (a, t) = (self.at, self.to);
+        write!(
+            f,
+            "{} at {},{},{} to {},{},{} lift={} line={}",
+            self.count, a[0], a[1], a[2], t[0], t[1], t[2], self.lift, self.line
+        )
+    }
+}
+
 /// What a call of [`Replan::poll`] did, for the loader to report.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Event {
@@ -274,6 +320,9 @@ enum State {
 struct Entry {
     block: Block,
     start: [i32; 3],
+    /// The thickness (BLU) of the layer this block cuts when a detour made it (the lower pass:
+    /// the step; the upper pass of a split layer: the rest); 0 for a programmed block (unknown).
+    layer: u32,
 }
 
 const EMPTY: Entry = Entry {
@@ -282,12 +331,13 @@ const EMPTY: Entry = Entry {
         motion: Motion::Dwell(Dwell { frames: 0 }),
     },
     start: [0; 3],
+    layer: 0,
 };
 
 /// The loader's record of the blocks it has queued and the frame has not yet done (by the
 /// frame's block count, `Status::blocks_done`), and blocks waiting for room in the queue (after a
-/// re-plan the detour and the copies may be more than the queue holds). `N` must exceed the
-/// queue's capacity by at least [`DETOUR`] (the record keeps `DETOUR - 1` entries free for a detour). Loader task; host.
+/// re-plan the detour and the copies may be more than the queue holds). [`record_len`] of the
+/// queue's length leaves room for [`NESTED`] detours. Loader task; host.
 pub struct Replan<const N: usize> {
     ring: [Entry; N],
     /// Sequence number (the frame's block count) of the oldest entry kept.
@@ -307,6 +357,11 @@ pub struct Replan<const N: usize> {
     path: heapless::Vec<Block, DETOUR>,
     held_seq: u32,
     at: [i32; 3],
+    /// Its step and the layers of its upper and lower pass (0: unknown).
+    step: u32,
+    layers: [u32; 2],
+    /// Events of the polls [`Replan::enqueue`] made, for the loader's next [`Replan::poll`].
+    late: heapless::Deque<Event, 4>,
 }
 
 impl<const N: usize> Replan<N> {
@@ -315,7 +370,7 @@ impl<const N: usize> Replan<N> {
     pub fn new(nc: Settings, lift_mm: f32, at: [i32; 3], done: u32) -> Self {
         let (num, den) = nc.blu.per_mm();
         let lift = if lift_mm > 0.0 {
-            (f64::from(lift_mm) * num as f64 / den as f64).round() as u32
+            libm::round(f64::from(lift_mm) * num as f64 / den as f64) as u32
         } else {
             0
         };
@@ -333,6 +388,9 @@ impl<const N: usize> Replan<N> {
             path: heapless::Vec::new(),
             held_seq: done,
             at,
+            step: 0,
+            layers: [0; 2],
+            late: heapless::Deque::new(),
         }
     }
 
@@ -367,12 +425,15 @@ impl<const N: usize> Replan<N> {
         self.count
     }
 
-    /// Records `b` and queues what fits; Err(b) when the record is full (the loader waits for
-    /// the frame, polling, and offers it again). Loader task.
+    /// Records `b` and queues it; Err(b) while blocks recorded earlier still wait for room (a
+    /// re-plan's) or the frame is dropping the queue: the loader waits for the frame, polling,
+    /// and offers it again. So the record holds the queue and one block more, and the rest of
+    /// it is room for detours. Loader task.
     pub fn offer(&mut self, sink: &mut impl Sink, b: Block, status: &Status) -> Result<(), Block> {
         self.trim(status.blocks_done.load(Relaxed));
-        // DETOUR - 1 entries stay free: a re-plan puts the detour where the held block was.
-        if self.issued.wrapping_sub(self.base) as usize + DETOUR > N || self.state == State::Abort {
+        self.drain(sink);
+        let full = self.issued.wrapping_sub(self.base) as usize >= N;
+        if self.pending() || full || self.state == State::Abort {
             return Err(b);
         }
         self.record(b);
@@ -380,21 +441,28 @@ impl<const N: usize> Replan<N> {
         Ok(())
     }
 
-    /// Offers `b` until it is taken, polling meanwhile (`wait` runs between tries; `report` gets
-    /// every event). Loader task.
+    /// Offers `b` until it is taken, polling meanwhile (`wait` runs between tries); the polls'
+    /// events come out of the loader's next [`Replan::poll`]. Loader task.
     pub fn enqueue(
         &mut self,
         sink: &mut impl Sink,
         b: Block,
         status: &Status,
         mut wait: impl FnMut(),
-        mut report: impl FnMut(Event),
     ) {
         let mut b = b;
         while let Err(back) = self.offer(sink, b, status) {
             b = back;
             wait();
-            report(self.poll(sink, status));
+            let e = self.poll(sink, status);
+            if e != Event::None {
+                // Four re-plans while one block waits cannot happen (each needs the AC to
+                // resume and to hold again); the oldest would be dropped.
+                if self.late.is_full() {
+                    self.late.pop_front();
+                }
+                let _ = self.late.push_back(e);
+            }
         }
     }
 
@@ -404,6 +472,7 @@ impl<const N: usize> Replan<N> {
             *e = Entry {
                 block: b,
                 start: self.end,
+                layer: 0,
             };
         }
         let d = displacement(&b);
@@ -426,7 +495,8 @@ impl<const N: usize> Replan<N> {
     }
 
     fn drain(&mut self, sink: &mut impl Sink) {
-        while self.sent != self.issued {
+        // Nothing is queued while the frame drops the queue.
+        while self.sent != self.issued && self.state != State::Abort {
             let Some(e) = self.entry(self.sent) else {
                 break;
             };
@@ -442,6 +512,10 @@ impl<const N: usize> Replan<N> {
     /// gets the detour and the copies, and the AC is told to resume; waiting blocks are queued as
     /// room comes. Loader task.
     pub fn poll(&mut self, sink: &mut impl Sink, status: &Status) -> Event {
+        if let Some(e) = self.late.pop_front() {
+            self.drain(sink);
+            return e;
+        }
         let mut event = Event::None;
         match self.state {
             State::Watch => {
@@ -450,11 +524,44 @@ impl<const N: usize> Replan<N> {
                     let done = status.blocks_done.load(Relaxed);
                     self.trim(done);
                     let at = status.position();
-                    let plan = match self.entry(done) {
-                        // Nothing left to cut: the AC simply resumes.
+                    let held = self.entry(done);
+                    let cutting = held.is_some_and(|e| {
+                        matches!(e.block.motion, Motion::Linear(_) | Motion::Arc(_))
+                    });
+                    if !cutting {
+                        // Held in a rapid, a dwell or at the end: no cut to re-plan (the verdict
+                        // was on the sound of the cut before); the AC resumes.
+                        self.state = State::Done {
+                            resumes: status.resumes.load(Relaxed),
+                        };
+                        status.ac_resume.store(true, Relaxed);
+                        self.drain(sink);
+                        return Event::None;
+                    }
+                    let plan = match held {
                         None => Ok(heapless::Vec::new()),
-                        Some(e) => detour(&e.block, at, end_of(&e), self.lift, &self.nc, &self.cfg),
-                    };
+                        Some(e) => match step(e.layer, self.lift) {
+                            Some(lift) => {
+                                self.step = lift;
+                                self.layers = if e.layer == 0 {
+                                    [0, lift]
+                                } else {
+                                    [e.layer - lift, lift]
+                                };
+                                detour(&e.block, at, end_of(&e), lift, &self.nc, &self.cfg)
+                            }
+                            None => Err(Refusal::Thin { layer: e.layer }),
+                        },
+                    }
+                    .and_then(|path| {
+                        // The detour takes the held block's entry and len - 1 more.
+                        let used = self.issued.wrapping_sub(self.base) as usize;
+                        if used + path.len().saturating_sub(1) > N {
+                            Err(Refusal::Nested)
+                        } else {
+                            Ok(path)
+                        }
+                    });
                     match plan {
                         Ok(path) => {
                             // The machine stands until the abort is done: the plan holds.
@@ -484,7 +591,6 @@ impl<const N: usize> Replan<N> {
                     };
                     status.ac_resume.store(true, Relaxed);
                 }
-                // Nothing is queued while the frame drops the queue.
                 return event;
             }
             State::Done { resumes } => {
@@ -525,7 +631,17 @@ impl<const N: usize> Replan<N> {
         let mut start = self.at;
         for (i, b) in path.iter().enumerate() {
             if let Some(dst) = self.ring.get_mut(slot(done.wrapping_add(i as u32))) {
-                *dst = Entry { block: *b, start };
+                // The upper pass (1) and the lower pass (4) cut layers of known thickness.
+                let layer = match i {
+                    1 => self.layers[0],
+                    4 => self.layers[1],
+                    _ => 0,
+                };
+                *dst = Entry {
+                    block: *b,
+                    start,
+                    layer,
+                };
             }
             let d = displacement(b);
             start = [X, Y, Z].map(|k| start[k].wrapping_add(d[k]));
@@ -537,7 +653,7 @@ impl<const N: usize> Replan<N> {
         Event::Replanned(Replanned {
             at: self.at,
             to: end_of(&held),
-            lift: self.lift,
+            lift: self.step,
             line: held.block.line,
             count: self.count,
         })

@@ -97,6 +97,16 @@ struct SpindleCall {
 }
 
 /// The test board.
+/// What the AC task does in a session (see `Bench::ac_event`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum AcEvent {
+    Breakage,
+    /// With `$276` at this step (mm).
+    Chatter {
+        step_mm: f32,
+    },
+}
+
 struct Bench {
     status: &'static Status,
     frame: FrameTask,
@@ -122,9 +132,10 @@ struct Bench {
     /// The board's frame limit and the frame cycles it "measures" from a frame number on.
     frame_limit: Option<u32>,
     slow_frames_at: Option<(u64, u32)>,
-    /// The AC task's side of a tool breakage at a frame number: the hold, the spindle stop
-    /// request and the alarm for the loader, as `rt::ac::AcPeriod::run` makes them.
-    breakage_at: Option<u64>,
+    /// The AC task's side of a tool breakage or chatter at a frame number: the hold, the spindle
+    /// stop request (breakage) and the alarm for the loader, as `rt::ac::AcPeriod::run` makes
+    /// them; after chatter also the AC's resume when the loader asks for it.
+    ac_event: Option<(u64, AcEvent)>,
     alarms: Producer<'static, Alarm, A>,
 }
 
@@ -149,7 +160,24 @@ impl Bench {
             _ => 400,
         };
         let s = self.status;
-        if self.breakage_at == Some(self.frames) {
+        if let Some((at, AcEvent::Chatter { .. })) = self.ac_event {
+            if at == self.frames {
+                s.feed_cap.store(0, Relaxed);
+                s.ac_state
+                    .store(crate::protocol::codes::alarm::AC_CHATTER, Relaxed);
+                let _ = self.alarms.enqueue(Alarm::Chatter {
+                    freq_hz: 1680.0,
+                    amplitude: 9.5,
+                    threshold: 4.0,
+                });
+            }
+            if s.ac_resume.swap(false, Relaxed) {
+                s.feed_cap.store(u32::MAX, Relaxed);
+                s.ac_state.store(crate::rt::ac::AC_RUN, Relaxed);
+                s.resumes.fetch_add(1, Relaxed);
+            }
+        }
+        if self.ac_event == Some((self.frames, AcEvent::Breakage)) {
             let b = crate::monitor::Breakage {
                 tooth_period: 1234,
                 e1: -900.0,
@@ -284,7 +312,7 @@ fn session_full(
     frames: u64,
     trip: Trip,
     frame_limit: Option<(u32, u64, u32)>,
-    breakage_at: Option<u64>,
+    ac_event: Option<(u64, AcEvent)>,
 ) -> Bench {
     let status: &'static Status = Box::leak(Box::new(Status::new()));
     status.start();
@@ -293,6 +321,9 @@ fn session_full(
     let (alarm_tx, mut alarms) = Box::leak(Box::new(Queue::<Alarm, A>::new())).split();
     let (rx, task) = Box::leak(Box::new(RxShared::new())).split();
     let (mut table, _) = Persistent::load(NoStorage);
+    if let Some((_, AcEvent::Chatter { step_mm })) = ac_event {
+        table.settings.ac.chatter_step_mm = step_mm;
+    }
     let settings = table.settings.nc;
     let mut proto = Protocol::new(task, (Q - 1) as u16);
     let mut blocks_tx = blocks_tx;
@@ -322,11 +353,17 @@ fn session_full(
         trip,
         frame_limit: frame_limit.map(|(l, _, _)| l),
         slow_frames_at: frame_limit.map(|(_, at, c)| (at, c)),
-        breakage_at,
+        ac_event,
         alarms: alarm_tx,
     };
+    let mut replan = Box::new(crate::rt::replan::Replan::<
+        { crate::rt::replan::record_len(Q) },
+    >::new(
+        settings, table.settings.ac.chatter_step_mm, [0; 3], 0
+    ));
     run(
         &mut blocks_tx,
+        &mut replan,
         &mut table,
         None,
         &mut proto,
@@ -621,6 +658,19 @@ fn resume_waits_for_unlock_after_alarm_111() {
 /// refused (the broken tool is still in the cut) and a spindle line waiting for the motion is not
 /// applied; a reset drops the queue with the spindle off, and then `$X` unlocks. The commanded
 /// speed reaches `Status::spindle_rpm` (the monitors' tooth period).
+/// A session of 3000 frames in which the tool breaks at frame 2000.
+fn broken_at_2000(sends: &[(u64, &str)]) -> Bench {
+    session_full(
+        sends,
+        &[],
+        None,
+        3000,
+        ESTOP,
+        None,
+        Some((2000, AcEvent::Breakage)),
+    )
+}
+
 #[test]
 fn a_tool_breakage_stops_the_spindle_and_only_a_reset_leads_on() {
     let calls =
@@ -638,7 +688,7 @@ fn a_tool_breakage_stops_the_spindle_and_only_a_reset_leads_on() {
         3000,
         ESTOP,
         None,
-        Some(free.spindle[1].frame),
+        Some((free.spindle[1].frame, AcEvent::Breakage)),
     );
     assert_eq!(
         calls(&b),
@@ -652,7 +702,7 @@ fn a_tool_breakage_stops_the_spindle_and_only_a_reset_leads_on() {
         (2500, "~"),
         (2600, "$X\n"),
     ];
-    let b = session_full(&sends, &[], None, 3000, ESTOP, None, Some(2000));
+    let b = broken_at_2000(&sends);
     assert_eq!(
         calls(&b),
         [(Spindle::Cw, 1000), (Spindle::Off, 0)],
@@ -685,7 +735,7 @@ fn a_tool_breakage_stops_the_spindle_and_only_a_reset_leads_on() {
         (2500, "\u{18}"),
         (2700, "$X\n"),
     ];
-    let b = session_full(&sends, &[], None, 3000, ESTOP, None, Some(2000));
+    let b = broken_at_2000(&sends);
     assert_eq!(
         calls(&b),
         [(Spindle::Cw, 1000), (Spindle::Off, 0), (Spindle::Off, 0)],
@@ -701,4 +751,35 @@ fn a_tool_breakage_stops_the_spindle_and_only_a_reset_leads_on() {
     // Without a breakage the spindle just runs.
     let b = session_full(&sends[..2], &[], None, 3000, ESTOP, None, None);
     assert_eq!(b.spindle.len(), 1);
+}
+
+/// A chatter hold in serial mode with the default depth step: the loader re-plans the held line
+/// (a message, no alarm), the AC resumes, the job runs to its end where the program ends, the
+/// sender sees every `ok`, and the state is Idle. With `$276=0` the hold stays (`ALARM:107`).
+#[test]
+fn a_chatter_hold_is_replanned_and_the_job_completes() {
+    // 0.1 in at F30 takes about 1000 frames; chatter at frame 400, in the first line.
+    let sends = [(1, "G91 G1 F30 X0.1\n"), (2, "G1 Y0.01\n"), (11_000, "?")];
+    let chatter = |step_mm| Some((400, AcEvent::Chatter { step_mm }));
+    let b = session_full(&sends, &[], None, 12_000, ESTOP, None, chatter(1.0));
+    assert!(b.out.contains("[MSG:AC hold: chatter"), "{}", b.out);
+    assert!(
+        // 1 mm is 394 BLU of 0.0001 in.
+        b.out
+            .contains("[MSG:Chatter: depth reduced by 1.001 mm from X"),
+        "{}",
+        b.out
+    );
+    assert!(b.out.contains("(re-plan 1)]"), "{}", b.out);
+    assert!(!b.out.contains("ALARM:"), "{}", b.out);
+    assert_eq!(oks(&b.out), 2);
+    assert!(b.out.contains("<Idle|"), "{}", b.out);
+    // The machine ends where the program does: X 0.1 in, Y 0.01 in, Z back at 0.
+    assert_eq!(b.status.position(), [1000, 100, 0]);
+    // Without a step: the hold stays, the alarm is raised, the job does not end.
+    let mut no_step = session_full(&sends, &[], None, 12_000, ESTOP, None, chatter(0.0));
+    assert!(no_step.out.contains("ALARM:107"), "{}", no_step.out);
+    assert!(!no_step.out.contains("Chatter: depth"), "{}", no_step.out);
+    assert_ne!(no_step.status.position(), [1000, 100, 0]);
+    no_step.out.clear();
 }

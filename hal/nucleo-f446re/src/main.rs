@@ -42,6 +42,7 @@ mod app {
     use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
     use millac::rt::ac::AcPeriod;
+    use millac::rt::replan::Replan;
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
     use millac_hal::actask::{AcTask, LogSink, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use stm32f4xx_hal::prelude::*;
@@ -66,6 +67,8 @@ mod app {
 
     /// Queue slots (a heapless spsc queue holds one less: 31 blocks).
     const QUEUE: usize = 32;
+    /// The loader's record of queued blocks: the queue and room for nested chatter detours.
+    const RECORD: usize = millac::rt::replan::record_len(QUEUE);
     /// Transmit queue slots.
     const TX_QUEUE: usize = 512;
 
@@ -387,7 +390,10 @@ mod app {
     }
 
     /// The loader: the grbl protocol on USART2, forever.
-    #[idle(local = [producer, table, proto, tx, ac_alarms, spindle], shared = [inputs])]
+    #[idle(
+        local = [producer, table, proto, tx, ac_alarms, spindle, replan: Option<Replan<RECORD>> = None],
+        shared = [inputs]
+    )]
     fn idle(cx: idle::Context) -> ! {
         let (enable, direction) = cx.local.spindle;
         let mut board = Nucleo {
@@ -402,8 +408,18 @@ mod app {
             .settings
             .ac_enabled
             .then_some(cx.local.table.settings.ac.ceiling);
+        // The loader's record of the queued blocks (chatter suppression, `$276`; this board has no
+        // sound channel, so it never re-plans, but the loader is the same).
+        let settings = &cx.local.table.settings;
+        let replan = cx.local.replan.insert(Replan::new(
+            settings.nc,
+            settings.ac.chatter_step_mm,
+            [0; 3],
+            0,
+        ));
         millac::rt::loader::run(
             cx.local.producer,
+            replan,
             cx.local.table,
             ceiling,
             cx.local.proto,

@@ -149,6 +149,7 @@ mod app {
     use millac::protocol::Protocol;
     use millac::rt::ac::AcPeriod;
     use millac::rt::monitor::ChatterTask;
+    use millac::rt::replan::{self, Replan};
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
     use millac::wire::FLAG_AC_ENABLED;
     use millac::Settings;
@@ -176,6 +177,8 @@ mod app {
 
     /// Queue slots (a heapless spsc queue holds one less: 15 blocks).
     const QUEUE: usize = 16;
+    /// The loader's record of queued blocks: the queue and room for nested chatter detours.
+    const RECORD: usize = millac::rt::replan::record_len(QUEUE);
     /// Semihosting read size.
     const CHUNK: usize = 256;
 
@@ -429,13 +432,31 @@ mod app {
     }
 
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
-    #[idle(local = [producer, settings, table, refused, ceiling, proto, tx, ac_alarms])]
+    #[idle(local = [
+        producer, settings, table, refused, ceiling, proto, tx, ac_alarms,
+        replan: Option<Replan<RECORD>> = None
+    ])]
     fn idle(cx: idle::Context) -> ! {
         let producer = cx.local.producer;
         let (settings, ceiling) = (cx.local.settings, *cx.local.ceiling);
+        // The loader's record of the queued blocks: chatter suppression (`$276`) re-plans from
+        // it, in both modes.
+        let replan = cx.local.replan.insert(Replan::new(
+            *settings,
+            cx.local.table.settings.ac.chatter_step_mm,
+            [0; 3],
+            0,
+        ));
         // The loader's errors, logged once the machine is idle (see `load`).
         let mut errors = Errors::new();
-        let ok = match load(producer, settings, ceiling, *cx.local.refused, &mut errors) {
+        let ok = match load(
+            producer,
+            replan,
+            settings,
+            ceiling,
+            *cx.local.refused,
+            &mut errors,
+        ) {
             Loaded::All => true,
             Loaded::Error => false,
             // No program file: the operator streams G-code over the serial line.
@@ -443,6 +464,7 @@ mod app {
                 SERIAL.store(true, Relaxed);
                 millac::rt::loader::run(
                     producer,
+                    replan,
                     cx.local.table,
                     ceiling,
                     cx.local.proto,
@@ -459,9 +481,14 @@ mod app {
             }
         };
 
-        // Every accepted block runs to completion, also after an error.
-        while producer.len() != 0 || !STATUS.idle.load(Relaxed) {
-            cortex_m::asm::nop();
+        // Every accepted block runs to completion, also after an error (and every detour of a
+        // chatter re-plan).
+        while producer.len() != 0
+            || !STATUS.idle.load(Relaxed)
+            || replan.pending()
+            || replan.aborting()
+        {
+            said(replan.poll(producer, &STATUS));
         }
         for t in &errors {
             log_error(t);
@@ -486,6 +513,34 @@ mod app {
         exit(ok)
     }
 
+    /// A chatter re-plan (or its refusal) into the result file and the log (tape mode).
+    fn said(e: replan::Event) {
+        match e {
+            replan::Event::None => {}
+            replan::Event::Replanned(r) => {
+                results::line(format_args!("chatter: re-planned {}", r));
+                defmt::warn!(
+                    "chatter: re-plan {=u32}: lift {=u32} BLU from {=i32},{=i32},{=i32}",
+                    r.count,
+                    r.lift,
+                    r.at[0],
+                    r.at[1],
+                    r.at[2]
+                );
+            }
+            replan::Event::Refused { at, why } => {
+                results::line(format_args!(
+                    "chatter: not re-planned at {},{},{}: {}",
+                    at[0],
+                    at[1],
+                    at[2],
+                    why.message()
+                ));
+                defmt::warn!("chatter: not re-planned: {=str}", why.message());
+            }
+        }
+    }
+
     /// The loader's error messages for the log (more are in the result file only).
     type Errors = heapless::Vec<Text, 2>;
 
@@ -506,6 +561,7 @@ mod app {
     /// must not hold back a frame, at a rapid period of 38 us.
     fn load(
         producer: &mut Producer<'static, Block, QUEUE>,
+        replan: &mut Replan<RECORD>,
         settings: &Settings,
         ceiling: Option<FeedCeiling>,
         refused: Option<RecordError>,
@@ -514,7 +570,14 @@ mod app {
         let mut refuse = |what: core::fmt::Arguments| {
             let _ = errors.push(report(what));
         };
-        let mut enqueue = |b: Block| millac::rt::loader::enqueue_block(producer, b);
+        // Through the loader's record; while it is full, the re-plan's turn (a chatter hold).
+        let mut enqueue = |b: Block| {
+            let mut b = b;
+            while let Err(back) = replan.offer(producer, b, &STATUS) {
+                b = back;
+                said(replan.poll(producer, &STATUS));
+            }
+        };
         let Some(fd) = semihost::open(b"program.nc\0", nr::open::R) else {
             return Loaded::NoFile;
         };

@@ -312,3 +312,51 @@ fn the_detour_ends_at_the_held_blocks_end() {
     // Nothing left in XY: nothing to do.
     assert!(detour(&b, p1, p1, 100, &nc, &cfg).unwrap().is_empty());
 }
+
+#[test]
+fn a_chattering_layer_is_split_in_halves_never_lifted_into_air() {
+    let nc = Settings::default();
+    let mut r = Rig::new(PROGRAM, nc, 1.0);
+    let (mut first, mut in_layer) = (None::<i32>, 0);
+    r.run(|p| {
+        // The first hold in the programmed pass; then every lower pass at Z1 (a layer of known
+        // thickness) chatters once it has moved 500 BLU, three times.
+        if first.is_none() && p[2] == Z1 && p[0] >= 3000 {
+            first = Some(p[0]);
+            return true;
+        }
+        if let Some(x0) = first {
+            if in_layer < 3 && p[2] == Z1 && p[1] == 0 && p[0] >= x0 + 500 * (in_layer + 1) {
+                in_layer += 1;
+                return true;
+            }
+        }
+        false
+    });
+    let steps: Vec<u32> = r
+        .events
+        .iter()
+        .map(|e| match e {
+            Event::Replanned(p) => p.lift,
+            e => panic!("{e:?}"),
+        })
+        .collect();
+    // 394 (1 mm) for the programmed pass; the 394 BLU layer halves: 197, then 98, then 49.
+    assert_eq!(steps, vec![394, 197, 98, 49]);
+    assert_eq!(step(98, 394), Some(49));
+    assert_eq!(
+        step(79, 394),
+        None,
+        "halves below {MIN_LAYER_BLU} BLU are refused"
+    );
+    // Every level was cut down to Z1 over the whole slot, and the program ended where it ends.
+    for x in 0..=10_000 {
+        assert!(xs_at(&r.trace, Z1).contains(&x), "x {x}");
+    }
+    let plain = {
+        let mut p = Rig::new(PROGRAM, nc, 1.0);
+        p.run(|_| false);
+        p.frame.position()
+    };
+    assert_eq!(r.frame.position(), plain);
+}
