@@ -32,7 +32,10 @@
 //!   decides), and the report says why. A hold in a rapid or a dwell, or with nothing queued, is
 //!   a verdict on the cut before (the monitor judges a record after it ends): the AC resumes.
 //! - The lift is checked against the Z soft limit; a detour that would leave it is refused the
-//!   same way.
+//!   same way, and so is a ninth detour inside the others ([`NESTED`]).
+//! - A detour's layer has a known thickness. If it chatters, lifting it by the step would leave
+//!   its pass in air and cut the same layer again, for ever; it is split in halves instead
+//!   ([`step`]), down to [`MIN_LAYER_BLU`], then held.
 //! - The machine's spindle and the program's modes are untouched; the parser still stands at the
 //!   end of the last line it read, where the machine will be once the queue has run.
 use core::sync::atomic::Ordering::Relaxed;
