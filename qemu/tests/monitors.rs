@@ -148,10 +148,19 @@ fn the_firmware_holds_the_chattering_cut_and_not_the_stable_one() {
         .and_then(|v| v.trim().parse().ok())
         .unwrap_or_else(|| panic!("{alarm}"));
     assert!((hz / t::MODE.fn_hz as f32 - 1.0).abs() < 0.1, "{hz} Hz");
-    // The same code on the host holds in the same period (its verdict delayed as the firmware's
-    // monitor task delays it).
+    // The same code on the host holds within one detection cycle (its verdict delayed as the
+    // firmware's monitor task delays it). Not in the same period for sure: the firmware's AC task
+    // applies the feed cap some microseconds after the host's period boundary, the feeds differ
+    // by a pulse here and there, and the chatter's growth at the threshold amplifies that into a
+    // record earlier or later (both were 780 ms until the firmware's code changed in issue 10:
+    // 730 ms since, the host still 780 ms).
     let (text, cut) = preset(0.35, 2.0);
-    assert_eq!(host_hold(&text, &cut, acs), Some(t_ms));
+    let host = host_hold(&text, &cut, acs).expect("the host holds");
+    let cycle_ms = (1000 * millac::monitor::chatter::RECORD as u64).div_ceil(5000) + 10;
+    assert!(
+        host.abs_diff(t_ms) <= cycle_ms,
+        "firmware {t_ms} ms, host {host} ms"
+    );
 }
 
 /// A stiff mode for the default 0.5 in cutter (2500 Hz, 5 % damping, 4e8 N/m in X and Y): the
