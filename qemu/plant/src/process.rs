@@ -20,13 +20,9 @@
 //!   `m = min(cell R / x_env, 8 cell)` puts P one cell beyond the envelope along its normal). So
 //!   the cells the last samples cleared are not read as air on a first pass, and on a second
 //!   pass along the same straight path every probe falls inside the cleared slot (cell centres
-//!   within R of the path) and reads air. The probe runs up to `x_env + m` (about 2.7 mm for a
-//!   0.5 in tool) ahead of the edge; so that a later pass that stops short of the end of a slot
-//!   already cut (a chatter re-plan's lower layer, a return through the slot) does not read the
-//!   material beyond that end, the cell half a cell beyond the envelope decides first: outside
-//!   the tool's disc and without material above the tip, it is a region cut before and the edge
-//!   cuts air (issue 10; before, such a pass read a full-depth chip within about 2 mm of the
-//!   end, and at a rapid's speed a force of kN). When the motion stops,
+//!   within R of the path) and reads air. Artefact: the probe runs up to `x_env + m` (about
+//!   2.7 mm for a 0.5 in tool) ahead of the edge, so within that distance of the end of a slot
+//!   already cut a second pass still reads the material beyond its end. When the motion stops,
 //!   `c` falls to zero over one tooth period (a real tool also cuts its last, thinning chips).
 //!   Chip `h = c cos(alpha)` (the paper's `c sin(phi)` with phi measured from the entry side);
 //!   `Ft = Ks(h) a h`, `Fr = Kr Ft` (`Ks(h)` = [`Material::ks_at`]: constant unless the material
@@ -188,20 +184,6 @@ impl Cutter {
             let x_env = (self.r_mm * self.r_mm - y * y).sqrt();
             let margin = (self.probe_mm * self.r_mm / x_env).min(8.0 * self.probe_mm);
             let ahead = x_env - re * cos_a + margin;
-            // Half a cell beyond the envelope: a cell there outside this disc (not cleared by the
-            // tool where it stands) with no material above the tip is a region cut before (a
-            // slot's end, a hole, a pass beside): the edge meets air there, whatever lies
-            // further on where the probe reads.
-            let near = x_env - re * cos_a + 0.5 * self.probe_mm;
-            let (nx, ny) = (
-                tip[0] + re * co + near * u[0],
-                tip[1] + re * s + near * u[1],
-            );
-            if stock.top_in_disc(nx, ny, tip[0], tip[1], self.r_mm) == f64::NEG_INFINITY
-                && stock.top_at(nx, ny) <= base
-            {
-                continue;
-            }
             let px = tip[0] + re * co + ahead * u[0];
             let py = tip[1] + re * s + ahead * u[1];
             let a = stock.top_at(px, py) - base;
