@@ -460,7 +460,7 @@ pub fn run_with_faults(
     let mut block_feed = 0.0;
     loop {
         while let Some(b) = program.pop_front() {
-            if let Err(b) = replan.offer(&mut queue, b, &status) {
+            if let Err(b) = replan.offer(&mut queue, b) {
                 program.push_front(b);
                 break;
             }

@@ -338,7 +338,7 @@ const EMPTY: Entry = Entry {
 };
 
 /// The loader's record of the blocks it has queued and the frame has not yet done (by the
-/// frame's block count, `Status::blocks_done`), and blocks waiting for room in the queue (after a
+/// blocks handed to the queue less those still in it), and blocks waiting for room in the queue (after a
 /// re-plan the detour and the copies may be more than the queue holds). [`record_len`] of the
 /// queue's length leaves room for [`NESTED`] detours. Loader task; host.
 pub struct Replan<const N: usize> {
@@ -432,8 +432,8 @@ impl<const N: usize> Replan<N> {
     /// re-plan's) or the frame is dropping the queue: the loader waits for the frame, polling,
     /// and offers it again. So the record holds the queue and one block more, and the rest of
     /// it is room for detours. Loader task.
-    pub fn offer(&mut self, sink: &mut impl Sink, b: Block, status: &Status) -> Result<(), Block> {
-        self.trim(status.blocks_done.load(Relaxed));
+    pub fn offer(&mut self, sink: &mut impl Sink, b: Block) -> Result<(), Block> {
+        self.trim(self.front(sink));
         self.drain(sink);
         let full = self.issued.wrapping_sub(self.base) as usize >= N;
         if self.pending() || full || self.state == State::Abort {
@@ -454,7 +454,7 @@ impl<const N: usize> Replan<N> {
         mut wait: impl FnMut(),
     ) {
         let mut b = b;
-        while let Err(back) = self.offer(sink, b, status) {
+        while let Err(back) = self.offer(sink, b) {
             b = back;
             wait();
             let e = self.poll(sink, status);
@@ -481,6 +481,15 @@ impl<const N: usize> Replan<N> {
         let d = displacement(&b);
         self.end = [X, Y, Z].map(|k| self.end[k].wrapping_add(d[k]));
         self.issued = self.issued.wrapping_add(1);
+    }
+
+    /// The sequence number of the queue's front block (the running one, or the next to start):
+    /// the blocks handed to the queue less those still in it. Not `Status::blocks_done`: the
+    /// frame publishes that only in frames without pulses, never during a chain of short blocks
+    /// (the record then looked full and the chain ran dry: 8 % slow on the firmware test's 400
+    /// blocks of 10 BLU).
+    fn front(&self, sink: &impl Sink) -> u32 {
+        self.sent.wrapping_sub(sink.queued() as u32)
     }
 
     /// Forgets the blocks the frame has done.
@@ -524,7 +533,7 @@ impl<const N: usize> Replan<N> {
             State::Watch => {
                 let chatter = status.ac_state.load(Relaxed) == alarm::AC_CHATTER;
                 if self.lift > 0 && chatter && status.stopped() {
-                    let done = status.blocks_done.load(Relaxed);
+                    let done = self.front(sink);
                     self.trim(done);
                     let at = status.position();
                     let held = self.entry(done);

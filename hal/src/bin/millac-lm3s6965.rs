@@ -573,7 +573,7 @@ mod app {
         // Through the loader's record; while it is full, the re-plan's turn (a chatter hold).
         let mut enqueue = |b: Block| {
             let mut b = b;
-            while let Err(back) = replan.offer(producer, b, &STATUS) {
+            while let Err(back) = replan.offer(producer, b) {
                 b = back;
                 said(replan.poll(producer, &STATUS));
             }

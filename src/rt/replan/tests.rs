@@ -51,7 +51,7 @@ impl Rig {
     /// One frame with the loader's and the AC's turns.
     fn step(&mut self) {
         while let Some(b) = self.program.pop_front() {
-            if let Err(b) = self.replan.offer(&mut self.q, b, &self.status) {
+            if let Err(b) = self.replan.offer(&mut self.q, b) {
                 self.program.push_front(b);
                 break;
             }
