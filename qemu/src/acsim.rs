@@ -415,7 +415,7 @@ pub fn run_with_faults(
     } else {
         0.0
     };
-    let mut replan = Replan::<REPLAN_RECORD>::new(*settings, step_mm, [0; 3], 0);
+    let mut replan = Replan::<REPLAN_RECORD>::new(*settings, step_mm, [0; 3]);
     // The firmware's sampler and AC period (`millac::rt::ac`) over a host status and ADC.
     let status = Status::new();
     status.start();

@@ -322,23 +322,9 @@ fn line_motion(
 ) -> Result<Option<Motion>, ErrorKind> {
     reject_words(w, &ARC_WORDS)?;
     check_soft(st, target)?;
-    let mut steps = [0u32; 3];
-    let mut signs = 0u8;
-    let mut sum: u128 = 0;
-    for (k, ((s, &t), &p)) in steps
-        .iter_mut()
-        .zip(target.iter())
-        .zip(pos.iter())
-        .enumerate()
-    {
-        let d = t as i64 - p as i64;
-        // |d| < 2^32: fits u32.
-        *s = d.unsigned_abs() as u32;
-        if d > 0 {
-            signs |= 1 << k;
-        }
-        sum += d.unsigned_abs() as u128 * d.unsigned_abs() as u128;
-    }
+    let (steps, signs) =
+        crate::nc::steps_and_signs([0, 1, 2].map(|k| target[k] as i64 - pos[k] as i64));
+    let sum: u128 = steps.iter().map(|&s| s as u128 * s as u128).sum();
     if sum == 0 {
         return Ok(None);
     }

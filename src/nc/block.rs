@@ -26,6 +26,21 @@ impl Plane {
     }
 }
 
+/// The position counters and SIGN bits of a move by `d` (BLU per axis): |d_k|, and bit k set when
+/// axis k moves positive. The parser's lines and rapids and the chatter re-plan's detour (task
+/// context) make their registers with it.
+pub fn steps_and_signs(d: [i64; 3]) -> ([u32; 3], u8) {
+    let mut signs = 0u8;
+    let steps = [X, Y, Z].map(|k| {
+        if d[k] > 0 {
+            signs |= 1 << k;
+        }
+        // |d| < 2^32 for positions in i32: fits u32.
+        d[k].unsigned_abs() as u32
+    });
+    (steps, signs)
+}
+
 /// PTP (G0): every axis moves independently at the rapid rate with three-step deceleration.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Rapid {

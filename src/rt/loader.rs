@@ -338,7 +338,7 @@ pub fn run<
             // The jog has stopped: drop it and any jog queued behind it. The parser keeps its
             // modes (a jog changes none) and stands where the machine stopped.
             let (at, signs) = abort(blocks, status, board);
-            replan.restart(at, status.blocks_done.load(Relaxed));
+            replan.restart(at);
             tape.jogged_to(at, signs);
             cancel_jog = false;
             jogging = false;
@@ -536,7 +536,7 @@ pub fn run<
                 board.spindle(Spindle::Off, 0, table.settings.spindle_max_rpm);
                 board.log_reset();
                 let (at, signs) = abort(blocks, status, board);
-                replan.restart(at, status.blocks_done.load(Relaxed));
+                replan.restart(at);
                 tape.abort(at, signs);
                 // A line waiting for the spindle: a soft reset discards it with the stream (the
                 // protocol has done so); after a trip it is answered, refused.

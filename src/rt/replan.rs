@@ -40,7 +40,9 @@
 //!   end of the last line it read, where the machine will be once the queue has run.
 use core::sync::atomic::Ordering::Relaxed;
 
-use crate::nc::{isqrt, operator, Block, Dwell, FrameConfig, Linear, Motion, Rapid, X, Y, Z};
+use crate::nc::{
+    isqrt, operator, steps_and_signs, Block, Dwell, FrameConfig, Linear, Motion, Rapid, X, Y, Z,
+};
 use crate::protocol::codes::alarm;
 use crate::rt::Status;
 use crate::settings::Settings;
@@ -153,15 +155,10 @@ pub fn step(layer: u32, lift: u32) -> Option<u32> {
 
 /// The position change of a block (BLU).
 pub fn displacement(b: &Block) -> [i32; 3] {
+    // `dirs` is the frame's negated step per pulse.
     let signed = |steps: [u32; 3], signs: u8| {
-        [X, Y, Z].map(|k| {
-            let v = steps[k] as i32;
-            if signs & (1 << k) != 0 {
-                v
-            } else {
-                -v
-            }
-        })
+        let dir = crate::nc::frame::dirs(signs);
+        [X, Y, Z].map(|k| -(steps[k] as i32) * dir[k])
     };
     match &b.motion {
         Motion::Rapid(r) => signed(r.steps, r.signs),
@@ -184,31 +181,17 @@ pub fn displacement(b: &Block) -> [i32; 3] {
 
 /// A rapid by `d` (BLU).
 fn rapid(line: u32, d: [i32; 3]) -> Block {
-    let mut signs = 0;
-    for (k, v) in d.iter().enumerate() {
-        if *v > 0 {
-            signs |= 1 << k;
-        }
-    }
+    let (steps, signs) = steps_and_signs(d.map(i64::from));
     Block {
         line,
-        motion: Motion::Rapid(Rapid {
-            steps: d.map(i32::unsigned_abs),
-            signs,
-        }),
+        motion: Motion::Rapid(Rapid { steps, signs }),
     }
 }
 
 /// The straight feed move `l` re-made for the XY move `d` (BLU), sealed.
 fn feed_move(line: u32, l: &Linear, d: [i32; 2], decel: bool, cfg: &FrameConfig) -> Block {
-    let steps = [d[0].unsigned_abs(), d[1].unsigned_abs(), 0];
+    let (steps, signs) = steps_and_signs([i64::from(d[0]), i64::from(d[1]), 0]);
     let q = isqrt(u64::from(steps[0]).pow(2) + u64::from(steps[1]).pow(2)) as u32;
-    let mut signs = 0;
-    for (k, v) in d.iter().enumerate() {
-        if *v > 0 {
-            signs |= 1 << k;
-        }
-    }
     let mut b = Block {
         line,
         motion: Motion::Linear(Linear {
@@ -368,9 +351,10 @@ pub struct Replan<const N: usize> {
 }
 
 impl<const N: usize> Replan<N> {
-    /// Starts at the machine's position `at` with the frame's block count `done`; `lift_mm` is
-    /// `$276` (0 or less: off). Init or loader task.
-    pub fn new(nc: Settings, lift_mm: f32, at: [i32; 3], done: u32) -> Self {
+    /// Starts at the machine's position `at`; `lift_mm` is `$276` (0 or less: off). (The record's
+    /// sequence numbers are its own: the queue's front is the blocks handed to it less those still
+    /// in it.) Init or loader task.
+    pub fn new(nc: Settings, lift_mm: f32, at: [i32; 3]) -> Self {
         let (num, den) = nc.blu.per_mm();
         let lift = if lift_mm > 0.0 {
             libm::round(f64::from(lift_mm) * num as f64 / den as f64) as u32
@@ -379,9 +363,9 @@ impl<const N: usize> Replan<N> {
         };
         Replan {
             ring: [EMPTY; N],
-            base: done,
-            issued: done,
-            sent: done,
+            base: 0,
+            issued: 0,
+            sent: 0,
             end: at,
             lift,
             nc,
@@ -389,7 +373,7 @@ impl<const N: usize> Replan<N> {
             state: State::Watch,
             count: 0,
             path: heapless::Vec::new(),
-            held_seq: done,
+            held_seq: 0,
             at,
             step: 0,
             layers: [0; 2],
@@ -403,11 +387,10 @@ impl<const N: usize> Replan<N> {
     }
 
     /// After the frame dropped the queue for another reason (a soft reset, a jog cancel): the
-    /// record starts again at `at`. Loader task.
-    pub fn restart(&mut self, at: [i32; 3], done: u32) {
-        self.base = done;
-        self.issued = done;
-        self.sent = done;
+    /// record starts again at `at`, empty. Loader task.
+    pub fn restart(&mut self, at: [i32; 3]) {
+        self.base = self.sent;
+        self.issued = self.sent;
         self.end = at;
         self.state = State::Watch;
     }
@@ -421,11 +404,6 @@ impl<const N: usize> Replan<N> {
     /// word (its abort bit) until [`Replan::poll`] has finished it.
     pub fn aborting(&self) -> bool {
         self.state == State::Abort
-    }
-
-    /// Re-plans so far.
-    pub fn count(&self) -> u32 {
-        self.count
     }
 
     /// Records `b` and queues it; Err(b) while blocks recorded earlier still wait for room (a
@@ -536,11 +514,10 @@ impl<const N: usize> Replan<N> {
                     let done = self.front(sink);
                     self.trim(done);
                     let at = status.position();
-                    let held = self.entry(done);
-                    let cutting = held.is_some_and(|e| {
-                        matches!(e.block.motion, Motion::Linear(_) | Motion::Arc(_))
-                    });
-                    if !cutting {
+                    let held = self
+                        .entry(done)
+                        .filter(|e| matches!(e.block.motion, Motion::Linear(_) | Motion::Arc(_)));
+                    let Some(e) = held else {
                         // Held in a rapid, a dwell or at the end: no cut to re-plan (the verdict
                         // was on the sound of the cut before); the AC resumes.
                         self.state = State::Done {
@@ -549,21 +526,18 @@ impl<const N: usize> Replan<N> {
                         status.ac_resume.store(true, Relaxed);
                         self.drain(sink);
                         return Event::None;
-                    }
-                    let plan = match held {
-                        None => Ok(heapless::Vec::new()),
-                        Some(e) => match step(e.layer, self.lift) {
-                            Some(lift) => {
-                                self.step = lift;
-                                self.layers = if e.layer == 0 {
-                                    [0, lift]
-                                } else {
-                                    [e.layer - lift, lift]
-                                };
-                                detour(&e.block, at, end_of(&e), lift, &self.nc, &self.cfg)
-                            }
-                            None => Err(Refusal::Thin { layer: e.layer }),
-                        },
+                    };
+                    let plan = match step(e.layer, self.lift) {
+                        Some(lift) => {
+                            self.step = lift;
+                            self.layers = if e.layer == 0 {
+                                [0, lift]
+                            } else {
+                                [e.layer - lift, lift]
+                            };
+                            detour(&e.block, at, end_of(&e), lift, &self.nc, &self.cfg)
+                        }
+                        None => Err(Refusal::Thin { layer: e.layer }),
                     }
                     .and_then(|path| {
                         // The detour takes the held block's entry and len - 1 more.
@@ -622,8 +596,9 @@ impl<const N: usize> Replan<N> {
         let done = self.held_seq;
         let path = core::mem::take(&mut self.path);
         let Some(held) = self.entry(done) else {
-            // Nothing was left to cut.
-            self.restart(self.end, done);
+            // Not reached: the abort starts only with a held block in the record.
+            self.sent = done;
+            self.restart(self.end);
             return Event::None;
         };
         let behind = self.issued.wrapping_sub(done).wrapping_sub(1);

@@ -415,7 +415,6 @@ mod app {
             settings.nc,
             settings.ac.chatter_step_mm,
             [0; 3],
-            0,
         ));
         millac::rt::loader::run(
             cx.local.producer,

@@ -445,7 +445,6 @@ mod app {
             *settings,
             cx.local.table.settings.ac.chatter_step_mm,
             [0; 3],
-            0,
         ));
         // The loader's errors, logged once the machine is idle (see `load`).
         let mut errors = Errors::new();

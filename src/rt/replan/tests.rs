@@ -41,7 +41,7 @@ impl Rig {
                 cap: 3,
             },
             status,
-            replan: Replan::new(nc, lift_mm, [0; 3], 0),
+            replan: Replan::new(nc, lift_mm, [0; 3]),
             program: blocks(text, nc).into(),
             trace: vec![[0; 3]],
             events: Vec::new(),
