@@ -262,8 +262,8 @@ pub struct HostRun {
 /// 15), so the loader's record sees the same queue.
 pub const HOST_QUEUE: usize = 15;
 
-/// The loader's record of the queued blocks (`millac::rt::replan::Replan`): the queue and a
-/// detour's room.
+/// The loader's record of the queued blocks (`millac::rt::replan::Replan`): the queue (16 slots,
+/// as the QEMU board's `QUEUE`) and room for nested detours.
 pub const REPLAN_RECORD: usize = millac::rt::replan::record_len(HOST_QUEUE + 1);
 
 /// The programmed feed of a block in ipm (0 for rapids and dwells).
@@ -586,7 +586,7 @@ pub fn run_with_faults(
             break;
         }
     }
-    out.stock = Some(adc.process.stock().clone());
+    out.stock = Some(adc.process.into_stock());
     out.samples = adc.truth;
     out.codes = adc.codes;
     out.machining_time_s = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);
