@@ -97,6 +97,14 @@ pub fn spindle_rpm() -> u32 {
     SPINDLE_RPM.load(core::sync::atomic::Ordering::Relaxed)
 }
 
+/// The simulated spindle turns at `rpm` from the next ADC request on (0: no change). Loader task
+/// (the serial loader's spindle changes; in tape mode the chatter reaction's speed, `$277`).
+pub fn set_spindle_rpm(rpm: u32) {
+    if rpm > 0 {
+        SPINDLE_RPM.store(rpm, core::sync::atomic::Ordering::Relaxed);
+    }
+}
+
 /// The QEMU board as the serial loader sees it: UART0 (`init` with the board's UART clock; `kick`
 /// pends UART0), the session log `serve.nc` and a simulated spindle: the S of a spindle change
 /// reaches the simulated cut through the ADC's requests ([`spindle_rpm`]), after the motion
@@ -112,9 +120,7 @@ impl millac::rt::loader::LoaderBoard for QemuLoader {
     /// The simulated spindle takes the commanded speed; stopping it (M5, a reset) leaves the
     /// speed: the simulated cut has no stopped spindle (the plant turns whenever the tool moves).
     fn spindle(&mut self, _state: millac::gcode::Spindle, rpm: u32, _max_rpm: u32) {
-        if rpm > 0 {
-            SPINDLE_RPM.store(rpm, core::sync::atomic::Ordering::Relaxed);
-        }
+        set_spindle_rpm(rpm);
     }
 
     fn start(&mut self) {

@@ -12,7 +12,7 @@ use millac::gcode::tape::finish_block;
 use millac::nc::{Block, Frame, FrameConfig, Motion, Rate};
 use millac::ports::{Conversion, ForceTorqueAdc};
 use millac::rt::ac::{self as rt_ac, AcPeriod};
-use millac::rt::replan::{Event as ReplanEvent, HostQueue, Replan, Replanned};
+use millac::rt::replan::{Event as ReplanEvent, HostQueue, Replan, Replanned, SpeedChange};
 use millac::rt::Status;
 use millac::Settings;
 use millac_plant::{Damage, Material, Process, Stock, Tool, ToothEvent, Transducer};
@@ -254,6 +254,8 @@ pub struct HostRun {
     /// with their virtual time (s).
     pub replans: Vec<(f64, Replanned)>,
     pub refused: Vec<(f64, millac::rt::replan::Refusal)>,
+    /// The spindle speed changes of the chatter reaction (`$277`), applied to the process.
+    pub speeds: Vec<(f64, SpeedChange)>,
     /// The stock as the run left it (the plant's height map).
     pub stock: Option<Stock>,
 }
@@ -410,12 +412,16 @@ pub fn run_with_faults(
         cap: HOST_QUEUE,
     };
     let acs = ac.unwrap_or_default();
-    let step_mm = if ac.is_some() {
-        acs.chatter_step_mm
-    } else {
-        0.0
+    // Chatter reactions need the monitors, which need the AC.
+    let reactions = match ac {
+        Some(s) => s,
+        None => AcSettings {
+            chatter_step_mm: 0.0,
+            chatter_max_rpm: 0,
+            ..acs
+        },
     };
-    let mut replan = Replan::<REPLAN_RECORD>::new(*settings, step_mm, [0; 3]);
+    let mut replan = Replan::<REPLAN_RECORD>::new(*settings, &reactions, [0; 3]);
     // The firmware's sampler and AC period (`millac::rt::ac`) over a host status and ADC.
     let status = Status::new();
     status.start();
@@ -581,6 +587,14 @@ pub fn run_with_faults(
             ReplanEvent::None => {}
             ReplanEvent::Replanned(r) => out.replans.push((t as f64 * 1e-9, r)),
             ReplanEvent::Refused { why, .. } => out.refused.push((t as f64 * 1e-9, why)),
+            ReplanEvent::Speed(s) => {
+                // The simulated spindle, as the firmware's board turns its spindle.
+                adc.process
+                    .set_spindle_rpm(f64::from(s.to))
+                    .map_err(|e| anyhow!("chatter spindle speed S{}: {}", s.to, e.0))?;
+                replan.speed_applied(&status, s.to);
+                out.speeds.push((t as f64 * 1e-9, s));
+            }
         }
         if halt {
             break;

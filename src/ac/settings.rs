@@ -144,6 +144,11 @@ pub struct AcSettings {
     /// thesis' reaction); 0 leaves a chatter hold a hold (`ALARM:107`). Default 1.0 mm, the
     /// thesis' step (Munasinghe 1994, section 5.3.2).
     pub chatter_step_mm: f32,
+    /// Chatter suppression by spindle speed (`$277`, rpm, 0..=100 000): the top speed a chatter
+    /// hold may change the spindle to, the nearest stable lobe's (`crate::monitor::chatter::lobe_rpm`,
+    /// `crate::rt::replan`), before the depth steps of `$276`; 0 (the default) leaves the speed
+    /// alone.
+    pub chatter_max_rpm: u32,
 }
 
 /// The feed ceiling under adaptive control (see [`AcSettings::ceiling`]).
@@ -207,6 +212,7 @@ impl Default for AcSettings {
             chatter_threshold: 0.0,
             breakage: false,
             chatter_step_mm: 1.0,
+            chatter_max_rpm: 0,
         }
     }
 }
@@ -338,7 +344,8 @@ impl AcSettings {
             && (1..=100_000).contains(&self.monitor_rpm)
             && self.chatter_threshold.is_finite()
             && self.chatter_threshold >= 0.0
-            && (0.0..=50.0).contains(&self.chatter_step_mm);
+            && (0.0..=50.0).contains(&self.chatter_step_mm)
+            && self.chatter_max_rpm <= 100_000;
         if !monitors_ok {
             return Err(AcSettingsError::Monitor);
         }

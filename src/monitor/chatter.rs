@@ -77,6 +77,11 @@ impl ChatterSettingsError {
 }
 
 impl ChatterSettings {
+    /// The spectrum's bin width (Hz): the resolution of a record's peak frequency.
+    pub fn bin_hz(&self) -> f32 {
+        self.sound_hz as f32 / RECORD as f32
+    }
+
     pub fn validate(&self) -> Result<(), ChatterSettingsError> {
         if !(1000..=100_000).contains(&self.sound_hz) {
             return Err(ChatterSettingsError::SoundRate);
@@ -177,7 +182,7 @@ impl ChatterDetector {
             *o = r * w;
         }
         let spectrum = rfft_256(&mut x);
-        let bin_hz = self.s.sound_hz as f32 / RECORD as f32;
+        let bin_hz = self.s.bin_hz();
         let tooth_hz = rpm as f32 * flutes as f32 / 60.0;
         // The bins left out, marked once per record in bin numbers (a soft-float compare per bin
         // and harmonic cost about a fifth of a 10 ms period on the Cortex-M3).
@@ -232,6 +237,70 @@ impl ChatterDetector {
         }
         out
     }
+}
+
+/// A spindle speed of a stable lobe ([`lobe_rpm`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LobeSpeed {
+    /// The new speed, rpm.
+    pub rpm: u32,
+    /// The number m of tooth periods in one period of the chatter at it: the chatter frequency
+    /// is m times the new tooth frequency.
+    pub m: u32,
+}
+
+/// The spindle speed of the nearest stable lobe, for a cut that chatters at `chatter_hz` with a
+/// `flutes`-tooth cutter at `rpm` (the chatter task's reaction when `$277` allows one, in the
+/// loader; host). Smith and Tlusty's rule, which the thesis' survey cites for chatter control by
+/// spindle speed selection (Smith and Delio 1989, Delio, Tlusty and Smith 1992, its refs. 46-47):
+/// the regeneration vanishes when the tooth frequency divides the chatter frequency, so the new
+/// speed is `60 chatter_hz / (flutes m)` with m a whole number. Of the two m either side of the
+/// present ratio, the speed nearer `rpm` is taken; the speed never exceeds `max_rpm` (a larger m,
+/// a slower speed, takes its place). A change within the chatter frequency's resolution (half
+/// of `resolution_hz`, a spectrum bin, relative to `chatter_hz`) is no change: the tooth
+/// frequency already divides the chatter frequency as far as it is known, and the nearest other
+/// lobe is taken. None when no such speed exists or an input is not a positive finite number.
+///
+/// Where the lobes are narrow (high lobe numbers: the thesis' 2-flute cutter at 1500 rpm chatters
+/// with m about 31, lobes 48 rpm apart) no speed is much more stable than another, and the rule
+/// helps little; the loader then falls back to the depth steps (`crate::rt::replan`).
+pub fn lobe_rpm(
+    chatter_hz: f32,
+    flutes: u32,
+    rpm: u32,
+    max_rpm: u32,
+    resolution_hz: f32,
+) -> Option<LobeSpeed> {
+    let ok = |v: f32| v.is_finite() && v > 0.0;
+    if !(ok(chatter_hz) && ok(resolution_hz)) || flutes == 0 || rpm == 0 || max_rpm == 0 {
+        return None;
+    }
+    // In f64: a speed of 100 000 rpm and m in the thousands stay exact enough.
+    let (fc, z, n) = (f64::from(chatter_hz), f64::from(flutes), f64::from(rpm));
+    let speed = |m: f64| 60.0 * fc / (z * m);
+    let ratio = speed(1.0) / n;
+    // The smallest m whose speed is within max_rpm.
+    let m_min = libm::ceil(speed(1.0) / f64::from(max_rpm)).max(1.0);
+    let min_change = n * 0.5 * f64::from(resolution_hz) / fc;
+    let mut best: Option<(f64, f64)> = None;
+    // The two m either side of the ratio, and the next ones out for a ratio that is whole.
+    let (lo, hi) = (libm::floor(ratio), libm::ceil(ratio));
+    for m in [lo - 1.0, lo, hi, hi + 1.0] {
+        let m = m.max(m_min);
+        let s = speed(m);
+        let change = libm::fabs(s - n);
+        if change <= min_change.max(1.0) || libm::round(s) > f64::from(max_rpm) {
+            continue;
+        }
+        if best.is_none_or(|(_, c)| change < c) {
+            best = Some((m, change));
+        }
+    }
+    // The speed is at most max_rpm (a u32) and positive here.
+    best.map(|(m, _)| LobeSpeed {
+        rpm: libm::round(speed(m)) as u32,
+        m: m as u32,
+    })
 }
 
 #[cfg(test)]
@@ -378,5 +447,57 @@ mod tests {
         ] {
             assert!(ChatterDetector::new(bad).is_err(), "{bad:?}");
         }
+    }
+
+    /// The rule's speeds: the tooth frequency divides the chatter frequency, the lobe nearer the
+    /// present speed, never above the limit, never a change within the frequency's resolution.
+    #[test]
+    fn the_lobe_speed_puts_a_tooth_harmonic_on_the_chatter_frequency() {
+        // 1650 Hz with 2 flutes at 14 000 rpm: ratio 60 * 1650 / (2 * 14000) = 3.54; m = 4 gives
+        // 12 375 rpm (1625 away), m = 3 gives 16 500 (2500 away).
+        let bin = 5000.0 / 256.0;
+        let s = lobe_rpm(1650.0, 2, 14_000, 30_000, bin).unwrap();
+        assert_eq!(s, LobeSpeed { rpm: 12_375, m: 4 });
+        let tooth_hz = s.rpm as f32 * 2.0 / 60.0;
+        assert!((tooth_hz * s.m as f32 - 1650.0).abs() < 0.1, "{tooth_hz}");
+        // Nearer the faster lobe: 60 * 1650 / (2 * 15500) = 3.19; m = 3 gives 16 500.
+        assert_eq!(lobe_rpm(1650.0, 2, 15_500, 30_000, bin).unwrap().m, 3);
+        // The faster lobe beyond the limit: the slower one.
+        assert_eq!(
+            lobe_rpm(1650.0, 2, 15_500, 16_000, bin).unwrap().rpm,
+            12_375
+        );
+        // Far above the limit (a spindle commanded faster than $277 allows): the first lobe below.
+        let s = lobe_rpm(1650.0, 2, 14_000, 5_000, bin).unwrap();
+        assert!(s.rpm <= 5_000 && s.rpm > 5_000 * (s.m - 1) / s.m, "{s:?}");
+        // A tooth harmonic already on the chatter frequency (ratio 4.000): the next lobe.
+        let s = lobe_rpm(1650.0, 2, 12_375, 30_000, bin).unwrap();
+        assert!(s.m == 3 || s.m == 5, "{s:?}");
+        // The thesis' cut: 1560 Hz at 1500 rpm, m about 31: a change of 0.65 %, just beyond the
+        // frequency's resolution (half a bin, 0.63 %).
+        let s = lobe_rpm(1560.0, 2, 1500, 2000, bin).unwrap();
+        assert_eq!((s.rpm, s.m), (1510, 31));
+        // Below the tooth frequency (ratio < 1): m = 1, slower.
+        assert_eq!(
+            lobe_rpm(300.0, 2, 12_000, 30_000, bin).unwrap(),
+            LobeSpeed { rpm: 9000, m: 1 }
+        );
+        // Garbage.
+        for (hz, z, n, max, res) in [
+            (f32::NAN, 2, 1500, 2000, bin),
+            (-5.0, 2, 1500, 2000, bin),
+            (1560.0, 0, 1500, 2000, bin),
+            (1560.0, 2, 0, 2000, bin),
+            (1560.0, 2, 1500, 0, bin),
+            (1560.0, 2, 1500, 2000, f32::INFINITY),
+            (f32::MAX, 8, u32::MAX, u32::MAX, bin),
+        ] {
+            let s = lobe_rpm(hz, z, n, max, res);
+            if let Some(s) = s {
+                assert!(s.rpm <= max && s.m >= 1, "{s:?}");
+            }
+        }
+        assert_eq!(lobe_rpm(f32::NAN, 2, 1500, 2000, bin), None);
+        assert_eq!(lobe_rpm(1560.0, 2, 1500, 0, bin), None);
     }
 }

@@ -310,6 +310,7 @@ impl AcPeriod {
                 threshold: self.ctl.settings().chatter_threshold,
             };
             if self.ctl.hold(a) {
+                status.chatter_hz.store(s.peak_hz.to_bits(), Relaxed);
                 held(&mut out, a, &self.ctl);
             }
         }

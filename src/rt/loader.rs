@@ -265,11 +265,11 @@ pub fn run<
                 proto.message(&mut out, format_args!("Spindle stopped"));
             }
         }
-        // AC holds: said once each, as they come. A chatter hold with a depth step set is
-        // re-planned (below), not an alarm, unless the re-plan is refused.
+        // AC holds: said once each, as they come. A chatter hold with a depth step or a spindle
+        // speed reaction set is answered (below), not an alarm, unless the reaction is refused.
         while let Some(a) = ac_alarms.dequeue() {
             proto.message(&mut out, format_args!("AC hold: {}", a));
-            let replanned = matches!(a, Alarm::Chatter { .. }) && replan.lift() > 0;
+            let replanned = matches!(a, Alarm::Chatter { .. }) && replan.reacts();
             if !matches!(a, Alarm::Overload { .. }) && !replanned {
                 proto.alarm(ac_alarm(&a), &mut out);
             }
@@ -299,6 +299,22 @@ pub fn run<
                         mm(r.to[0]),
                         mm(r.to[1]),
                         r.count
+                    ),
+                );
+            }
+            replan::Event::Speed(s) => {
+                // The spindle turns at the lobe's speed until the program commands another (in
+                // its state: a stopped spindle stays stopped; a simulated one turns anyway); the
+                // AC resumes once it is applied.
+                spindle.1 = s.to;
+                board.spindle(spindle.0, s.to, table.settings.spindle_max_rpm);
+                replan.speed_applied(status, s.to);
+                proto.message(
+                    &mut out,
+                    format_args!(
+                        "Chatter: spindle speed S{} to S{} (chatter {} Hz, {} tooth periods per \
+                         chatter period) at line {} (change {})",
+                        s.from, s.to, s.chatter_hz, s.m, s.line, s.count
                     ),
                 );
             }

@@ -36,10 +36,25 @@
 //! - A detour's layer has a known thickness. If it chatters, lifting it by the step would leave
 //!   its pass in air and cut the same layer again, for ever; it is split in halves instead
 //!   ([`step`]), down to [`MIN_LAYER_BLU`], then held.
-//! - The machine's spindle and the program's modes are untouched; the parser still stands at the
-//!   end of the last line it read, where the machine will be once the queue has run.
+//! - The program's modes are untouched; the parser still stands at the end of the last line it
+//!   read, where the machine will be once the queue has run.
+//!
+//! # The spindle speed first (`$277`)
+//!
+//! With `$277` set (the top speed it may command, rpm), a chatter hold first changes the spindle
+//! speed to the nearest stable lobe's ([`crate::monitor::chatter::lobe_rpm`]: the tooth frequency
+//! a whole fraction of the chatter frequency the hold heard, `Status::chatter_hz`), and the feed
+//! resumes in the same block: nothing is re-planned, the geometry is the program's (so also an
+//! arc or a ramp). The thesis does not do this (its survey cites it, Smith and Delio); the issue
+//! asks for it as a choice. [`SPEED_TRIES`] changes in one held block that do not quiet the cut,
+//! or no such speed within `$277`, and the depth steps of `$276` take over (where the lobes are
+//! narrow, as for the thesis' cutter at 1500 rpm, no speed helps: README). The new speed stays
+//! until the program commands another. [`Event::Speed`] tells the loader, which applies it to
+//! the spindle and then calls [`Replan::speed_applied`] (the AC resumes only then).
 use core::sync::atomic::Ordering::Relaxed;
 
+use crate::ac::AcSettings;
+use crate::monitor::chatter::{lobe_rpm, ChatterSettings};
 use crate::nc::{
     isqrt, operator, steps_and_signs, Block, Dwell, FrameConfig, Linear, Motion, Rapid, X, Y, Z,
 };
@@ -124,6 +139,9 @@ pub enum Refusal {
     /// The held block is a detour's layer (BLU) too thin to split again (below
     /// [`MIN_LAYER_BLU`] per half).
     Thin { layer: u32 },
+    /// No depth step (`$276=0`), and no spindle speed within `$277` (or [`SPEED_TRIES`] of them)
+    /// quieted the cut.
+    NoSpeed,
 }
 
 impl Refusal {
@@ -134,6 +152,7 @@ impl Refusal {
             Refusal::SoftLimit { .. } => "the lifted pass would pass the Z soft limit",
             Refusal::Nested => "too many depth steps inside each other",
             Refusal::Thin { .. } => "the layer is too thin to split again",
+            Refusal::NoSpeed => "no depth step ($276), and no spindle speed within $277 quieted it",
         }
     }
 }
@@ -277,12 +296,50 @@ impl core::fmt::Display for Replanned {
     }
 }
 
+/// Spindle speed changes in one held block before the depth steps take over: the rule's first
+/// speed, and one more from the chatter heard at it (Smith and Delio iterate the same way).
+pub const SPEED_TRIES: u32 = 2;
+
+/// One change of the spindle speed for chatter, for the report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SpeedChange {
+    /// Where the machine stopped (BLU).
+    pub at: [i32; 3],
+    /// The speed before and after, rpm.
+    pub from: u32,
+    pub to: u32,
+    /// The chatter frequency the hold heard, Hz (rounded).
+    pub chatter_hz: u32,
+    /// Tooth periods per chatter period at the new speed (the lobe's m).
+    pub m: u32,
+    /// The held block's source line.
+    pub line: u32,
+    /// Speed changes so far in this run.
+    pub count: u32,
+}
+
+/// The firmware's result-file form (tape mode, `chatter: spindle ...`), parsed by the host's
+/// tests: `COUNT S=FROM->TO at X,Y,Z chatter=HZ m=M line=N`.
+impl core::fmt::Display for SpeedChange {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let a = self.at;
+        write!(
+            f,
+            "{} S={}->{} at {},{},{} chatter={} m={} line={}",
+            self.count, self.from, self.to, a[0], a[1], a[2], self.chatter_hz, self.m, self.line
+        )
+    }
+}
+
 /// What a call of [`Replan::poll`] did, for the loader to report.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Event {
     None,
     /// A chatter hold was re-planned; the AC resumes.
     Replanned(Replanned),
+    /// A chatter hold is to be answered by this spindle speed: the loader applies it to the
+    /// spindle, then calls [`Replan::speed_applied`], which resumes the AC.
+    Speed(SpeedChange),
     /// A chatter hold that stays a hold (`ALARM:107`), and why.
     Refused {
         at: [i32; 3],
@@ -335,6 +392,16 @@ pub struct Replan<const N: usize> {
     end: [i32; 3],
     /// The depth step, BLU (0: chatter holds stay holds).
     lift: u32,
+    /// The spindle speed reaction: `$277` (0: off), the flutes, the speed assumed until one is
+    /// commanded (`$269`), the chatter frequency's resolution (Hz).
+    max_rpm: u32,
+    flutes: u32,
+    monitor_rpm: u32,
+    bin_hz: f32,
+    /// The block (sequence number) of the last speed change, the changes in it, and in the run.
+    speed_seq: u32,
+    speed_tries: u32,
+    speed_count: u32,
     nc: Settings,
     cfg: FrameConfig,
     state: State,
@@ -351,11 +418,13 @@ pub struct Replan<const N: usize> {
 }
 
 impl<const N: usize> Replan<N> {
-    /// Starts at the machine's position `at`; `lift_mm` is `$276` (0 or less: off). (The record's
-    /// sequence numbers are its own: the queue's front is the blocks handed to it less those still
-    /// in it.) Init or loader task.
-    pub fn new(nc: Settings, lift_mm: f32, at: [i32; 3]) -> Self {
+    /// Starts at the machine's position `at`; from `ac`, `$276` the depth step (0 or less: off),
+    /// `$277` the spindle speed reaction's top speed (0: off), `$267` the flutes and `$269` the
+    /// speed until one is commanded. (The record's sequence numbers are its own: the queue's
+    /// front is the blocks handed to it less those still in it.) Init or loader task.
+    pub fn new(nc: Settings, ac: &AcSettings, at: [i32; 3]) -> Self {
         let (num, den) = nc.blu.per_mm();
+        let lift_mm = ac.chatter_step_mm;
         let lift = if lift_mm > 0.0 {
             libm::round(f64::from(lift_mm) * num as f64 / den as f64) as u32
         } else {
@@ -368,6 +437,13 @@ impl<const N: usize> Replan<N> {
             sent: 0,
             end: at,
             lift,
+            max_rpm: ac.chatter_max_rpm,
+            flutes: ac.flutes,
+            monitor_rpm: ac.monitor_rpm,
+            bin_hz: ChatterSettings::default().bin_hz(),
+            speed_seq: 0,
+            speed_tries: 0,
+            speed_count: 0,
             nc,
             cfg: FrameConfig::from_settings(&nc),
             state: State::Watch,
@@ -384,6 +460,59 @@ impl<const N: usize> Replan<N> {
     /// The step in BLU (0: off).
     pub fn lift(&self) -> u32 {
         self.lift
+    }
+
+    /// A chatter hold gets a reaction (a depth step or a spindle speed), not only an alarm.
+    pub fn reacts(&self) -> bool {
+        self.lift > 0 || self.max_rpm > 0
+    }
+
+    /// The loader has applied [`Event::Speed`]'s speed `rpm` to the spindle: the monitors follow
+    /// it and the AC resumes. Loader task.
+    pub fn speed_applied(&self, status: &Status, rpm: u32) {
+        status.spindle_rpm.store(rpm, Relaxed);
+        status.ac_resume.store(true, Relaxed);
+    }
+
+    /// The spindle speed for the chatter hold in block `seq`, if `$277` allows one and the
+    /// block has not had [`SPEED_TRIES`] already.
+    fn speed_change(
+        &mut self,
+        seq: u32,
+        line: u32,
+        at: [i32; 3],
+        status: &Status,
+    ) -> Option<SpeedChange> {
+        if self.max_rpm == 0 {
+            return None;
+        }
+        let tries = if seq == self.speed_seq {
+            self.speed_tries
+        } else {
+            0
+        };
+        if tries >= SPEED_TRIES {
+            return None;
+        }
+        let hz = f32::from_bits(status.chatter_hz.load(Relaxed));
+        let rpm = match status.spindle_rpm.load(Relaxed) {
+            0 => self.monitor_rpm,
+            r => r,
+        };
+        let lobe = lobe_rpm(hz, self.flutes, rpm, self.max_rpm, self.bin_hz)?;
+        self.speed_seq = seq;
+        self.speed_tries = tries + 1;
+        self.speed_count = self.speed_count.wrapping_add(1);
+        Some(SpeedChange {
+            at,
+            from: rpm,
+            to: lobe.rpm,
+            // A frequency below Nyquist: the cast is exact enough.
+            chatter_hz: libm::roundf(hz) as u32,
+            m: lobe.m,
+            line,
+            count: self.speed_count,
+        })
     }
 
     /// After the frame dropped the queue for another reason (a soft reset, a jog cancel): the
@@ -510,7 +639,7 @@ impl<const N: usize> Replan<N> {
         match self.state {
             State::Watch => {
                 let chatter = status.ac_state.load(Relaxed) == alarm::AC_CHATTER;
-                if self.lift > 0 && chatter && status.stopped() {
+                if self.reacts() && chatter && status.stopped() {
                     let done = self.front(sink);
                     self.trim(done);
                     let at = status.position();
@@ -527,7 +656,16 @@ impl<const N: usize> Replan<N> {
                         self.drain(sink);
                         return Event::None;
                     };
+                    // The spindle speed first, where `$277` allows: the block goes on.
+                    if let Some(change) = self.speed_change(done, e.block.line, at, status) {
+                        self.state = State::Done {
+                            resumes: status.resumes.load(Relaxed),
+                        };
+                        self.drain(sink);
+                        return Event::Speed(change);
+                    }
                     let plan = match step(e.layer, self.lift) {
+                        _ if self.lift == 0 => Err(Refusal::NoSpeed),
                         Some(lift) => {
                             self.step = lift;
                             self.layers = if e.layer == 0 {
@@ -637,6 +775,8 @@ impl<const N: usize> Replan<N> {
         self.sent = done;
         self.issued = done.wrapping_add(len).wrapping_add(behind);
         self.count = self.count.wrapping_add(1);
+        // The sequence numbers from `done` on are new blocks: no speed was tried in them.
+        self.speed_tries = 0;
         Event::Replanned(Replanned {
             at: self.at,
             to: end_of(&held),

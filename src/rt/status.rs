@@ -71,6 +71,9 @@ pub struct Status {
     /// The AC task asks the loader to stop the spindle (a tool breakage): set by the AC task,
     /// taken (swapped back to false) by the loader, which turns the spindle off at once.
     pub spindle_stop: AtomicBool,
+    /// The frequency of the last chatter hold (Hz, an f32's bits): written by the AC task with
+    /// the hold, read by the loader's reaction (`rt::replan`, the spindle speed of `$277`).
+    pub chatter_hz: AtomicU32,
     /// AC resumes so far: written by the AC task when it leaves a hold; the chatter monitor
     /// restarts its record when it changes (the sound before the hold is not judged after it).
     pub resumes: AtomicU32,
@@ -108,6 +111,7 @@ impl Status {
             frame_cycles_max: AtomicU32::new(0),
             spindle_rpm: AtomicU32::new(0),
             spindle_stop: AtomicBool::new(false),
+            chatter_hz: AtomicU32::new(0),
             resumes: AtomicU32::new(0),
             sound_dropped: AtomicU32::new(0),
         }

@@ -358,9 +358,7 @@ fn session_full(
     };
     let mut replan = Box::new(crate::rt::replan::Replan::<
         { crate::rt::replan::record_len(Q) },
-    >::new(
-        settings, table.settings.ac.chatter_step_mm, [0; 3]
-    ));
+    >::new(settings, &table.settings.ac, [0; 3]));
     run(
         &mut blocks_tx,
         &mut replan,

@@ -411,11 +411,10 @@ mod app {
         // The loader's record of the queued blocks (chatter suppression, `$276`; this board has no
         // sound channel, so it never re-plans, but the loader is the same).
         let settings = &cx.local.table.settings;
-        let replan = cx.local.replan.insert(Replan::new(
-            settings.nc,
-            settings.ac.chatter_step_mm,
-            [0; 3],
-        ));
+        let replan = cx
+            .local
+            .replan
+            .insert(Replan::new(settings.nc, &settings.ac, [0; 3]));
         millac::rt::loader::run(
             cx.local.producer,
             replan,

@@ -440,12 +440,11 @@ mod app {
         let producer = cx.local.producer;
         let (settings, ceiling) = (cx.local.settings, *cx.local.ceiling);
         // The loader's record of the queued blocks: chatter suppression (`$276`) re-plans from
-        // it, in both modes.
-        let replan = cx.local.replan.insert(Replan::new(
-            *settings,
-            cx.local.table.settings.ac.chatter_step_mm,
-            [0; 3],
-        ));
+        // it, in both modes (and changes the spindle speed first where `$277` allows).
+        let replan =
+            cx.local
+                .replan
+                .insert(Replan::new(*settings, &cx.local.table.settings.ac, [0; 3]));
         // The loader's errors, logged once the machine is idle (see `load`).
         let mut errors = Errors::new();
         let ok = match load(
@@ -487,7 +486,7 @@ mod app {
             || replan.pending()
             || replan.aborting()
         {
-            said(replan.poll(producer, &STATUS));
+            react(replan, producer);
         }
         for t in &errors {
             log_error(t);
@@ -512,10 +511,22 @@ mod app {
         exit(ok)
     }
 
-    /// A chatter re-plan (or its refusal) into the result file and the log (tape mode).
-    fn said(e: replan::Event) {
-        match e {
+    /// The chatter reaction's turn (tape mode): a re-plan, a spindle speed (applied to the
+    /// simulated spindle, then the AC resumes) or a refusal, into the result file and the log.
+    fn react(replan: &mut Replan<RECORD>, producer: &mut Producer<'static, Block, QUEUE>) {
+        match replan.poll(producer, &STATUS) {
             replan::Event::None => {}
+            replan::Event::Speed(s) => {
+                millac_hal::uart::set_spindle_rpm(s.to);
+                replan.speed_applied(&STATUS, s.to);
+                results::line(format_args!("chatter: spindle {}", s));
+                defmt::warn!(
+                    "chatter: spindle S{=u32} -> S{=u32} ({=u32} Hz)",
+                    s.from,
+                    s.to,
+                    s.chatter_hz
+                );
+            }
             replan::Event::Replanned(r) => {
                 results::line(format_args!("chatter: re-planned {}", r));
                 defmt::warn!(
@@ -574,7 +585,7 @@ mod app {
             let mut b = b;
             while let Err(back) = replan.offer(producer, b) {
                 b = back;
-                said(replan.poll(producer, &STATUS));
+                react(replan, producer);
             }
         };
         let Some(fd) = semihost::open(b"program.nc\0", nr::open::R) else {
@@ -597,6 +608,8 @@ mod app {
         };
         let mut chunk = [0u8; CHUNK];
         let mut ok = true;
+        // The program's S as last published (0: none yet).
+        let mut program_rpm = 0u32;
         loop {
             let Some(n) = semihost::read(fd, &mut chunk) else {
                 refuse(format_args!("cannot read program.nc"));
@@ -620,10 +633,17 @@ mod app {
             // reaches them once per 256-byte chunk, after the chunk's blocks are queued: up to
             // a queue of blocks early or late. A program should set S before its first cut (the
             // host simulation cuts the whole program at its S); the serial loader publishes it
-            // with the motion.
+            // with the motion. Only a change of the program's S is published: a speed the chatter
+            // reaction chose (`$277`) stays until the program commands another.
             let rpm = tape.parser().spindle_rpm();
-            if rpm != 0 {
+            if rpm != 0 && rpm != program_rpm {
+                program_rpm = rpm;
                 STATUS.spindle_rpm.store(rpm, Relaxed);
+                // The simulated spindle turns at the program's S (the host starts it there);
+                // once the reaction has commanded it, it follows the program's changes too.
+                if millac_hal::uart::spindle_rpm() != 0 {
+                    millac_hal::uart::set_spindle_rpm(rpm);
+                }
             }
             if tape.done() {
                 break;

@@ -26,9 +26,9 @@ use crate::ports::SettingsStorage;
 use crate::settings::{Blu, BoardLimits, Settings};
 
 pub const MAGIC: [u8; 4] = *b"MLST";
-pub const VERSION: u16 = 4;
+pub const VERSION: u16 = 5;
 pub const HEADER_LEN: usize = 8;
-pub const PAYLOAD_LEN: usize = 204;
+pub const PAYLOAD_LEN: usize = 208;
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF): the
@@ -250,6 +250,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     p.f32(s.ac.chatter_threshold);
     p.u8(s.ac.breakage as u8);
     p.f32(s.ac.chatter_step_mm);
+    p.u32(s.ac.chatter_max_rpm);
     let end = p.pos;
     let crc = crc32(img.get(..end).unwrap_or(&[]));
     let mut p = Put {
@@ -359,6 +360,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let chatter_threshold = t.f32()?;
     let breakage = t.bool()?;
     let chatter_step_mm = t.f32()?;
+    let chatter_max_rpm = t.u32()?;
     let build = || {
         Some(MachineSettings {
             nc: Settings {
@@ -405,6 +407,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
                 chatter_threshold,
                 breakage: breakage?,
                 chatter_step_mm,
+                chatter_max_rpm,
             },
             ac_enabled: ac_enabled?,
             report: ReportSettings {

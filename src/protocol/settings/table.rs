@@ -143,7 +143,7 @@ macro_rules! mirror {
 /// millac's own from `$200` (NC) and `$250` (adaptive control). `$200` (the BLU) comes first: the
 /// settings listed in mm are kept in BLU, so a listing restored line by line onto the defaults
 /// changes the BLU before it sets them.
-pub static TABLE: [Entry; 61] = [
+pub static TABLE: [Entry; 62] = [
     Entry {
         number: 200,
         name: "BLU",
@@ -494,6 +494,15 @@ pub static TABLE: [Entry; 61] = [
         "mm",
         false,
         ac.chatter_step_mm
+    ),
+    int!(
+        277,
+        "chatter spindle speed up to (0 off)",
+        "rpm",
+        Unit::One,
+        u32,
+        false,
+        ac.chatter_max_rpm
     ),
     int!(
         280,

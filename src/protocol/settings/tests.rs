@@ -16,20 +16,21 @@ $112=4013.1492\r\n$120=635\r\n$121=635\r\n$122=635\r\n$130=254\r\n$131=254\r\n$1
 $201=5000\r\n$202=3000\r\n$203=400\r\n$204=100\r\n$205=25\r\n$206=20\r\n$207=5\r\n\
 $230=-254\r\n$231=-254\r\n$232=-101.6\r\n$250=1\r\n$251=3\r\n$252=1000\r\n$253=10\r\n$254=4000\r\n\
 $255=80\r\n$256=0.9\r\n$257=75000\r\n$258=100\r\n$259=3000\r\n$260=-0.1\r\n$261=0\r\n$262=3\r\n\
-$263=0\r\n$264=1500\r\n$265=10\r\n$266=0\r\n$267=4\r\n$268=0\r\n$269=600\r\n$270=0.05\r\n$271=2.5\r\n$272=2.5\r\n$273=2048\r\n$274=2048\r\n$275=2048\r\n$276=1\r\n$280=20\r\n\
+$263=0\r\n$264=1500\r\n$265=10\r\n$266=0\r\n$267=4\r\n$268=0\r\n$269=600\r\n$270=0.05\r\n$271=2.5\r\n$272=2.5\r\n$273=2048\r\n$274=2048\r\n$275=2048\r\n$276=1\r\n$277=0\r\n$280=20\r\n\
 $281=1500\r\n$282=1\r\n$283=50\r\n$284=6.35\r\n$285=0.6\r\n$286=1.4\r\n$287=5\r\n$288=5\r\n";
 
-/// The record of the defaults, version 4 (its acceleration 250 000 BLU/s^2 since the ramps came,
+/// The record of the defaults, version 5 (its acceleration 250 000 BLU/s^2 since the ramps came,
 /// issue 7; `$30` max spindle speed, `$264` the AC's nominal feed and `$265` the GPC weight appended in version 2, issues
 /// 8 and 9; GPC (`$251=3`, `$265=10`) the default feed law since issue 9; version 3 appends the process
 /// monitors' `$267` flutes, `$269` spindle speed, `$266` chatter threshold and `$268` breakage (issue 10); version 4
-/// appends `$276` the chatter depth step and its payload grows to 204 bytes (issue 10); the CRC checked here with
+/// appends `$276` the chatter depth step and its payload grows to 204 bytes, version 5 `$277` the chatter spindle speed
+/// limit, 208 bytes (issue 10); the CRC checked here with
 /// Python's zlib.crc32): a change of the layout must bump the version.
-const DEFAULT_IMAGE: &str = "4d4c53540400cc000088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
+const DEFAULT_IMAGE: &str = "4d4c53540500d0000088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
 feff6079feffc063ffffa0860100a0860100409c000090d0030090d0030090d003000103e80300000a000000cdcc4c\
 3d00000045000020400000004500002040000000450000007a450000a0426666663ff824010064000000b80b0000cd\
 ccccbd14000000dc050100320000003333cb409a99193f3333b33f0000a0400500000003000000000100e8030000dc\
-05000000002041040000005802000000000000000000803f74ad3065";
+05000000002041040000005802000000000000000000803f0000000023efbbe4";
 
 fn listing(m: &MachineSettings) -> String {
     let mut s = String::new();
@@ -323,7 +324,8 @@ prop_compose! {
                 ft_periods in 0u32..=100_000, peak_windows in 1u32..=8,
                 law in (0u8..4, 0u32..=1000, prop_oneof![Just(0.0f32), real(1e-6, 1e6)]),
                 monitors in (1u32..=8, 1u32..=100_000, prop_oneof![Just(0.0f32), real(1e-6, 1e6)],
-                             any::<bool>(), prop_oneof![Just(0.0f32), real(1e-6, 50.0)])) -> AcSettings {
+                             any::<bool>(), prop_oneof![Just(0.0f32), real(1e-6, 50.0)],
+                             0u32..=100_000)) -> AcSettings {
         let (sample_hz, p, fdot_m) = rates;
         let lo = 1000u32.div_ceil(sample_hz).max(1);
         let cal = [0, 1, 2].map(|k| Calibration {
@@ -365,6 +367,7 @@ prop_compose! {
             chatter_threshold: monitors.2,
             breakage: monitors.3,
             chatter_step_mm: monitors.4,
+            chatter_max_rpm: monitors.5,
         }
     }
 }

@@ -41,7 +41,14 @@ impl Rig {
                 cap: 3,
             },
             status,
-            replan: Replan::new(nc, lift_mm, [0; 3]),
+            replan: Replan::new(
+                nc,
+                &AcSettings {
+                    chatter_step_mm: lift_mm,
+                    ..AcSettings::default()
+                },
+                [0; 3],
+            ),
             program: blocks(text, nc).into(),
             trace: vec![[0; 3]],
             events: Vec::new(),
@@ -70,6 +77,11 @@ impl Rig {
         }
         match self.replan.poll(&mut self.q, &self.status) {
             Event::None => {}
+            Event::Speed(s) => {
+                // The loader's part: the spindle takes it, then the AC resumes.
+                self.replan.speed_applied(&self.status, s.to);
+                self.events.push(Event::Speed(s));
+            }
             e => self.events.push(e),
         }
     }
@@ -80,6 +92,8 @@ impl Rig {
             amplitude: 9.0,
             threshold: 1.0,
         };
+        // As the AC period publishes a chatter hold: its frequency, then the state.
+        self.status.chatter_hz.store(1680f32.to_bits(), Relaxed);
         self.status.ac_state.store(ac_alarm(&a), Relaxed);
     }
 
@@ -359,4 +373,108 @@ fn a_chattering_layer_is_split_in_halves_never_lifted_into_air() {
         p.frame.position()
     };
     assert_eq!(r.frame.position(), plain);
+}
+
+/// `$277`: a chatter hold changes the spindle speed to the nearest stable lobe and the block goes
+/// on (no re-plan); a second hold in the same block takes the rule's next speed from the speed it
+/// reached; a third is the depth step's (or, without one, an alarm); a new block may change the
+/// speed again.
+#[test]
+fn the_spindle_speed_comes_first_then_the_depth_steps() {
+    let nc = Settings::default();
+    let rig = |lift_mm: f32| {
+        let mut r = Rig::new(PROGRAM, nc, lift_mm);
+        r.replan = Replan::new(
+            nc,
+            &AcSettings {
+                chatter_step_mm: lift_mm,
+                chatter_max_rpm: 30_000,
+                ..AcSettings::default()
+            },
+            [0; 3],
+        );
+        r.status.spindle_rpm.store(14_000, Relaxed);
+        r
+    };
+    let plain = {
+        let mut r = rig(1.0);
+        r.run(|_| false);
+        r.frame.blocks_done()
+    };
+    // Holds at x 0.3, 0.5 and 0.7 in in the slot (line 4), and one in the next block (line 5).
+    let holds = |r: &mut Rig| {
+        let mut at = vec![(3000, 0), (5000, 0), (7000, 0), (10_000, 2000)];
+        r.run(move |p| match at.first() {
+            Some(&(x, y)) if p[2] == Z1 && p[0] >= x && p[1] >= y => {
+                at.remove(0);
+                true
+            }
+            _ => false,
+        });
+    };
+    let mut r = rig(1.0);
+    holds(&mut r);
+    let speeds: Vec<SpeedChange> = r
+        .events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Speed(s) => Some(*s),
+            _ => None,
+        })
+        .collect();
+    // 1680 Hz with 4 flutes at 14 000 rpm: ratio 1.8, m = 2: 12 600 rpm. At 12 600 the ratio is
+    // 2.0 (no change there): the nearest other lobe, m = 3, 8400 rpm; in line 5 from 8400 (ratio
+    // 3.0) m = 4, 6300 rpm.
+    assert!(
+        matches!(
+            r.events[..],
+            [
+                Event::Speed(_),
+                Event::Speed(_),
+                Event::Replanned(_),
+                Event::Speed(_)
+            ]
+        ),
+        "{:?}",
+        r.events
+    );
+    assert_eq!(
+        speeds
+            .iter()
+            .map(|s| (s.from, s.to, s.m, s.line, s.count))
+            .collect::<Vec<_>>(),
+        [
+            (14_000, 12_600, 2, 4, 1),
+            (12_600, 8400, 3, 4, 2),
+            (8400, 6300, 4, 5, 3)
+        ]
+    );
+    assert_eq!(speeds[0].chatter_hz, 1680);
+    assert!((3000..3100).contains(&speeds[0].at[0]), "{:?}", speeds[0]);
+    // The speed stays (the monitors judge at it).
+    assert_eq!(r.status.spindle_rpm.load(Relaxed), 6300);
+    // One detour (four more blocks), for the third hold in the slot.
+    assert_eq!(r.frame.blocks_done(), plain + 4);
+    // Without a depth step the third hold in the block stays a hold.
+    let mut r = rig(0.0);
+    let mut at = vec![3000, 5000, 7000];
+    let mut refused = None;
+    for _ in 0..10_000_000 {
+        if let Some(Event::Refused { why, .. }) = r.events.last() {
+            refused = Some(*why);
+            break;
+        }
+        if r.status.ac_state.load(Relaxed) == AC_RUN
+            && at
+                .first()
+                .is_some_and(|&x| r.frame.position()[2] == Z1 && r.frame.position()[0] >= x)
+        {
+            at.remove(0);
+            r.chatter();
+        }
+        r.step();
+    }
+    assert_eq!(refused, Some(Refusal::NoSpeed), "{:?}", r.events);
+    assert_eq!(r.events.len(), 3);
+    assert!(r.status.ac_state.load(Relaxed) != AC_RUN, "still held");
 }
