@@ -46,6 +46,24 @@ pub fn through_slot(depth_in: f64) -> (String, crate::acsim::Cut) {
     (text, crate::acsim::Cut { stock, ..cut })
 }
 
+/// The table 3.2 tool in a high-speed cut, where its stability lobes are wide (for the chatter
+/// reaction by spindle speed, `$277`): the through slot of [`through_slot`] at `depth_in`, the
+/// program's `S{rpm}` and F30 (0.027 mm per tooth at 14 000 rpm). In this plant the preset's
+/// tool at 4 mm chatters at 14 000 rpm and is stable between about 11 750 and 12 750 rpm and
+/// between 15 000 and 17 500 (the time-domain model's lobes; README).
+pub fn high_speed_slot(depth_in: f64, rpm: u32) -> (String, crate::acsim::Cut) {
+    let (_, cut) = through_slot(depth_in);
+    let text =
+        format!("G20 G90\nS{rpm} M3\nG0 X0.2 Y1\nG0 Z-{depth_in}\nG1 X1.6 F30\nG0 Z0.1\nM2\n");
+    (
+        text,
+        crate::acsim::Cut {
+            spindle_rpm: f64::from(rpm),
+            ..cut
+        },
+    )
+}
+
 /// The chatter threshold by the thesis' rule: twice the largest amplitude the chatter monitor
 /// hears (`AcSettings` `listen`, its threshold out of reach) over `prog` on `cut`, a chatter-free
 /// cut, run on the host with the firmware's code.

@@ -48,7 +48,8 @@
 //! arc or a ramp). The thesis does not do this (its survey cites it, Smith and Delio); the issue
 //! asks for it as a choice. [`SPEED_TRIES`] changes in one held block that do not quiet the cut,
 //! or no such speed within `$277`, and the depth steps of `$276` take over (where the lobes are
-//! narrow, as for the thesis' cutter at 1500 rpm, no speed helps: README). The new speed stays
+//! narrow, as for the thesis' cutter at 1500 rpm, no speed helps: README); the passes of a
+//! detour then go straight to further depth steps (the speeds failed in that cut). The new speed stays
 //! until the program commands another. [`Event::Speed`] tells the loader, which applies it to
 //! the spindle and then calls [`Replan::speed_applied`] (the AC resumes only then).
 use core::sync::atomic::Ordering::Relaxed;
@@ -366,6 +367,9 @@ struct Entry {
     /// The thickness (BLU) of the layer this block cuts when a detour made it (the lower pass:
     /// the step; the upper pass of a split layer: the rest); 0 for a programmed block (unknown).
     layer: u32,
+    /// A chatter hold in it may change the spindle speed (`$277`): a programmed block; not a
+    /// detour's, which comes only after the speeds failed in the same cut.
+    speed: bool,
 }
 
 const EMPTY: Entry = Entry {
@@ -375,6 +379,7 @@ const EMPTY: Entry = Entry {
     },
     start: [0; 3],
     layer: 0,
+    speed: false,
 };
 
 /// The loader's record of the blocks it has queued and the frame has not yet done (by the
@@ -583,6 +588,7 @@ impl<const N: usize> Replan<N> {
                 block: b,
                 start: self.end,
                 layer: 0,
+                speed: true,
             };
         }
         let d = displacement(&b);
@@ -657,7 +663,11 @@ impl<const N: usize> Replan<N> {
                         return Event::None;
                     };
                     // The spindle speed first, where `$277` allows: the block goes on.
-                    if let Some(change) = self.speed_change(done, e.block.line, at, status) {
+                    let change = e
+                        .speed
+                        .then(|| self.speed_change(done, e.block.line, at, status))
+                        .flatten();
+                    if let Some(change) = change {
                         self.state = State::Done {
                             resumes: status.resumes.load(Relaxed),
                         };
@@ -766,6 +776,7 @@ impl<const N: usize> Replan<N> {
                     block: *b,
                     start,
                     layer,
+                    speed: false,
                 };
             }
             let d = displacement(b);
