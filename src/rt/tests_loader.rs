@@ -101,9 +101,10 @@ struct SpindleCall {
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum AcEvent {
     Breakage,
-    /// With `$276` at this step (mm).
+    /// With `$276` at this step (mm) and `$277` at this speed (rpm).
     Chatter {
         step_mm: f32,
+        max_rpm: u32,
     },
 }
 
@@ -163,6 +164,7 @@ impl Bench {
         if let Some((at, AcEvent::Chatter { .. })) = self.ac_event {
             if at == self.frames {
                 s.feed_cap.store(0, Relaxed);
+                s.chatter_hz.store(1680f32.to_bits(), Relaxed);
                 s.ac_state
                     .store(crate::protocol::codes::alarm::AC_CHATTER, Relaxed);
                 let _ = self.alarms.enqueue(Alarm::Chatter {
@@ -321,8 +323,9 @@ fn session_full(
     let (alarm_tx, mut alarms) = Box::leak(Box::new(Queue::<Alarm, A>::new())).split();
     let (rx, task) = Box::leak(Box::new(RxShared::new())).split();
     let (mut table, _) = Persistent::load(NoStorage);
-    if let Some((_, AcEvent::Chatter { step_mm })) = ac_event {
+    if let Some((_, AcEvent::Chatter { step_mm, max_rpm })) = ac_event {
         table.settings.ac.chatter_step_mm = step_mm;
+        table.settings.ac.chatter_max_rpm = max_rpm;
     }
     let settings = table.settings.nc;
     let mut proto = Protocol::new(task, (Q - 1) as u16);
@@ -758,7 +761,15 @@ fn a_tool_breakage_stops_the_spindle_and_only_a_reset_leads_on() {
 fn a_chatter_hold_is_replanned_and_the_job_completes() {
     // 0.1 in at F30 takes about 1000 frames; chatter at frame 400, in the first line.
     let sends = [(1, "G91 G1 F30 X0.1\n"), (2, "G1 Y0.01\n"), (11_000, "?")];
-    let chatter = |step_mm| Some((400, AcEvent::Chatter { step_mm }));
+    let chatter = |step_mm| {
+        Some((
+            400,
+            AcEvent::Chatter {
+                step_mm,
+                max_rpm: 0,
+            },
+        ))
+    };
     let b = session_full(&sends, &[], None, 12_000, ESTOP, None, chatter(1.0));
     assert!(b.out.contains("[MSG:AC hold: chatter"), "{}", b.out);
     assert!(
@@ -780,4 +791,46 @@ fn a_chatter_hold_is_replanned_and_the_job_completes() {
     assert!(!no_step.out.contains("Chatter: depth"), "{}", no_step.out);
     assert_ne!(no_step.status.position(), [1000, 100, 0]);
     no_step.out.clear();
+}
+
+/// `$277`: a chatter hold in serial mode changes the spindle speed to the nearest stable lobe
+/// (1680 Hz with 4 flutes at 6000 rpm: m = 4, 6300 rpm), a message and no alarm, the spindle
+/// output takes it, nothing is re-planned, the AC resumes and the job ends where the program
+/// does.
+#[test]
+fn a_chatter_hold_changes_the_spindle_speed_first() {
+    let sends = [
+        (1, "S6000 M3\n"),
+        (2, "G91 G1 F30 X0.1\n"),
+        (3, "G1 Y0.01\n"),
+        (11_000, "?"),
+    ];
+    let ev = Some((
+        400,
+        AcEvent::Chatter {
+            step_mm: 1.0,
+            max_rpm: 10_000,
+        },
+    ));
+    let b = session_full(&sends, &[], None, 12_000, ESTOP, None, ev);
+    assert!(
+        b.out.contains(
+            "[MSG:Chatter: spindle speed S6000 to S6300 (chatter 1680 Hz, 4 tooth periods"
+        ),
+        "{}",
+        b.out
+    );
+    assert!(b.out.contains("(change 1)]"), "{}", b.out);
+    assert!(
+        !b.out.contains("ALARM:") && !b.out.contains("depth reduced"),
+        "{}",
+        b.out
+    );
+    let calls: Vec<(Spindle, u32)> = b.spindle.iter().map(|c| (c.state, c.rpm)).collect();
+    assert_eq!(calls, [(Spindle::Cw, 6000), (Spindle::Cw, 6300)]);
+    // The change is made where the hold stopped the machine, inside the first line.
+    assert!(b.spindle[1].position[0] > 0 && b.spindle[1].position[0] < 1000);
+    assert_eq!(b.status.spindle_rpm.load(Relaxed), 6300);
+    assert_eq!(oks(&b.out), 3);
+    assert_eq!(b.status.position(), [1000, 100, 0]);
 }
