@@ -328,3 +328,147 @@ pub fn plot_suppression(path: &Path, run: &crate::acsim::HostRun, threshold: f32
     root.present()?;
     Ok(())
 }
+
+/// The chatter reaction by spindle speed against the depth steps on the same cut
+/// ([`high_speed_slot`]): above, the largest sound amplitude per detection cycle of both runs
+/// with the threshold, the speed changes and the re-plans; below, the spindle speed of the `$277`
+/// run and the X position of both (the depth steps' extra passes).
+pub fn plot_speed(
+    path: &Path,
+    speed: &crate::acsim::HostRun,
+    depth: &crate::acsim::HostRun,
+    threshold: f32,
+    rpm: u32,
+) -> Result<()> {
+    let root = SVGBackend::new(path, (1000, 700)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (upper, lower) = root.split_vertically(360);
+    let end = |r: &crate::acsim::HostRun| r.rows.last().map_or(1.0, |r| r.t_ms as f64 / 1000.0);
+    let t_end = end(speed).max(end(depth));
+    let top = speed
+        .spectra
+        .iter()
+        .chain(depth.spectra.iter())
+        .map(|(_, s)| s.peak_amplitude)
+        .fold(threshold, f32::max) as f64
+        * 1.5;
+    let grey = RGBColor(150, 150, 150);
+    let green = RGBColor(0, 150, 0);
+    let mut chart = ChartBuilder::on(&upper)
+        .caption(
+            "Table 3.2 tool, 4 mm slot at 14 000 rpm: largest sound amplitude per detection cycle",
+            ("sans-serif", 15),
+        )
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0f64..t_end, (0.1f64..top).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("time, s")
+        .y_desc("amplitude, codes (log)")
+        .draw()?;
+    let amp = |r: &crate::acsim::HostRun| {
+        r.spectra
+            .iter()
+            .map(|(t, s)| (*t, f64::from(s.peak_amplitude).max(0.1)))
+            .collect::<Vec<_>>()
+    };
+    chart
+        .draw_series(LineSeries::new(amp(depth), grey.stroke_width(1)))?
+        .label("$276 depth steps only")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey));
+    chart
+        .draw_series(LineSeries::new(amp(speed), BLUE.stroke_width(1)))?
+        .label("$277 spindle speed first")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    chart
+        .draw_series(LineSeries::new(
+            [(0.0, f64::from(threshold)), (t_end, f64::from(threshold))],
+            BLACK.stroke_width(1),
+        ))?
+        .label("threshold (2 x the 2 mm cut's largest)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+    chart
+        .draw_series(
+            speed
+                .speeds
+                .iter()
+                .map(|(t, _)| PathElement::new(vec![(*t, 0.1), (*t, top)], green.stroke_width(2))),
+        )?
+        .label("spindle speed changed")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], green));
+    chart
+        .draw_series(
+            depth
+                .replans
+                .iter()
+                .map(|(t, _)| PathElement::new(vec![(*t, 0.1), (*t, top)], RED.stroke_width(1))),
+        )?
+        .label("re-plan: depth reduced by 1 mm")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    let (num, den) = millac::Settings::default().blu.per_mm();
+    let mm = |blu: i64| blu as f64 * den as f64 / num as f64;
+    let x_max = speed
+        .rows
+        .iter()
+        .chain(depth.rows.iter())
+        .map(|r| mm(r.pos_blu[0]))
+        .fold(1.0, f64::max);
+    // The spindle speed as a step line: the program's, then each change.
+    let mut steps = vec![(0.0, f64::from(rpm))];
+    for (t, s) in &speed.speeds {
+        steps.push((*t, f64::from(s.from)));
+        steps.push((*t, f64::from(s.to)));
+    }
+    steps.push((end(speed), steps.last().map_or(f64::from(rpm), |p| p.1)));
+    let mut chart = ChartBuilder::on(&lower)
+        .caption(
+            "Spindle speed of the $277 run (rpm) and X of both runs (mm)",
+            ("sans-serif", 15),
+        )
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(65)
+        .right_y_label_area_size(55)
+        .build_cartesian_2d(0f64..t_end, 10_000f64..16_000f64)?
+        .set_secondary_coord(0f64..t_end, 0f64..x_max * 1.05);
+    chart
+        .configure_mesh()
+        .x_desc("time, s")
+        .y_desc("spindle, rpm")
+        .draw()?;
+    chart.configure_secondary_axes().y_desc("X, mm").draw()?;
+    chart
+        .draw_series(LineSeries::new(steps, green.stroke_width(2)))?
+        .label("spindle speed ($277 run)")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], green));
+    let xs = |r: &crate::acsim::HostRun| {
+        r.rows
+            .iter()
+            .map(|r| (r.t_ms as f64 / 1000.0, mm(r.pos_blu[0])))
+            .collect::<Vec<_>>()
+    };
+    chart
+        .draw_secondary_series(LineSeries::new(xs(depth), grey.stroke_width(1)))?
+        .label("X, depth steps")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey));
+    chart
+        .draw_secondary_series(LineSeries::new(xs(speed), BLUE.stroke_width(1)))?
+        .label("X, spindle speed")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
