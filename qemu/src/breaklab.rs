@@ -74,3 +74,190 @@ pub fn detect(run: &HostRun, cut: &Cut, bs: BreakageSettings) -> Result<Option<(
     }
     Ok(None)
 }
+
+/// One tooth period as the breakage detector judged it: when it closed (s), the average force
+/// over it (N), the residuals of the first-difference and once-per-revolution filters (N) and
+/// their thresholds (None while the detector learns).
+#[derive(Clone, Copy, Debug)]
+pub struct PeriodRow {
+    pub t_s: f64,
+    pub fa_n: f64,
+    pub e1_n: f64,
+    pub e2_n: f64,
+    pub th_n: Option<(f64, f64)>,
+}
+
+/// As [`detect`], every tooth period's row as well (for the figures like the thesis' 3.8-3.9 and
+/// 5.13-5.14), to the end of the run (after a declaration the detector stays latched: no rows).
+pub fn trace(
+    run: &HostRun,
+    cut: &Cut,
+    bs: BreakageSettings,
+) -> Result<(Vec<PeriodRow>, Option<(f64, Breakage)>)> {
+    let cal = AcSettings::default().cal;
+    let sample_hz = f64::from(bs.sample_hz);
+    let mut det = BreakageDetector::new(bs).map_err(|e| anyhow!("{e:?}"))?;
+    let flutes = u8::try_from(cut.tool.flutes).map_err(|_| anyhow!("too many flutes"))?;
+    det.set_spindle(cut.spindle_rpm as f32, flutes);
+    let (mut rows, mut detection) = (Vec::new(), None);
+    let (mut sum, mut count, mut periods) = (0.0, 0u32, det.periods());
+    for (i, c) in run.codes.iter().enumerate() {
+        let Some([_, fu, fv]) = c else { continue };
+        let f = cal[1].value(*fu).hypot(cal[2].value(*fv));
+        sum += f64::from(f);
+        count += 1;
+        let b = det.sample(f);
+        let t_s = (i + 1) as f64 / sample_hz;
+        if det.periods() != periods {
+            periods = det.periods();
+            let (e1, e2) = det.residuals();
+            let (th1, th2) = det.thresholds();
+            rows.push(PeriodRow {
+                t_s,
+                fa_n: sum / f64::from(count.max(1)),
+                e1_n: f64::from(e1),
+                e2_n: f64::from(e2),
+                th_n: (!det.learning()).then_some((f64::from(th1), f64::from(th2))),
+            });
+            (sum, count) = (0.0, 0);
+        }
+        if let Some(b) = b {
+            detection.get_or_insert((t_s, b));
+        }
+    }
+    Ok((rows, detection))
+}
+
+/// The breakage detector's view of a run (as the thesis' Figs. 3.7-3.9 and 5.12-5.14): above,
+/// the average force per tooth period; then the residuals of the first-difference filter and of
+/// the once-per-revolution filter with their adaptive thresholds (+-); the break and the
+/// declaration marked.
+pub fn plot_residuals(
+    path: &std::path::Path,
+    title: &str,
+    rows: &[PeriodRow],
+    break_s: Option<f64>,
+    detection: Option<f64>,
+) -> Result<()> {
+    use plotters::prelude::*;
+    let root = SVGBackend::new(path, (1000, 900)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let panels = root.split_evenly((3, 1));
+    let t_end = rows.last().map_or(1.0, |r| r.t_s);
+    let marks = |chart: &mut ChartContext<_, Cartesian2d<_, _>>, lo: f64, hi: f64| -> Result<()> {
+        for (t, colour, label) in [
+            (break_s, RED, "tooth broken"),
+            (detection, GREEN, "breakage declared"),
+        ] {
+            if let Some(t) = t {
+                chart
+                    .draw_series([PathElement::new(
+                        vec![(t, lo), (t, hi)],
+                        colour.stroke_width(2),
+                    )])?
+                    .label(label)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+            }
+        }
+        Ok(())
+    };
+    // Average force.
+    let f_max = rows.iter().map(|r| r.fa_n).fold(1.0, f64::max) * 1.1;
+    let mut chart = ChartBuilder::on(&panels[0])
+        .caption(
+            format!("{title}: average force per tooth period (Fig. 3.7, 5.12)"),
+            ("sans-serif", 15),
+        )
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0f64..t_end, 0f64..f_max)?;
+    chart
+        .configure_mesh()
+        .x_desc("time, s")
+        .y_desc("Fa, N")
+        .draw()?;
+    chart
+        .draw_series(
+            rows.iter()
+                .map(|r| Circle::new((r.t_s, r.fa_n), 1, BLUE.filled())),
+        )?
+        .label("Fa")
+        .legend(|(x, y)| Circle::new((x + 10, y), 2, BLUE.filled()));
+    marks(&mut chart, 0.0, f_max)?;
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    // The residuals against their thresholds.
+    for (k, (panel, name)) in panels[1..]
+        .iter()
+        .zip([
+            "residual e1 of the first differences (Fig. 3.8, 5.13)",
+            "residual e2 of the once-per-revolution differences (Fig. 3.9, 5.14)",
+        ])
+        .enumerate()
+    {
+        let e = |r: &PeriodRow| if k == 0 { r.e1_n } else { r.e2_n };
+        let th = |r: &PeriodRow| r.th_n.map(|t| if k == 0 { t.0 } else { t.1 });
+        let lim = rows
+            .iter()
+            .map(|r| e(r).abs().max(th(r).unwrap_or(0.0)))
+            .fold(1.0, f64::max)
+            * 1.1;
+        let mut chart = ChartBuilder::on(panel)
+            .caption(format!("{title}: {name}"), ("sans-serif", 15))
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0f64..t_end, -lim..lim)?;
+        chart
+            .configure_mesh()
+            .x_desc("time, s")
+            .y_desc("N")
+            .draw()?;
+        chart
+            .draw_series(
+                rows.iter()
+                    .map(|r| Circle::new((r.t_s, e(r)), 1, BLUE.filled())),
+            )?
+            .label("residual")
+            .legend(|(x, y)| Circle::new((x + 10, y), 2, BLUE.filled()));
+        // The thresholds: one segment per run of learned periods (gaps while learning).
+        let mut runs: Vec<Vec<(f64, f64)>> = Vec::new();
+        let mut open = false;
+        for r in rows {
+            match th(r) {
+                Some(v) if open => runs.last_mut().into_iter().for_each(|s| s.push((r.t_s, v))),
+                Some(v) => {
+                    runs.push(vec![(r.t_s, v)]);
+                    open = true;
+                }
+                None => open = false,
+            }
+        }
+        for (i, sign) in [1.0, -1.0].into_iter().enumerate() {
+            let s = chart.draw_series(runs.iter().map(|seg| {
+                PathElement::new(
+                    seg.iter().map(|&(t, v)| (t, sign * v)).collect::<Vec<_>>(),
+                    BLACK.stroke_width(1),
+                )
+            }))?;
+            if i == 0 {
+                s.label("adaptive threshold (+-)")
+                    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+            }
+        }
+        marks(&mut chart, -lim, lim)?;
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()?;
+    }
+    root.present()?;
+    Ok(())
+}

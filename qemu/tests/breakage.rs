@@ -149,3 +149,40 @@ fn broken_tooth_detected_within_two_revolutions_on_the_cavity_and_the_pocket() {
 fn sound_rpm(case: &bench::Case) -> f64 {
     cut(case, vec![]).spindle_rpm
 }
+
+/// The residual trace the figures draw (`breaklab::trace`, the `breakage_residuals` example) is
+/// the detector's own: on the breakage slot with tooth 1 broken at 6 s it declares in the same
+/// sample as `breaklab::detect`, a row after the break holds the residuals the declaration reports
+/// (those of the first violation, a revolution before it, or the declaring period's), and before
+/// the break every learned residual is inside its threshold.
+#[test]
+fn the_residual_trace_is_the_detectors() {
+    let s = Settings::default();
+    let cut = breaklab::slot_cut(Some(6.0));
+    let prog = millac_qemu::analysis::load_program(breaklab::SLOT, &s).unwrap();
+    let run = millac_qemu::acsim::run(&prog, &s, &cut, None).unwrap();
+    let bs = BreakageSettings::default();
+    let (rows, det) = breaklab::trace(&run, &cut, bs).unwrap();
+    let (t, b) = det.expect("declared");
+    let (t2, b2) = breaklab::detect(&run, &cut, bs).unwrap().unwrap();
+    assert_eq!((t, b), (t2, b2));
+    assert!(
+        rows.iter()
+            .any(|r| r.t_s >= 6.0 && (r.e1_n, r.e2_n) == (f64::from(b.e1), f64::from(b.e2))),
+        "{b:?}"
+    );
+    assert_eq!(
+        rows.last().unwrap().t_s,
+        t,
+        "the trace ends at the declaration"
+    );
+    let learned: Vec<_> = rows
+        .iter()
+        .filter(|r| r.t_s < 6.0 && r.th_n.is_some())
+        .collect();
+    assert!(learned.len() > 100);
+    for r in learned {
+        let (t1, t2) = r.th_n.unwrap();
+        assert!(r.e1_n.abs() < t1 && r.e2_n.abs() < t2, "{r:?}");
+    }
+}

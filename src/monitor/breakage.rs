@@ -499,8 +499,8 @@ pub struct BreakageDetector {
     level: f32,
     pending: [Option<Suspect>; MAX_FLUTES],
     latched: Option<Breakage>,
-    /// The last residuals (e1, e2), for the host tests.
-    #[cfg(test)]
+    /// The last residuals (e1, e2), for the host's tests and figures (not in the firmware).
+    #[cfg(any(test, feature = "std"))]
     e_last: (f32, f32),
 }
 
@@ -536,7 +536,7 @@ impl BreakageDetector {
             level: 0.0,
             pending: [None; MAX_FLUTES],
             latched: None,
-            #[cfg(test)]
+            #[cfg(any(test, feature = "std"))]
             e_last: (0.0, 0.0),
         })
     }
@@ -599,6 +599,18 @@ impl BreakageDetector {
     /// The current thresholds (th1, th2) in N (meaningful after the learning).
     pub fn thresholds(&self) -> (f32, f32) {
         self.thresholds_now()
+    }
+
+    /// Tooth periods judged so far (air and cut): a caller sees a period close when it changes.
+    pub fn periods(&self) -> u32 {
+        self.j
+    }
+
+    /// The residuals (e1, e2) of the last tooth period that formed them (N; host: tests and
+    /// figures).
+    #[cfg(any(test, feature = "std"))]
+    pub fn residuals(&self) -> (f32, f32) {
+        self.e_last
     }
 
     /// Whether the detector is learning (in air, or within the learning revolutions of a cut).
@@ -702,7 +714,7 @@ impl BreakageDetector {
         self.dm_prev3 = self.dm_prev2;
         self.dm_prev2 = self.dm_prev;
         self.dm_prev = dm;
-        #[cfg(test)]
+        #[cfg(any(test, feature = "std"))]
         {
             self.e_last = (e1, e2);
         }
