@@ -131,8 +131,13 @@ pub const CURVATURE_SPAN: u32 = 3;
 /// first's (same slot, same sign). A broken tooth changes the per-tooth pattern for good, so its
 /// bend stays or grows (as the level falls in an exit the relative bend grows); a geometric
 /// transient that spans more than a revolution leaves a bend that decays (on the cavity's depth
-/// step at 18.2 s with 10 um run-out: 0.28 then 0.12).
-pub const CURVATURE_KEEP: f32 = 0.5;
+/// step at 18.2 s with 10 um run-out: 0.28 then 0.12). It was 0.5 until a corner's
+/// deceleration and the acceleration after it (the pocket under QEMU with the AC, 16.45 s: the
+/// force dipped to a third for two tooth periods) bent the same slot at its two knees a
+/// revolution apart, the second bend between 0.7 and 0.8 of the first, and were declared a
+/// breakage (`tests::a_corners_dip_and_recovery_is_not_a_breakage`); the 18 breaks of the
+/// cavity and the pocket are still confirmed within two revolutions at 0.8.
+pub const CURVATURE_KEEP: f32 = 0.8;
 
 /// How the thresholds on |e1| and |e2| are set and when a breakage is declared.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -499,6 +504,8 @@ pub struct BreakageDetector {
     level: f32,
     pending: [Option<Suspect>; MAX_FLUTES],
     latched: Option<Breakage>,
+    /// No suspicion is raised or confirmed before this tooth period ([`Self::feed_step`]).
+    hold_until: u32,
     /// The last residuals (e1, e2), for the host's tests and figures (not in the firmware).
     #[cfg(any(test, feature = "std"))]
     e_last: (f32, f32),
@@ -536,6 +543,7 @@ impl BreakageDetector {
             level: 0.0,
             pending: [None; MAX_FLUTES],
             latched: None,
+            hold_until: 0,
             #[cfg(any(test, feature = "std"))]
             e_last: (0.0, 0.0),
         })
@@ -588,7 +596,21 @@ impl BreakageDetector {
     pub fn reset(&mut self) {
         self.latched = None;
         self.j = 0;
+        self.hold_until = 0;
         self.restart();
+    }
+
+    /// The feed changed by a step the controller knows of (the frame's deceleration at a corner
+    /// and the acceleration after it, an AC hold or resume): the force follows the feed, whole
+    /// revolutions alike. Open suspicions and a curvature episode are dropped, and for one
+    /// revolution from now none is raised or confirmed (the filters and the history go on). A
+    /// corner's dip and recovery otherwise look like a tooth's lost chip to the suspicion and
+    /// its confirmations (the pocket under QEMU with the AC at 16.45 s: declared at the
+    /// recovery). Called by the AC period ([`crate::rt::ac::AcPeriod`]), which sees the feed.
+    pub fn feed_step(&mut self) {
+        self.pending = [None; MAX_FLUTES];
+        self.ep = None;
+        self.hold_until = self.j.wrapping_add(self.m());
     }
 
     /// The latched breakage, if any.
@@ -717,6 +739,11 @@ impl BreakageDetector {
         #[cfg(any(test, feature = "std"))]
         {
             self.e_last = (e1, e2);
+        }
+        if (self.hold_until.wrapping_sub(self.j) as i32) > 0 {
+            // Within a revolution of a feed step: the filters and the history went on, nothing
+            // is judged or learnt from the transient.
+            return None;
         }
         let (a1, a2) = (e1.abs(), e2.abs());
         // Adaptive: M is relative to the level; the thesis' is in N.

@@ -523,8 +523,9 @@ fn settings_validation_names_the_setting() {
 
 #[test]
 fn state_size() {
-    let n = core::mem::size_of::<BreakageDetector>();
-    println!("BreakageDetector: {n} bytes on this host");
+    // The host build keeps the last residuals for the figures (two f32 the firmware has not).
+    let n = core::mem::size_of::<BreakageDetector>() - core::mem::size_of::<(f32, f32)>();
+    println!("BreakageDetector: {n} bytes in the firmware's build");
     assert!(n <= 512, "{n}");
 }
 
@@ -674,4 +675,59 @@ proptest! {
             prop_assert_eq!(b, None, "j {}", j);
         }
     }
+}
+
+/// A corner's deceleration (the frame's exponential slow-down at a block end) and the
+/// acceleration after it, as the pocket under QEMU with the AC showed it at 16.45 s (Fa per tooth
+/// period 1887, 1405, 554, 722, 1360, 1883, 2098, 2168, 2112, 2034 N from a level of 1939 N):
+/// the force dips to a third for two tooth periods and comes back a little above where it was,
+/// the whole revolution alike. Told of the feed step (`feed_step`, as the AC period does when
+/// the feed of one period differs from the last by more than 30 %), the detector declares
+/// nothing, wherever the dip falls in the revolution and however deep; the same cuts without the
+/// notice are declared (the suspicion at the recovery, confirmed a revolution later), which is
+/// why the AC period tells it.
+#[test]
+fn a_corners_dip_and_recovery_is_not_a_breakage() {
+    let dip = [
+        0.973, 0.725, 0.286, 0.372, 0.701, 0.971, 1.082, 1.118, 1.089, 1.049,
+    ];
+    let mut declared_without = 0;
+    for told in [true, false] {
+        for shift in 0..Z {
+            for depth in [1.0f32, 0.8, 1.2] {
+                let mut d = det(ThresholdMode::Adaptive);
+                let m = Model::new();
+                let mut noise = Noise(12345);
+                let start = 160 + shift;
+                let mut first = None;
+                for j in 1..=start + 60 {
+                    let k = j.saturating_sub(start) as usize;
+                    let f = if j < start {
+                        1.0
+                    } else {
+                        dip.get(k).copied().unwrap_or(1.049)
+                    };
+                    let f = if (1..5).contains(&k) {
+                        1.0 - (1.0 - f) * depth
+                    } else {
+                        f
+                    };
+                    // The AC period sees the feed step in the periods of the dip's fall and rise.
+                    if told && (1..6).contains(&k) {
+                        d.feed_step();
+                    }
+                    first = first.or(d.tooth_period(m.fa(j, 1.9 * f, &mut noise)));
+                }
+                if told {
+                    assert_eq!(first, None, "shift {shift}, depth {depth}");
+                } else if first.is_some() {
+                    declared_without += 1;
+                }
+            }
+        }
+    }
+    assert!(
+        declared_without > 0,
+        "the dip alone is never declared: the test shows nothing"
+    );
 }

@@ -122,6 +122,15 @@ pub fn sample(adc: &mut impl ForceTorqueAdc, status: &Status, per_period: u32) -
     }
 }
 
+/// A feed step for the breakage monitor: the motion of one AC period differs from the period
+/// before by more than this percentage of the larger ([`BreakageDetector::feed_step`]). The
+/// frame's deceleration at a corner takes the feed to a fifth within a few periods; the AC's own
+/// changes are a few per cent per period.
+pub const FEED_STEP_PCT: u64 = 30;
+/// ... and the larger is at least this many BLU per period (below it one pulse more or less is a
+/// step of more than 10 %: 10 BLU in 10 ms is 6 ipm at 0.0001 in).
+pub const FEED_STEP_MIN_BLU: u32 = 10;
+
 /// The AC period's state: the controller and what the period keeps between periods.
 pub struct AcPeriod {
     pub ctl: AcController,
@@ -133,6 +142,9 @@ pub struct AcPeriod {
     anti_windup: bool,
     last: [i32; 3],
     still: u32,
+    /// The path's motion in the last period (BLU, the largest axis'): the breakage monitor is
+    /// told of a feed step ([`FEED_STEP`]).
+    moved: u32,
     /// A chatter verdict of the monitor task not yet acted on ([`AcPeriod::heard`]).
     chatter: Option<Spectrum>,
     /// Tool breakage detection on the force (None: off).
@@ -170,6 +182,7 @@ impl AcPeriod {
             anti_windup: true,
             last: [0; 3],
             still: 0,
+            moved: 0,
             chatter: None,
             breakage: None,
         }
@@ -285,6 +298,19 @@ impl AcPeriod {
             status.resumes.fetch_add(1, Relaxed);
         }
         self.follow_spindle(status.spindle_rpm.load(Relaxed));
+        // A feed step (a corner's deceleration and the acceleration after it, a hold, a
+        // resume): the breakage monitor does not judge the force's transient as a tooth's.
+        let moved = (0..3)
+            .map(|k| enc[k].wrapping_sub(self.last[k]).unsigned_abs())
+            .max()
+            .unwrap_or(0);
+        let (lo, hi) = (moved.min(self.moved), moved.max(self.moved));
+        if hi >= FEED_STEP_MIN_BLU && u64::from(hi - lo) * 100 > u64::from(hi) * FEED_STEP_PCT {
+            if let Some(m) = self.breakage.as_mut() {
+                m.detector.feed_step();
+            }
+        }
+        self.moved = moved;
         if self.anti_windup {
             let d = [0, 1, 2].map(|k| i64::from(enc[k]) - i64::from(self.last[k]));
             let period_ms = self.ctl.settings().period_ms;
