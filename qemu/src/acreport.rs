@@ -41,6 +41,126 @@ pub fn ceiling_blocks(prog: &[ProgBlock], settings: &Settings, acs: &AcSettings)
         .collect()
 }
 
+/// One point of [`oracle_walk`]: a pulse of a feed block (or the first block's start point of a
+/// run of feed blocks) with the oracle's figures there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WalkPoint {
+    /// Index of the block in the program.
+    pub block: usize,
+    pub pos_blu: [i64; 3],
+    /// The schedule's feed, ipm; the largest the force, torque and ceiling allow before the
+    /// acceleration passes; the largest force and torque alone allow (infinite in air).
+    pub feed_ipm: f64,
+    pub limit_ipm: f64,
+    pub cut_limit_ipm: f64,
+    /// Peak force (N) and torque (N*m) at the scheduled feed.
+    pub f_peak_n: f64,
+    pub t_peak_nm: f64,
+}
+
+/// The oracle along a program: its feed blocks as runs of pulse points (the pulses of the
+/// programmed run `programmed`), each run of consecutive feed blocks scheduled by
+/// `millac_plant::oracle::oracle_time` on the stock as the blocks before it left it, with each
+/// block's ceiling `ceiling_ipm[i]` and acceleration; rapids and dwells take their programmed
+/// run's time. Host: the bound (`compare`) and the offline optimiser (`crate::optimise`).
+#[derive(Clone, Debug)]
+pub struct OracleWalk {
+    pub points: Vec<WalkPoint>,
+    /// The schedule's time: the oracle's over the feed runs and the programmed rapids and dwells.
+    pub time_s: f64,
+}
+
+pub fn oracle_walk(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    programmed: &HostRun,
+    limits: &OracleLimits,
+    ceiling_ipm: &[f64],
+) -> Result<OracleWalk> {
+    let mut stock = cut.stock.clone();
+    let mut out = OracleWalk {
+        points: Vec::new(),
+        time_s: 0.0,
+    };
+    let mut seg: Vec<(usize, OraclePoint)> = Vec::new();
+    let mut pulse = 0usize;
+    let flush = |seg: &mut Vec<(usize, OraclePoint)>,
+                 stock: &mut millac_plant::Stock,
+                 out: &mut OracleWalk|
+     -> Result<()> {
+        if seg.len() > 1 {
+            let pts: Vec<OraclePoint> = seg.iter().map(|p| p.1).collect();
+            let r = oracle_time(
+                stock.clone(),
+                &cut.tool,
+                &cut.material,
+                cut.spindle_rpm,
+                &pts,
+                limits,
+            )
+            .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))?;
+            out.time_s += r.time_s;
+            for (k, (b, p)) in seg.iter().enumerate() {
+                out.points.push(WalkPoint {
+                    block: *b,
+                    pos_blu: p.pos_blu,
+                    feed_ipm: r.feed_profile[k],
+                    limit_ipm: r.limit_ipm[k],
+                    cut_limit_ipm: r.cut_limit_ipm[k],
+                    f_peak_n: r.f_peak_n[k],
+                    t_peak_nm: r.t_peak_nm[k],
+                });
+            }
+            // The stock after this segment, for the next one.
+            for w in pts.windows(2) {
+                let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
+                stock.cut_capsule(
+                    mm(w[0].pos_blu),
+                    mm(w[1].pos_blu),
+                    cut.tool.diameter_mm / 2.0,
+                );
+            }
+        }
+        seg.clear();
+        Ok(())
+    };
+    let mut pos = [0i64; 3];
+    for (i, b) in prog.iter().enumerate() {
+        let start = pulse;
+        while programmed.path.get(pulse).is_some_and(|p| p.2 == i) {
+            pulse += 1;
+        }
+        let pts = &programmed.path[start..pulse];
+        if is_feed(b) {
+            let point = |pos_blu| OraclePoint {
+                pos_blu,
+                feed_ipm: ceiling_ipm.get(i).copied().unwrap_or(0.0),
+                accel_ipm_s: acsim::ramp_ipm_s(settings, &b.block),
+            };
+            if seg.is_empty() {
+                seg.push((i, point(pos)));
+            }
+            seg.extend(pts.iter().map(|p| (i, point(p.0))));
+        } else {
+            flush(&mut seg, &mut stock, &mut out)?;
+            if let Some(&(_, t0, t1)) = programmed.spans.get(i) {
+                out.time_s += (t1 - t0) as f64 * 1e-9;
+            }
+            // Rapids cut nothing in a sane program; keep the stock in step anyway.
+            let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
+            if let Some(last) = pts.last() {
+                stock.cut_capsule(mm(pos), mm(last.0), cut.tool.diameter_mm / 2.0);
+            }
+        }
+        if let Some(last) = pts.last() {
+            pos = last.0;
+        }
+    }
+    flush(&mut seg, &mut stock, &mut out)?;
+    Ok(out)
+}
+
 /// Runs the constant-feed references and the oracle.
 ///
 /// The bound (the oracle) and the safe constant feed honour the same ceilings as the AC run
@@ -57,81 +177,23 @@ pub fn compare(
     let programmed_load =
         acsim::load_figures(&programmed.samples, &cut.tool, fraction, acs.sample_hz);
     let ceilings = ceiling_blocks(prog, settings, acs);
-    // Oracle over the feed blocks: path points per pulse with the ceiling of their block; each
-    // run of consecutive feed blocks starts from rest; rapids and dwells take their own time.
     // F0 and T0: the controller's fraction of the tool's true limits.
     let limits = OracleLimits {
         f0_n: fraction * cut.tool.f_max_n,
         t0_nm: fraction * cut.tool.t_max_nm,
         ..OracleLimits::for_tool(&cut.tool)
     };
-    let mut stock = cut.stock.clone();
-    let mut oracle_s = 0.0;
-    let mut min_limit = f64::INFINITY;
-    let mut seg: Vec<OraclePoint> = Vec::new();
-    let mut pulse = 0usize;
-    let mut flush = |seg: &mut Vec<OraclePoint>,
-                     stock: &mut millac_plant::Stock,
-                     oracle_s: &mut f64|
-     -> Result<()> {
-        if seg.len() > 1 {
-            let r = oracle_time(
-                stock.clone(),
-                &cut.tool,
-                &cut.material,
-                cut.spindle_rpm,
-                seg,
-                &limits,
-            )
-            .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))?;
-            *oracle_s += r.time_s;
-            min_limit = r.cut_limit_ipm.iter().copied().fold(min_limit, f64::min);
-            // The stock after this segment, for the next one.
-            for w in seg.windows(2) {
-                let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
-                stock.cut_capsule(
-                    mm(w[0].pos_blu),
-                    mm(w[1].pos_blu),
-                    cut.tool.diameter_mm / 2.0,
-                );
-            }
-        }
-        seg.clear();
-        Ok(())
-    };
-    let mut pos = [0i64; 3];
-    for (i, (b, c)) in prog.iter().zip(ceilings.iter()).enumerate() {
-        let start = pulse;
-        while programmed.path.get(pulse).is_some_and(|p| p.2 == i) {
-            pulse += 1;
-        }
-        let pts = &programmed.path[start..pulse];
-        if is_feed(b) {
-            let point = |pos_blu| OraclePoint {
-                pos_blu,
-                feed_ipm: acsim::programmed_ipm(settings, &c.block),
-                accel_ipm_s: acsim::ramp_ipm_s(settings, &c.block),
-            };
-            if seg.is_empty() {
-                seg.push(point(pos));
-            }
-            seg.extend(pts.iter().map(|p| point(p.0)));
-        } else {
-            flush(&mut seg, &mut stock, &mut oracle_s)?;
-            if let Some(&(_, t0, t1)) = programmed.spans.get(i) {
-                oracle_s += (t1 - t0) as f64 * 1e-9;
-            }
-            // Rapids cut nothing in a sane program; keep the stock in step anyway.
-            let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
-            if let Some(last) = pts.last() {
-                stock.cut_capsule(mm(pos), mm(last.0), cut.tool.diameter_mm / 2.0);
-            }
-        }
-        if let Some(last) = pts.last() {
-            pos = last.0;
-        }
-    }
-    flush(&mut seg, &mut stock, &mut oracle_s)?;
+    let ceiling_ipm: Vec<f64> = ceilings
+        .iter()
+        .map(|c| acsim::programmed_ipm(settings, &c.block))
+        .collect();
+    let walk = oracle_walk(prog, settings, cut, &programmed, &limits, &ceiling_ipm)?;
+    let oracle_s = walk.time_s;
+    let min_limit = walk
+        .points
+        .iter()
+        .map(|p| p.cut_limit_ipm)
+        .fold(f64::INFINITY, f64::min);
     // The largest constant feed that is safe everywhere: the smallest force or torque limit of
     // the oracle's points, in every block below the block's ceiling.
     let max_f = settings.q0;

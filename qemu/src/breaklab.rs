@@ -87,13 +87,12 @@ pub struct PeriodRow {
     pub th_n: Option<(f64, f64)>,
 }
 
+/// Every tooth period's row, and the first declaration and its time (s).
+pub type Trace = (Vec<PeriodRow>, Option<(f64, Breakage)>);
+
 /// As [`detect`], every tooth period's row as well (for the figures like the thesis' 3.8-3.9 and
 /// 5.13-5.14), to the end of the run (after a declaration the detector stays latched: no rows).
-pub fn trace(
-    run: &HostRun,
-    cut: &Cut,
-    bs: BreakageSettings,
-) -> Result<(Vec<PeriodRow>, Option<(f64, Breakage)>)> {
+pub fn trace(run: &HostRun, cut: &Cut, bs: BreakageSettings) -> Result<Trace> {
     let cal = AcSettings::default().cal;
     let sample_hz = f64::from(bs.sample_hz);
     let mut det = BreakageDetector::new(bs).map_err(|e| anyhow!("{e:?}"))?;

@@ -54,6 +54,38 @@ enum Cmd {
     },
     /// Check a VCD capture against a program (no QEMU); writes a summary to stdout.
     Analyse { capture: PathBuf, program: PathBuf },
+    /// Optimise a program's feeds offline by virtual machining (no QEMU, no sensor): split its
+    /// feed blocks where the cut changes and give each piece the largest feed that keeps the
+    /// simulated force within F0 and the torque within T0. Writes OUT (G-code with a header
+    /// saying what was done), OUT.csv (the pieces) and OUT.svg (the feed before and after along
+    /// the path), and prints the simulated times and peak forces of both programs.
+    Optimise {
+        program: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+        /// Stock description file (default: the Fig. 1 die blank with its drilled start hole).
+        #[arg(long)]
+        stock: Option<PathBuf>,
+        /// The cutter: DIAMETER_MM,FLUTES[,F_MAX_N[,T_MAX_NM]] (default: the 0.5 in 4-flute end
+        /// mill, 4000 N, 80 N*m).
+        #[arg(long, value_name = "D_MM,Z[,F_MAX_N[,T_MAX_NM]]", value_parser = parse_tool)]
+        tool: Option<millac_plant::Tool>,
+        /// The workpiece material.
+        #[arg(long, value_enum, default_value = "steel")]
+        material: MaterialArg,
+        /// F0 and T0 as a fraction of the cutter's permissible force and torque (the AC's $256).
+        #[arg(long, default_value_t = 0.9)]
+        fraction: f64,
+        /// Feed of the pieces that cut nothing, ipm [default: FRM, the machine's fastest feed].
+        #[arg(long, value_name = "IPM")]
+        air_feed: Option<f64>,
+        /// A new piece where the feed the cut allows leaves the piece's band by this ratio.
+        #[arg(long, default_value_t = 0.1)]
+        split: f64,
+        /// Shortest piece, mm.
+        #[arg(long, default_value_t = 1.0)]
+        min_piece_mm: f64,
+    },
     /// Run the firmware in serial mode with its UART on a TCP port for a G-code sender, until
     /// SIGINT or SIGTERM; then write DIR/capture.vcd and DIR/summary.json.
     Serve {
@@ -141,6 +173,56 @@ struct CutArgs {
     /// microphone (`--preset thesis-table-3.2`). `run`, `demo`, `host` (in `serve`, set $266).
     #[arg(long, value_name = "CODES")]
     chatter_threshold: Option<f32>,
+}
+
+/// `--material`: the plant's materials.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum MaterialArg {
+    /// Steel, Ks 2000 N/mm^2.
+    Steel,
+    /// Steel with Kienzle's size effect (m = 0.25).
+    SteelKienzle,
+    /// Aluminium, Ks 800 N/mm^2.
+    Aluminium,
+}
+
+impl From<MaterialArg> for millac_plant::Material {
+    fn from(m: MaterialArg) -> Self {
+        match m {
+            MaterialArg::Steel => millac_plant::Material::STEEL,
+            MaterialArg::SteelKienzle => millac_plant::Material::STEEL_KIENZLE,
+            MaterialArg::Aluminium => millac_plant::Material::ALUMINIUM,
+        }
+    }
+}
+
+/// `--tool D_MM,Z[,F_MAX_N[,T_MAX_NM]]`.
+fn parse_tool(s: &str) -> Result<millac_plant::Tool, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    let d = millac_plant::Tool::default();
+    let (dia, z) = match v[..] {
+        [dia, z, ..] if v.len() <= 4 => (dia, z),
+        _ => return Err("expected D_MM,FLUTES[,F_MAX_N[,T_MAX_NM]]".into()),
+    };
+    let ok = |x: f64| x.is_finite() && x > 0.0;
+    if !(ok(dia) && z.fract() == 0.0 && (1.0..=8.0).contains(&z)) {
+        return Err(format!(
+            "diameter must be > 0 mm and flutes 1..=8, got {dia} mm, {z}"
+        ));
+    }
+    let tool = millac_plant::Tool {
+        diameter_mm: dia,
+        flutes: z as u32,
+        f_max_n: v.get(2).copied().unwrap_or(d.f_max_n),
+        t_max_nm: v.get(3).copied().unwrap_or(d.t_max_nm),
+    };
+    if !(ok(tool.f_max_n) && ok(tool.t_max_nm)) {
+        return Err("F_MAX_N and T_MAX_NM must be > 0".into());
+    }
+    Ok(tool)
 }
 
 /// `--preset`: a whole simulated cut set-up.
@@ -247,6 +329,29 @@ fn main() {
             run(text, &out, shift, (!nc_only).then_some(&cut))
         }),
         Some(Cmd::Analyse { capture, program }) => analyse_file(&capture, &program),
+        Some(Cmd::Optimise {
+            program,
+            out,
+            stock,
+            tool,
+            material,
+            fraction,
+            air_feed,
+            split,
+            min_piece_mm,
+        }) => optimise(
+            &program,
+            &out,
+            stock.as_deref(),
+            tool,
+            material.into(),
+            &millac_qemu::optimise::Options {
+                fraction,
+                air_feed_ipm: air_feed.unwrap_or(f64::INFINITY),
+                split,
+                min_piece_mm,
+            },
+        ),
         Some(Cmd::Serve {
             tcp,
             out,
@@ -566,4 +671,72 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
     );
     let end = prog.last().map_or([0; 3], |b| b.end).map(i64::from);
     Ok(completed && run.final_position == end)
+}
+
+/// `optimise`: the offline feed optimisation (`millac_qemu::optimise`), its files and a summary
+/// of both programs on the simulated cut (no AC).
+fn optimise(
+    program: &Path,
+    out: &Path,
+    stock: Option<&Path>,
+    tool: Option<millac_plant::Tool>,
+    material: millac_plant::Material,
+    opts: &millac_qemu::optimise::Options,
+) -> Result<bool> {
+    use millac_qemu::{acsim, optimise};
+    let bytes = std::fs::read(program).with_context(|| format!("reading {}", program.display()))?;
+    let text = std::str::from_utf8(&bytes)
+        .map_err(|e| anyhow::anyhow!("{} is not UTF-8: {e}", program.display()))?;
+    let stock = match stock {
+        Some(p) => millac_plant::Stock::parse(
+            &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
+        )
+        .map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?,
+        None => millac_plant::Stock::default(),
+    };
+    let settings = Settings::default();
+    let cut = acsim::Cut {
+        tool: tool.unwrap_or_default(),
+        material,
+        ..acsim::Cut::steel(stock, 1)
+    }
+    .at_program_rpm(text, &settings);
+    let o = optimise::optimise(text, &settings, &cut, opts)?;
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    std::fs::write(out, &o.text).with_context(|| format!("writing {}", out.display()))?;
+    let csv = out.with_extension("csv");
+    std::fs::write(&csv, optimise::csv(&o))
+        .with_context(|| format!("writing {}", csv.display()))?;
+    let svg = out.with_extension("svg");
+    let name = program
+        .file_name()
+        .map_or_else(|| "program".into(), |n| n.to_string_lossy().into_owned());
+    optimise::plot(&svg, &name, &o)?;
+    let prog = analysis::load_program(&o.text, &settings).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let run = acsim::run(&prog, &settings, &cut, None)?;
+    let hz = millac::ac::AcSettings::default().sample_hz;
+    let before = acsim::load_figures(&o.programmed.samples, &cut.tool, opts.fraction, hz);
+    let after = acsim::load_figures(&run.samples, &cut.tool, opts.fraction, hz);
+    println!(
+        "millac optimise: {} -> {} ({} pieces; {}, {})",
+        program.display(),
+        out.display(),
+        o.pieces.len(),
+        csv.display(),
+        svg.display()
+    );
+    println!("| program | time s | peak F / F_max | time above F0 s | time above F_max s |");
+    println!("| --- | ---: | ---: | ---: | ---: |");
+    for (name, r, l) in [
+        ("programmed", &o.programmed, before),
+        ("optimised", &run, after),
+    ] {
+        println!(
+            "| {name} | {:.2} | {:.3} | {:.3} | {:.3} |",
+            r.machining_time_s, l.peak_force_ratio, l.time_above_f0_s, l.time_above_limit_s
+        );
+    }
+    Ok(true)
 }

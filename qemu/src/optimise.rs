@@ -1,0 +1,738 @@
+//! Offline feed optimisation by virtual machining (Karunakaran, Shringi and Singh, "Offline
+//! adaptive control using virtual machining"; issue 11), host: `millac optimise PROGRAM --out
+//! OPTIMISED.nc`. The program is machined virtually on the simulated stock (the plant's cutter
+//! model and the oracle, `millac_plant::oracle`, the same as the simulated cut), its feed blocks
+//! are split where the feed the cut allows changes by more than a set ratio (the paper's
+//! segmentation into "sampling intervals" of length, its Fig. 7c), and each piece gets the
+//! largest feed that keeps the peak force within F0 and the torque within T0 all along it,
+//! within the machine's acceleration: air cuts up to the air-cut feed, entries slower. The
+//! geometry is the program's: a straight block splits at pulses of its own path (its end points,
+//! and so every axis' pulses, unchanged; the pieces' paths within 1 BLU of the original line), an
+//! arc keeps its one block at the slowest feed along it. The result is written as G-code the
+//! firmware's parser (and grbl) accepts, checked by parsing it back.
+//!
+//! Choices (the paper is a survey and leaves them open; documented in the README):
+//! - The feed of a piece is the smallest of the oracle's schedule over the piece's points (its
+//!   start and end included): the frame reaches a lower feed after a piece boundary at its
+//!   acceleration, and the schedule already slows before a binding point, so the step down is
+//!   taken before the point that needs it.
+//! - A new piece starts where the schedule leaves the band `[min, min x (1 + split)]` of the
+//!   piece so far and the piece is at least `min_piece_mm` long; a shorter tail joins the piece
+//!   before it.
+//! - The machine's rapid rate FRM caps every feed; the air-cut feed caps the pieces that cut
+//!   nothing anywhere along them.
+use crate::acreport::{oracle_walk, WalkPoint};
+use crate::acsim::{self, Cut, HostRun};
+use crate::analysis::{self, ProgBlock};
+use anyhow::{anyhow, bail, Result};
+use millac::nc::{Motion, Plane, X, Y, Z};
+use millac::Blu;
+use millac::Settings;
+use millac_plant::oracle::OracleLimits;
+use std::fmt::Write as _;
+
+/// How to optimise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Options {
+    /// F0 and T0 as a fraction of the tool's permissible force and torque (the AC's `$256`,
+    /// default 0.9, the paper's "around 90 percent").
+    pub fraction: f64,
+    /// Feed of the pieces that cut nothing, ipm (capped by FRM).
+    pub air_feed_ipm: f64,
+    /// A new piece where the schedule leaves the band of the piece so far by this ratio.
+    pub split: f64,
+    /// Shortest piece, mm.
+    pub min_piece_mm: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            fraction: 0.9,
+            air_feed_ipm: f64::INFINITY,
+            split: 0.1,
+            min_piece_mm: 1.0,
+        }
+    }
+}
+
+/// One piece of a feed block in the optimised program.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Piece {
+    /// The original block (index in the program) and its source line.
+    pub block: usize,
+    pub line: u32,
+    /// Start and end (BLU).
+    pub start: [i64; 3],
+    pub end: [i64; 3],
+    /// Distance along the feed moves to its start and its length, mm.
+    pub at_mm: f64,
+    pub length_mm: f64,
+    /// The programmed feed and the piece's, ipm (the piece's as its F word gives it).
+    pub programmed_ipm: f64,
+    pub feed_ipm: f64,
+    /// Cuts nothing anywhere along it.
+    pub air: bool,
+    /// The largest peak force the model predicts along it at its feed, N.
+    pub predicted_f_n: f64,
+}
+
+/// The optimised program and what was done.
+#[derive(Clone, Debug)]
+pub struct Optimised {
+    /// The G-code (header comments, then the blocks).
+    pub text: String,
+    pub pieces: Vec<Piece>,
+    /// F0 and T0 used, N and N*m.
+    pub f0_n: f64,
+    pub t0_nm: f64,
+    /// The original program's run at its programmed feeds (the path the optimiser walked).
+    pub programmed: HostRun,
+}
+
+/// Feed blocks of the output: a piece's feed as a feed number of the settings.
+fn feed_number(settings: &Settings, ipm: f64) -> u32 {
+    let per = acsim::feed_ipm(settings, 1);
+    ((ipm / per).floor() as u32).clamp(1, settings.q0)
+}
+
+/// The number formats of the output: G20 with 4 decimals for 0.0001 in BLU, G21 with 3 for
+/// microns: every BLU exact.
+struct Units {
+    g: &'static str,
+    decimals: usize,
+    /// BLU per program unit.
+    per_unit: f64,
+    /// ipm per program feed unit (F in ipm or mm/min).
+    ipm_per_f: f64,
+}
+
+fn units(settings: &Settings) -> Units {
+    match settings.blu {
+        Blu::TenthMil => Units {
+            g: "G20",
+            decimals: 4,
+            per_unit: 10_000.0,
+            ipm_per_f: 1.0,
+        },
+        Blu::Micron => Units {
+            g: "G21",
+            decimals: 3,
+            per_unit: 1000.0,
+            ipm_per_f: 1.0 / 25.4,
+        },
+    }
+}
+
+impl Units {
+    fn coord(&self, blu: i64) -> String {
+        format!("{:.*}", self.decimals, blu as f64 / self.per_unit)
+    }
+    fn xyz(&self, p: [i64; 3]) -> String {
+        format!(
+            "X{} Y{} Z{}",
+            self.coord(p[X]),
+            self.coord(p[Y]),
+            self.coord(p[Z])
+        )
+    }
+    /// The F word of feed number `f`: enough decimals that the parser reads `f` back.
+    fn feed(&self, settings: &Settings, f: u32) -> String {
+        format!("F{:.4}", acsim::feed_ipm(settings, f) / self.ipm_per_f)
+    }
+}
+
+/// Splits the points of one straight feed block into pieces (index ranges into `pts`, each
+/// piece from its start point to its end point inclusive, consecutive pieces sharing a point).
+fn split(pts: &[WalkPoint], split: f64, min_piece_mm: f64) -> Vec<(usize, usize)> {
+    let mm = |a: [i64; 3], b: [i64; 3]| {
+        let d = [0, 1, 2].map(|k| (b[k] - a[k]) as f64 * millac_plant::MM_PER_BLU);
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    };
+    let mut out = Vec::new();
+    let mut s = 0usize;
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for k in 0..pts.len() {
+        let v = pts[k].feed_ipm;
+        let (nlo, nhi) = (lo.min(v), hi.max(v));
+        let long = mm(pts[s].pos_blu, pts[k].pos_blu) >= min_piece_mm;
+        if k > s && nhi > nlo * (1.0 + split) && long {
+            // The piece ends at the point before this one... at k - 1 it was in the band; end
+            // there when it is long enough, else here.
+            let e = if mm(pts[s].pos_blu, pts[k - 1].pos_blu) >= min_piece_mm {
+                k - 1
+            } else {
+                k
+            };
+            out.push((s, e));
+            s = e;
+            lo = f64::INFINITY;
+            hi = 0.0;
+            // The band of the new piece: its points after the shared boundary point.
+            for p in &pts[s + 1..=k] {
+                lo = lo.min(p.feed_ipm);
+                hi = hi.max(p.feed_ipm);
+            }
+            continue;
+        }
+        (lo, hi) = (nlo, nhi);
+    }
+    let last = pts.len().saturating_sub(1);
+    let short_tail = mm(pts[s].pos_blu, pts[last].pos_blu) < min_piece_mm;
+    match out.last_mut() {
+        // A short tail joins the piece before it.
+        Some(p) if short_tail => p.1 = last,
+        _ => {
+            if s < last || out.is_empty() {
+                out.push((s, last));
+            }
+        }
+    }
+    out
+}
+
+/// Distance between two points (BLU), mm.
+fn dist_mm(a: [i64; 3], b: [i64; 3]) -> f64 {
+    (0..3)
+        .map(|k| ((b[k] - a[k]) as f64 * millac_plant::MM_PER_BLU).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// A piece's feed before the lag: the smallest of the schedule over its points, capped by the
+/// air-cut feed where it cuts nothing and by FRM.
+fn piece_feed(seg: &[WalkPoint], air_feed_ipm: f64, frm: f64) -> f64 {
+    let v = seg.iter().map(|p| p.feed_ipm).fold(f64::INFINITY, f64::min);
+    let air = seg.iter().all(|p| p.cut_limit_ipm.is_infinite());
+    if air {
+        v.min(air_feed_ipm).min(frm)
+    } else {
+        v.min(frm)
+    }
+}
+
+/// The pieces of one straight block (`ranges` into `pts`, which start at `walk[base]`) with their
+/// feeds, the chip's lag taken into account: the chip a tooth cuts is the feed of the last tooth
+/// period, so a step down must be made before the point that needs it. A boundary where the feed
+/// falls moves back by two tooth periods of travel at the faster feed; the block's last piece is
+/// cut there too when the path after the block (the next block) is slower, its tail at the
+/// slower feed (a tail shorter than the shortest piece: the lag is a fraction of a mm).
+fn lagged(
+    pts: &[WalkPoint],
+    walk: &[WalkPoint],
+    base: usize,
+    mut ranges: Vec<(usize, usize)>,
+    feed: &dyn Fn(&[WalkPoint]) -> f64,
+    tooth_s: f64,
+) -> Vec<(usize, usize, f64)> {
+    let lag = |v: f64| 2.0 * v * millac_plant::MM_S_PER_IPM * tooth_s;
+    // Moves a boundary e back by `mm`, keeping the piece from s at least one point long.
+    let back = |s: usize, e: usize, mm: f64| {
+        let mut k = e;
+        while k > s + 1 && dist_mm(pts[k].pos_blu, pts[e].pos_blu) < mm {
+            k -= 1;
+        }
+        k
+    };
+    let mut feeds: Vec<f64> = ranges.iter().map(|&(s, e)| feed(&pts[s..=e])).collect();
+    for k in 0..ranges.len().saturating_sub(1) {
+        if feeds[k + 1] < feeds[k] {
+            let (s, e) = ranges[k];
+            let e2 = back(s, e, lag(feeds[k]));
+            ranges[k].1 = e2;
+            ranges[k + 1].0 = e2;
+            feeds[k + 1] = feeds[k + 1].min(feed(&pts[e2..=ranges[k + 1].1]));
+        }
+    }
+    let mut out: Vec<(usize, usize, f64)> = ranges
+        .iter()
+        .zip(&feeds)
+        .map(|(&(s, e), &v)| (s, e, v))
+        .collect();
+    if let Some(&(s, e, v)) = out.last() {
+        let next = ahead(walk, base + e, lag(v));
+        if next < v {
+            let e2 = back(s, e, lag(v));
+            if e2 > s && e2 < e {
+                if let Some(last) = out.last_mut() {
+                    last.1 = e2;
+                }
+                out.push((e2, e, next.min(feed(&pts[e2..=e]))));
+            } else if let Some(last) = out.last_mut() {
+                last.2 = next;
+            }
+        }
+    }
+    out
+}
+
+/// The smallest scheduled feed over the points after `points[from]` within `lag_mm` of it along
+/// the path (stopping where the path jumps: the end of a run of feed blocks).
+fn ahead(points: &[WalkPoint], from: usize, lag_mm: f64) -> f64 {
+    let mut v = f64::INFINITY;
+    let mut travelled = 0.0;
+    for w in points.get(from..).unwrap_or(&[]).windows(2) {
+        let d = (0..3)
+            .map(|k| {
+                ((w[1].pos_blu[k] - w[0].pos_blu[k]) as f64 * millac_plant::MM_PER_BLU).powi(2)
+            })
+            .sum::<f64>()
+            .sqrt();
+        // Consecutive pulses are at most a BLU per axis apart.
+        if d > 2.0 * millac_plant::MM_PER_BLU || travelled >= lag_mm {
+            break;
+        }
+        travelled += d;
+        v = v.min(w[1].feed_ipm);
+    }
+    v
+}
+
+/// Optimises `text` for `cut` (its stock, tool, material and spindle speed) with `opts`.
+pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> Result<Optimised> {
+    if !(opts.fraction > 0.0 && opts.fraction <= 1.0) {
+        bail!("F0 fraction must be in (0, 1], got {}", opts.fraction);
+    }
+    if !(opts.split > 0.0 && opts.split.is_finite()) {
+        bail!("split ratio must be finite and > 0, got {}", opts.split);
+    }
+    if !(opts.min_piece_mm >= 0.0 && opts.min_piece_mm.is_finite()) {
+        bail!(
+            "shortest piece must be finite and >= 0 mm, got {}",
+            opts.min_piece_mm
+        );
+    }
+    if opts.air_feed_ipm.is_nan() || opts.air_feed_ipm <= 0.0 {
+        bail!("air-cut feed must be > 0, got {}", opts.air_feed_ipm);
+    }
+    let prog = analysis::load_program(text, settings).map_err(|e| anyhow!("{e}"))?;
+    let programmed = acsim::run(&prog, settings, cut, None)?;
+    let limits = OracleLimits {
+        f0_n: opts.fraction * cut.tool.f_max_n,
+        t0_nm: opts.fraction * cut.tool.t_max_nm,
+        // Each run of feed blocks from its limit at the first point, not from rest: the frame
+        // starts a block at its feed (the piece takes the smallest over its points anyway).
+        from_rest: false,
+    };
+    let frm = acsim::feed_ipm(settings, settings.q0);
+    let ceiling = vec![frm; prog.len()];
+    let walk = oracle_walk(&prog, settings, cut, &programmed, &limits, &ceiling)?;
+    let kienzle = 1.0 - cut.material.ks_exponent;
+    let tooth_s = 60.0 / (cut.spindle_rpm * f64::from(cut.tool.flutes));
+    let u = units(settings);
+    let mut pieces = Vec::new();
+    let mut body = String::new();
+    let mut at_mm = 0.0;
+    let mut plane = Plane::XY;
+    let mut pos = [0i64; 3];
+    let mut w = 0usize;
+    for (i, b) in prog.iter().enumerate() {
+        let w0 = w;
+        while walk.points.get(w).is_some_and(|p| p.block == i) {
+            w += 1;
+        }
+        // The block's points: from its start (the point before, or its own first) to its end.
+        let base = if w0 > 0 && walk.points[w0 - 1].pos_blu == pos {
+            w0 - 1
+        } else {
+            w0
+        };
+        let pts: &[WalkPoint] = &walk.points[base..w];
+        let end = b.end.map(i64::from);
+        match &b.block.motion {
+            Motion::Rapid(_) => {
+                let _ = writeln!(body, "G0 {}", u.xyz(end));
+            }
+            Motion::Dwell(d) => {
+                let _ = writeln!(
+                    body,
+                    "G4 P{:.4}",
+                    f64::from(d.frames) / f64::from(settings.frame_hz)
+                );
+            }
+            Motion::Linear(l) => {
+                let programmed_ipm = acsim::feed_ipm(settings, l.f);
+                if pts.len() < 2 {
+                    // No pulses seen (a block of zero length): as programmed.
+                    let _ = writeln!(body, "G1 {} {}", u.xyz(end), u.feed(settings, l.f));
+                }
+                let plan = if pts.len() >= 2 {
+                    let ranges = split(pts, opts.split, opts.min_piece_mm);
+                    lagged(
+                        pts,
+                        &walk.points,
+                        base,
+                        ranges,
+                        &|seg: &[WalkPoint]| piece_feed(seg, opts.air_feed_ipm, frm),
+                        tooth_s,
+                    )
+                } else {
+                    Vec::new()
+                };
+                for (k, &(s, e, v)) in plan.iter().enumerate() {
+                    let seg = &pts[s..=e];
+                    let piece_end = if k + 1 == plan.len() {
+                        end
+                    } else {
+                        seg[seg.len() - 1].pos_blu
+                    };
+                    let piece_start = if k == 0 { pos } else { seg[0].pos_blu };
+                    let air = seg.iter().all(|p| p.cut_limit_ipm.is_infinite());
+                    let f = feed_number(settings, v.min(frm));
+                    let feed_ipm = acsim::feed_ipm(settings, f);
+                    // The model's peak at the piece's feed (the oracle's at its schedule, scaled
+                    // as the chip: linearly, or to the 1 - m with Kienzle's Ks).
+                    let predicted_f_n = seg
+                        .iter()
+                        .filter(|p| p.feed_ipm > 0.0)
+                        .map(|p| p.f_peak_n * (feed_ipm / p.feed_ipm).powf(kienzle))
+                        .fold(0.0, f64::max);
+                    let length_mm = dist_mm(piece_start, piece_end);
+                    let _ = writeln!(body, "G1 {} {}", u.xyz(piece_end), u.feed(settings, f));
+                    pieces.push(Piece {
+                        block: i,
+                        line: b.block.line,
+                        start: piece_start,
+                        end: piece_end,
+                        at_mm,
+                        length_mm,
+                        programmed_ipm,
+                        feed_ipm,
+                        air,
+                        predicted_f_n,
+                    });
+                    at_mm += length_mm;
+                }
+            }
+            Motion::Arc(c) => {
+                let programmed_ipm = acsim::feed_ipm(settings, c.f);
+                let air = pts.iter().all(|p| p.cut_limit_ipm.is_infinite());
+                let mut v = piece_feed(pts, opts.air_feed_ipm, frm);
+                if v.is_finite() && !pts.is_empty() {
+                    let lag_mm = 2.0 * v.min(frm) * millac_plant::MM_S_PER_IPM * tooth_s;
+                    v = v.min(ahead(&walk.points, base + pts.len() - 1, lag_mm));
+                }
+                let f = if v.is_finite() {
+                    feed_number(settings, v.min(frm))
+                } else {
+                    c.f
+                };
+                let feed_ipm = acsim::feed_ipm(settings, f);
+                let predicted_f_n = pts
+                    .iter()
+                    .filter(|p| p.feed_ipm > 0.0)
+                    .map(|p| p.f_peak_n * (feed_ipm / p.feed_ipm).powf(kienzle))
+                    .fold(0.0, f64::max);
+                if c.plane != plane {
+                    plane = c.plane;
+                    let _ = writeln!(
+                        body,
+                        "{}",
+                        match plane {
+                            Plane::XY => "G17",
+                            Plane::ZX => "G18",
+                            Plane::YZ => "G19",
+                        }
+                    );
+                }
+                // The centre's offset from the start: -start (start is relative to the centre).
+                let (a, bb) = c.plane.axes();
+                let mut off = [0i64; 3];
+                off[a] = -i64::from(c.start[0]);
+                off[bb] = -i64::from(c.start[1]);
+                let words = ["I", "J", "K"];
+                let _ = writeln!(
+                    body,
+                    "{} {} {}{} {}{} {}",
+                    if c.ccw { "G3" } else { "G2" },
+                    u.xyz(end),
+                    words[a],
+                    u.coord(off[a]),
+                    words[bb],
+                    u.coord(off[bb]),
+                    u.feed(settings, f)
+                );
+                let length_mm = pts
+                    .windows(2)
+                    .map(|p| {
+                        (0..3)
+                            .map(|k| {
+                                ((p[1].pos_blu[k] - p[0].pos_blu[k]) as f64
+                                    * millac_plant::MM_PER_BLU)
+                                    .powi(2)
+                            })
+                            .sum::<f64>()
+                            .sqrt()
+                    })
+                    .sum::<f64>();
+                pieces.push(Piece {
+                    block: i,
+                    line: b.block.line,
+                    start: pos,
+                    end,
+                    at_mm,
+                    length_mm,
+                    programmed_ipm,
+                    feed_ipm,
+                    air,
+                    predicted_f_n,
+                });
+                at_mm += length_mm;
+            }
+        }
+        pos = end;
+    }
+    let rpm = analysis::spindle_rpm(text, settings);
+    let feed_blocks = prog
+        .iter()
+        .filter(|b| matches!(b.block.motion, Motion::Linear(_) | Motion::Arc(_)))
+        .count();
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "(millac optimise: offline feed optimisation by virtual machining, Karunakaran et al.)"
+    );
+    let _ = writeln!(
+        out,
+        "(each feed block split where the feed the cut allows changes by more than {:.0} %, pieces of at least {} mm;)",
+        opts.split * 100.0,
+        opts.min_piece_mm
+    );
+    let _ = writeln!(
+        out,
+        "(each piece at the largest feed keeping the model's peak force <= F0 = {:.0} N and torque <= T0 = {:.1} N*m,)",
+        limits.f0_n, limits.t0_nm
+    );
+    let _ = writeln!(
+        out,
+        "(within the acceleration, air cuts up to {:.2} ipm, no feed above FRM {:.2} ipm; geometry unchanged)",
+        opts.air_feed_ipm.min(frm),
+        frm
+    );
+    let _ = writeln!(
+        out,
+        "(tool {:.3} mm, {} flutes, F_max {:.0} N, T_max {:.1} N*m; Ks {:.0} N/mm^2, m {}; spindle {:.0} rpm)",
+        cut.tool.diameter_mm,
+        cut.tool.flutes,
+        cut.tool.f_max_n,
+        cut.tool.t_max_nm,
+        cut.material.ks_n_mm2,
+        cut.material.ks_exponent,
+        cut.spindle_rpm
+    );
+    let _ = writeln!(
+        out,
+        "({} feed blocks became {} pieces)",
+        feed_blocks,
+        pieces.len()
+    );
+    let _ = writeln!(out, "{} G90 G17", u.g);
+    if rpm != 0 {
+        let _ = writeln!(out, "S{rpm} M3");
+    }
+    out.push_str(&body);
+    let _ = writeln!(out, "M2");
+    let o = Optimised {
+        text: out,
+        pieces,
+        f0_n: limits.f0_n,
+        t0_nm: limits.t0_nm,
+        programmed,
+    };
+    check(&prog, &o, settings)?;
+    Ok(o)
+}
+
+/// The optimised program parses, every original end point is reached in order, and every axis
+/// takes the same pulses as in the original (checked on the parsed output, never assumed).
+pub fn check(original: &[ProgBlock], o: &Optimised, settings: &Settings) -> Result<()> {
+    let out = analysis::load_program(&o.text, settings)
+        .map_err(|e| anyhow!("the optimised program does not parse: {e}"))?;
+    let pulses = |p: &[ProgBlock]| {
+        p.iter().fold([0u64; 3], |mut a, b| {
+            for (s, q) in a.iter_mut().zip(b.pulses) {
+                *s += q;
+            }
+            a
+        })
+    };
+    if pulses(original) != pulses(&out) {
+        bail!(
+            "pulses per axis differ: original {:?}, optimised {:?}",
+            pulses(original),
+            pulses(&out)
+        );
+    }
+    let mut ends = out.iter().map(|b| b.end);
+    for b in original {
+        if !ends.any(|e| e == b.end) {
+            bail!(
+                "the original end point {:?} (line {}) is not reached in order",
+                b.end,
+                b.block.line
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The pieces as CSV (stable column names).
+pub fn csv(o: &Optimised) -> String {
+    let mut s = String::from(
+        "line,at_mm,length_mm,x_end_blu,y_end_blu,z_end_blu,programmed_ipm,feed_ipm,air,predicted_f_n\n",
+    );
+    for p in &o.pieces {
+        let _ = writeln!(
+            s,
+            "{},{:.3},{:.3},{},{},{},{:.3},{:.3},{},{:.1}",
+            p.line,
+            p.at_mm,
+            p.length_mm,
+            p.end[0],
+            p.end[1],
+            p.end[2],
+            p.programmed_ipm,
+            p.feed_ipm,
+            p.air as u8,
+            p.predicted_f_n
+        );
+    }
+    s
+}
+
+/// Feed before and after along the path (the feed moves' length), and the model's predicted peak
+/// force per piece against F0.
+pub fn plot(path: &std::path::Path, title: &str, o: &Optimised) -> Result<()> {
+    use plotters::prelude::*;
+    let root = SVGBackend::new(path, (1000, 650)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (upper, lower) = root.split_vertically(360);
+    let end = o.pieces.last().map_or(1.0, |p| p.at_mm + p.length_mm);
+    let steps = |f: &dyn Fn(&Piece) -> f64| {
+        o.pieces
+            .iter()
+            .flat_map(|p| [(p.at_mm, f(p)), (p.at_mm + p.length_mm, f(p))])
+            .collect::<Vec<_>>()
+    };
+    let top = o
+        .pieces
+        .iter()
+        .map(|p| p.feed_ipm.max(p.programmed_ipm))
+        .fold(1.0, f64::max)
+        * 1.1;
+    let mut chart = ChartBuilder::on(&upper)
+        .caption(format!("{title}: feed along the path"), ("sans-serif", 15))
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0f64..end, 0f64..top)?;
+    chart
+        .configure_mesh()
+        .x_desc("path length of the feed moves, mm")
+        .y_desc("feed, ipm")
+        .draw()?;
+    let grey = RGBColor(140, 140, 140);
+    chart
+        .draw_series(LineSeries::new(
+            steps(&|p| p.programmed_ipm),
+            grey.stroke_width(2),
+        ))?
+        .label("programmed")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey));
+    chart
+        .draw_series(LineSeries::new(
+            steps(&|p| p.feed_ipm),
+            BLUE.stroke_width(1),
+        ))?
+        .label("optimised")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    let f_top = o
+        .pieces
+        .iter()
+        .map(|p| p.predicted_f_n)
+        .fold(o.f0_n, f64::max)
+        * 1.1;
+    let mut chart = ChartBuilder::on(&lower)
+        .caption(
+            "model's peak force per piece at its feed",
+            ("sans-serif", 15),
+        )
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0f64..end, 0f64..f_top)?;
+    chart
+        .configure_mesh()
+        .x_desc("path length of the feed moves, mm")
+        .y_desc("force, N")
+        .draw()?;
+    chart
+        .draw_series(LineSeries::new(
+            steps(&|p| p.predicted_f_n),
+            BLUE.stroke_width(1),
+        ))?
+        .label("predicted peak F")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    chart
+        .draw_series(LineSeries::new(
+            [(0.0, o.f0_n), (end, o.f0_n)],
+            BLACK.stroke_width(1),
+        ))?
+        .label("F0")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pt(x: i64, v: f64) -> WalkPoint {
+        WalkPoint {
+            block: 0,
+            pos_blu: [x, 0, 0],
+            feed_ipm: v,
+            limit_ipm: v,
+            cut_limit_ipm: v,
+            f_peak_n: 0.0,
+            t_peak_nm: 0.0,
+        }
+    }
+
+    /// Pieces cover the block end to end, share their boundary points, split where the schedule
+    /// leaves its band, and a short tail joins the piece before it.
+    #[test]
+    fn split_covers_the_block_and_follows_the_schedule() {
+        // 1 mm = 394 BLU at 0.0001 in. 10 mm at 20 ipm, then 10 mm at 10 ipm, then 0.2 mm at 30.
+        let mut pts: Vec<WalkPoint> = (0..=3937).map(|x| pt(x, 20.0)).collect();
+        pts.extend((3938..=7874).map(|x| pt(x, 10.0)));
+        pts.extend((7875..=7953).map(|x| pt(x, 30.0)));
+        let r = split(&pts, 0.1, 1.0);
+        assert_eq!(r.first().unwrap().0, 0);
+        assert_eq!(r.last().unwrap().1, pts.len() - 1);
+        for w in r.windows(2) {
+            assert_eq!(w[0].1, w[1].0);
+        }
+        assert_eq!(r.len(), 2, "{r:?}");
+        assert_eq!(
+            r[0].1, 3937,
+            "the first piece ends at the last point at 20 ipm"
+        );
+        // One feed throughout: one piece.
+        let flat: Vec<WalkPoint> = (0..1000).map(|x| pt(x, 12.0)).collect();
+        assert_eq!(split(&flat, 0.1, 1.0), [(0, 999)]);
+    }
+}
