@@ -36,6 +36,7 @@ pub mod elf;
 pub mod f446;
 pub mod fault;
 pub mod firmware;
+pub mod model;
 pub mod optimise;
 pub mod plugin;
 pub mod repro;

@@ -85,6 +85,31 @@ enum Cmd {
         /// Shortest piece, mm.
         #[arg(long, default_value_t = 1.0)]
         min_piece_mm: f64,
+        /// A fitted model (`calibrate`'s file): Georgiev and Chetrokov's quadratic model sets the
+        /// feeds instead of the full force model, where it covers the depth.
+        #[arg(long, value_name = "FILE")]
+        model: Option<PathBuf>,
+    },
+    /// Fit Georgiev and Chetrokov's quadratic force model y(a, f) from test cuts on the
+    /// simulated plant (full slots at each depth and feed); writes the model file (JSON: the
+    /// coefficients, the validity range and the test cuts) for `optimise --model`.
+    Calibrate {
+        #[arg(long)]
+        out: PathBuf,
+        /// The cutter: DIAMETER_MM,FLUTES[,F_MAX_N[,T_MAX_NM]].
+        #[arg(long, value_name = "D_MM,Z[,F_MAX_N[,T_MAX_NM]]", value_parser = parse_tool)]
+        tool: Option<millac_plant::Tool>,
+        #[arg(long, value_enum, default_value = "steel")]
+        material: MaterialArg,
+        /// Spindle speed, rpm.
+        #[arg(long, default_value_t = 600.0)]
+        rpm: f64,
+        /// Depths of the test cuts, mm.
+        #[arg(long, value_delimiter = ',', default_value = "1,3,5,7,9")]
+        depths: Vec<f64>,
+        /// Feeds of the test cuts, ipm.
+        #[arg(long, value_delimiter = ',', default_value = "5,10,15,20,25,30")]
+        feeds: Vec<f64>,
     },
     /// Run the firmware in serial mode with its UART on a TCP port for a G-code sender, until
     /// SIGINT or SIGTERM; then write DIR/capture.vcd and DIR/summary.json.
@@ -339,19 +364,38 @@ fn main() {
             air_feed,
             split,
             min_piece_mm,
-        }) => optimise(
-            &program,
-            &out,
-            stock.as_deref(),
+            model,
+        }) => (|| {
+            let model = match model {
+                Some(p) => Some(millac_qemu::model::Quadratic::from_json(
+                    &std::fs::read_to_string(&p)
+                        .with_context(|| format!("reading {}", p.display()))?,
+                )?),
+                None => None,
+            };
+            optimise(
+                &program,
+                &out,
+                stock.as_deref(),
+                tool,
+                material.into(),
+                &millac_qemu::optimise::Options {
+                    fraction,
+                    air_feed_ipm: air_feed.unwrap_or(f64::INFINITY),
+                    split,
+                    min_piece_mm,
+                    model,
+                },
+            )
+        })(),
+        Some(Cmd::Calibrate {
+            out,
             tool,
-            material.into(),
-            &millac_qemu::optimise::Options {
-                fraction,
-                air_feed_ipm: air_feed.unwrap_or(f64::INFINITY),
-                split,
-                min_piece_mm,
-            },
-        ),
+            material,
+            rpm,
+            depths,
+            feeds,
+        }) => calibrate(&out, tool, material.into(), rpm, &depths, &feeds),
         Some(Cmd::Serve {
             tcp,
             out,
@@ -737,6 +781,42 @@ fn optimise(
             "| {name} | {:.2} | {:.3} | {:.3} | {:.3} |",
             r.machining_time_s, l.peak_force_ratio, l.time_above_f0_s, l.time_above_limit_s
         );
+    }
+    Ok(true)
+}
+
+/// `calibrate`: the quadratic model from test cuts on the simulated plant, its file and a table.
+fn calibrate(
+    out: &Path,
+    tool: Option<millac_plant::Tool>,
+    material: millac_plant::Material,
+    rpm: f64,
+    depths: &[f64],
+    feeds: &[f64],
+) -> Result<bool> {
+    use millac_qemu::{acsim, model};
+    let cut = acsim::Cut {
+        tool: tool.unwrap_or_default(),
+        material,
+        spindle_rpm: rpm,
+        ..acsim::Cut::steel(millac_plant::Stock::default(), 1)
+    };
+    let (m, cuts) = model::calibrate(&cut, depths, feeds)?;
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    std::fs::write(out, m.to_json(&cuts)).with_context(|| format!("writing {}", out.display()))?;
+    println!(
+        "millac calibrate: {} test cuts -> {}: y = {:.1} + {:.2} a + {:.2} f + {:.3} a f + {:.3} a^2 + {:.4} f^2 (a {}..{} mm, f {}..{} ipm)",
+        cuts.len(),
+        out.display(),
+        m.b[0], m.b[1], m.b[2], m.b[3], m.b[4], m.b[5],
+        m.a_range.0, m.a_range.1, m.f_range.0, m.f_range.1
+    );
+    println!("| a mm | f ipm | y N (test cut) | y N (model) |");
+    println!("| ---: | ---: | ---: | ---: |");
+    for (a, f, y) in &cuts {
+        println!("| {a} | {f} | {y:.0} | {:.0} |", m.eval(*a, *f));
     }
     Ok(true)
 }

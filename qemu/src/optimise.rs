@@ -43,6 +43,10 @@ pub struct Options {
     pub split: f64,
     /// Shortest piece, mm.
     pub min_piece_mm: f64,
+    /// Georgiev and Chetrokov's fitted model in place of the full force model (`crate::model`):
+    /// at every point that cuts, the feed that holds its y at F0 at the depth present; where the
+    /// depth is outside the model's range, the full model's feed (the piece says so).
+    pub model: Option<crate::model::Quadratic>,
 }
 
 impl Default for Options {
@@ -52,6 +56,7 @@ impl Default for Options {
             air_feed_ipm: f64::INFINITY,
             split: 0.1,
             min_piece_mm: 1.0,
+            model: None,
         }
     }
 }
@@ -73,8 +78,11 @@ pub struct Piece {
     pub feed_ipm: f64,
     /// Cuts nothing anywhere along it.
     pub air: bool,
-    /// The largest peak force the model predicts along it at its feed, N.
+    /// The largest peak force the full model predicts along it at its feed, N.
     pub predicted_f_n: f64,
+    /// With a fitted model: whether it set the feed everywhere along the piece (false: the depth
+    /// left its range somewhere and the full model's feed was taken there). None without one.
+    pub model: Option<bool>,
 }
 
 /// The optimised program and what was done.
@@ -189,6 +197,46 @@ fn split(pts: &[WalkPoint], split: f64, min_piece_mm: f64) -> Vec<(usize, usize)
         }
     }
     out
+}
+
+/// The model's say over a piece's points: None without a model (or all in air), Some(true)
+/// where it set every cutting point's feed, Some(false) where the depth left its range.
+fn model_of(c: &[Option<bool>]) -> Option<bool> {
+    c.iter()
+        .flatten()
+        .fold(None, |acc, &v| Some(acc.unwrap_or(true) && v))
+}
+
+/// The axial depth of cut (mm) at every walk point: the highest material above the tip under the
+/// tool's disc grown by one and a half cells (the stock is a grid of cells: the crescent a point
+/// adds to the cut is narrower than a cell, so the disc alone, after the cut up to the point
+/// before, would find nothing most of the time), the stock cut along the points as they come.
+fn depths_mm(points: &[WalkPoint], cut: &Cut) -> Vec<f64> {
+    let mut stock = cut.stock.clone();
+    let r = cut.tool.diameter_mm / 2.0;
+    let cell = stock.cell_mm();
+    let reach = r + 1.5 * cell;
+    let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
+    let mut prev: Option<[f64; 3]> = None;
+    points
+        .iter()
+        .map(|p| {
+            let t = mm(p.pos_blu);
+            let n = (reach / cell).ceil() as i64;
+            let mut top = f64::NEG_INFINITY;
+            for i in -n..=n {
+                for j in -n..=n {
+                    let (x, y) = (t[0] + i as f64 * cell, t[1] + j as f64 * cell);
+                    top = top.max(stock.top_in_disc(x, y, t[0], t[1], reach));
+                }
+            }
+            if let Some(q) = prev {
+                stock.cut_capsule(q, t, r);
+            }
+            prev = Some(t);
+            (top - t[2]).max(0.0)
+        })
+        .collect()
 }
 
 /// Distance between two points (BLU), mm.
@@ -316,7 +364,33 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
     };
     let frm = acsim::feed_ipm(settings, settings.q0);
     let ceiling = vec![frm; prog.len()];
-    let walk = oracle_walk(&prog, settings, cut, &programmed, &limits, &ceiling)?;
+    let mut walk = oracle_walk(&prog, settings, cut, &programmed, &limits, &ceiling)?;
+    // With a fitted model: its feed at every point that cuts, the full model's where it does not
+    // cover the depth (remembered per point); the full model's peak scaled to the new feed.
+    let covered: Vec<Option<bool>> = match opts.model {
+        None => vec![None; walk.points.len()],
+        Some(m) => {
+            let depths = depths_mm(&walk.points, cut);
+            let expo = 1.0 - cut.material.ks_exponent;
+            walk.points
+                .iter_mut()
+                .zip(depths)
+                .map(|(p, a)| {
+                    if p.cut_limit_ipm.is_infinite() {
+                        return None;
+                    }
+                    let Some(f) = m.feed_for(a, limits.f0_n) else {
+                        return Some(false);
+                    };
+                    if p.feed_ipm > 0.0 {
+                        p.f_peak_n *= (f / p.feed_ipm).powf(expo);
+                    }
+                    p.feed_ipm = f;
+                    Some(true)
+                })
+                .collect()
+        }
+    };
     let kienzle = 1.0 - cut.material.ks_exponent;
     let tooth_s = 60.0 / (cut.spindle_rpm * f64::from(cut.tool.flutes));
     let u = units(settings);
@@ -400,6 +474,7 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
                         feed_ipm,
                         air,
                         predicted_f_n,
+                        model: model_of(&covered[base + s..=base + e]),
                     });
                     at_mm += length_mm;
                 }
@@ -476,6 +551,7 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
                     feed_ipm,
                     air,
                     predicted_f_n,
+                    model: model_of(&covered[base..w]),
                 });
                 at_mm += length_mm;
             }
@@ -520,6 +596,23 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
         cut.material.ks_exponent,
         cut.spindle_rpm
     );
+    if let Some(m) = opts.model {
+        let _ = writeln!(
+            out,
+            "(feeds from the fitted model y = {:.2} + {:.3} a + {:.3} f + {:.4} a f + {:.4} a^2 + {:.5} f^2, Georgiev and Chetrokov,)",
+            m.b[0], m.b[1], m.b[2], m.b[3], m.b[4], m.b[5]
+        );
+        let _ = writeln!(
+            out,
+            "(where the depth is within {}..{} mm and the feed within {}..{} ipm; elsewhere the full force model: {} of {} pieces)",
+            m.a_range.0,
+            m.a_range.1,
+            m.f_range.0,
+            m.f_range.1,
+            pieces.iter().filter(|p| p.model == Some(false)).count(),
+            pieces.len()
+        );
+    }
     let _ = writeln!(
         out,
         "({} feed blocks became {} pieces)",
@@ -579,12 +672,12 @@ pub fn check(original: &[ProgBlock], o: &Optimised, settings: &Settings) -> Resu
 /// The pieces as CSV (stable column names).
 pub fn csv(o: &Optimised) -> String {
     let mut s = String::from(
-        "line,at_mm,length_mm,x_end_blu,y_end_blu,z_end_blu,programmed_ipm,feed_ipm,air,predicted_f_n\n",
+        "line,at_mm,length_mm,x_end_blu,y_end_blu,z_end_blu,programmed_ipm,feed_ipm,air,predicted_f_n,model\n",
     );
     for p in &o.pieces {
         let _ = writeln!(
             s,
-            "{},{:.3},{:.3},{},{},{},{:.3},{:.3},{},{:.1}",
+            "{},{:.3},{:.3},{},{},{},{:.3},{:.3},{},{:.1},{}",
             p.line,
             p.at_mm,
             p.length_mm,
@@ -594,7 +687,12 @@ pub fn csv(o: &Optimised) -> String {
             p.programmed_ipm,
             p.feed_ipm,
             p.air as u8,
-            p.predicted_f_n
+            p.predicted_f_n,
+            match p.model {
+                None => "",
+                Some(true) => "fitted",
+                Some(false) => "out of range",
+            }
         );
     }
     s

@@ -179,4 +179,155 @@ fn the_command_writes_the_program_its_table_and_its_figure() {
         .unwrap();
     assert!(!bad.status.success());
     assert!(!dir.join("bad.nc").exists());
+    // `calibrate` writes a model file that `optimise --model` takes; its pieces say where the
+    // fitted model set the feed.
+    let model = dir.join("steel.json");
+    let c = std::process::Command::new(env!("CARGO_BIN_EXE_millac-qemu"))
+        .args([
+            "calibrate",
+            "--depths",
+            "1,4,7",
+            "--feeds",
+            "2,12,22",
+            "--out",
+        ])
+        .arg(&model)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&c.stdout);
+    assert!(
+        c.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&c.stderr)
+    );
+    assert!(stdout.contains("9 test cuts"), "{stdout}");
+    let with = dir.join("pocket-model.nc");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_millac-qemu"))
+        .arg("optimise")
+        .arg(root.join("programs/pocket.nc"))
+        .arg("--stock")
+        .arg(root.join("programs/pocket.stock"))
+        .arg("--model")
+        .arg(&model)
+        .arg("--out")
+        .arg(&with)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(with.with_extension("csv")).unwrap();
+    assert!(csv.lines().any(|l| l.ends_with(",fitted")), "{csv}");
+}
+
+/// Georgiev and Chetrokov's model calibrated from 36 test cuts on the plant (full slots of the
+/// default cutter in steel, 1 to 16 mm deep at 2 to 27 ipm) sets the feeds of the pocket and the
+/// depth-step slot where it covers the depth: the geometry stays, the cutter stays within its
+/// limit, and the time is within 10 % of the full model's. A model of shallow cuts only (1 to
+/// 3 mm) does not cover the pocket's 6.35 mm: there the full model's feeds are taken and the
+/// pieces say so.
+#[test]
+fn the_model_based_optimiser_uses_the_fitted_model_where_it_covers_the_depth() {
+    let s = Settings::default();
+    let base = bench::CASES[0]
+        .cut(&s, DriveModel::Stepper, Material::STEEL)
+        .unwrap();
+    let feeds = [2.0, 7.0, 12.0, 17.0, 22.0, 27.0];
+    let (m, cuts) =
+        millac_qemu::model::calibrate(&base, &[1.0, 4.0, 7.0, 10.0, 13.0, 16.0], &feeds).unwrap();
+    assert_eq!(cuts.len(), 36);
+    // The fit reproduces its test cuts within 1 % of the largest force.
+    let y_max = cuts.iter().map(|c| c.2).fold(0.0, f64::max);
+    for (a, f, y) in &cuts {
+        let e = m.eval(*a, *f) - y;
+        assert!(
+            e.abs() <= 0.01 * y_max,
+            "{a} mm {f} ipm: {y} N, model {}",
+            y + e
+        );
+    }
+    for case in [&bench::CASES[1], &bench::CASES[2]] {
+        let cut = case.cut(&s, DriveModel::Stepper, Material::STEEL).unwrap();
+        let fraction = f64::from(case.ac_settings().optimal_fraction);
+        let opts = Options {
+            fraction,
+            ..Options::default()
+        };
+        let full = optimise::optimise(case.program, &s, &cut, &opts).unwrap();
+        let with = optimise::optimise(
+            case.program,
+            &s,
+            &cut,
+            &Options {
+                model: Some(m),
+                ..opts
+            },
+        )
+        .unwrap();
+        assert!(full.pieces.iter().all(|p| p.model.is_none()));
+        let cutting: Vec<_> = with.pieces.iter().filter(|p| !p.air).collect();
+        assert!(
+            cutting.iter().all(|p| p.model == Some(true)),
+            "{}",
+            case.name
+        );
+        let t = |o: &optimise::Optimised| {
+            let prog = analysis::load_program(&o.text, &s).unwrap();
+            let run = acsim::run(&prog, &s, &cut, None).unwrap();
+            let l = acsim::load_figures(&run.samples, &cut.tool, fraction, 1000);
+            (run.machining_time_s, l)
+        };
+        let ((tf, lf), (tm, lm)) = (t(&full), t(&with));
+        eprintln!(
+            "{}: full model {tf:.2} s, peak F/F_max {:.3}; fitted model {tm:.2} s, peak {:.3}",
+            case.name, lf.peak_force_ratio, lm.peak_force_ratio
+        );
+        assert_eq!(lm.time_above_limit_s, 0.0);
+        assert!((tm / tf - 1.0).abs() < 0.1, "{tm} {tf}");
+    }
+    let (shallow, _) = millac_qemu::model::calibrate(&base, &[1.0, 2.0, 3.0], &feeds).unwrap();
+    let case = &bench::CASES[1];
+    let cut = case.cut(&s, DriveModel::Stepper, Material::STEEL).unwrap();
+    let full = optimise::optimise(case.program, &s, &cut, &Options::default()).unwrap();
+    let o = optimise::optimise(
+        case.program,
+        &s,
+        &cut,
+        &Options {
+            model: Some(shallow),
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    let out: Vec<_> = o.pieces.iter().filter(|p| p.model == Some(false)).collect();
+    assert!(!out.is_empty());
+    assert!(optimise::csv(&o)
+        .lines()
+        .skip(1)
+        .any(|l| l.ends_with(",out of range")));
+    // Where the model is out of range throughout a piece, its feed is the full model's.
+    let full_feed_at = |end: [i64; 3]| {
+        full.pieces
+            .iter()
+            .find(|p| p.end == end)
+            .map(|p| p.feed_ipm)
+    };
+    assert!(out.iter().any(|p| full_feed_at(p.end) == Some(p.feed_ipm)));
+}
+
+/// The model file round-trips, and a broken one is refused with a message.
+#[test]
+fn the_model_file_round_trips() {
+    use millac_qemu::model::Quadratic;
+    let m = Quadratic {
+        b: [-34.1, 3.07, 5.13, 22.07, -0.01, -0.146],
+        a_range: (1.0, 16.0),
+        f_range: (2.0, 27.0),
+    };
+    let text = m.to_json(&[(1.0, 2.0, 40.0)]);
+    assert_eq!(Quadratic::from_json(&text).unwrap(), m);
+    assert!(Quadratic::from_json("{}").is_err());
+    let broken = text.replace("\"f_min_ipm\": 2.0", "\"f_min_ipm\": -2.0");
+    assert!(Quadratic::from_json(&broken)
+        .unwrap_err()
+        .to_string()
+        .contains("range"));
 }
