@@ -186,9 +186,19 @@ fn split(pts: &[WalkPoint], split: f64, min_piece_mm: f64) -> Vec<(usize, usize)
         (lo, hi) = (nlo, nhi);
     }
     let last = pts.len().saturating_sub(1);
-    let short_tail = mm(pts[s].pos_blu, pts[last].pos_blu) < min_piece_mm;
+    let min_of = |a: usize, b: usize| {
+        pts[a..=b]
+            .iter()
+            .map(|p| p.feed_ipm)
+            .fold(f64::INFINITY, f64::min)
+    };
+    // A short tail joins the piece before it, unless it would slow that piece by more than the
+    // band (a deceleration into the next block: the whole piece would take the tail's feed).
+    let short_tail = mm(pts[s].pos_blu, pts[last].pos_blu) < min_piece_mm
+        && out
+            .last()
+            .is_some_and(|p| min_of(s, last) * (1.0 + split) >= min_of(p.0, p.1));
     match out.last_mut() {
-        // A short tail joins the piece before it.
         Some(p) if short_tail => p.1 = last,
         _ => {
             if s < last || out.is_empty() {
