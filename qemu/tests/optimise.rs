@@ -31,10 +31,19 @@ fn pulses_per_end_point(original: &[ProgBlock], out: &[ProgBlock]) -> Vec<[u64; 
         .collect()
 }
 
+/// The stepped die cavity made for issue 11 (`programs/stepped-die.nc`), as a benchmark case.
+const STEPPED_DIE: bench::Case = bench::Case {
+    name: "stepped die cavity",
+    program: include_str!("../programs/stepped-die.nc"),
+    stock: Some(include_str!("../programs/stepped-die.stock")),
+    force_limit_n: None,
+    optimal_fraction: None,
+};
+
 #[test]
 fn the_optimised_programs_keep_the_geometry_and_the_cutter_within_its_limit() {
     let s = Settings::default();
-    for case in bench::CASES {
+    for case in bench::CASES.iter().chain([&STEPPED_DIE]) {
         let cut = case.cut(&s, DriveModel::Stepper, Material::STEEL).unwrap();
         let fraction = f64::from(case.ac_settings().optimal_fraction);
         let o = optimise::optimise(
