@@ -120,10 +120,22 @@ fn main() -> Result<()> {
         )?;
         let rows: Vec<(String, HostRun)> = vec![
             ("programmed feeds".into(), cmp.programmed.clone()),
-            (format!("safe constant {:.2} ipm", cmp.safe_feed_ipm), cmp.safe.clone()),
-            ("offline optimised".into(), acsim::run(&planned, &s, &actual, None)?),
-            ("model-based".into(), acsim::run(&modelled, &s, &actual, None)?),
-            ("AC alone (GPC)".into(), acsim::run(&prog, &s, &actual, Some(acs))?),
+            (
+                format!("safe constant {:.2} ipm", cmp.safe_feed_ipm),
+                cmp.safe.clone(),
+            ),
+            (
+                "offline optimised".into(),
+                acsim::run(&planned, &s, &actual, None)?,
+            ),
+            (
+                "model-based".into(),
+                acsim::run(&modelled, &s, &actual, None)?,
+            ),
+            (
+                "AC alone (GPC)".into(),
+                acsim::run(&prog, &s, &actual, Some(acs))?,
+            ),
             (
                 "optimised + AC (plan as ceiling)".into(),
                 acsim::run(&planned, &s, &actual, Some(acs))?,
