@@ -431,6 +431,12 @@ class Sender(GrblStreamer):
             reports.append(line)
 g = Sender(sys.argv[1], auto_unlock=False)
 g.connect()
+# The sender's write timeout is 1 s, made for a real serial port. Here the port is a pty in front
+# of socat, TCP and QEMU, and the test binary runs other QEMU sessions beside this one on two
+# cores: a write may wait seconds. CI saw this test fail twice with a write timeout, once as
+# SerialTimeoutException from a '?', once as send_file giving up. A real stall still fails: the
+# ack, completion and poll timeouts below.
+g.serial.write_timeout = 30
 result = {}
 # A line is acknowledged once its blocks fit the queue (as in grbl), so an ack can wait for the
 # longest block of the program: far beyond the sender's default of 30 s on a loaded machine.
