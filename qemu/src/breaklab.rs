@@ -59,20 +59,7 @@ pub fn run(
 /// The breakage detector over the codes of `run` (the controller's calibration, the default
 /// AC settings'), the first declaration and its time.
 pub fn detect(run: &HostRun, cut: &Cut, bs: BreakageSettings) -> Result<Option<(f64, Breakage)>> {
-    let cal = AcSettings::default().cal;
-    let sample_hz = f64::from(bs.sample_hz);
-    let mut det = BreakageDetector::new(bs).map_err(|e| anyhow!("{e:?}"))?;
-    let flutes = u8::try_from(cut.tool.flutes).map_err(|_| anyhow!("too many flutes"))?;
-    det.set_spindle(cut.spindle_rpm as f32, flutes);
-    for (i, c) in run.codes.iter().enumerate() {
-        // A missed conversion: no sample for the detector (its tooth period takes the others).
-        let Some([_, fu, fv]) = c else { continue };
-        let f = cal[1].value(*fu).hypot(cal[2].value(*fv));
-        if let Some(b) = det.sample(f) {
-            return Ok(Some(((i + 1) as f64 / sample_hz, b)));
-        }
-    }
-    Ok(None)
+    Ok(trace(run, cut, bs)?.1)
 }
 
 /// One tooth period as the breakage detector judged it: when it closed (s), the average force

@@ -153,10 +153,7 @@ impl Units {
 /// Splits the points of one straight feed block into pieces (index ranges into `pts`, each
 /// piece from its start point to its end point inclusive, consecutive pieces sharing a point).
 fn split(pts: &[WalkPoint], split: f64, min_piece_mm: f64) -> Vec<(usize, usize)> {
-    let mm = |a: [i64; 3], b: [i64; 3]| {
-        let d = [0, 1, 2].map(|k| (b[k] - a[k]) as f64 * millac_plant::MM_PER_BLU);
-        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
-    };
+    let mm = dist_mm;
     let mut out = Vec::new();
     let mut s = 0usize;
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
@@ -249,6 +246,21 @@ fn depths_mm(points: &[WalkPoint], cut: &Cut) -> Vec<f64> {
         .collect()
 }
 
+/// The path a feed of `v_ipm` covers in two tooth periods of `tooth_s`, mm: how far the chip lags
+/// the feed (see [`lagged`]).
+fn lag_mm(v_ipm: f64, tooth_s: f64) -> f64 {
+    2.0 * v_ipm * millac_plant::MM_S_PER_IPM * tooth_s
+}
+
+/// The full model's largest peak force over `seg` at the feed `feed_ipm` (N): the oracle's peak
+/// at its schedule, scaled as the chip, linearly or to the 1 - m of Kienzle's Ks (`expo`).
+fn predicted_peak(seg: &[WalkPoint], feed_ipm: f64, expo: f64) -> f64 {
+    seg.iter()
+        .filter(|p| p.feed_ipm > 0.0)
+        .map(|p| p.f_peak_n * (feed_ipm / p.feed_ipm).powf(expo))
+        .fold(0.0, f64::max)
+}
+
 /// Distance between two points (BLU), mm.
 fn dist_mm(a: [i64; 3], b: [i64; 3]) -> f64 {
     (0..3)
@@ -283,7 +295,7 @@ fn lagged(
     feed: &dyn Fn(&[WalkPoint]) -> f64,
     tooth_s: f64,
 ) -> Vec<(usize, usize, f64)> {
-    let lag = |v: f64| 2.0 * v * millac_plant::MM_S_PER_IPM * tooth_s;
+    let lag = |v: f64| lag_mm(v, tooth_s);
     // Moves a boundary e back by `mm`, keeping the piece from s at least one point long.
     let back = |s: usize, e: usize, mm: f64| {
         let mut k = e;
@@ -330,12 +342,7 @@ fn ahead(points: &[WalkPoint], from: usize, lag_mm: f64) -> f64 {
     let mut v = f64::INFINITY;
     let mut travelled = 0.0;
     for w in points.get(from..).unwrap_or(&[]).windows(2) {
-        let d = (0..3)
-            .map(|k| {
-                ((w[1].pos_blu[k] - w[0].pos_blu[k]) as f64 * millac_plant::MM_PER_BLU).powi(2)
-            })
-            .sum::<f64>()
-            .sqrt();
+        let d = dist_mm(w[0].pos_blu, w[1].pos_blu);
         // Consecutive pulses are at most a BLU per axis apart.
         if d > 2.0 * millac_plant::MM_PER_BLU || travelled >= lag_mm {
             break;
@@ -464,13 +471,7 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
                     let air = seg.iter().all(|p| p.cut_limit_ipm.is_infinite());
                     let f = feed_number(settings, v.min(frm));
                     let feed_ipm = acsim::feed_ipm(settings, f);
-                    // The model's peak at the piece's feed (the oracle's at its schedule, scaled
-                    // as the chip: linearly, or to the 1 - m with Kienzle's Ks).
-                    let predicted_f_n = seg
-                        .iter()
-                        .filter(|p| p.feed_ipm > 0.0)
-                        .map(|p| p.f_peak_n * (feed_ipm / p.feed_ipm).powf(kienzle))
-                        .fold(0.0, f64::max);
+                    let predicted_f_n = predicted_peak(seg, feed_ipm, kienzle);
                     let length_mm = dist_mm(piece_start, piece_end);
                     let _ = writeln!(body, "G1 {} {}", u.xyz(piece_end), u.feed(settings, f));
                     pieces.push(Piece {
@@ -494,8 +495,11 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
                 let air = pts.iter().all(|p| p.cut_limit_ipm.is_infinite());
                 let mut v = piece_feed(pts, opts.air_feed_ipm, frm);
                 if v.is_finite() && !pts.is_empty() {
-                    let lag_mm = 2.0 * v.min(frm) * millac_plant::MM_S_PER_IPM * tooth_s;
-                    v = v.min(ahead(&walk.points, base + pts.len() - 1, lag_mm));
+                    v = v.min(ahead(
+                        &walk.points,
+                        base + pts.len() - 1,
+                        lag_mm(v.min(frm), tooth_s),
+                    ));
                 }
                 let f = if v.is_finite() {
                     feed_number(settings, v.min(frm))
@@ -503,11 +507,7 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
                     c.f
                 };
                 let feed_ipm = acsim::feed_ipm(settings, f);
-                let predicted_f_n = pts
-                    .iter()
-                    .filter(|p| p.feed_ipm > 0.0)
-                    .map(|p| p.f_peak_n * (feed_ipm / p.feed_ipm).powf(kienzle))
-                    .fold(0.0, f64::max);
+                let predicted_f_n = predicted_peak(pts, feed_ipm, kienzle);
                 if c.plane != plane {
                     plane = c.plane;
                     let _ = writeln!(
@@ -539,16 +539,7 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
                 );
                 let length_mm = pts
                     .windows(2)
-                    .map(|p| {
-                        (0..3)
-                            .map(|k| {
-                                ((p[1].pos_blu[k] - p[0].pos_blu[k]) as f64
-                                    * millac_plant::MM_PER_BLU)
-                                    .powi(2)
-                            })
-                            .sum::<f64>()
-                            .sqrt()
-                    })
+                    .map(|p| dist_mm(p[0].pos_blu, p[1].pos_blu))
                     .sum::<f64>();
                 pieces.push(Piece {
                     block: i,
