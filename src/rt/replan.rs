@@ -462,11 +462,6 @@ impl<const N: usize> Replan<N> {
         }
     }
 
-    /// The step in BLU (0: off).
-    pub fn lift(&self) -> u32 {
-        self.lift
-    }
-
     /// A chatter hold gets a reaction (a depth step or a spindle speed), not only an alarm.
     pub fn reacts(&self) -> bool {
         self.lift > 0 || self.max_rpm > 0
