@@ -41,12 +41,22 @@ impl BlockSource for std::collections::VecDeque<Block> {
     }
 }
 
+/// The plan ratio of 1 (Q12): the block's programmed feed as it is.
+pub const PLAN_ONE: u32 = 1 << 12;
+
 /// Where a frame gets the adaptive controller's feed cap. Frame ISR: only the frames that run the
 /// feed DDA (linear or circular feeding) read it. A `u32` is a fixed cap; the firmware passes a
 /// type that loads the AC task's atomic.
 pub trait FeedCap {
     /// Feed number cap: u32::MAX = no cap, 0 = feed hold.
     fn feed_cap(&self) -> u32;
+    /// The adaptive controller's plan ratio k in Q12 (0..=[`PLAN_ONE`]): the frame feeds at
+    /// min(f x k, cap), f the block's programmed feed. [`PLAN_ONE`] except under
+    /// `FeedCeiling::Plan` (prediction and feedback together, `crate::ac`). Read with the cap.
+    #[inline(always)]
+    fn plan_ratio(&self) -> u32 {
+        PLAN_ONE
+    }
     /// The operator's word (see [`crate::nc::operator`]): feed override, rapid override, hold,
     /// abort. Read once per frame. Default: run at 100 %.
     #[inline(always)]
@@ -71,6 +81,22 @@ impl FeedCap for (u32, u32) {
     #[inline(always)]
     fn operator(&self) -> u32 {
         self.1
+    }
+}
+
+/// (AC feed cap, operator word, plan ratio): a host simulation's inputs under the plan.
+impl FeedCap for (u32, u32, u32) {
+    #[inline(always)]
+    fn feed_cap(&self) -> u32 {
+        self.0
+    }
+    #[inline(always)]
+    fn operator(&self) -> u32 {
+        self.1
+    }
+    #[inline(always)]
+    fn plan_ratio(&self) -> u32 {
+        self.2
     }
 }
 

@@ -16,6 +16,9 @@ use anyhow::Result;
 use millac::ac::{AcSettings, FeedCeiling};
 use millac::Settings;
 use millac_plant::{DriveModel, Material, Stock};
+
+/// The harder material of the model-error rows: Ks this much above the plan's.
+const HARDER: f64 = 1.15;
 use millac_qemu::acsim::{self, Cut, HostRun};
 use millac_qemu::analysis::{self, ProgBlock};
 use millac_qemu::optimise::{self, Options};
@@ -63,6 +66,7 @@ fn programs() -> Vec<Program> {
 }
 
 fn main() -> Result<()> {
+    let only: Option<String> = std::env::args().nth(1);
     let s = Settings::default();
     let steel = Cut::steel(Stock::default(), 1);
     let (m, _) = model::calibrate(
@@ -73,6 +77,9 @@ fn main() -> Result<()> {
     println!("| program | schedule | time s | time / bound | peak F / F_max | time above F0 s | time above F_max s | holds |");
     println!("| --- | --- | ---: | ---: | ---: | ---: | ---: | --- |");
     for p in programs() {
+        if only.as_deref().is_some_and(|o| !p.name.contains(o)) {
+            continue;
+        }
         let case = bench::Case {
             name: p.name,
             program: p.text,
@@ -106,6 +113,20 @@ fn main() -> Result<()> {
             analysis::load_program(text, &s).map_err(|e| anyhow::anyhow!("{e}"))
         };
         let planned = load(&optimise::optimise(p.text, &s, &described, &opts)?.text)?;
+        let trusted = load(
+            &optimise::optimise(p.text, &s, &described, &Options { guard: 0.0, ..opts })?.text,
+        )?;
+        let harder = Cut {
+            material: Material {
+                ks_n_mm2: actual.material.ks_n_mm2 * HARDER,
+                ..actual.material
+            },
+            ..actual.clone()
+        };
+        let plan = AcSettings {
+            ceiling: FeedCeiling::Plan,
+            ..acs
+        };
         let modelled = load(
             &optimise::optimise(
                 p.text,
@@ -125,7 +146,11 @@ fn main() -> Result<()> {
                 cmp.safe.clone(),
             ),
             (
-                "offline optimised".into(),
+                "offline optimised, trusting the stock".into(),
+                acsim::run(&trusted, &s, &actual, None)?,
+            ),
+            (
+                "offline optimised, guarded".into(),
                 acsim::run(&planned, &s, &actual, None)?,
             ),
             (
@@ -139,6 +164,18 @@ fn main() -> Result<()> {
             (
                 "optimised + AC (plan as ceiling)".into(),
                 acsim::run(&planned, &s, &actual, Some(acs))?,
+            ),
+            (
+                "optimised + AC ($263=2)".into(),
+                acsim::run(&planned, &s, &actual, Some(plan))?,
+            ),
+            (
+                "harder: offline optimised".to_string(),
+                acsim::run(&planned, &s, &harder, None)?,
+            ),
+            (
+                "harder: optimised + AC ($263=2)".to_string(),
+                acsim::run(&planned, &s, &harder, Some(plan))?,
             ),
         ];
         let end = prog.last().map_or([0; 3], |b| b.end).map(i64::from);

@@ -33,7 +33,8 @@ pub struct AcRow {
     pub t_true_nm: f64,
     pub e: f64,
     pub state: String,
-    /// The feed cap the controller wrote for the frame (feed number; u32::MAX = no AC).
+    /// The controller's feed number, as the firmware logs it (u32::MAX = no AC): the cap the
+    /// frame reads, or under the plan (`FeedCeiling::Plan`) k x f_max.
     pub feed_cap: u32,
     /// The feed law's estimates after the period (`AcController::law_estimates`: GPC's
     /// [a1, a2, b0, b1, b2], MRAC's [p^, b^, 0, 0, 0]); None for the fixed laws, without AC and
@@ -460,6 +461,9 @@ pub fn run_with_faults(
     let mut out = HostRun::default();
     let (mut t, mut next_sample) = (0u64, sample_ns);
     let mut feed_cap = u32::MAX;
+    let mut plan_ratio = millac::ports::PLAN_ONE;
+    // The controller's feed number, as the firmware logs it (under the plan k x f_max).
+    let mut logged_cap = u32::MAX;
     let mut pos = [0i64; 3];
     let mut period_start = pos;
     let (mut first, mut last) = (None, 0u64);
@@ -482,7 +486,7 @@ pub fn run_with_faults(
         let was_idle = frame.idle();
         let done_before = frame.blocks_done();
         let word = status.operator.load(Relaxed);
-        let p = frame.tick(&mut queue, (feed_cap, word));
+        let p = frame.tick(&mut queue, (feed_cap, word, plan_ratio));
         status.publish_frame(&frame);
         let t0 = t;
         t += period_ns(settings, rate);
@@ -549,6 +553,8 @@ pub fn run_with_faults(
                     halt = r.halt;
                     let o = r.out;
                     feed_cap = status.feed_cap.load(Relaxed);
+                    plan_ratio = status.plan_ratio.load(Relaxed);
+                    logged_cap = o.feed_cap;
                     if out.alarm.is_none() {
                         out.alarm = o.alarm;
                     }
@@ -577,7 +583,7 @@ pub fn run_with_faults(
                 t_true_nm: window.iter().map(|s| s.1.abs()).fold(0.0, f64::max),
                 e,
                 state,
-                feed_cap,
+                feed_cap: logged_cap,
                 estimates,
             });
             period_start = pos;

@@ -80,7 +80,7 @@ enum Cmd {
         #[arg(long, value_name = "IPM")]
         air_feed: Option<f64>,
         /// A new piece where the feed the cut allows leaves the piece's band by this ratio.
-        #[arg(long, default_value_t = 0.1)]
+        #[arg(long, default_value_t = 0.03)]
         split: f64,
         /// Shortest piece, mm.
         #[arg(long, default_value_t = 1.0)]
@@ -89,6 +89,12 @@ enum Cmd {
         /// feeds instead of the full force model, where it covers the depth.
         #[arg(long, value_name = "FILE")]
         model: Option<PathBuf>,
+        /// The guard against a stock that is not as described: where the description says air
+        /// but the stock's blanks could still hold material, at most the feed that would load
+        /// such material to this fraction of the permissible force, so that the AC under the
+        /// plan ($263=2) can catch it; 0 trusts the description.
+        #[arg(long, default_value_t = 0.95)]
+        guard: f64,
     },
     /// Fit Georgiev and Chetrokov's quadratic force model y(a, f) from test cuts on the
     /// simulated plant (full slots at each depth and feed); writes the model file (JSON: the
@@ -365,6 +371,7 @@ fn main() {
             split,
             min_piece_mm,
             model,
+            guard,
         }) => (|| {
             let model = match model {
                 Some(p) => Some(millac_qemu::model::Quadratic::from_json(
@@ -385,6 +392,7 @@ fn main() {
                     split,
                     min_piece_mm,
                     model,
+                    guard,
                 },
             )
         })(),

@@ -47,6 +47,15 @@ pub struct Options {
     /// at every point that cuts, the feed that holds its y at F0 at the depth present; where the
     /// depth is outside the model's range, the full model's feed (the piece says so).
     pub model: Option<crate::model::Quadratic>,
+    /// The guard against a wrong stock description, as a fraction of the permissible force
+    /// and torque (0: trust the description). Where the described stock is air but material
+    /// could stand ([`millac_plant::Stock::envelope`]: the blanks filled to the stock's top,
+    /// less what the program has cut before), the feed is at most the one at which that
+    /// material would load the cutter to this fraction: met unexpectedly, the load steps to
+    /// below the overload hold (1.1 F0 = 0.99 at the defaults) and the AC under the plan
+    /// (`FeedCeiling::Plan`) brings it back to F0, where at the air-cut feed no 10 ms loop could
+    /// act in time. Default 0.95.
+    pub guard: f64,
 }
 
 impl Default for Options {
@@ -54,9 +63,10 @@ impl Default for Options {
         Options {
             fraction: 0.9,
             air_feed_ipm: f64::INFINITY,
-            split: 0.1,
+            split: 0.03,
             min_piece_mm: 1.0,
             model: None,
+            guard: 0.95,
         }
     }
 }
@@ -269,6 +279,43 @@ fn dist_mm(a: [i64; 3], b: [i64; 3]) -> f64 {
         .sqrt()
 }
 
+/// Lowers the schedule's feed at every point of `walk` that cuts nothing on the described stock
+/// but would cut on its envelope (see [`Options::guard`]) to the envelope's feed for F0 scaled
+/// to the guard's fraction (force grows as feed^(1 - m), Kienzle's m). Returns the number of
+/// points lowered.
+fn guard(
+    walk: &mut crate::acreport::OracleWalk,
+    prog: &[analysis::ProgBlock],
+    settings: &Settings,
+    cut: &acsim::Cut,
+    programmed: &acsim::HostRun,
+    limits: &OracleLimits,
+    opts: &Options,
+) -> Result<usize> {
+    let envelope = acsim::Cut {
+        stock: cut.stock.envelope(),
+        ..cut.clone()
+    };
+    let frm = acsim::feed_ipm(settings, settings.q0);
+    let ceiling = vec![frm; prog.len()];
+    let worst = oracle_walk(prog, settings, &envelope, programmed, limits, &ceiling)?;
+    if worst.points.len() != walk.points.len() {
+        bail!("the envelope's walk has other points than the stock's");
+    }
+    let scale = (opts.guard / opts.fraction).powf(1.0 / (1.0 - cut.material.ks_exponent));
+    let mut n = 0;
+    for (p, w) in walk.points.iter_mut().zip(&worst.points) {
+        if p.cut_limit_ipm.is_infinite() && w.cut_limit_ipm.is_finite() {
+            let v = w.cut_limit_ipm * scale;
+            if v < p.feed_ipm {
+                p.feed_ipm = v;
+                n += 1;
+            }
+        }
+    }
+    Ok(n)
+}
+
 /// A piece's feed before the lag: the smallest of the schedule over its points, capped by the
 /// air-cut feed where it cuts nothing and by FRM.
 fn piece_feed(seg: &[WalkPoint], air_feed_ipm: f64, frm: f64) -> f64 {
@@ -370,6 +417,12 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
     if opts.air_feed_ipm.is_nan() || opts.air_feed_ipm <= 0.0 {
         bail!("air-cut feed must be > 0, got {}", opts.air_feed_ipm);
     }
+    if !(0.0..=1.0).contains(&opts.guard) {
+        bail!(
+            "guard must be a fraction of the permissible force in 0..=1 (0: off), got {}",
+            opts.guard
+        );
+    }
     let prog = analysis::load_program(text, settings).map_err(|e| anyhow!("{e}"))?;
     let programmed = acsim::run(&prog, settings, cut, None)?;
     let limits = OracleLimits {
@@ -382,6 +435,11 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
     let frm = acsim::feed_ipm(settings, settings.q0);
     let ceiling = vec![frm; prog.len()];
     let mut walk = oracle_walk(&prog, settings, cut, &programmed, &limits, &ceiling)?;
+    let guarded = if opts.guard > 0.0 {
+        guard(&mut walk, &prog, settings, cut, &programmed, &limits, opts)?
+    } else {
+        0
+    };
     // With a fitted model: its feed at every point that cuts, the full model's where it does not
     // cover the depth (remembered per point); the full model's peak scaled to the new feed.
     let covered: Vec<Option<bool>> = match opts.model {
@@ -613,6 +671,16 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
             pieces.iter().filter(|p| p.model == Some(false)).count(),
             pieces.len()
         );
+    }
+    if opts.guard > 0.0 {
+        let _ = writeln!(
+            out,
+            "(guard: where the stock is described as air but could be material, at most the feed that loads such material to {:.0} % of F_max: {} points)",
+            opts.guard * 100.0,
+            guarded
+        );
+    } else {
+        let _ = writeln!(out, "(no guard: the stock is trusted to be as described)");
     }
     let _ = writeln!(
         out,

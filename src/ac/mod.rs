@@ -27,6 +27,8 @@ pub mod settings;
 mod tests;
 #[cfg(test)]
 mod tests_faults;
+#[cfg(test)]
+mod tests_plan;
 
 pub use drr::{Drr, Measured, Sensor, SensorFault, CODE_MAX};
 pub use ecr::Errors;
@@ -209,6 +211,86 @@ pub struct AcController {
     /// The feed law (strategy): the settings' (`AcSettings::strategy`), or another one from
     /// [`AcController::with_law`].
     law: law::FeedLaw,
+    /// Under the plan: the controller's feed numbers of the last [`PLAN_HISTORY`] periods, the
+    /// latest first (the chip a window measured was cut at one of them).
+    plan_history: [u32; PLAN_HISTORY],
+    /// Under the plan: whether a window has been loaded enough to judge the first contact (see
+    /// [`PLAN_START`]).
+    plan_learnt: bool,
+    /// Under the plan, before the first contact is judged: periods loaded in a row.
+    plan_loaded: u32,
+    /// Under the plan: the plan's error (load per unit of k) of the last [`PLAN_HISTORY`]
+    /// periods, the latest first (a raise needs an error that is not falling).
+    plan_loads: [f32; PLAN_HISTORY],
+}
+
+/// Prediction and feedback together (`FeedCeiling::Plan`, issue 11): how the controller
+/// corrects the plan (an optimised program: `millac optimise` sets every piece's feed for F0 at
+/// the piece's peak) by the plan ratio k <= 1 the frame multiplies every block's feed by.
+///
+/// The firmware does not know what load the plan predicts for a window (a block says its feed,
+/// not its load; a comment would not survive the senders that strip them), so it judges the
+/// plan's error only where the measured load (the larger of F/F0 and T/T0) says it: near F0,
+/// where the plan predicted about F0. With tol the plan's tolerance ([`plan_tolerance`]: half
+/// the way from F0 to the overload hold, 0.05 at the defaults):
+/// - **lower**: a window above 1 + tol lowers k at once to bring its load to 1 + tol / 2 (from the
+///   largest k of the periods that can have cut its chip: the windows after a correction still
+///   show the chip cut before it, and are not corrected twice);
+/// - **raise**: a window from 1 / (1 + tol) to 1 whose load per unit of k is not falling
+///   ([`PLAN_STEADY`]: a load that stays while k rises is a cut leaving the material, not the
+///   plan's error) raises k at once to bring it to F0 (from the smallest k of those periods, at
+///   most 1 and at most one FRC step a period): a correction comes back wherever the plan is
+///   right again (a hidden boss met at the guard's 1.056 F0 is lowered to 1 + tol / 2, and the
+///   plan's next cut at F0 loads 0.97, within the band), while a light window raises k by at
+///   most 1 + tol, so an entry after it meets at most 1 + tol of F0 (a material the plan
+///   underrates does not creep back to the plan's feed in a pass that leaves the material);
+///   a spike above 1 + 1.5 tol (1.076 F0 at the defaults) that the plan does not repeat leaves
+///   k below the band until the next lowering or the end of the job (the price of the bound);
+/// - **first contact**: k starts at [`PLAN_START`], so that the first entry, a step no 10 ms
+///   loop can follow (the peak force of an entry is the full tooth's at once), meets a material
+///   up to 1.22 times as hard as the plan assumed below the overload hold; until a window has
+///   been loaded to PLAN_START / (1 + tol) for longer than the held peak (`peak_windows`: the
+///   entry's rising edge, the tooth not yet full, is not judged), that load sets k both ways to
+///   bring it to F0;
+/// - lighter windows (air, a corner's dip) leave k as it is: a correction learnt in one cut
+///   carries across the air cut to the next entry.
+///
+/// Bounds: within the tolerance nothing changes, so the noise of the measured peak and the
+/// plan's own rounding (a percent or two above F0 at a piece's peak) do not slow the plan; after
+/// a correction an entry meets at most 1 + tol / 2 of F0 (times the error's change).
+pub const PLAN_START: f32 = 0.9;
+/// A window raises k only while the plan's error it shows (its load per unit of k) is not
+/// falling: at least this fraction of that of every one of the last [`PLAN_HISTORY`] periods
+/// (see [`PLAN_START`]).
+pub const PLAN_STEADY: f32 = 0.99;
+/// Periods of k kept for a correction (the chip lags the feed by up to a tooth period, and the
+/// held peak by `peak_windows`).
+pub const PLAN_HISTORY: usize = 4;
+
+/// The plan's tolerance tol of [`PLAN_START`]: half the way from F0 to the overload hold, as a
+/// fraction of F0 (`-overload_e / 2`; 0.05 at the defaults, where the hold is at 1.1 F0).
+pub fn plan_tolerance(s: &AcSettings) -> f32 {
+    -0.5 * s.overload_e
+}
+
+/// k = PLAN_START as the controller's feed number (k x f_max).
+fn plan_start(s: &AcSettings) -> u32 {
+    (s.f_max as f32 * PLAN_START) as u32
+}
+
+/// The frame's words for the controller's output `feed_cap` (its feed number, 0 in a hold):
+/// (feed cap, plan ratio in Q12). Outside the plan they are the feed number and
+/// [`crate::ports::PLAN_ONE`]. Under the plan ([`FeedCeiling::Plan`]) the controller's feed
+/// number is k x f_max: the frame's cap is f_max (FRM, 0 in a hold) and the ratio k, rounded to
+/// the nearest 4096th and never above 1. AC task (and the host simulation).
+pub fn frame_words(feed_cap: u32, s: &AcSettings) -> (u32, u32) {
+    use crate::ports::PLAN_ONE;
+    if s.ceiling != FeedCeiling::Plan || feed_cap == 0 {
+        return (feed_cap, PLAN_ONE);
+    }
+    let f_max = u64::from(s.f_max.max(1));
+    let k = (u64::from(feed_cap) * u64::from(PLAN_ONE) + f_max / 2) / f_max;
+    (s.f_max, k.min(u64::from(PLAN_ONE)) as u32)
 }
 
 /// Applies the feed ceiling of an enabled AC to a validated block before it is queued (loader task):
@@ -248,7 +330,6 @@ impl AcController {
             t0_nm: s.t0_nm(),
             step: s.step_per_period(),
             drr: Drr::new(&s),
-            f: s.f_min,
             state: AcState::Run,
             pending: None,
             e: 1.0,
@@ -258,6 +339,16 @@ impl AcController {
             band: plaus::Band::new(&s),
             mismatch: 0,
             law: law::FeedLaw::new(s.strategy, s.nominal_feed, s.f_max, s.gpc_lambda),
+            // Under the plan the controller's feed number is k x f_max; k starts at PLAN_START.
+            f: if s.ceiling == FeedCeiling::Plan {
+                plan_start(&s)
+            } else {
+                s.f_min
+            },
+            plan_history: [plan_start(&s); PLAN_HISTORY],
+            plan_learnt: false,
+            plan_loaded: 0,
+            plan_loads: [0.0; PLAN_HISTORY],
             s,
         })
     }
@@ -394,6 +485,12 @@ impl AcController {
                 (None, _) if frozen.is_some() => frozen.map(Alarm::Sensor),
                 (None, _) if mismatch.is_some() => mismatch,
                 (None, None) => Some(Alarm::NoSamples),
+                (None, Some(_)) if self.s.ceiling == FeedCeiling::Plan => {
+                    self.f = self.plan_next(out_of_band);
+                    self.plan_history.rotate_right(1);
+                    self.plan_history[0] = self.f;
+                    None
+                }
                 (None, Some(_)) => {
                     // The paper's FRC lowers the feed on the latest window alone: the held peak
                     // (see `peak_windows`) keeps an overload for windows after the feed has cut
@@ -449,12 +546,87 @@ impl AcController {
     }
 
     /// The operator's resume: leaves Hold and restarts the FRC from f_min. A fault or overload
-    /// that persists holds again at the next period. No effect in Run.
+    /// that persists holds again at the next period. No effect in Run. Under the plan the ratio k
+    /// restarts where it was, lowered by the load the hold measured when that was above F0
+    /// (an overload is the plan's error there, as [`PLAN_START`]'s lowering corrects it).
     pub fn resume(&mut self) {
         if let AcState::Hold(_) = self.state {
             self.state = AcState::Run;
-            self.f = self.s.f_min;
+            self.f = if self.s.ceiling == FeedCeiling::Plan {
+                let load = (1.0 - self.e).max(1.0);
+                ((self.f as f32 / load) as u32).clamp(self.s.f_min, self.s.f_max)
+            } else {
+                self.s.f_min
+            };
+            self.plan_history = [self.f; PLAN_HISTORY];
             self.law.resume();
         }
+    }
+
+    /// Under the plan: the next feed number k x f_max (see [`PLAN_START`]).
+    fn plan_next(&mut self, out_of_band: bool) -> u32 {
+        let f = self.plan_judge(out_of_band);
+        self.plan_loads.rotate_right(1);
+        self.plan_loads[0] = self.plan_error();
+        f
+    }
+
+    /// The plan's error as the held peak shows it: its load per unit of k (the smallest k of
+    /// the periods that can have cut its chip).
+    fn plan_error(&self) -> f32 {
+        let lo = self.plan_history.iter().copied().min().unwrap_or(self.f);
+        (1.0 - self.e) * self.s.f_max as f32 / lo.max(1) as f32
+    }
+
+    fn plan_judge(&mut self, out_of_band: bool) -> u32 {
+        let tol = plan_tolerance(&self.s);
+        let w = self.drr.window_peak();
+        let latest = 1.0 - ecr::errors(w.f_n, w.t_nm, self.f0_n, self.t0_nm).e;
+        let held = 1.0 - self.e;
+        let hist = self.plan_history.iter().copied();
+        let (hi, lo) = (
+            hist.clone().max().unwrap_or(self.f),
+            hist.min().unwrap_or(self.f),
+        );
+        // `as` saturates (and maps NaN to 0, clamped below).
+        let toward = |k: u32, load: f32, to: f32| (k as f32 * to / load) as u32;
+        let raise_floor = if self.plan_learnt {
+            1.0 / (1.0 + tol)
+        } else {
+            PLAN_START / (1.0 + tol)
+        };
+        let f = if latest > 1.0 + tol {
+            self.plan_learnt = true;
+            self.f.min(toward(hi, latest, 1.0 + 0.5 * tol))
+        } else if !self.plan_learnt && held >= raise_floor && {
+            // The first contact: judged once the held peak has seen only loaded windows (the
+            // entry's rising edge, where the tooth is not yet full, says nothing).
+            self.plan_loaded = self.plan_loaded.saturating_add(1);
+            self.plan_loaded > self.s.peak_windows
+        } {
+            // The plan's error measured, both ways.
+            self.plan_learnt = true;
+            if held >= 1.0 {
+                self.f.min(toward(hi, held, 1.0))
+            } else {
+                self.f.max(toward(lo, held, 1.0))
+            }
+        } else if !self.plan_learnt {
+            if held < raise_floor {
+                self.plan_loaded = 0;
+            }
+            self.f
+        } else if out_of_band
+            || held >= 1.0
+            || held < raise_floor
+            || self.plan_error() < PLAN_STEADY * self.plan_loads.iter().copied().fold(0.0, f32::max)
+        {
+            self.f
+        } else {
+            self.f
+                .max(toward(lo, held, 1.0))
+                .min(self.f.saturating_add(self.step as u32))
+        };
+        f.clamp(self.s.f_min, self.s.f_max)
     }
 }

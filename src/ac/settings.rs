@@ -110,7 +110,8 @@ pub struct AcSettings {
     /// windows >= 60000 / (rpm x flutes x period_ms); default 3 (30 ms).
     pub peak_windows: u32,
     /// What the frame's feed ceiling is while the AC runs: the programmed feed (default, the
-    /// frame takes min(programmed, cap)) or FRM, so the AC alone sets the feed up to `f_max`.
+    /// frame takes min(programmed, cap)), FRM, so the AC alone sets the feed up to `f_max`, or
+    /// the plan: the programmed feeds times the controller's correction k <= 1.
     pub ceiling: FeedCeiling,
     /// The feed law (`$251`, see `super::law`): GPC by default, the fastest law of the AC
     /// benchmark that finished every program without a hold with both feed drives (README, "AC
@@ -159,6 +160,12 @@ pub enum FeedCeiling {
     /// Feed blocks are queued at FRM (f = q0): the controller's cap is the feed. Only applied
     /// while the AC is enabled; without AC the programmed feeds run.
     Frm,
+    /// Prediction and feedback together (issue 11): the programmed feeds are a plan (an
+    /// optimised program, `millac optimise`) and run as feed-forward; the controller corrects
+    /// them by one ratio k <= 1 that the frame multiplies every block's feed by
+    /// ([`crate::ports::FeedCap::plan_ratio`]), learnt where the measured load shows the plan's
+    /// error and carried across blocks (see `super::AcController` and [`super::PLAN_START`]).
+    Plan,
 }
 
 /// Most AC windows a peak can be held over.

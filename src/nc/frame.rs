@@ -260,7 +260,8 @@ impl Frame {
                         ..
                     }) => {
                         let cap = feed_cap.feed_cap();
-                        if !self.feed(cap, op, l.f, l.f_floor, l.decel_below, l.ramp) {
+                        let k = feed_cap.plan_ratio();
+                        if !self.feed(cap, k, op, l.f, l.f_floor, l.decel_below, l.ramp) {
                             return Pulses {
                                 steps: 0,
                                 signs: self.signs,
@@ -304,6 +305,7 @@ impl Frame {
                     }
                 } else if self.feed(
                     feed_cap.feed_cap(),
+                    feed_cap.plan_ratio(),
                     op,
                     self.regs.f,
                     self.regs.f_floor,
@@ -517,22 +519,30 @@ impl Frame {
 
     /// Feed-rate DDA: true when this frame produces an interpolation command.
     ///
-    /// The velocity v (Q8) moves towards the target min(f, cap) * operator factor by at most the
-    /// block's ramp per frame, up or down (feed hold: target 0; resume: back to the target);
+    /// The velocity v (Q8) moves towards the target min(f x k, cap) * operator factor by at most
+    /// the block's ramp per frame, up or down (feed hold: target 0; resume: back to the target);
     /// a block flagged for deceleration then caps it at once at max(f / 5, K * remaining / 256),
     /// the paper's exponential approach (it is not ramped: it is the rule for those blocks).
+    /// k is the AC's plan ratio (Q12, [`crate::ports::PLAN_ONE`] but under the plan).
     #[inline]
     #[allow(clippy::too_many_arguments)] // the block's registers, read in place
     fn feed(
         &mut self,
         feed_cap: u32,
+        plan_ratio: u32,
         op: u32,
         f: u32,
         f_floor: u32,
         decel_below: u32,
         ramp: u32,
     ) -> bool {
-        let lim = if feed_cap < f { feed_cap } else { f };
+        // f <= q0 <= 10^6 and k <= 2^12: the product fits 32 bits.
+        let planned = f.wrapping_mul(plan_ratio) >> 12;
+        let lim = if feed_cap < planned {
+            feed_cap
+        } else {
+            planned
+        };
         // f <= q0 <= 10^6 and the factor <= 512: the product fits 32 bits.
         let target = lim.wrapping_mul(op & operator::FEED_MASK);
         let mut v = self.v;

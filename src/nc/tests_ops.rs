@@ -70,8 +70,12 @@ impl Rig {
     }
     /// Runs `n` frames with the AC cap `cap` and the operator word `op`.
     fn run(&mut self, n: usize, cap: u32, op: u32) {
+        self.run_plan(n, cap, op, crate::ports::PLAN_ONE);
+    }
+    /// Runs `n` frames with the AC cap, the operator word and the AC's plan ratio (Q12).
+    fn run_plan(&mut self, n: usize, cap: u32, op: u32, ratio: u32) {
         for _ in 0..n {
-            let p = self.frame.tick(&mut self.q, (cap, op));
+            let p = self.frame.tick(&mut self.q, (cap, op, ratio));
             for k in 0..3 {
                 if p.steps & (1 << k) != 0 {
                     self.pulses[k] += if p.signs & (1 << k) != 0 { 1 } else { -1 };
@@ -324,6 +328,49 @@ fn overrides_scale_the_feed_and_the_ac_cap_is_ramped() {
     );
     let after = rig.pulsed(1000 + ramp_frames + 2) as f64 / (1000 - ramp_frames - 2) as f64;
     assert!((after - 1.0 / 3.0).abs() < 0.01, "{after}");
+}
+
+/// Under the plan (`FeedCeiling::Plan`) the frame feeds every block at its own programmed feed
+/// times the AC's ratio k, so a change of the plan's feed at a block boundary takes effect in
+/// the frame itself (the feed-forward), and the cap still binds.
+#[test]
+fn the_plan_ratio_scales_every_blocks_feed_and_the_cap_still_binds() {
+    let c = cfg();
+    // Two lines, the plan's feeds 3000 and 1500, k = 0.75: 0.75 and 0.375 pulses per frame.
+    let blocks = [
+        line([30_000, 0, 0], 3000, false, &c),
+        line([30_000, 0, 0], 1500, false, &c),
+    ];
+    let mut rig = Rig::new(c, &blocks);
+    let mut n = 0;
+    while (!rig.q.is_empty() || !rig.frame.idle()) && n < 200_000 {
+        rig.run_plan(1, u32::MAX, RUN, 3072);
+        n += 1;
+    }
+    assert_eq!(rig.pulses, [60_000, 0, 0], "every pulse, whatever k");
+    let rate = |r: std::ops::Range<usize>| {
+        let len = r.len() as f64;
+        rig.steps[r].iter().filter(|&&s| s != 0).count() as f64 / len
+    };
+    let first = rate(1000..11_000);
+    assert!((first - 0.75).abs() < 0.005, "first block: {first}");
+    let second = rate(n - 11_000..n - 1000);
+    assert!((second - 0.375).abs() < 0.005, "second block: {second}");
+    // k = 1 is the programmed feed exactly; a cap below f x k binds.
+    for (ratio, cap, per_frame) in [
+        (4096u32, u32::MAX, 1.0f64),
+        (4096, 1000, 1.0 / 3.0),
+        (2048, 1000, 1.0 / 3.0),
+        (1024, 1000, 0.25),
+    ] {
+        let mut rig = Rig::new(c, &[line([40_000, 0, 0], 3000, false, &c)]);
+        rig.run_plan(3000, cap, RUN, ratio);
+        let rate = rig.pulsed(1000) as f64 / 2000.0;
+        assert!(
+            (rate - per_frame).abs() < 0.005,
+            "k {ratio}, cap {cap}: {rate}"
+        );
+    }
 }
 
 #[test]

@@ -159,6 +159,15 @@ fn held(out: &mut AcOutput, a: crate::ac::Alarm, ctl: &AcController) {
     out.feed_cap = ctl.feed_cap();
 }
 
+/// The controller's feed number as the frame reads it: the cap and the plan ratio
+/// ([`crate::ac::frame_words`]). The ratio is stored first: under the plan a hold's cap of 0
+/// must not meet a stale ratio of a resume, and a resume's cap must not meet the hold's.
+fn publish(status: &Status, feed_cap: u32, s: &crate::ac::AcSettings) {
+    let (cap, ratio) = crate::ac::frame_words(feed_cap, s);
+    status.plan_ratio.store(ratio, Relaxed);
+    status.feed_cap.store(cap, Relaxed);
+}
+
 /// What one period did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Period {
@@ -173,7 +182,7 @@ impl AcPeriod {
     /// Stores the controller's first cap into `status` when `enabled`. Init context.
     pub fn new(ctl: AcController, nc: Settings, enabled: bool, status: &Status) -> Self {
         if enabled {
-            status.feed_cap.store(ctl.feed_cap(), Relaxed);
+            publish(status, ctl.feed_cap(), ctl.settings());
         }
         AcPeriod {
             ctl,
@@ -350,7 +359,7 @@ impl AcPeriod {
         status.ac_force.store(out.f_n.to_bits(), Relaxed);
         status.ac_torque.store(out.t_nm.to_bits(), Relaxed);
         if self.enabled {
-            status.feed_cap.store(out.feed_cap, Relaxed);
+            publish(status, out.feed_cap, self.ctl.settings());
         }
         let held = matches!(out.state, AcState::Hold(_));
         self.still = if held && enc == self.last {

@@ -50,8 +50,8 @@ pub struct FrameTask {
     reloads: Reloads,
 }
 
-/// The AC's feed cap (one load, only by the frames that feed) and the operator's word (one load
-/// per frame) as the frame reads them.
+/// The AC's feed cap and plan ratio (one load each, only by the frames that feed) and the
+/// operator's word (one load per frame) as the frame reads them.
 struct StatusCap<'a>(&'a Status);
 
 impl FeedCap for StatusCap<'_> {
@@ -62,6 +62,10 @@ impl FeedCap for StatusCap<'_> {
     #[inline(always)]
     fn operator(&self) -> u32 {
         self.0.operator.load(Relaxed)
+    }
+    #[inline(always)]
+    fn plan_ratio(&self) -> u32 {
+        self.0.plan_ratio.load(Relaxed)
     }
 }
 

@@ -13,6 +13,10 @@ pub struct Status {
     /// frame ISR (only in the frames that feed). Zero at reset: init stores `u32::MAX` (or the AC's
     /// first cap) before any interrupt is enabled.
     pub feed_cap: AtomicU32,
+    /// The AC's plan ratio k in Q12 (`crate::ports::FeedCap::plan_ratio`; `ports::PLAN_ONE` but
+    /// under `FeedCeiling::Plan`). Written by the AC task, read by the frame ISR with the cap.
+    /// Zero at reset: init stores `PLAN_ONE`.
+    pub plan_ratio: AtomicU32,
     /// The operator's word (`millac::nc::operator`): feed and rapid override, feed hold, abort.
     /// Written by the loader only (from the protocol's realtime requests); read by the frame ISR
     /// once per frame. Zero at reset means held: init stores `operator::RUN` before any interrupt
@@ -92,6 +96,7 @@ impl Status {
     pub const fn new() -> Self {
         Status {
             feed_cap: AtomicU32::new(0),
+            plan_ratio: AtomicU32::new(0),
             operator: AtomicU32::new(0),
             velocity_q8: AtomicU32::new(0),
             ladder: AtomicU32::new(0),
@@ -117,10 +122,11 @@ impl Status {
         }
     }
 
-    /// Init, before any interrupt is enabled: no AC cap, the operator's word at 100 % (both words
-    /// are zero at reset, which would hold the feed).
+    /// Init, before any interrupt is enabled: no AC cap, the plan ratio 1, the operator's word at
+    /// 100 % (the words are zero at reset, which would hold the feed).
     pub fn start(&self) {
         self.feed_cap.store(u32::MAX, Relaxed);
+        self.plan_ratio.store(crate::ports::PLAN_ONE, Relaxed);
         self.operator.store(crate::nc::operator::RUN, Relaxed);
     }
 

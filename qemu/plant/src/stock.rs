@@ -262,6 +262,26 @@ impl Stock {
         }
     }
 
+    /// The stock as it may be at worst (host: the optimiser's guard against a wrong
+    /// description, issue 11): every cell of a blank filled to the stock's highest top, as if
+    /// no hole, pocket or terrace had been made. Cells outside every blank stay empty.
+    pub fn envelope(&self) -> Stock {
+        let top = self
+            .top
+            .iter()
+            .copied()
+            .filter(|t| t.is_finite())
+            .fold(f64::NEG_INFINITY, f64::max);
+        Stock {
+            top: self
+                .top
+                .iter()
+                .map(|&t| if t.is_finite() { top } else { t })
+                .collect(),
+            ..self.clone()
+        }
+    }
+
     /// The material top of every cell (mm), row by row (cell (i, j) at `j * nx + i`, see
     /// [`Stock::dims`]), for comparing two cuts of the same stock.
     pub fn tops(&self) -> &[f64] {

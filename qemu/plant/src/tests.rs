@@ -301,6 +301,27 @@ fn transducer_codes_clamp_at_the_rails() {
     assert!(s.iter().any(|(_, s)| s.codes[1] == 4095 || s.codes[1] == 0));
 }
 
+/// The envelope (the optimiser's guard): holes, pockets and terraces filled to the stock's top,
+/// nothing added outside the blanks.
+#[test]
+fn the_envelope_fills_every_blank_cell_to_the_top() {
+    let st = Stock::parse(
+        "blank X0 Y0 W1 H1 Z0\nblank X1 Y0 W1 H1 Z-0.2\nhole X0.5 Y0.5 D0.4 Z-0.5\npocket X1.2 Y0.2 W0.5 H0.5 Z-0.4",
+    )
+    .unwrap();
+    let e = st.envelope();
+    assert_eq!(e.dims(), st.dims());
+    for (x, y) in [(0.5, 0.5), (1.5, 0.5), (1.3, 0.3), (0.1, 0.9)] {
+        assert_eq!(e.top_at(x * 25.4, y * 25.4), 0.0, "({x}, {y})");
+    }
+    assert!(st.top_at(0.5 * 25.4, 0.5 * 25.4) < 0.0);
+    let outside = Stock::parse("blank X0 Y0 W1 H1 Z0\nblank X1.5 Y0 W0.5 H1 Z0").unwrap();
+    assert_eq!(
+        outside.envelope().top_at(1.25 * 25.4, 0.5 * 25.4),
+        f64::NEG_INFINITY
+    );
+}
+
 #[test]
 fn stock_parse_and_errors() {
     let st = Stock::default();

@@ -239,6 +239,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     p.u8(match a.ceiling {
         FeedCeiling::Programmed => 0,
         FeedCeiling::Frm => 1,
+        FeedCeiling::Plan => 2,
     });
     p.u8(s.report.status_mask);
     p.u8(s.report.inches as u8);
@@ -349,6 +350,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let ceiling = match t.u8()? {
         0 => Some(FeedCeiling::Programmed),
         1 => Some(FeedCeiling::Frm),
+        2 => Some(FeedCeiling::Plan),
         _ => None,
     };
     let status_mask = t.u8()?;

@@ -424,16 +424,17 @@ pub static TABLE: [Entry; 62] = [
     ),
     flag!(
         263,
-        "feed ceiling (0 programmed, 1 FRM)",
+        "feed ceiling (0 programmed, 1 FRM, 2 plan)",
         |m| match m.ac.ceiling {
             FeedCeiling::Programmed => 0,
             FeedCeiling::Frm => 1,
+            FeedCeiling::Plan => 2,
         },
         |m, v| {
-            m.ac.ceiling = if choice(v, 2)? == 0 {
-                FeedCeiling::Programmed
-            } else {
-                FeedCeiling::Frm
+            m.ac.ceiling = match choice(v, 3)? {
+                0 => FeedCeiling::Programmed,
+                1 => FeedCeiling::Frm,
+                _ => FeedCeiling::Plan,
             };
             Some(())
         }

@@ -126,6 +126,11 @@ fn ac_settings_take_their_units_and_signs() {
     }
     assert!(!m.ac_enabled);
     assert_eq!((m.ac.pick, m.ac.ceiling), (Pick::Latest, FeedCeiling::Frm));
+    set(&mut m, "$263=2").unwrap();
+    assert_eq!(m.ac.ceiling, FeedCeiling::Plan);
+    assert!(set(&mut m, "$263=3").is_err());
+    assert_eq!(m.ac.ceiling, FeedCeiling::Plan);
+    set(&mut m, "$263=1").unwrap();
     assert_eq!((m.ac.peak_windows, m.ac.period_ms), (8, 20));
     assert_eq!((m.ac.f_min, m.ac.f_max), (50, 2500));
     set(&mut m, "$260=-0.2").unwrap();
