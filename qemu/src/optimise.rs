@@ -903,3 +903,104 @@ mod tests {
         assert_eq!(split(&flat, 0.1, 1.0), [(0, 999)]);
     }
 }
+
+/// The combined controller's figure (host; `predict_bench`): the peak force of every AC period
+/// over F_max against time for each run (the plan alone, the plan under the AC), with F0 and
+/// the limit, and below it the plan ratio k the AC set (the runs with AC). `fraction` is F0 /
+/// F_max; `f_max` the AC's FRM feed number (k = logged feed number / f_max).
+pub fn plot_combined(
+    path: &std::path::Path,
+    title: &str,
+    runs: &[(&str, &acsim::HostRun)],
+    tool_f_max_n: f64,
+    fraction: f64,
+    f_max: u32,
+) -> Result<()> {
+    use plotters::prelude::*;
+    let root = SVGBackend::new(path, (1000, 650)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (upper, lower) = root.split_vertically(380);
+    let end = runs
+        .iter()
+        .map(|(_, r)| r.rows.last().map_or(0.0, |x| x.t_ms as f64 * 1e-3))
+        .fold(1.0, f64::max);
+    let colours = [RGBColor(150, 150, 150), BLUE, RED, GREEN];
+    let mut chart = ChartBuilder::on(&upper)
+        .caption(
+            format!("{title}: peak force per AC period"),
+            ("sans-serif", 15),
+        )
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0f64..end, 0f64..1.2)?;
+    chart
+        .configure_mesh()
+        .x_desc("time, s")
+        .y_desc("F / F_max")
+        .draw()?;
+    for (i, (name, r)) in runs.iter().enumerate() {
+        let c = colours[i % colours.len()];
+        chart
+            .draw_series(LineSeries::new(
+                r.rows
+                    .iter()
+                    .map(|x| (x.t_ms as f64 * 1e-3, x.f_true_n / tool_f_max_n)),
+                c.stroke_width(1),
+            ))?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c));
+    }
+    for (level, name) in [(fraction, "F0"), (1.0, "F_max (the limit)")] {
+        chart
+            .draw_series(LineSeries::new(
+                [(0.0, level), (end, level)],
+                BLACK.stroke_width(1),
+            ))?
+            .label(name)
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    let mut chart = ChartBuilder::on(&lower)
+        .caption("plan ratio k the AC sets ($263=2)", ("sans-serif", 15))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0f64..end, 0.7f64..1.05)?;
+    chart
+        .configure_mesh()
+        .x_desc("time, s")
+        .y_desc("k")
+        .draw()?;
+    for (i, (name, r)) in runs.iter().enumerate() {
+        if r.rows.first().is_none_or(|x| x.feed_cap == u32::MAX) {
+            continue;
+        }
+        let c = colours[i % colours.len()];
+        chart
+            .draw_series(LineSeries::new(
+                r.rows.iter().map(|x| {
+                    (
+                        x.t_ms as f64 * 1e-3,
+                        f64::from(x.feed_cap) / f64::from(f_max),
+                    )
+                }),
+                c.stroke_width(1),
+            ))?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
