@@ -44,18 +44,26 @@ impl BlockSource for std::collections::VecDeque<Block> {
 /// The plan ratio of 1 (Q12): the block's programmed feed as it is.
 pub const PLAN_ONE: u32 = 1 << 12;
 
+/// f x k for a plan ratio k in Q12 (see [`FeedCap::planned`]): f <= q0 <= 10^6 and k <= 2^12,
+/// so the product fits 32 bits. Frame ISR.
+#[inline(always)]
+pub fn times_ratio(f: u32, k: u32) -> u32 {
+    f.wrapping_mul(k) >> 12
+}
+
 /// Where a frame gets the adaptive controller's feed cap. Frame ISR: only the frames that run the
 /// feed DDA (linear or circular feeding) read it. A `u32` is a fixed cap; the firmware passes a
 /// type that loads the AC task's atomic.
 pub trait FeedCap {
     /// Feed number cap: u32::MAX = no cap, 0 = feed hold.
     fn feed_cap(&self) -> u32;
-    /// The adaptive controller's plan ratio k in Q12 (0..=[`PLAN_ONE`]): the frame feeds at
-    /// min(f x k, cap), f the block's programmed feed. [`PLAN_ONE`] except under
-    /// `FeedCeiling::Plan` (prediction and feedback together, `crate::ac`). Read with the cap.
+    /// The block's programmed feed `f` times the adaptive controller's plan ratio k (Q12,
+    /// 0..=[`PLAN_ONE`]): the frame feeds at min(f x k, cap). k is 1 except under
+    /// `FeedCeiling::Plan` (prediction and feedback together, `crate::ac`); read with the cap.
+    /// Default: f as it is (no load, no multiply: a frame without the plan ratio).
     #[inline(always)]
-    fn plan_ratio(&self) -> u32 {
-        PLAN_ONE
+    fn planned(&self, f: u32) -> u32 {
+        f
     }
     /// The operator's word (see [`crate::nc::operator`]): feed override, rapid override, hold,
     /// abort. Read once per frame. Default: run at 100 %.
@@ -95,8 +103,8 @@ impl FeedCap for (u32, u32, u32) {
         self.1
     }
     #[inline(always)]
-    fn plan_ratio(&self) -> u32 {
-        self.2
+    fn planned(&self, f: u32) -> u32 {
+        times_ratio(f, self.2)
     }
 }
 

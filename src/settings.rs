@@ -114,6 +114,10 @@ pub struct BoardLimits {
     pub frame_work_ns: u32,
     /// Worst pulse-end ISR time including interrupt entry and exit, ns.
     pub pulse_end_ns: u32,
+    /// The board's frame applies the AC's plan ratio (`FeedCeiling::Plan`, `$263=2`; the frame
+    /// task `rt::FrameTask<true>`). A board whose frame budget has no room for its load and
+    /// multiply leaves it out (`FrameTask<false>`) and refuses `$263=2`.
+    pub plan_ratio: bool,
 }
 
 impl BoardLimits {
@@ -124,6 +128,7 @@ impl BoardLimits {
         max_rapid_hz: 200_000,
         frame_work_ns: 0,
         pulse_end_ns: 0,
+        plan_ratio: true,
     };
 
     /// The Nucleo-F446RE (STM32F446RE at 180 MHz): ISR times from instruction bounds and a
@@ -134,6 +139,9 @@ impl BoardLimits {
         max_rapid_hz: 250_000,
         frame_work_ns: F446_ISR_BOUNDS.ns(F446_ISR_BOUNDS.frame_instructions),
         pulse_end_ns: F446_ISR_BOUNDS.ns(F446_ISR_BOUNDS.pulse_end_instructions),
+        // Its frame (with the DWT measurement) is at its 205-instruction bound for 200 kHz
+        // already: the plan ratio's load and multiply (and the layout they move) made it 207.
+        plan_ratio: false,
     };
 
     /// The most frame work (ns, entry and exit included) that settings `s` tolerate on this board:
@@ -384,6 +392,7 @@ mod tests {
         max_rapid_hz: 250_000,
         frame_work_ns: 1500,
         pulse_end_ns: 400,
+        plan_ratio: true,
     };
 
     /// 200 kHz contouring and rapid, 2 us pulse, 2 us sign setup.
@@ -626,6 +635,7 @@ mod tests {
             max_rapid_hz: u32::MAX,
             frame_work_ns: 1,
             pulse_end_ns: 1,
+            plan_ratio: true,
         };
         let ceiling = Settings {
             pulse_width_ns: 100,

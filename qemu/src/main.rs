@@ -116,6 +116,16 @@ enum Cmd {
         /// Feeds of the test cuts, ipm.
         #[arg(long, value_delimiter = ',', default_value = "5,10,15,20,25,30")]
         feeds: Vec<f64>,
+        /// A test cut cut on a machine: its depth (mm), its feed (ipm) and its run's ac.csv
+        /// (repeat for every cut; at least six, over two depths and two feeds or more). With
+        /// logs the model is fitted from them, not from the simulated plant.
+        #[arg(long = "log", value_name = "A_MM,F_IPM,AC_CSV", value_parser = parse_log)]
+        logs: Vec<(f64, f64, PathBuf)>,
+        /// Write the test cuts of the grid (--depths x --feeds) as programs into this folder
+        /// (cut-A-F.nc, on the blank `blank X0 Y0 W3 H2 Z0`, the top face at Z0) and stop: cut
+        /// them on the machine with the AC measuring, then fit with --log.
+        #[arg(long, value_name = "DIR")]
+        write_cuts: Option<PathBuf>,
     },
     /// Run the firmware in serial mode with its UART on a TCP port for a G-code sender, until
     /// SIGINT or SIGTERM; then write DIR/capture.vcd and DIR/summary.json.
@@ -403,7 +413,12 @@ fn main() {
             rpm,
             depths,
             feeds,
-        }) => calibrate(&out, tool, material.into(), rpm, &depths, &feeds),
+            logs,
+            write_cuts,
+        }) => match write_cuts {
+            Some(dir) => write_test_cuts(&dir, &depths, &feeds),
+            None => calibrate(&out, tool, material.into(), rpm, &depths, &feeds, &logs),
+        },
         Some(Cmd::Serve {
             tcp,
             out,
@@ -793,7 +808,44 @@ fn optimise(
     Ok(true)
 }
 
-/// `calibrate`: the quadratic model from test cuts on the simulated plant, its file and a table.
+/// `--log A,F,FILE`: a test cut's depth (mm), feed (ipm) and its run's ac.csv.
+fn parse_log(s: &str) -> std::result::Result<(f64, f64, PathBuf), String> {
+    let mut it = s.splitn(3, ',');
+    let num = |v: Option<&str>, what: &str| {
+        v.and_then(|v| v.trim().parse::<f64>().ok())
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .ok_or_else(|| format!("'{s}': {what} must be a number > 0 (A_MM,F_IPM,AC_CSV)"))
+    };
+    let a = num(it.next(), "the depth")?;
+    let f = num(it.next(), "the feed")?;
+    let path = it
+        .next()
+        .filter(|p| !p.is_empty())
+        .ok_or_else(|| format!("'{s}': the ac.csv file is missing (A_MM,F_IPM,AC_CSV)"))?;
+    Ok((a, f, PathBuf::from(path)))
+}
+
+/// `calibrate --write-cuts DIR`: the test cuts of the grid as programs.
+fn write_test_cuts(dir: &Path, depths: &[f64], feeds: &[f64]) -> Result<bool> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    for &a in depths {
+        for &f in feeds {
+            let p = dir.join(format!("cut-{a}-{f}.nc"));
+            std::fs::write(&p, millac_qemu::model::test_cut(a, f))
+                .with_context(|| format!("writing {}", p.display()))?;
+        }
+    }
+    println!(
+        "millac calibrate: {} test cuts in {} (stock: {})",
+        depths.len() * feeds.len(),
+        dir.display(),
+        millac_qemu::model::TEST_STOCK.trim()
+    );
+    Ok(true)
+}
+
+/// `calibrate`: the quadratic model from test cuts (on the simulated plant, or cut on a machine:
+/// their ac.csv files), its file and a table.
 fn calibrate(
     out: &Path,
     tool: Option<millac_plant::Tool>,
@@ -801,15 +853,26 @@ fn calibrate(
     rpm: f64,
     depths: &[f64],
     feeds: &[f64],
+    logs: &[(f64, f64, PathBuf)],
 ) -> Result<bool> {
     use millac_qemu::{acsim, model};
-    let cut = acsim::Cut {
-        tool: tool.unwrap_or_default(),
-        material,
-        spindle_rpm: rpm,
-        ..acsim::Cut::steel(millac_plant::Stock::default(), 1)
+    let (m, cuts) = if logs.is_empty() {
+        let cut = acsim::Cut {
+            tool: tool.unwrap_or_default(),
+            material,
+            spindle_rpm: rpm,
+            ..acsim::Cut::steel(millac_plant::Stock::default(), 1)
+        };
+        model::calibrate(&cut, depths, feeds)?
+    } else {
+        let mut texts = Vec::new();
+        for (a, f, p) in logs {
+            let t =
+                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            texts.push((*a, *f, t));
+        }
+        model::calibrate_from_logs(&texts)?
     };
-    let (m, cuts) = model::calibrate(&cut, depths, feeds)?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }

@@ -150,38 +150,100 @@ pub fn test_cut(depth_mm: f64, feed_ipm: f64) -> String {
 /// The stock of the test cuts.
 pub const TEST_STOCK: &str = "blank X0 Y0 W3 H2 Z0\n";
 
+/// The steady part of a test cut ([`test_cut`]): the tool centre from X 0.5 to 1.1 in (BLU of
+/// 0.0001 in), in the cut (Z below the top). The entry and the exit are left out.
+const STEADY_X_BLU: std::ops::RangeInclusive<i64> = 5_000..=11_000;
+
+/// y of one test cut from its run's ac.csv (`millac run`'s, or a real machine's log turned into
+/// it: the columns `x_blu`, `z_blu` and `f_meas_n`, the force the AC measured): the largest
+/// measured force of the steady part ([`STEADY_X_BLU`]), as [`calibrate`] takes the plant's.
+/// Bad input (no such columns, a number that does not parse, no period in the steady part) is
+/// an error naming what is missing.
+pub fn y_from_ac_csv(text: &str) -> Result<f64> {
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines
+        .next()
+        .ok_or_else(|| anyhow::anyhow!("ac.csv is empty"))?
+        .split(',')
+        .collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h.trim() == name)
+            .ok_or_else(|| anyhow::anyhow!("ac.csv has no column {name}"))
+    };
+    let (x, z, f) = (col("x_blu")?, col("z_blu")?, col("f_meas_n")?);
+    let mut y: Option<f64> = None;
+    for (i, line) in lines.enumerate() {
+        let v: Vec<&str> = line.split(',').collect();
+        let get = |k: usize| -> Result<f64> {
+            v.get(k)
+                .and_then(|s| s.trim().parse::<f64>().ok())
+                .filter(|n| n.is_finite())
+                .ok_or_else(|| anyhow::anyhow!("ac.csv line {}: column {k} is not a number", i + 2))
+        };
+        let (xv, zv, fv) = (get(x)?, get(z)?, get(f)?);
+        if STEADY_X_BLU.contains(&(xv as i64)) && zv < 0.0 {
+            y = Some(y.map_or(fv, |m: f64| m.max(fv)));
+        }
+    }
+    y.ok_or_else(|| {
+        anyhow::anyhow!(
+            "ac.csv has no period in a test cut's steady part (tool centre X 0.5..1.1 in, Z below 0): not a calibration cut's log"
+        )
+    })
+}
+
+/// The model from test cuts cut on a machine: (a mm, f ipm, its run's ac.csv text) each, as
+/// `millac calibrate --log A,F,FILE` reads them (see [`y_from_ac_csv`]). Returns the model and
+/// the test cuts (a, f, y N).
+pub fn calibrate_from_logs(cuts: &[(f64, f64, String)]) -> Result<(Quadratic, Vec<TestCut>)> {
+    let mut pts = Vec::new();
+    for (a, f, text) in cuts {
+        let y = y_from_ac_csv(text).map_err(|e| anyhow::anyhow!("test cut {a} mm F{f}: {e}"))?;
+        pts.push((*a, *f, y));
+    }
+    Ok((Quadratic::fit(&pts)?, pts))
+}
+
 /// Calibrates the model on the simulated plant (the cut's tool, material and spindle speed; its
 /// stock is replaced by the test block): a full slot at every depth and feed of the grid, y the
-/// largest resultant force (N) of the steady part (tool centre X 0.5 to 1.1 in), as a real
-/// machine's ac.csv would give it. Returns the model and the test cuts (a mm, f ipm, y N).
+/// largest resultant force (N) of the steady part (tool centre X 0.5 to 1.1 in, [`test_cut_y`]),
+/// as a real machine's ac.csv gives it ([`calibrate_from_logs`]). Returns the model and the test
+/// cuts (a mm, f ipm, y N).
 pub fn calibrate(
     cut: &crate::acsim::Cut,
     depths_mm: &[f64],
     feeds_ipm: &[f64],
 ) -> Result<(Quadratic, Vec<TestCut>)> {
-    let settings = millac::Settings::default();
-    let stock = millac_plant::Stock::parse(TEST_STOCK).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut pts = Vec::new();
     for &a in depths_mm {
         for &f in feeds_ipm {
-            let text = test_cut(a, f);
-            let prog = crate::analysis::load_program(&text, &settings)
-                .map_err(|e| anyhow::anyhow!("test cut {a} mm F{f}: {e}"))?;
-            let c = crate::acsim::Cut {
-                stock: stock.clone(),
-                ..cut.clone()
-            };
-            let run = crate::acsim::run(&prog, &settings, &c, None)?;
-            let y = run
-                .rows
-                .iter()
-                .filter(|r| (5_000..=11_000).contains(&r.pos_blu[0]) && r.pos_blu[2] < 0)
-                .map(|r| r.f_true_n)
-                .fold(0.0, f64::max);
-            pts.push((a, f, y));
+            pts.push((a, f, test_cut_y(cut, a, f)?));
         }
     }
     Ok((Quadratic::fit(&pts)?, pts))
+}
+
+/// One test cut ([`test_cut`]) on the simulated plant (the cut's tool, material and speed on the
+/// test block): y, the largest resultant force (N) of its steady part ([`STEADY_X_BLU`]).
+pub fn test_cut_y(cut: &crate::acsim::Cut, a: f64, f: f64) -> Result<f64> {
+    let settings = millac::Settings::default();
+    let stock = millac_plant::Stock::parse(TEST_STOCK).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let text = test_cut(a, f);
+    let prog = crate::analysis::load_program(&text, &settings)
+        .map_err(|e| anyhow::anyhow!("test cut {a} mm F{f}: {e}"))?;
+    let c = crate::acsim::Cut {
+        stock,
+        ..cut.clone()
+    };
+    let run = crate::acsim::run(&prog, &settings, &c, None)?;
+    Ok(run
+        .rows
+        .iter()
+        .filter(|r| STEADY_X_BLU.contains(&r.pos_blu[0]) && r.pos_blu[2] < 0)
+        .map(|r| r.f_true_n)
+        .fold(0.0, f64::max))
 }
 
 impl Quadratic {

@@ -863,47 +863,6 @@ pub fn plot(path: &std::path::Path, title: &str, o: &Optimised) -> Result<()> {
     Ok(())
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn pt(x: i64, v: f64) -> WalkPoint {
-        WalkPoint {
-            block: 0,
-            pos_blu: [x, 0, 0],
-            feed_ipm: v,
-            limit_ipm: v,
-            cut_limit_ipm: v,
-            f_peak_n: 0.0,
-            t_peak_nm: 0.0,
-        }
-    }
-
-    /// Pieces cover the block end to end, share their boundary points, split where the schedule
-    /// leaves its band, and a short tail joins the piece before it.
-    #[test]
-    fn split_covers_the_block_and_follows_the_schedule() {
-        // 1 mm = 394 BLU at 0.0001 in. 10 mm at 20 ipm, then 10 mm at 10 ipm, then 0.2 mm at 30.
-        let mut pts: Vec<WalkPoint> = (0..=3937).map(|x| pt(x, 20.0)).collect();
-        pts.extend((3938..=7874).map(|x| pt(x, 10.0)));
-        pts.extend((7875..=7953).map(|x| pt(x, 30.0)));
-        let r = split(&pts, 0.1, 1.0);
-        assert_eq!(r.first().unwrap().0, 0);
-        assert_eq!(r.last().unwrap().1, pts.len() - 1);
-        for w in r.windows(2) {
-            assert_eq!(w[0].1, w[1].0);
-        }
-        assert_eq!(r.len(), 2, "{r:?}");
-        assert_eq!(
-            r[0].1, 3937,
-            "the first piece ends at the last point at 20 ipm"
-        );
-        // One feed throughout: one piece.
-        let flat: Vec<WalkPoint> = (0..1000).map(|x| pt(x, 12.0)).collect();
-        assert_eq!(split(&flat, 0.1, 1.0), [(0, 999)]);
-    }
-}
-
 /// The combined controller's figure (host; `predict_bench`): the peak force of every AC period
 /// over F_max against time for each run (the plan alone, the plan under the AC), with F0 and
 /// the limit, and below it the plan ratio k the AC set (the runs with AC). `fraction` is F0 /
@@ -1003,4 +962,45 @@ pub fn plot_combined(
         .draw()?;
     root.present()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pt(x: i64, v: f64) -> WalkPoint {
+        WalkPoint {
+            block: 0,
+            pos_blu: [x, 0, 0],
+            feed_ipm: v,
+            limit_ipm: v,
+            cut_limit_ipm: v,
+            f_peak_n: 0.0,
+            t_peak_nm: 0.0,
+        }
+    }
+
+    /// Pieces cover the block end to end, share their boundary points, split where the schedule
+    /// leaves its band, and a short tail joins the piece before it.
+    #[test]
+    fn split_covers_the_block_and_follows_the_schedule() {
+        // 1 mm = 394 BLU at 0.0001 in. 10 mm at 20 ipm, then 10 mm at 10 ipm, then 0.2 mm at 30.
+        let mut pts: Vec<WalkPoint> = (0..=3937).map(|x| pt(x, 20.0)).collect();
+        pts.extend((3938..=7874).map(|x| pt(x, 10.0)));
+        pts.extend((7875..=7953).map(|x| pt(x, 30.0)));
+        let r = split(&pts, 0.1, 1.0);
+        assert_eq!(r.first().unwrap().0, 0);
+        assert_eq!(r.last().unwrap().1, pts.len() - 1);
+        for w in r.windows(2) {
+            assert_eq!(w[0].1, w[1].0);
+        }
+        assert_eq!(r.len(), 2, "{r:?}");
+        assert_eq!(
+            r[0].1, 3937,
+            "the first piece ends at the last point at 20 ipm"
+        );
+        // One feed throughout: one piece.
+        let flat: Vec<WalkPoint> = (0..1000).map(|x| pt(x, 12.0)).collect();
+        assert_eq!(split(&flat, 0.1, 1.0), [(0, 999)]);
+    }
 }

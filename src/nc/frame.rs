@@ -260,8 +260,8 @@ impl Frame {
                         ..
                     }) => {
                         let cap = feed_cap.feed_cap();
-                        let k = feed_cap.plan_ratio();
-                        if !self.feed(cap, k, op, l.f, l.f_floor, l.decel_below, l.ramp) {
+                        let planned = feed_cap.planned(l.f);
+                        if !self.feed(cap, planned, op, l.f_floor, l.decel_below, l.ramp) {
                             return Pulses {
                                 steps: 0,
                                 signs: self.signs,
@@ -305,9 +305,8 @@ impl Frame {
                     }
                 } else if self.feed(
                     feed_cap.feed_cap(),
-                    feed_cap.plan_ratio(),
+                    feed_cap.planned(self.regs.f),
                     op,
-                    self.regs.f,
                     self.regs.f_floor,
                     self.regs.decel_below,
                     self.regs.ramp,
@@ -523,21 +522,18 @@ impl Frame {
     /// the block's ramp per frame, up or down (feed hold: target 0; resume: back to the target);
     /// a block flagged for deceleration then caps it at once at max(f / 5, K * remaining / 256),
     /// the paper's exponential approach (it is not ramped: it is the rule for those blocks).
-    /// k is the AC's plan ratio (Q12, [`crate::ports::PLAN_ONE`] but under the plan).
+    /// `planned` is the block's feed f times the AC's plan ratio k ([`FeedCap::planned`]: f
+    /// but under the plan).
     #[inline]
-    #[allow(clippy::too_many_arguments)] // the block's registers, read in place
     fn feed(
         &mut self,
         feed_cap: u32,
-        plan_ratio: u32,
+        planned: u32,
         op: u32,
-        f: u32,
         f_floor: u32,
         decel_below: u32,
         ramp: u32,
     ) -> bool {
-        // f <= q0 <= 10^6 and k <= 2^12: the product fits 32 bits.
-        let planned = f.wrapping_mul(plan_ratio) >> 12;
         let lim = if feed_cap < planned {
             feed_cap
         } else {

@@ -85,6 +85,9 @@ pub enum Invalid {
     Nc(SettingsError),
     /// [`AcSettings::validate`] refused.
     Ac(AcSettingsError),
+    /// `$263=2` (the plan) on a board whose frame does not apply the plan ratio
+    /// (`BoardLimits::plan_ratio`).
+    PlanNotOnThisBoard,
 }
 
 impl Invalid {
@@ -93,6 +96,9 @@ impl Invalid {
             Invalid::Range => "value out of the setting's range",
             Invalid::Nc(e) => e.message(),
             Invalid::Ac(e) => e.message(),
+            Invalid::PlanNotOnThisBoard => {
+                "feed ceiling 2 (the plan) needs a frame that applies the plan ratio: not on this board"
+            }
         }
     }
 }
@@ -247,6 +253,9 @@ impl MachineSettings {
     pub fn validate_for(&self, board: &BoardLimits) -> Result<(), Invalid> {
         self.nc.validate_for(board).map_err(Invalid::Nc)?;
         self.ac.validate().map_err(Invalid::Ac)?;
+        if self.ac.ceiling == crate::ac::FeedCeiling::Plan && !board.plan_ratio {
+            return Err(Invalid::PlanNotOnThisBoard);
+        }
         if self.report.status_mask > 3 || !(1..=1_000_000).contains(&self.spindle_max_rpm) {
             return Err(Invalid::Range);
         }

@@ -42,19 +42,22 @@ pub struct Reloads {
     pub rapid: u32,
 }
 
-/// The frame ISR's state (an RTIC local resource of the frame task).
-pub struct FrameTask {
+/// The frame ISR's state (an RTIC local resource of the frame task). `PLAN`: the frame applies
+/// the AC's plan ratio (`FeedCeiling::Plan`, `$263=2`: one load and a multiply in the frames that
+/// feed); a board without room for it in its frame budget builds `FrameTask<false>` (the ratio
+/// is the constant 1, folded away) and refuses `$263=2` (`BoardLimits::plan_ratio`).
+pub struct FrameTask<const PLAN: bool = true> {
     pub frame: Frame,
     pending: Pulses,
     rate: Rate,
     reloads: Reloads,
 }
 
-/// The AC's feed cap and plan ratio (one load each, only by the frames that feed) and the
-/// operator's word (one load per frame) as the frame reads them.
-struct StatusCap<'a>(&'a Status);
+/// The AC's feed cap and plan ratio (one load each, only by the frames that feed; the ratio only
+/// with `PLAN`) and the operator's word (one load per frame) as the frame reads them.
+struct StatusCap<'a, const PLAN: bool>(&'a Status);
 
-impl FeedCap for StatusCap<'_> {
+impl<const PLAN: bool> FeedCap for StatusCap<'_, PLAN> {
     #[inline(always)]
     fn feed_cap(&self) -> u32 {
         self.0.feed_cap.load(Relaxed)
@@ -64,12 +67,16 @@ impl FeedCap for StatusCap<'_> {
         self.0.operator.load(Relaxed)
     }
     #[inline(always)]
-    fn plan_ratio(&self) -> u32 {
-        self.0.plan_ratio.load(Relaxed)
+    fn planned(&self, f: u32) -> u32 {
+        if PLAN {
+            crate::ports::times_ratio(f, self.0.plan_ratio.load(Relaxed))
+        } else {
+            f
+        }
     }
 }
 
-impl FrameTask {
+impl<const PLAN: bool> FrameTask<PLAN> {
     /// A frame task at the feed rate (the frame timer starts with `reloads.feed`). Init context.
     pub const fn new(frame: Frame, reloads: Reloads) -> Self {
         FrameTask {
@@ -99,7 +106,7 @@ impl FrameTask {
 
         let frame = &mut self.frame;
         let was_idle = frame.idle();
-        let p = frame.tick(src, StatusCap(status));
+        let p = frame.tick(src, StatusCap::<PLAN>(status));
 
         if pending.steps == 0 {
             port.write_signs(p.signs);
@@ -252,7 +259,8 @@ mod tests {
             feed: 2500,
             rapid: 475,
         };
-        let mut task = FrameTask::new(Frame::new(FrameConfig::from_settings(&settings)), reloads);
+        let mut task =
+            FrameTask::<true>::new(Frame::new(FrameConfig::from_settings(&settings)), reloads);
         let (mut pins, mut timer, mut oneshot) =
             (Pins::default(), Timer::default(), OneShot::default());
         for _ in 0..200_000 {

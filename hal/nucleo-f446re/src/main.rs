@@ -86,7 +86,8 @@ mod app {
 
     #[local]
     struct Local {
-        frame: FrameTask,
+        // Without the plan ratio: the frame is at its 200 kHz budget (`$263=2` is refused).
+        frame: FrameTask<false>,
         consumer: Consumer<'static, Block, QUEUE>,
         producer: Producer<'static, Block, QUEUE>,
         table: Persistent<FlashStore<Sector>>,

@@ -128,6 +128,15 @@ fn ac_settings_take_their_units_and_signs() {
     assert_eq!((m.ac.pick, m.ac.ceiling), (Pick::Latest, FeedCeiling::Frm));
     set(&mut m, "$263=2").unwrap();
     assert_eq!(m.ac.ceiling, FeedCeiling::Plan);
+    // A board whose frame leaves the plan ratio out refuses it, and keeps what it had.
+    let mut f = MachineSettings::default();
+    let (n, v) = parse_assignment("$263=2").unwrap();
+    let e = f
+        .set_for(n, v, &crate::settings::BoardLimits::NUCLEO_F446RE)
+        .unwrap_err();
+    assert_eq!(e, SetError::Invalid(Invalid::PlanNotOnThisBoard));
+    assert_eq!(e.code(), 52);
+    assert_eq!(f.ac.ceiling, FeedCeiling::Programmed);
     assert!(set(&mut m, "$263=3").is_err());
     assert_eq!(m.ac.ceiling, FeedCeiling::Plan);
     set(&mut m, "$263=1").unwrap();
@@ -711,6 +720,7 @@ fn a_board_table_validates_sets_and_loads_for_its_limits() {
         max_rapid_hz: 250_000,
         frame_work_ns: 1_500,
         pulse_end_ns: 400,
+        plan_ratio: true,
     };
     let (mut t, status) = Persistent::load_for(MemStorage::default(), fast);
     assert_eq!(status, LoadStatus::Missing);
