@@ -16,6 +16,11 @@
 //!
 //! Arithmetic is f32 (IEEE basic operations and the correctly rounded `libm::sqrtf` only), the
 //! same code and types on the host and the target, so results are the same bits on both.
+//!
+//! Under the plan (`$263=2`, [`FeedCeiling::Plan`], issue 11) the controller's feed number is a
+//! ratio k x f_max that the frame multiplies every block's programmed feed by
+//! ([`frame_words`]): the plan's feeds are the feed-forward, k the correction of its model's
+//! error ([`PLAN_START`] documents the rules).
 
 pub mod drr;
 pub mod ecr;
@@ -244,8 +249,9 @@ pub struct AcController {
 ///   plan's next cut at F0 loads 0.97, within the band), while a light window raises k by at
 ///   most 1 + tol, so an entry after it meets at most 1 + tol of F0 (a material the plan
 ///   underrates does not creep back to the plan's feed in a pass that leaves the material);
-///   a spike above 1 + 1.5 tol (1.076 F0 at the defaults) that the plan does not repeat leaves
-///   k below the band until the next lowering or the end of the job (the price of the bound);
+///   a spike above about 1 + 1.5 tol (1.076 F0 at the defaults) that the plan does not repeat
+///   leaves k below the band until a window loads it again, perhaps not before the end of the
+///   job (the price of the bound);
 /// - **first contact**: k starts at [`PLAN_START`], so that the first entry, a step no 10 ms
 ///   loop can follow (the peak force of an entry is the full tooth's at once), meets a material
 ///   up to 1.22 times as hard as the plan assumed below the overload hold; until a window has
