@@ -163,7 +163,7 @@ pub enum FeedCeiling {
     /// Prediction and feedback together (issue 11): the programmed feeds are a plan (an
     /// optimised program, `millac optimise`) and run as feed-forward; the controller corrects
     /// them by one ratio k <= 1 that the frame multiplies every block's feed by
-    /// ([`crate::ports::FeedCap::plan_ratio`]), learnt where the measured load shows the plan's
+    /// ([`crate::ports::FeedCap::planned`]), learnt where the measured load shows the plan's
     /// error and carried across blocks (see `super::AcController` and [`super::PLAN_START`]).
     Plan,
 }

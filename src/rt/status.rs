@@ -13,7 +13,7 @@ pub struct Status {
     /// frame ISR (only in the frames that feed). Zero at reset: init stores `u32::MAX` (or the AC's
     /// first cap) before any interrupt is enabled.
     pub feed_cap: AtomicU32,
-    /// The AC's plan ratio k in Q12 (`crate::ports::FeedCap::plan_ratio`; `ports::PLAN_ONE` but
+    /// The AC's plan ratio k in Q12 (`crate::ports::FeedCap::planned`; `ports::PLAN_ONE` but
     /// under `FeedCeiling::Plan`). Written by the AC task, read by the frame ISR with the cap.
     /// Zero at reset: init stores `PLAN_ONE`.
     pub plan_ratio: AtomicU32,
