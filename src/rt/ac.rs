@@ -160,11 +160,15 @@ fn held(out: &mut AcOutput, a: crate::ac::Alarm, ctl: &AcController) {
 }
 
 /// The controller's feed number as the frame reads it: the cap and the plan ratio
-/// ([`crate::ac::frame_words`]). The ratio is stored first: under the plan a hold's cap of 0
-/// must not meet a stale ratio of a resume, and a resume's cap must not meet the hold's.
+/// ([`crate::ac::frame_words`]). The frame may run between the two stores. A hold stores only
+/// its cap of 0 and leaves the ratio as it was (under a cap of 0 it does not matter), so no frame
+/// meets the running cap with another ratio; otherwise the ratio goes first, so a resume's cap
+/// never meets the ratio of before the hold.
 fn publish(status: &Status, feed_cap: u32, s: &crate::ac::AcSettings) {
     let (cap, ratio) = crate::ac::frame_words(feed_cap, s);
-    status.plan_ratio.store(ratio, Relaxed);
+    if cap != 0 {
+        status.plan_ratio.store(ratio, Relaxed);
+    }
     status.feed_cap.store(cap, Relaxed);
 }
 
@@ -554,6 +558,35 @@ mod tests {
             cap > 0 && cap as f32 <= most,
             "resumed at {cap}, most {most}"
         );
+    }
+
+    /// Under the plan a hold stores its cap of 0 and leaves the plan ratio as it was: the frame,
+    /// which may run between the AC period's two stores, never feeds the running cap at another
+    /// ratio (it would if the hold stored the ratio 1 first).
+    #[test]
+    fn a_hold_under_the_plan_keeps_the_plan_ratio() {
+        let status = Status::new();
+        status.start();
+        let s = AcSettings {
+            ceiling: crate::ac::FeedCeiling::Plan,
+            ..AcSettings::default()
+        };
+        let ctl = AcController::new(s).unwrap();
+        let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+        let k = status.plan_ratio.load(Relaxed);
+        assert!(k > 0 && k < crate::ports::PLAN_ONE, "{k}");
+        assert_eq!(status.feed_cap.load(Relaxed), s.f_max);
+        // A period without samples holds: the cap goes to 0, the ratio stays.
+        let out = period.run(&status);
+        assert_eq!(out.out.state, AcState::Hold(Alarm::NoSamples));
+        assert_eq!(status.feed_cap.load(Relaxed), 0);
+        assert_eq!(status.plan_ratio.load(Relaxed), k);
+        // The resume publishes the ratio with the cap again.
+        status.ac_resume.store(true, Relaxed);
+        mid_scale_window(&mut period);
+        assert_eq!(period.run(&status).out.state, AcState::Run);
+        assert_eq!(status.feed_cap.load(Relaxed), s.f_max);
+        assert_eq!(status.plan_ratio.load(Relaxed), k);
     }
 
     /// `revs` spindle revolutions (600 rpm, 4 flutes: 25 samples a tooth at 1 kHz) of a cut whose
