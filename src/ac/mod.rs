@@ -492,9 +492,7 @@ impl AcController {
                 (None, _) if mismatch.is_some() => mismatch,
                 (None, None) => Some(Alarm::NoSamples),
                 (None, Some(_)) if self.s.ceiling == FeedCeiling::Plan => {
-                    self.f = self.plan_next(out_of_band);
-                    self.plan_history.rotate_right(1);
-                    self.plan_history[0] = self.f;
+                    self.plan_next(out_of_band);
                     None
                 }
                 (None, Some(_)) => {
@@ -569,22 +567,9 @@ impl AcController {
         }
     }
 
-    /// Under the plan: the next feed number k x f_max (see [`PLAN_START`]).
-    fn plan_next(&mut self, out_of_band: bool) -> u32 {
-        let f = self.plan_judge(out_of_band);
-        self.plan_loads.rotate_right(1);
-        self.plan_loads[0] = self.plan_error();
-        f
-    }
-
-    /// The plan's error as the held peak shows it: its load per unit of k (the smallest k of
-    /// the periods that can have cut its chip).
-    fn plan_error(&self) -> f32 {
-        let lo = self.plan_history.iter().copied().min().unwrap_or(self.f);
-        (1.0 - self.e) * self.s.f_max as f32 / lo.max(1) as f32
-    }
-
-    fn plan_judge(&mut self, out_of_band: bool) -> u32 {
+    /// Under the plan: the next feed number k x f_max (see [`PLAN_START`]), and the periods'
+    /// history it is judged by.
+    fn plan_next(&mut self, out_of_band: bool) {
         let tol = plan_tolerance(&self.s);
         let w = self.drr.window_peak();
         let latest = 1.0 - ecr::errors(w.f_n, w.t_nm, self.f0_n, self.t0_nm).e;
@@ -594,6 +579,9 @@ impl AcController {
             hist.clone().max().unwrap_or(self.f),
             hist.min().unwrap_or(self.f),
         );
+        // The plan's error as the held peak shows it: its load per unit of k (the smallest k of
+        // the periods that can have cut its chip).
+        let error = held * self.s.f_max as f32 / lo.max(1) as f32;
         // `as` saturates (and maps NaN to 0, clamped below).
         let toward = |k: u32, load: f32, to: f32| (k as f32 * to / load) as u32;
         let raise_floor = if self.plan_learnt {
@@ -625,7 +613,7 @@ impl AcController {
         } else if out_of_band
             || held >= 1.0
             || held < raise_floor
-            || self.plan_error() < PLAN_STEADY * self.plan_loads.iter().copied().fold(0.0, f32::max)
+            || error < PLAN_STEADY * self.plan_loads.iter().copied().fold(0.0, f32::max)
         {
             self.f
         } else {
@@ -633,6 +621,10 @@ impl AcController {
                 .max(toward(lo, held, 1.0))
                 .min(self.f.saturating_add(self.step as u32))
         };
-        f.clamp(self.s.f_min, self.s.f_max)
+        self.f = f.clamp(self.s.f_min, self.s.f_max);
+        self.plan_history.rotate_right(1);
+        self.plan_history[0] = self.f;
+        self.plan_loads.rotate_right(1);
+        self.plan_loads[0] = error;
     }
 }
