@@ -281,8 +281,9 @@ fn dist_mm(a: [i64; 3], b: [i64; 3]) -> f64 {
 
 /// Lowers the schedule's feed at every point of `walk` that cuts nothing on the described stock
 /// but would cut on its envelope (see [`Options::guard`]) to the envelope's feed for F0 scaled
-/// to the guard's fraction (force grows as feed^(1 - m), Kienzle's m). Returns the number of
-/// points lowered.
+/// to the guard's fraction (force grows as feed^(1 - m), Kienzle's m), with the walk's own
+/// ceilings. Returns the number of points lowered.
+#[allow(clippy::too_many_arguments)] // the walk's inputs, as `oracle_walk` takes them
 fn guard(
     walk: &mut crate::acreport::OracleWalk,
     prog: &[analysis::ProgBlock],
@@ -290,15 +291,14 @@ fn guard(
     cut: &acsim::Cut,
     programmed: &acsim::HostRun,
     limits: &OracleLimits,
+    ceiling: &[f64],
     opts: &Options,
 ) -> Result<usize> {
     let envelope = acsim::Cut {
         stock: cut.stock.envelope(),
         ..cut.clone()
     };
-    let frm = acsim::feed_ipm(settings, settings.q0);
-    let ceiling = vec![frm; prog.len()];
-    let worst = oracle_walk(prog, settings, &envelope, programmed, limits, &ceiling)?;
+    let worst = oracle_walk(prog, settings, &envelope, programmed, limits, ceiling)?;
     if worst.points.len() != walk.points.len() {
         bail!("the envelope's walk has other points than the stock's");
     }
@@ -436,7 +436,16 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
     let ceiling = vec![frm; prog.len()];
     let mut walk = oracle_walk(&prog, settings, cut, &programmed, &limits, &ceiling)?;
     let guarded = if opts.guard > 0.0 {
-        guard(&mut walk, &prog, settings, cut, &programmed, &limits, opts)?
+        guard(
+            &mut walk,
+            &prog,
+            settings,
+            cut,
+            &programmed,
+            &limits,
+            &ceiling,
+            opts,
+        )?
     } else {
         0
     };
