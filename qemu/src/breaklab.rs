@@ -171,12 +171,7 @@ pub fn plot_residuals(
         .label("Fa")
         .legend(|(x, y)| Circle::new((x + 10, y), 2, BLUE.filled()));
     marks(&mut chart, 0.0, f_max)?;
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    crate::plot::legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     // The residuals against their thresholds.
     for (k, (panel, name)) in panels[1..]
         .iter()
@@ -237,12 +232,7 @@ pub fn plot_residuals(
             }
         }
         marks(&mut chart, -lim, lim)?;
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()?;
+        crate::plot::legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     }
     root.present()?;
     Ok(())

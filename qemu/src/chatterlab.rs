@@ -265,12 +265,7 @@ pub fn plot_suppression(path: &Path, run: &crate::acsim::HostRun, threshold: f32
         )?
         .label("re-plan: depth reduced by 1 mm")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    crate::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     // The runs' BLU (the default settings').
     let (num, den) = millac::Settings::default().blu.per_mm();
     let mm = |blu: i64| blu as f64 * den as f64 / num as f64;
@@ -319,12 +314,7 @@ pub fn plot_suppression(path: &Path, run: &crate::acsim::HostRun, threshold: f32
         ))?
         .label("X")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present()?;
     Ok(())
 }
@@ -407,12 +397,7 @@ pub fn plot_speed(
         )?
         .label("re-plan: depth reduced by 1 mm")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    crate::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     let (num, den) = millac::Settings::default().blu.per_mm();
     let mm = |blu: i64| blu as f64 * den as f64 / num as f64;
     let x_max = speed
@@ -463,12 +448,7 @@ pub fn plot_speed(
         .draw_secondary_series(LineSeries::new(xs(speed), BLUE.stroke_width(1)))?
         .label("X, spindle speed")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present()?;
     Ok(())
 }

@@ -38,6 +38,7 @@ pub mod fault;
 pub mod firmware;
 pub mod model;
 pub mod optimise;
+pub mod plot;
 pub mod plugin;
 pub mod repro;
 pub mod runner;
