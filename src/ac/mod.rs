@@ -567,6 +567,24 @@ impl AcController {
         }
     }
 
+    /// A new job (the serial loader's program end, M2/M30, or soft reset:
+    /// `crate::rt::Status::ac_new_job`). Under the plan the ratio k starts again at
+    /// [`PLAN_START`] and the next first contact is judged afresh: the next job's plan and
+    /// material are not this one's, and a k of 1 learnt on a plan that was right would meet the
+    /// next job's first entry unprotected. In a hold, the resume then starts from there. The other
+    /// laws keep what they have learnt (their feed follows the load within a period or two). AC
+    /// task (and the host).
+    pub fn new_job(&mut self) {
+        if self.s.ceiling != FeedCeiling::Plan {
+            return;
+        }
+        self.f = plan_start(&self.s);
+        self.plan_history = [self.f; PLAN_HISTORY];
+        self.plan_learnt = false;
+        self.plan_loaded = 0;
+        self.plan_loads = [0.0; PLAN_HISTORY];
+    }
+
     /// Under the plan: the next feed number k x f_max (see [`PLAN_START`]), and the periods'
     /// history it is judged by.
     fn plan_next(&mut self, out_of_band: bool) {

@@ -171,3 +171,44 @@ fn an_overload_under_the_plan_holds_and_resumes_at_a_lower_k() {
     c.resume();
     assert!(k_of(&c) <= before / 1.25, "{before} -> {}", k_of(&c));
 }
+
+/// A new job (the serial loader's M2/M30 or soft reset) starts the plan afresh: k back at
+/// PLAN_START and the next first contact judged again, so a job whose plan was right (k = 1)
+/// does not hand k = 1 to the next job's first entry, where a harder material would step to
+/// the overload hold.
+#[test]
+fn a_new_job_meets_its_first_entry_at_plan_start_and_learns_its_own_k() {
+    let s = plan();
+    let overload = 1.0 - s.overload_e;
+    let mut c = ctl_plan();
+    run(&mut c, 1.0, &[1.0; 20]);
+    assert!((k_of(&c) - 1.0).abs() < 2e-3, "k {}", k_of(&c));
+    c.new_job();
+    assert!(
+        (k_of(&c) - PLAN_START).abs() < 1e-3,
+        "the next job starts at {}",
+        k_of(&c)
+    );
+    // The next job: a material 15 % harder than its plan, met at once from air.
+    let eps = 1.15;
+    let mut profile = vec![0.0; 10];
+    profile.extend(vec![1.0; 40]);
+    let r = run(&mut c, eps, &profile);
+    assert!(r.iter().all(|&(l, _)| l < overload), "{r:?}");
+    assert!((k_of(&c) * eps - 1.0).abs() < 0.01, "k {}", k_of(&c));
+    // Its first contact was judged afresh: a right plan after a new job raises k to 1 again.
+    c.new_job();
+    run(&mut c, 1.0, &profile);
+    assert!((k_of(&c) - 1.0).abs() < 2e-3, "k {}", k_of(&c));
+}
+
+/// Outside the plan a new job changes nothing.
+#[test]
+fn a_new_job_leaves_the_other_ceilings_alone() {
+    let mut c = AcController::new(AcSettings::default()).expect("valid settings");
+    run(&mut c, 1.0, &[0.5; 10]);
+    let before = c.feed_cap();
+    assert_ne!(before, plan_start(c.settings()));
+    c.new_job();
+    assert_eq!(c.feed_cap(), before);
+}

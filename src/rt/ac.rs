@@ -298,6 +298,9 @@ impl AcPeriod {
     /// the feed cap (when enabled) and counts the periods held with nothing moving. AC task.
     pub fn run(&mut self, status: &Status) -> Period {
         let enc = status.encoder();
+        if status.ac_new_job.swap(false, Relaxed) {
+            self.ctl.new_job();
+        }
         if status.ac_resume.swap(false, Relaxed) {
             self.ctl.resume();
             self.still = 0;
@@ -587,6 +590,38 @@ mod tests {
         assert_eq!(period.run(&status).out.state, AcState::Run);
         assert_eq!(status.feed_cap.load(Relaxed), s.f_max);
         assert_eq!(status.plan_ratio.load(Relaxed), k);
+    }
+
+    /// The loader's job end (`Status::ac_new_job`: M2/M30 once run, or a soft reset) restarts
+    /// the plan: the next period publishes k = PLAN_START again, whatever the job learnt.
+    #[test]
+    fn a_job_end_restarts_the_plan_ratio() {
+        let status = Status::new();
+        status.start();
+        let s = AcSettings {
+            ceiling: crate::ac::FeedCeiling::Plan,
+            ..AcSettings::default()
+        };
+        let ctl = AcController::new(s).unwrap();
+        let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+        let start = status.plan_ratio.load(Relaxed);
+        // A cut at 0.94 F0 under k = PLAN_START: the first contact raises k.
+        let load = 0.94 * s.f0_n();
+        let mut n = 0;
+        assert_eq!(
+            cut_revolutions(&mut period, &status, 3, [load; 4], &mut n),
+            None
+        );
+        let learnt = status.plan_ratio.load(Relaxed);
+        assert!(learnt > start, "{learnt} {start}");
+        // The job ends; the next period (still the same cut) starts from PLAN_START again.
+        status.ac_new_job.store(true, Relaxed);
+        for _ in 0..10 {
+            period.sample([2048; 3]);
+        }
+        period.run(&status);
+        assert_eq!(status.plan_ratio.load(Relaxed), start);
+        assert!(!status.ac_new_job.load(Relaxed));
     }
 
     /// `revs` spindle revolutions (600 rpm, 4 flutes: 25 samples a tooth at 1 kHz) of a cut whose

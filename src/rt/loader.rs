@@ -163,13 +163,16 @@ fn trip_alarm(t: &Trip) -> u8 {
     }
 }
 
-/// A line that changes the spindle, waiting for the machine to stop (see
-/// [`LoaderBoard::SPINDLE`]).
+/// A line that waits for the machine to stop: one that changes the spindle (see
+/// [`LoaderBoard::SPINDLE`]) or ends the program (M2/M30, as grbl syncs its buffer there).
 struct Deferred {
     line: heapless::String<LINE_MAX>,
     no: u32,
     spindle: Spindle,
     rpm: u32,
+    /// The program's end: once it has run, the AC starts the next job afresh
+    /// (`Status::ac_new_job`).
+    end: bool,
 }
 
 /// Loader task: runs while [`LoaderBoard::running`] (on a board: for ever; the operator ends the
@@ -365,10 +368,12 @@ pub fn run<
         // turn of a trip: the trip drops it below).
         if let (Some(d), None, false) = (deferred.as_ref(), tripped, broken) {
             if idle && !tape.holds_a_block() {
-                board.spindle(d.spindle, d.rpm, table.settings.spindle_max_rpm);
-                spindle = (d.spindle, d.rpm);
-                if d.rpm != 0 {
-                    status.spindle_rpm.store(d.rpm, Relaxed);
+                if B::SPINDLE && (d.spindle, d.rpm) != spindle {
+                    board.spindle(d.spindle, d.rpm, table.settings.spindle_max_rpm);
+                    spindle = (d.spindle, d.rpm);
+                    if d.rpm != 0 {
+                        status.spindle_rpm.store(d.rpm, Relaxed);
+                    }
                 }
                 let result = tape
                     .line(d.no, &d.line, |b| {
@@ -376,6 +381,9 @@ pub fn run<
                     })
                     .map(|()| board.log_gcode(&d.line))
                     .map_err(GrblError::from);
+                if d.end && result.is_ok() {
+                    status.ac_new_job.store(true, Relaxed);
+                }
                 proto.reply(result, &mut out);
                 deferred = None;
             } else if idle {
@@ -435,8 +443,8 @@ pub fn run<
                         .map(|_| ())
                         .map_err(GrblError::from);
                     proto.reply(result, &mut out);
-                } else if let Some((state, rpm)) =
-                    spindle_change::<B>(&tape, line_no, line, spindle)
+                } else if let Some((state, rpm, end)) =
+                    sync_line::<B>(&tape, line_no, line, spindle)
                 {
                     // Wait for the machine (the `ok` comes when the line has run).
                     let mut text = heapless::String::new();
@@ -447,6 +455,7 @@ pub fn run<
                             no: line_no,
                             spindle: state,
                             rpm,
+                            end,
                         });
                     } else {
                         proto.reply(Err(GrblError::OVERFLOW), &mut out);
@@ -551,6 +560,8 @@ pub fn run<
                 broken = false;
                 board.spindle(Spindle::Off, 0, table.settings.spindle_max_rpm);
                 board.log_reset();
+                // A soft reset ends the job: the AC starts the next one afresh.
+                status.ac_new_job.store(true, Relaxed);
                 let (at, signs) = abort(blocks, status, board);
                 replan.restart(at);
                 tape.abort(at, signs);
@@ -604,28 +615,30 @@ pub fn run<
     }
 }
 
-/// The spindle output a G-code line asks for, when the board has a spindle and the line changes
-/// it (parsed on a copy of the parser; a line the parser refuses changes nothing and gets its
-/// error from the tape as usual). M2/M30 stops the spindle. Loader task.
-fn spindle_change<B: LoaderBoard>(
+/// Whether a G-code line waits for the machine to stop before it runs: it ends the program
+/// (M2/M30, on every board) or, on a board with a spindle, changes the spindle output. Returns the
+/// spindle output it asks for and whether it is the program's end (parsed on a copy of the
+/// parser; a line the parser refuses waits for nothing and gets its error from the tape as
+/// usual). M2/M30 stops the spindle. Loader task.
+fn sync_line<B: LoaderBoard>(
     tape: &Tape,
     line_no: u32,
     line: &str,
     applied: (Spindle, u32),
-) -> Option<(Spindle, u32)> {
-    if !B::SPINDLE || !line.bytes().any(|b| matches!(b, b'M' | b'm' | b'S' | b's')) {
+) -> Option<(Spindle, u32, bool)> {
+    if !line.bytes().any(|b| matches!(b, b'M' | b'm' | b'S' | b's')) {
         return None;
     }
     let mut probe = tape.parser().clone();
-    let out = match probe.line(line_no, line) {
-        Ok(Parsed::End) => (Spindle::Off, 0),
+    let (out, end) = match probe.line(line_no, line) {
+        Ok(Parsed::End) => ((Spindle::Off, 0), true),
         Ok(_) => match probe.modes().spindle {
-            Spindle::Off => (Spindle::Off, 0),
-            s => (s, probe.spindle_rpm()),
+            Spindle::Off => ((Spindle::Off, 0), false),
+            s => ((s, probe.spindle_rpm()), false),
         },
         Err(_) => return None,
     };
-    (out != applied).then_some(out)
+    (end || (B::SPINDLE && out != applied)).then_some((out.0, out.1, end))
 }
 
 /// Queues the look-ahead's held block, if there is one, before the next line has come (logged

@@ -38,6 +38,10 @@ pub struct Status {
     /// The operator asks the AC to leave its hold (`~` or `$X`): set by the loader, taken (swapped
     /// back to false) by the AC task at its next period.
     pub ac_resume: AtomicBool,
+    /// A job has ended (serial mode: a program end, M2/M30, once the motion before it has run,
+    /// or a soft reset): set by the loader, taken by the AC task at its next period, which starts
+    /// the next job afresh (`AcController::new_job`).
+    pub ac_new_job: AtomicBool,
     /// Absolute position per axis (X, Y, Z) in BLU, as counted by the frame. Written by the frame
     /// ISR in the frames without pulses (idle, dwell, hold, between feed commands), so the frames
     /// with pulses, the frame's worst case, do not pay for it; read at the end of a program and on
@@ -104,6 +108,7 @@ impl Status {
             ac_force: AtomicU32::new(0),
             ac_torque: AtomicU32::new(0),
             ac_resume: AtomicBool::new(false),
+            ac_new_job: AtomicBool::new(false),
             position: [AtomicI32::new(0), AtomicI32::new(0), AtomicI32::new(0)],
             blocks_done: AtomicU32::new(0),
             idle: AtomicBool::new(true),

@@ -138,6 +138,11 @@ struct Bench {
     /// them; after chatter also the AC's resume when the loader asks for it.
     ac_event: Option<(u64, AcEvent)>,
     alarms: Producer<'static, Alarm, A>,
+    /// The frame at which the loader first said a job had ended (`Status::ac_new_job`), with the
+    /// position then.
+    job_end_at: Option<(u64, [i32; 3])>,
+    /// The frames at which each `ok` came.
+    oks_at: Vec<u64>,
 }
 
 impl Bench {
@@ -212,6 +217,12 @@ impl Bench {
         }
         while let Some(b) = self.tx.dequeue() {
             self.out.push(b as char);
+            if self.out.ends_with("ok\r\n") {
+                self.oks_at.push(self.frames);
+            }
+        }
+        if self.job_end_at.is_none() && s.ac_new_job.load(Relaxed) {
+            self.job_end_at = Some((self.frames, s.encoder()));
         }
     }
 
@@ -358,6 +369,8 @@ fn session_full(
         slow_frames_at: frame_limit.map(|(_, at, c)| (at, c)),
         ac_event,
         alarms: alarm_tx,
+        job_end_at: None,
+        oks_at: Vec::new(),
     };
     let mut replan = Box::new(crate::rt::replan::Replan::<
         { crate::rt::replan::record_len(Q) },
@@ -407,6 +420,27 @@ fn a_spindle_change_waits_for_the_motion_before_it_and_runs_before_its_own() {
     );
     // The `ok` of `M3 S500` came after the first move: the sender saw 1 ok while it moved.
     assert!(b.spindle[0].frame > 100, "{:?}", b.spindle);
+}
+
+/// M2 (and M30) waits for the motion before it, as grbl syncs its buffer there, on every board;
+/// only once it has run does the loader tell the AC that the job has ended (its `ok` then), so
+/// the AC's next job (`AcController::new_job`) does not start under the last blocks of this one.
+/// A soft reset ends the job too.
+#[test]
+fn a_program_end_waits_for_the_motion_then_ends_the_job() {
+    let b = session(&[(1, "G91 G1 F30 X0.02\nM2\n")], &[], None, 3000);
+    assert_eq!(oks(&b.out), 2, "{}", b.out);
+    let (at, position) = b.job_end_at.expect("the job's end");
+    assert_eq!(position, [200, 0, 0]);
+    assert!(at > 200, "{at}");
+    // The first `ok` came at once (the move queued), M2's after the move.
+    assert!(b.oks_at[0] < 10 && b.oks_at[1] >= at, "{:?}", b.oks_at);
+    // No end, no job end; a soft reset ends it while moving.
+    let b = session(&[(1, "G91 G1 F30 X0.02\n")], &[], None, 3000);
+    assert_eq!(b.job_end_at, None);
+    let b = session(&[(1, "G91 G1 F30 X1\n"), (100, "\u{18}")], &[], None, 3000);
+    let (at, position) = b.job_end_at.expect("the reset's job end");
+    assert!(at >= 100 && position[0] < 200, "{at} {position:?}");
 }
 
 #[test]
