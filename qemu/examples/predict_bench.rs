@@ -17,8 +17,12 @@
 //!
 //! ```text
 //! cargo run -p millac-qemu --release --example predict_bench [NAME]
+//! cargo run -p millac-qemu --release --example predict_bench --guard-sweep
 //! ```
-//! (NAME: only the programs whose name contains it.)
+//! (NAME: only the programs whose name contains it.) `--guard-sweep`: the hidden boss only, with
+//! the plan's guard from 0.93 to 0.98 of F_max: time / bound of the plan alone and under the AC
+//! ($263=2), and the AC's run in the 15 % harder material (peak, holds); the figure
+//! `out/predict/guard-sweep.svg` (about 1 min).
 use anyhow::Result;
 use millac::ac::{AcSettings, FeedCeiling};
 use millac::Settings;
@@ -72,8 +76,146 @@ fn programs() -> Vec<Program> {
     v
 }
 
+/// The guards of `--guard-sweep`.
+const SWEEP: [f64; 6] = [0.93, 0.94, 0.95, 0.96, 0.97, 0.98];
+
+/// `--guard-sweep`: the hidden boss under each guard of [`SWEEP`] (see the module doc).
+fn guard_sweep(s: &Settings) -> Result<()> {
+    let p = programs()
+        .into_iter()
+        .find(|p| p.described != p.actual)
+        .ok_or_else(|| anyhow::anyhow!("no wrong-stock program"))?;
+    let case = bench::Case {
+        name: p.name,
+        program: p.text,
+        stock: Some(p.actual),
+        force_limit_n: p.force_limit_n,
+        optimal_fraction: p.fraction,
+    };
+    let acs = case.ac_settings();
+    let fraction = f64::from(acs.optimal_fraction);
+    let actual = case.cut(s, DriveModel::Stepper, Material::STEEL)?;
+    let described = Cut {
+        stock: Stock::parse(p.described).map_err(|e| anyhow::anyhow!("{e}"))?,
+        ..actual.clone()
+    };
+    let harder = Cut {
+        material: Material {
+            ks_n_mm2: actual.material.ks_n_mm2 * HARDER,
+            ..actual.material
+        },
+        ..actual.clone()
+    };
+    let prog = case.load(s)?;
+    let bound = acreport::compare(
+        &prog,
+        s,
+        &actual,
+        &AcSettings {
+            ceiling: FeedCeiling::Frm,
+            ..acs
+        },
+    )?;
+    let combined = AcSettings {
+        ceiling: FeedCeiling::Plan,
+        ..acs
+    };
+    println!(
+        "{}: the plan's guard against time / bound (bound {:.2} s)",
+        p.name, bound.oracle_time_s
+    );
+    println!();
+    println!("| guard (of F_max) | plan alone | plan + AC ($263=2) | peak F / F_max | harder: plan + AC peak F / F_max | harder: holds |");
+    println!("| ---: | ---: | ---: | ---: | ---: | --- |");
+    let mut curves: [Vec<(f64, f64)>; 2] = [Vec::new(), Vec::new()];
+    for g in SWEEP {
+        let o = optimise::optimise(
+            p.text,
+            s,
+            &described,
+            &Options {
+                fraction,
+                guard: g,
+                ..Options::default()
+            },
+        )?;
+        let planned = analysis::load_program(&o.text, s).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let alone = acsim::run(&planned, s, &actual, None)?;
+        let with_ac = acsim::run(&planned, s, &actual, Some(combined))?;
+        let h_ac = acsim::run(&planned, s, &harder, Some(combined))?;
+        let peak = |r: &HostRun, c: &Cut| {
+            acsim::load_figures(&r.samples, &c.tool, fraction, acs.sample_hz).peak_force_ratio
+        };
+        let (ta, tc) = (
+            alone.machining_time_s / bound.oracle_time_s,
+            with_ac.machining_time_s / bound.oracle_time_s,
+        );
+        println!(
+            "| {g:.2} | {ta:.3} | {tc:.3} | {:.3} | {:.3} | {} |",
+            peak(&with_ac, &actual),
+            peak(&h_ac, &harder),
+            h_ac.alarm
+                .map_or("none".into(), |a| format!("held: {}", a.message()))
+        );
+        curves[0].push((g, ta));
+        curves[1].push((g, tc));
+    }
+    plot_sweep(
+        std::path::Path::new("out/predict/guard-sweep.svg"),
+        p.name,
+        &curves,
+    )
+}
+
+/// The figure of `--guard-sweep`: time / bound against the guard, with the issue's goal.
+fn plot_sweep(path: &std::path::Path, name: &str, curves: &[Vec<(f64, f64)>; 2]) -> Result<()> {
+    use plotters::prelude::*;
+    let root = SVGBackend::new(path, (800, 480)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (x0, x1) = (SWEEP[0] - 0.005, SWEEP[SWEEP.len() - 1] + 0.005);
+    let top = curves.iter().flatten().map(|p| p.1).fold(1.04, f64::max) + 0.005;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("{name}: time / bound against the plan's guard"),
+            ("sans-serif", 15),
+        )
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(55)
+        .build_cartesian_2d(x0..x1, 1.0f64..top)?;
+    chart
+        .configure_mesh()
+        .x_desc("guard: surprise material loaded to this fraction of F_max")
+        .y_desc("time / bound")
+        .draw()?;
+    for (pts, name, c) in [
+        (&curves[0], "offline optimised (plan alone)", BLUE),
+        (&curves[1], "optimised + AC ($263=2)", RED),
+    ] {
+        chart
+            .draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(2)))?
+            .label(name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c));
+        chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, c.filled())))?;
+    }
+    chart
+        .draw_series(LineSeries::new(
+            [(x0, 1.02), (x1, 1.02)],
+            BLACK.stroke_width(1),
+        ))?
+        .label("the issue's goal, 1.02")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+    millac_qemu::plot::legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+    root.present()?;
+    Ok(())
+}
+
 fn main() -> Result<()> {
     let only: Option<String> = std::env::args().nth(1);
+    if only.as_deref() == Some("--guard-sweep") {
+        std::fs::create_dir_all("out/predict")?;
+        return guard_sweep(&Settings::default());
+    }
     let s = Settings::default();
     let steel = Cut::steel(Stock::default(), 1);
     let (m, _) = model::calibrate(
