@@ -76,15 +76,20 @@ fn programs() -> Vec<Program> {
     v
 }
 
-/// The guards of `--guard-sweep`.
-const SWEEP: [f64; 6] = [0.93, 0.94, 0.95, 0.96, 0.97, 0.98];
+/// A program's runs as the benchmark sets them up (its case on the actual stock): AC settings, F0
+/// fraction, the cut on the actual stock, on the described one and in the harder material, the
+/// loaded program and the bound (oracle, FRM ceilings, the actual stock), s.
+struct Setup {
+    acs: AcSettings,
+    fraction: f64,
+    actual: Cut,
+    described: Cut,
+    harder: Cut,
+    prog: Vec<ProgBlock>,
+    bound_s: f64,
+}
 
-/// `--guard-sweep`: the hidden boss under each guard of [`SWEEP`] (see the module doc).
-fn guard_sweep(s: &Settings) -> Result<()> {
-    let p = programs()
-        .into_iter()
-        .find(|p| p.described != p.actual)
-        .ok_or_else(|| anyhow::anyhow!("no wrong-stock program"))?;
+fn setup(p: &Program, s: &Settings) -> Result<Setup> {
     let case = bench::Case {
         name: p.name,
         program: p.text,
@@ -93,7 +98,6 @@ fn guard_sweep(s: &Settings) -> Result<()> {
         optimal_fraction: p.fraction,
     };
     let acs = case.ac_settings();
-    let fraction = f64::from(acs.optimal_fraction);
     let actual = case.cut(s, DriveModel::Stepper, Material::STEEL)?;
     let described = Cut {
         stock: Stock::parse(p.described).map_err(|e| anyhow::anyhow!("{e}"))?,
@@ -116,13 +120,42 @@ fn guard_sweep(s: &Settings) -> Result<()> {
             ..acs
         },
     )?;
+    Ok(Setup {
+        acs,
+        fraction: f64::from(acs.optimal_fraction),
+        actual,
+        described,
+        harder,
+        prog,
+        bound_s: bound.oracle_time_s,
+    })
+}
+
+/// The guards of `--guard-sweep`.
+const SWEEP: [f64; 6] = [0.93, 0.94, 0.95, 0.96, 0.97, 0.98];
+
+/// `--guard-sweep`: the hidden boss under each guard of [`SWEEP`] (see the module doc).
+fn guard_sweep(s: &Settings) -> Result<()> {
+    let p = programs()
+        .into_iter()
+        .find(|p| p.described != p.actual)
+        .ok_or_else(|| anyhow::anyhow!("no wrong-stock program"))?;
+    let Setup {
+        acs,
+        fraction,
+        actual,
+        described,
+        harder,
+        bound_s,
+        ..
+    } = setup(&p, s)?;
     let combined = AcSettings {
         ceiling: FeedCeiling::Plan,
         ..acs
     };
     println!(
         "{}: the plan's guard against time / bound (bound {:.2} s)",
-        p.name, bound.oracle_time_s
+        p.name, bound_s
     );
     println!();
     println!("| guard (of F_max) | plan alone | plan + AC ($263=2) | peak F / F_max | harder: plan + AC peak F / F_max | harder: holds |");
@@ -147,8 +180,8 @@ fn guard_sweep(s: &Settings) -> Result<()> {
             acsim::load_figures(&r.samples, &c.tool, fraction, acs.sample_hz).peak_force_ratio
         };
         let (ta, tc) = (
-            alone.machining_time_s / bound.oracle_time_s,
-            with_ac.machining_time_s / bound.oracle_time_s,
+            alone.machining_time_s / bound_s,
+            with_ac.machining_time_s / bound_s,
         );
         println!(
             "| {g:.2} | {ta:.3} | {tc:.3} | {:.3} | {:.3} | {} |",
@@ -231,30 +264,15 @@ fn main() -> Result<()> {
         if only.as_deref().is_some_and(|o| !p.name.contains(o)) {
             continue;
         }
-        let case = bench::Case {
-            name: p.name,
-            program: p.text,
-            stock: Some(p.actual),
-            force_limit_n: p.force_limit_n,
-            optimal_fraction: p.fraction,
-        };
-        let acs = case.ac_settings();
-        let fraction = f64::from(acs.optimal_fraction);
-        let actual = case.cut(&s, DriveModel::Stepper, Material::STEEL)?;
-        let described = Cut {
-            stock: Stock::parse(p.described).map_err(|e| anyhow::anyhow!("{e}"))?,
-            ..actual.clone()
-        };
-        let prog = case.load(&s)?;
-        let bound = acreport::compare(
-            &prog,
-            &s,
-            &actual,
-            &AcSettings {
-                ceiling: FeedCeiling::Frm,
-                ..acs
-            },
-        )?;
+        let Setup {
+            acs,
+            fraction,
+            actual,
+            described,
+            harder,
+            prog,
+            bound_s,
+        } = setup(&p, &s)?;
         let cmp = acreport::compare(&prog, &s, &actual, &acs)?;
         let opts = Options {
             fraction,
@@ -315,7 +333,7 @@ fn main() -> Result<()> {
                 "| {} | {name} | {:.2} | {:.3} | {:.3} | {:.3} | {:.3} | {} |",
                 p.name,
                 r.machining_time_s,
-                r.machining_time_s / bound.oracle_time_s,
+                r.machining_time_s / bound_s,
                 l.peak_force_ratio,
                 l.time_above_f0_s,
                 l.time_above_limit_s,
@@ -324,7 +342,7 @@ fn main() -> Result<()> {
         }
         println!(
             "| {} | bound (oracle, FRM ceilings) | {:.2} | 1.000 | - | - | - | - |",
-            p.name, bound.oracle_time_s
+            p.name, bound_s
         );
         if p.described != p.actual {
             optimise::plot_combined(
@@ -340,13 +358,6 @@ fn main() -> Result<()> {
             )?;
         }
         // The model's error: a harder material than the plan's.
-        let harder = Cut {
-            material: Material {
-                ks_n_mm2: actual.material.ks_n_mm2 * HARDER,
-                ..actual.material
-            },
-            ..actual.clone()
-        };
         let h_alone = acsim::run(&planned, &s, &harder, None)?;
         let h_ac = acsim::run(&planned, &s, &harder, Some(combined))?;
         let fig =
