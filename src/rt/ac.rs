@@ -563,19 +563,25 @@ mod tests {
         );
     }
 
-    /// Under the plan a hold stores its cap of 0 and leaves the plan ratio as it was: the frame,
-    /// which may run between the AC period's two stores, never feeds the running cap at another
-    /// ratio (it would if the hold stored the ratio 1 first).
-    #[test]
-    fn a_hold_under_the_plan_keeps_the_plan_ratio() {
-        let status = Status::new();
+    /// An enabled AC period under the plan (`FeedCeiling::Plan`, the other settings the
+    /// defaults) on a started `status`, with its settings.
+    fn under_the_plan(status: &Status) -> (AcSettings, AcPeriod) {
         status.start();
         let s = AcSettings {
             ceiling: crate::ac::FeedCeiling::Plan,
             ..AcSettings::default()
         };
         let ctl = AcController::new(s).unwrap();
-        let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+        (s, AcPeriod::new(ctl, Settings::default(), true, status))
+    }
+
+    /// Under the plan a hold stores its cap of 0 and leaves the plan ratio as it was: the frame,
+    /// which may run between the AC period's two stores, never feeds the running cap at another
+    /// ratio (it would if the hold stored the ratio 1 first).
+    #[test]
+    fn a_hold_under_the_plan_keeps_the_plan_ratio() {
+        let status = Status::new();
+        let (s, mut period) = under_the_plan(&status);
         let k = status.plan_ratio.load(Relaxed);
         assert!(k > 0 && k < crate::ports::PLAN_ONE, "{k}");
         assert_eq!(status.feed_cap.load(Relaxed), s.f_max);
@@ -597,13 +603,7 @@ mod tests {
     #[test]
     fn a_job_end_restarts_the_plan_ratio() {
         let status = Status::new();
-        status.start();
-        let s = AcSettings {
-            ceiling: crate::ac::FeedCeiling::Plan,
-            ..AcSettings::default()
-        };
-        let ctl = AcController::new(s).unwrap();
-        let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+        let (s, mut period) = under_the_plan(&status);
         let start = status.plan_ratio.load(Relaxed);
         // A cut at 0.94 F0 under k = PLAN_START: the first contact raises k.
         let load = 0.94 * s.f0_n();
