@@ -3,7 +3,8 @@
 //! feed the sender's bytes at given frames, collect the replies and play the operator inputs and
 //! the spindle output. What is checked: a spindle change waits for the motion before it and
 //! applies before the line's own; an e-stop stops at once with the position exact and latches
-//! ALARM:10 until released and `$X`; the feed hold and cycle start buttons hold and resume.
+//! ALARM:10 until released and `$X`; the feed hold and cycle start buttons hold and resume; M2
+//! waits for the motion and ends the job, on a board with a spindle and on one without.
 extern crate std;
 
 use std::boxed::Box;
@@ -108,7 +109,8 @@ enum AcEvent {
     },
 }
 
-struct Bench {
+/// `S`: the board drives a spindle (`LoaderBoard::SPINDLE`).
+struct Bench<const S: bool = true> {
     status: &'static Status,
     frame: FrameTask,
     blocks: Consumer<'static, Block, Q>,
@@ -145,7 +147,7 @@ struct Bench {
     oks_at: Vec<u64>,
 }
 
-impl Bench {
+impl<const S: bool> Bench<S> {
     fn tick(&mut self) {
         self.frames += 1;
         while let Some((at, bytes)) = self.sends.front() {
@@ -231,11 +233,11 @@ impl Bench {
     }
 }
 
-impl LoaderBoard for Bench {
+impl<const S: bool> LoaderBoard for Bench<S> {
     fn start(&mut self) {}
     fn kick() {}
 
-    const SPINDLE: bool = true;
+    const SPINDLE: bool = S;
 
     fn spindle(&mut self, state: Spindle, rpm: u32, _max_rpm: u32) {
         self.spindle.push(SpindleCall {
@@ -327,6 +329,27 @@ fn session_full(
     frame_limit: Option<(u32, u64, u32)>,
     ac_event: Option<(u64, AcEvent)>,
 ) -> Bench {
+    session_on(
+        sends,
+        inputs,
+        release_at,
+        frames,
+        trip,
+        frame_limit,
+        ac_event,
+    )
+}
+
+/// As [`session_full`], on a board with (`S`) or without a spindle.
+fn session_on<const S: bool>(
+    sends: &[(u64, &str)],
+    inputs: &[(u64, Events)],
+    release_at: Option<u64>,
+    frames: u64,
+    trip: Trip,
+    frame_limit: Option<(u32, u64, u32)>,
+    ac_event: Option<(u64, AcEvent)>,
+) -> Bench<S> {
     let status: &'static Status = Box::leak(Box::new(Status::new()));
     status.start();
     let (blocks_tx, blocks) = Box::leak(Box::new(Queue::<Block, Q>::new())).split();
@@ -435,6 +458,21 @@ fn a_program_end_waits_for_the_motion_then_ends_the_job() {
     assert!(at > 200, "{at}");
     // The first `ok` came at once (the move queued), M2's after the move.
     assert!(b.oks_at[0] < 10 && b.oks_at[1] >= at, "{:?}", b.oks_at);
+    // The same on a board without a spindle: M2 waits all the same, and no spindle is driven.
+    let b = session_on::<false>(
+        &[(1, "G91 G1 F30 X0.02\nM3 S500\nM2\n")],
+        &[],
+        None,
+        3000,
+        ESTOP,
+        None,
+        None,
+    );
+    assert_eq!(oks(&b.out), 3, "{}", b.out);
+    let (at, position) = b.job_end_at.expect("the job's end without a spindle");
+    assert_eq!(position, [200, 0, 0]);
+    assert!(b.oks_at[1] < 10 && b.oks_at[2] >= at, "{:?}", b.oks_at);
+    assert!(b.spindle.is_empty(), "{:?}", b.spindle);
     // No end, no job end; a soft reset ends it while moving.
     let b = session(&[(1, "G91 G1 F30 X0.02\n")], &[], None, 3000);
     assert_eq!(b.job_end_at, None);
