@@ -80,19 +80,8 @@ impl FeedCap for u32 {
     }
 }
 
-/// (AC feed cap, operator word): a host test's or simulation's fixed inputs.
-impl FeedCap for (u32, u32) {
-    #[inline(always)]
-    fn feed_cap(&self) -> u32 {
-        self.0
-    }
-    #[inline(always)]
-    fn operator(&self) -> u32 {
-        self.1
-    }
-}
-
-/// (AC feed cap, operator word, plan ratio): a host simulation's inputs under the plan.
+/// (AC feed cap, operator word, plan ratio in Q12: [`PLAN_ONE`] outside the plan): a host test's
+/// or simulation's inputs.
 impl FeedCap for (u32, u32, u32) {
     #[inline(always)]
     fn feed_cap(&self) -> u32 {

@@ -66,7 +66,8 @@ impl Rig {
         let held = self.status.ac_state.load(Relaxed) != AC_RUN;
         let cap = if held { 0 } else { u32::MAX };
         let word = self.status.operator.load(Relaxed);
-        self.frame.tick(&mut self.q, (cap, word));
+        self.frame
+            .tick(&mut self.q, (cap, word, crate::ports::PLAN_ONE));
         self.status.publish_frame(&self.frame);
         if self.trace.last() != Some(&self.frame.position()) {
             self.trace.push(self.frame.position());
