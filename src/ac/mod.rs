@@ -331,7 +331,7 @@ impl AcController {
     /// A controller in Run at f = f_min, or the reason the settings are refused.
     pub fn new(s: AcSettings) -> Result<Self, AcSettingsError> {
         s.validate()?;
-        Ok(AcController {
+        let mut c = AcController {
             f0_n: s.f0_n(),
             t0_nm: s.t0_nm(),
             step: s.step_per_period(),
@@ -345,18 +345,16 @@ impl AcController {
             band: plaus::Band::new(&s),
             mismatch: 0,
             law: law::FeedLaw::new(s.strategy, s.nominal_feed, s.f_max, s.gpc_lambda),
-            // Under the plan the controller's feed number is k x f_max; k starts at PLAN_START.
-            f: if s.ceiling == FeedCeiling::Plan {
-                plan_start(&s)
-            } else {
-                s.f_min
-            },
-            plan_history: [plan_start(&s); PLAN_HISTORY],
+            // Under the plan the controller's feed number is k x f_max, and `new_job` starts it.
+            f: s.f_min,
+            plan_history: [s.f_min; PLAN_HISTORY],
             plan_learnt: false,
             plan_loaded: 0,
             plan_loads: [0.0; PLAN_HISTORY],
             s,
-        })
+        };
+        c.new_job();
+        Ok(c)
     }
 
     /// The controller with another feed law (see [`law`]); the holds, the clamps, the
@@ -568,7 +566,7 @@ impl AcController {
     }
 
     /// A new job (the serial loader's program end, M2/M30, or soft reset:
-    /// `crate::rt::Status::ac_new_job`). Under the plan the ratio k starts again at
+    /// `crate::rt::Status::ac_new_job`; [`AcController::new`] starts the first). Under the plan the ratio k starts again at
     /// [`PLAN_START`] and the next first contact is judged afresh: the next job's plan and
     /// material are not this one's, and a k of 1 learnt on a plan that was right would meet the
     /// next job's first entry unprotected. In a hold, the resume then starts from there. The other
