@@ -86,8 +86,10 @@ mod app {
 
     #[local]
     struct Local {
-        // Without the plan ratio: the frame is at its 200 kHz budget (`$263=2` is refused).
-        frame: FrameTask<false>,
+        // With the plan ratio only where the board's limits say so (`BoardLimits::plan_ratio`,
+        // which also decides whether `$263=2` is accepted): the F446's frame is at its 200 kHz
+        // budget without it.
+        frame: FrameTask<{ board::LIMITS.plan_ratio }>,
         consumer: Consumer<'static, Block, QUEUE>,
         producer: Producer<'static, Block, QUEUE>,
         table: Persistent<FlashStore<Sector>>,
