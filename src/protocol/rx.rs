@@ -14,6 +14,16 @@
 //! counted afresh and reported after the reset, so no line of the new session loses its start
 //! unnoticed.
 //! Realtime bytes are never stored and never refused.
+//!
+//! Extended ASCII (bytes 0x80 and above that are not realtime commands) as grbl 1.1 and real
+//! senders meet it: bCNC and CNCjs write a realtime byte such as 0x91 as its UTF-8 encoding,
+//! `C2 91`. The ISR holds a `C2` back until the next byte: in front of a realtime byte it is
+//! dropped (the sender's encoding, not part of any line). An extended byte that arrives between
+//! lines (nothing of the next line stored yet: a realtime command of another firmware, a stray
+//! encoding byte) is dropped as grbl drops it ([`Push::Dropped`]). Inside a line it is stored,
+//! unlike grbl, which drops it there too: a dropped byte could join two digits into another
+//! number (`X1\xff0` would become `X10`). The loader refuses a stored byte that is not UTF-8
+//! (`error:1`), and UTF-8 text in a comment is accepted.
 
 use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering::Relaxed};
 use heapless::spsc::{Consumer, Producer, Queue};
@@ -149,6 +159,12 @@ struct Flags {
     poisoned: AtomicBool,
     /// Data bytes refused since the loader last looked.
     lost: AtomicU32,
+    /// Nothing of the current line stored yet (the last data byte stored ended a line, or a
+    /// reset came). ISR only.
+    line_start: AtomicBool,
+    /// A UTF-8 lead byte `C2` was held back: it is dropped if a realtime byte follows, otherwise
+    /// handled as an extended byte in front of the next one. ISR only.
+    lead: AtomicBool,
     /// Override values; written by the ISR only.
     feed: AtomicU8,
     rapid: AtomicU8,
@@ -178,6 +194,8 @@ impl RxShared {
                 markers: AtomicU8::new(0),
                 poisoned: AtomicBool::new(false),
                 lost: AtomicU32::new(0),
+                line_start: AtomicBool::new(true),
+                lead: AtomicBool::new(false),
                 feed: AtomicU8::new(100),
                 rapid: AtomicU8::new(100),
                 spindle: AtomicU8::new(100),
@@ -205,7 +223,14 @@ pub enum Push {
     /// and the loader will report [`super::Event::RxOverflow`]; a sender that keeps the
     /// character-counting contract never sees this.
     Refused,
+    /// An extended-ASCII byte that is no realtime command, between lines, or a UTF-8 lead byte
+    /// `C2` held back (dropped if a realtime byte follows): not stored, not an error (grbl
+    /// drops them too). See the module doc.
+    Dropped,
 }
+
+/// The UTF-8 lead byte of U+0080..U+00BF, where all of grbl's extended realtime bytes lie.
+const UTF8_LEAD_C2: u8 = 0xC2;
 
 /// The RX interrupt's end: one call per received byte. No locks, no loops, no panics.
 pub struct RxIsr<'a> {
@@ -218,12 +243,15 @@ impl RxIsr<'_> {
     pub fn push_byte(&mut self, b: u8) -> Push {
         let f = self.flags;
         if byte::is_realtime(b) {
+            // A `C2` held back in front of it was the sender's UTF-8 encoding: dropped.
+            f.lead.store(false, Relaxed);
             match b {
                 byte::RESET => {
                     // The reset acts at its place in the stream: lines before it are discarded,
                     // bytes after it belong to the new session. The marker tells the loader where.
                     f.resets
                         .store(f.resets.load(Relaxed).saturating_add(1), Relaxed);
+                    f.line_start.store(true, Relaxed);
                     f.feed.store(100, Relaxed);
                     f.rapid.store(100, Relaxed);
                     f.spindle.store(100, Relaxed);
@@ -261,6 +289,28 @@ impl RxIsr<'_> {
             }
             return Push::Realtime(b);
         }
+        if f.lead.load(Relaxed) {
+            // The held `C2` is followed by a byte that is no realtime command: it was text.
+            f.lead.store(false, Relaxed);
+            if self.data(UTF8_LEAD_C2) == Push::Refused {
+                // Poisoned now: the byte after it is refused and counted as well.
+                return self.data(b);
+            }
+        }
+        if b == UTF8_LEAD_C2 {
+            f.lead.store(true, Relaxed);
+            return Push::Dropped;
+        }
+        self.data(b)
+    }
+
+    /// A data byte: an extended byte between lines is dropped, any other byte stored (or
+    /// refused when the ring is full or poisoned).
+    fn data(&mut self, b: u8) -> Push {
+        let f = self.flags;
+        if b >= 0x80 && f.line_start.load(Relaxed) {
+            return Push::Dropped;
+        }
         // The data bytes in the ring: its length without the reset markers (the loader may have
         // taken a marker and not yet counted it: then one byte more is let in, never fewer).
         let data = self
@@ -273,6 +323,7 @@ impl RxIsr<'_> {
                 .store(f.lost.load(Relaxed).saturating_add(1), Relaxed);
             return Push::Refused;
         }
+        f.line_start.store(b == b'\n' || b == b'\r', Relaxed);
         Push::Stored
     }
 

@@ -410,3 +410,86 @@ fn a_receiver_overrun_is_reported_like_a_ring_overflow() {
     assert_eq!(r.feed(b"\nG0 X0.002\n").len(), 2);
     assert_eq!(r.responses(), ["error:11", "ok"]);
 }
+
+/// The realtime bytes as bCNC and CNCjs write them: UTF-8 encoded (`C2 91`, `C2 90`, `C2 85`,
+/// ...), between lines and inside one. The lead byte is dropped, the override applied, and
+/// every line arrives intact and is answered `ok` (keeping the `C2` gave the next line
+/// `error:1`, and both senders stop a job on an error).
+#[test]
+fn utf8_encoded_realtime_bytes_of_real_senders() {
+    let mut r = Rig::new();
+    let mut stream = Vec::new();
+    stream.extend_from_slice(b"G21 G90\n");
+    stream.extend_from_slice(&[0xC2, byte::FEED_PLUS_10]);
+    stream.extend_from_slice(b"G1 X1 F100\n");
+    stream.extend_from_slice(&[0xC2, byte::FEED_PLUS_10, 0xC2, byte::FEED_MINUS_1]);
+    stream.extend_from_slice(b"G1 X");
+    stream.extend_from_slice(&[0xC2, byte::RAPID_50]);
+    stream.extend_from_slice(b"2\n");
+    stream.extend_from_slice(&[0xC2, byte::FEED_100, 0xC2, byte::JOG_CANCEL]);
+    stream.extend_from_slice(&[0xC2, byte::SPINDLE_PLUS_10]);
+    stream.extend_from_slice(b"G1 X3\n");
+    let pushes = r.push(&stream);
+    assert_eq!(pushes.iter().filter(|p| **p == Push::Dropped).count(), 7);
+    assert!(!pushes.contains(&Push::Refused));
+    assert_eq!(
+        r.p.overrides(),
+        Overrides {
+            feed: 100,
+            rapid: 50,
+            spindle: 110
+        }
+    );
+    let ev = r.run();
+    assert_eq!(gcode(&ev), ["G21 G90", "G1 X1 F100", "G1 X2", "G1 X3"]);
+    assert_eq!(r.responses(), ["ok", "ok", "ok", "ok"]);
+}
+
+/// The feed override steps of `C2 91` sent one after another reach 120 % (the lead bytes are
+/// not counted as anything).
+#[test]
+fn utf8_encoded_feed_override_steps() {
+    let mut r = Rig::new();
+    r.push(&[0xC2, 0x91, 0xC2, 0x91, 0xC2, 0x93, 0xC2, 0x94]);
+    assert_eq!(r.p.overrides().feed, 120);
+    assert_eq!(gcode(&r.feed(b"G0 X0.1\n")), ["G0 X0.1"]);
+    assert_eq!(r.responses(), ["ok"]);
+}
+
+/// Extended bytes that are no realtime command: between lines dropped (a realtime command of
+/// another firmware, such as grblHAL's 0x87, or its UTF-8 form `C2 87`); inside a line kept, so
+/// a comment in UTF-8 is accepted and a byte that is not UTF-8 refuses its line (`error:1`)
+/// instead of joining the digits around it into another number.
+#[test]
+fn extended_bytes_between_lines_dropped_inside_a_line_kept() {
+    let mut r = Rig::new();
+    let mut stream = Vec::new();
+    stream.extend_from_slice(&[0x87, 0xC2, 0x87, 0xFF]);
+    stream.extend_from_slice(b"G0 X0.1\n");
+    stream.extend_from_slice("G0 X0.2 (\u{d8}6 mm cutter, caf\u{e9})\n".as_bytes());
+    stream.extend_from_slice(b"G0 X1");
+    stream.push(0xFF);
+    stream.extend_from_slice(b"0\n");
+    stream.extend_from_slice(b"G0 X0.3");
+    stream.extend_from_slice(&[0xC2, 0x87]);
+    stream.extend_from_slice(b"\n");
+    stream.extend_from_slice(b"G0 X0.4\n");
+    let pushes = r.push(&stream);
+    assert_eq!(pushes[..4], [Push::Dropped; 4]);
+    let ev = r.run();
+    // The non-UTF-8 line is refused before it becomes a G-code line.
+    assert_eq!(
+        gcode(&ev),
+        [
+            "G0 X0.1",
+            "G0 X0.2 (\u{d8}6 mm cutter, caf\u{e9})",
+            "G0 X0.3\u{87}",
+            "G0 X0.4"
+        ]
+    );
+    assert_eq!(
+        r.responses(),
+        ["ok", "ok", "error:1", "error:1", "ok"],
+        "{ev:?}"
+    );
+}
