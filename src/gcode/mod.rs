@@ -203,9 +203,24 @@ impl Parser {
         }
     }
 
-    /// Program end (M2/M30) of a streamed program: the modes return to power-up, the position
-    /// (machine and programmed) and the SIGN lines stay.
+    /// Program end (M2/M30): the modes the NIST RS274/NGC program-end rules name return to their
+    /// defaults, as grbl 1.1 resets them: motion G1, plane G17, distance G90, spindle M5. The
+    /// units (G20/G21), the feed F and the speed S stay, and so do the position (machine and
+    /// programmed) and the SIGN lines. A sender that shows the units from `$G` keeps showing the
+    /// program's.
     pub fn end_program(&mut self) {
+        self.modes = Modes {
+            motion: MotionMode::Linear,
+            plane: Plane::XY,
+            distance: Distance::Absolute,
+            spindle: Spindle::Off,
+            ..self.modes
+        };
+    }
+
+    /// Soft reset: every mode returns to power-up (grbl re-initialises its parser state); the
+    /// position and the SIGN lines stay.
+    pub fn reset_modes(&mut self) {
         self.modes = Modes::POWER_UP;
     }
 

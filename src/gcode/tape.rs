@@ -181,7 +181,7 @@ impl Tape {
     /// run as well) and the modes return to power-up; the position stays. Loader task.
     pub fn reset(&mut self, emit: impl FnMut(Block)) {
         self.flush(emit);
-        self.parser.end_program();
+        self.parser.reset_modes();
     }
 
     /// Soft reset during motion: the frame stopped at `at` (BLU) with the SIGN lines `signs` and
@@ -189,7 +189,7 @@ impl Tape {
     /// the parser stands where the machine stands. Loader task.
     pub fn abort(&mut self, at: [i32; 3], signs: u8) {
         self.flush(|_| {});
-        self.parser.end_program();
+        self.parser.reset_modes();
         self.parser.jogged_to(at, signs);
     }
 
@@ -286,13 +286,20 @@ mod tests {
         tape.line(4, "Y1", |b| out.push(b)).unwrap();
         tape.line(5, "M2", |b| out.push(b)).unwrap();
         assert_eq!(out.len(), 3);
-        // After M2: power-up modes (G90, inch, no feed), the position stays.
-        assert_eq!(tape.parser().modes(), crate::gcode::Modes::POWER_UP);
-        assert_eq!(tape.parser().position(), [787, 394, 0]);
-        assert!(
-            tape.line(6, "G1 X0", |b| out.push(b)).is_err(),
-            "no feed after M2"
+        // After M2: G1 G17 G90 M5 as grbl; the units (mm), the feed and the position stay.
+        let m = tape.parser().modes();
+        assert_eq!(
+            (m.motion, m.distance, m.units),
+            (
+                crate::gcode::MotionMode::Linear,
+                crate::gcode::Distance::Absolute,
+                crate::gcode::Units::Mm
+            )
         );
+        assert_eq!(tape.parser().position(), [787, 394, 0]);
+        tape.line(6, "X0", |b| out.push(b)).unwrap();
+        tape.flush(|b| out.push(b));
+        assert_eq!(out.len(), 4, "X0 runs at the kept feed");
         assert!(!tape.done());
     }
 

@@ -284,6 +284,37 @@ fn program_end() {
     assert_eq!(p.modes().units, Units::Mm);
 }
 
+/// After M2/M30 the units, F and S stay as the program left them (a sender showing `$G`'s units
+/// must not switch to inches after a program in mm), and motion, plane, distance and spindle
+/// return to G1 G17 G90 M5 (grbl 1.1 and NIST RS274/NGC); in inches as in mm.
+#[test]
+fn program_end_keeps_units_feed_and_speed() {
+    for (units_word, units) in [("G21", Units::Mm), ("G20", Units::Inch)] {
+        let mut p = parser();
+        let setup = format!("{units_word} G91 G18 G0 M3 S300 F7");
+        assert_eq!(p.line(1, &setup), Ok(Parsed::Nothing));
+        assert_eq!(p.line(2, "M30"), Ok(Parsed::End));
+        p.end_program();
+        let m = p.modes();
+        assert_eq!(m.units, units, "{units_word}");
+        assert_eq!(m.spindle_rpm, 300);
+        let before = parser();
+        assert_ne!(m.feed, before.modes().feed);
+        assert_eq!(
+            (m.motion, m.plane, m.distance, m.spindle),
+            (
+                MotionMode::Linear,
+                Plane::XY,
+                Distance::Absolute,
+                Spindle::Off
+            )
+        );
+        // A soft reset returns every mode to power-up.
+        p.reset_modes();
+        assert_eq!(p.modes(), Modes::POWER_UP);
+    }
+}
+
 #[test]
 fn dwell() {
     let mut p = parser();

@@ -906,3 +906,25 @@ fn a_chatter_hold_changes_the_spindle_speed_first() {
     assert_eq!(oks(&b.out), 3);
     assert_eq!(b.status.position(), [1000, 100, 0]);
 }
+
+/// `$G` after M2 through the real loader: the units the program ran in (G21 or G20) stay, motion,
+/// distance and spindle are back at G1 G90 M5 (grbl 1.1). Before, M2 returned every mode to
+/// power-up and `$G` said G20 after a program in mm; CNCjs then showed inches.
+#[test]
+fn dollar_g_after_program_end_keeps_the_units() {
+    for (units, feed) in [("G21", "F300"), ("G20", "F12")] {
+        let program = std::format!("{units} G91 G1 {feed} X0.02\nM3 S400\nM2\n$G\n");
+        let b = session(&[(1, program.as_str())], &[], None, 6000);
+        let gc = b
+            .out
+            .lines()
+            .find(|l| l.starts_with("[GC:"))
+            .unwrap_or_else(|| panic!("no $G report: {}", b.out));
+        assert!(gc.contains(&std::format!(" {units} ")), "{gc}");
+        assert!(
+            gc.starts_with("[GC:G1 G54 G17 ") && gc.contains(" G90 "),
+            "{gc}"
+        );
+        assert!(gc.contains(" M5 ") && gc.contains(" S400"), "{gc}");
+    }
+}
