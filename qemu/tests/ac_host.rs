@@ -406,3 +406,29 @@ fn the_s_word_sets_the_spindle_speed() {
         "force ratio {r} ({f1200} / {f600} N)"
     );
 }
+
+/// A rapid plunge into material the program did not expect (the stock's top at Z0, the rapid to
+/// Z-0.5 from above): the AC's hold stops the rapid down its ladder, as the operator's `!`
+/// would, instead of letting it run at 158 ipm to full depth. The hold names the rapid's block
+/// (blocks done = the rapid's index) and the machine stands well above the rapid's end.
+#[test]
+fn an_overload_hold_stops_a_rapid_plunge() {
+    let c = cut("blank X0 Y0 W5 H3 Z0\n", Material::STEEL);
+    let program = "G20 G90\nG0 X1 Y1.5 Z0.1\nG0 Z-0.5\nG1 X2 F10\nM2\n";
+    let (run, _) = run_any(program, &c);
+    assert!(run.held, "no hold in a rapid plunge");
+    // Which check trips first (the overload, or the torque's jump to its rail that the radial
+    // force of a plunge does not follow) does not matter here: every hold stops the rapid.
+    println!("rapid plunge: {:?}", run.alarm);
+    let prog = analysis::load_program(program, &Settings::default()).unwrap();
+    let plunge = prog
+        .iter()
+        .position(|b| b.block.line == 3)
+        .expect("the plunge's block");
+    assert_eq!(run.blocks_done, plunge, "the hold names another block");
+    let z = run.final_position[2];
+    // The ladder stops a rapid within s1 + s2 + s3 pulses of the hold (525 BLU at the defaults);
+    // the AC sees the force within a period (263 BLU at 158 ipm) or two of the contact.
+    println!("rapid plunge held at Z {z} BLU (programmed -5000)");
+    assert!(z > -2000, "the rapid went on to Z {z} BLU");
+}
