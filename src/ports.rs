@@ -107,6 +107,15 @@ pub trait StepPort {
     /// The pin levels: bit k = PULSE line of axis k, bit k + 3 = its SIGN line (the pulse-end ISR
     /// counts the encoder from them).
     fn read_pins(&mut self) -> u8;
+    /// Whether a PULSE line is still high when the frame is about to raise the next pulses: the
+    /// pulse-end interrupt has not run since the last ones, so the interrupts overran the frame
+    /// period and a rising edge would be lost. The frame then holds its pulses back a period
+    /// (`Status::frame_overruns`). Frame ISR. Default: never (a board whose frame budget has no
+    /// room for the read, or that measures its frame another way: the constant folds away).
+    #[inline(always)]
+    fn pulse_still_high(&mut self) -> bool {
+        false
+    }
 }
 
 /// The periodic frame timer. Frame ISR (and init, which starts it).

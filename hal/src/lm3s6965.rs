@@ -172,6 +172,12 @@ impl StepPort for Lm3s6965 {
     fn read_pins(&mut self) -> u8 {
         read(ALL_DATA) as u8
     }
+
+    /// PB0..PB2 read back (one load): a PULSE line still high means the pulse end has not run.
+    #[inline(always)]
+    fn pulse_still_high(&mut self) -> bool {
+        read(STEP_DATA) != 0
+    }
 }
 
 /// Sample timer of the simulated ADC: Timer 2 (TIMER_2A), 32-bit periodic with `reload`, interrupt

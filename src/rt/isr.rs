@@ -100,6 +100,14 @@ impl<const PLAN: bool> FrameTask<PLAN> {
         timer.ack();
         let pending = self.pending;
         if pending.steps != 0 {
+            if port.pulse_still_high() {
+                // Overrun: the last pulse has not ended (the pulse-end interrupt waits behind this
+                // one). Raising the line again would lose an edge: this frame does nothing, its
+                // pulses go out a period later, and the loader holds the machine.
+                let n = status.frame_overruns.load(Relaxed);
+                status.frame_overruns.store(n.wrapping_add(1), Relaxed);
+                return;
+            }
             port.write_steps(pending.steps);
             pulse.start();
         }

@@ -242,7 +242,25 @@ pub fn run<
     // The longest frame already reported over the board's limit (said again only when a longer
     // one comes).
     let mut overrun = 0u32;
+    // Frames that overran their period (pulses held back), as last reported.
+    let mut overruns = status.frame_overruns.load(Relaxed);
     while board.running() {
+        // A frame that found the last pulse still on the pins: the interrupts take longer than
+        // the period (a slower CPU than the settings assume). No pulse was lost (the frame held
+        // them back), but the motion no longer keeps its timing: hold, as for a long frame. Said
+        // once per hold: overruns while already held (the hold's own ramp) are not news.
+        let n = status.frame_overruns.load(Relaxed);
+        if core::mem::replace(&mut overruns, n) != n && !hold {
+            hold = true;
+            publish(hold, overrides);
+            proto.alarm(alarm::FRAME_OVERRUN, &mut out);
+            proto.message(
+                &mut out,
+                format_args!(
+                    "Frame overran its period ({n} frames so far, no pulse lost): lower $201 or $110"
+                ),
+            );
+        }
         if let (Some(limit), Some((_, max))) = (board.frame_limit_cycles(), status.frame_cycles()) {
             if max > limit && max > overrun {
                 overrun = max;

@@ -72,6 +72,12 @@ pub struct Status {
     /// read by the loader through [`Status::frame_cycles`].
     pub frame_cycles_min: AtomicU32,
     pub frame_cycles_max: AtomicU32,
+    /// Frames that found the previous frame's pulse still on the pins (the pulse-end interrupt
+    /// had not run: the frame and pulse-end interrupts took longer than the period): each one
+    /// held its pulses back a period, so none is lost and the position stays exact, and the loader
+    /// holds the machine with `ALARM:111`. Boards that can read their PULSE lines
+    /// (`StepPort::pulse_still_high`). Written by the frame ISR only (plain load and store).
+    pub frame_overruns: AtomicU32,
     /// The spindle speed the machine was last commanded (rpm; 0: none yet), for the process
     /// monitors' tooth period (`rt::ac`; until one is known they assume `$269`). Written by the
     /// loader when it applies a spindle change; read by the AC task.
@@ -119,6 +125,7 @@ impl Status {
             samples_dropped: AtomicU32::new(0),
             frame_cycles_min: AtomicU32::new(0),
             frame_cycles_max: AtomicU32::new(0),
+            frame_overruns: AtomicU32::new(0),
             spindle_rpm: AtomicU32::new(0),
             spindle_stop: AtomicBool::new(false),
             chatter_hz: AtomicU32::new(0),

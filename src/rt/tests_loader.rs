@@ -60,6 +60,9 @@ impl StepPort for Pins {
     fn read_pins(&mut self) -> u8 {
         self.levels
     }
+    fn pulse_still_high(&mut self) -> bool {
+        self.levels & 0b111 != 0
+    }
 }
 
 /// The frame and pulse timers: the bench runs the frames itself.
@@ -98,10 +101,14 @@ struct SpindleCall {
 }
 
 /// The test board.
-/// What the AC task does in a session (see `Bench::ac_event`).
+/// What the AC task (or the board) does in a session (see `Bench::ac_event`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum AcEvent {
     Breakage,
+    /// The board's interrupts overrun the period for this many frames: the pulse-end interrupt
+    /// runs only after every other frame (it waits behind the next frame), as on a CPU too slow
+    /// for the settings.
+    LatePulseEnd(u64),
     /// With `$276` at this step (mm) and `$277` at this speed (rpm).
     Chatter {
         step_mm: f32,
@@ -213,8 +220,15 @@ impl<const S: bool> Bench<S> {
             &mut Source(&mut self.blocks),
             self.status,
         );
-        // The pulse timer's interrupt: only after a frame that raised PULSE lines.
-        if self.pins.levels & 0b111 != 0 {
+        // The pulse timer's interrupt: only after a frame that raised PULSE lines (late: after
+        // every other frame only, while the board overruns).
+        let late = match self.ac_event {
+            Some((at, AcEvent::LatePulseEnd(n))) => {
+                self.frames >= at && self.frames < at + n && self.frames % 2 == 0
+            }
+            _ => false,
+        };
+        if self.pins.levels & 0b111 != 0 && !late {
             super::pulse_end(&mut self.pins, &mut NoTimer, self.status);
         }
         while let Some(b) = self.tx.dequeue() {
@@ -927,4 +941,27 @@ fn dollar_g_after_program_end_keeps_the_units() {
         );
         assert!(gc.contains(" M5 ") && gc.contains(" S400"), "{gc}");
     }
+}
+
+/// A board whose interrupts overrun the frame period (the pulse end waits behind the next frame):
+/// the frame that finds the last pulse still high holds its pulses back a period instead of
+/// raising the line again (which loses the edge: the encoder then counts fewer pulses than the
+/// position), and the loader holds the machine with `ALARM:111`. No pulse is lost: the encoder
+/// equals the position, and after `$X` and `~` the rapid ends exactly where it was sent.
+#[test]
+fn a_frame_overrun_holds_and_loses_no_pulse() {
+    let b = session_full(
+        &[(1, "G91 G0 X1\n"), (20_000, "$X\n"), (21_000, "~")],
+        &[],
+        None,
+        60_000,
+        ESTOP,
+        None,
+        Some((3000, AcEvent::LatePulseEnd(300))),
+    );
+    assert!(b.out.contains("ALARM:111"), "{}", b.out);
+    assert!(b.out.contains("Frame overran its period"), "{}", b.out);
+    assert!(b.status.frame_overruns.load(Relaxed) > 0);
+    assert_eq!(b.status.encoder(), [10_000, 0, 0], "{}", b.out);
+    assert_eq!(b.status.position(), [10_000, 0, 0]);
 }

@@ -410,25 +410,49 @@ mod app {
             defmt::warn!("alarm: {=str}", t.as_str());
         }
         if p.halt && !SERIAL.load(Relaxed) {
-            let [x, y, z] = [
-                STATUS.position[0].load(Relaxed),
-                STATUS.position[1].load(Relaxed),
-                STATUS.position[2].load(Relaxed),
-            ];
-            let blocks = STATUS.blocks_done.load(Relaxed);
-            results::line(format_args!(
-                "millac: hold blocks={} position={},{},{}",
-                blocks, x, y, z
-            ));
-            defmt::warn!(
-                "held: blocks={=u32} position={=i32},{=i32},{=i32}",
-                blocks,
-                x,
-                y,
-                z
-            );
-            exit(false);
+            held_exit();
         }
+    }
+
+    /// Program mode: the run ends on a hold with the machine standing: `millac: hold blocks=N
+    /// position=x,y,z` (the exact position), exit with failure.
+    fn held_exit() -> ! {
+        let [x, y, z] = STATUS.position();
+        let blocks = STATUS.blocks_done.load(Relaxed);
+        results::line(format_args!(
+            "millac: hold blocks={} position={},{},{}",
+            blocks, x, y, z
+        ));
+        defmt::warn!(
+            "held: blocks={=u32} position={=i32},{=i32},{=i32}",
+            blocks,
+            x,
+            y,
+            z
+        );
+        exit(false);
+    }
+
+    /// Program mode: a frame that overran its period (the interrupts took longer than it; the
+    /// frame held its pulses back, so none is lost) holds the machine as in serial mode
+    /// (`ALARM:111`) and, once it stands, ends the run with the hold's report. Idle loader.
+    fn overrun_check() {
+        let n = STATUS.frame_overruns.load(Relaxed);
+        if n == 0 {
+            return;
+        }
+        STATUS
+            .operator
+            .store(millac::nc::operator::word(100, 100, true, false), Relaxed);
+        let t = text(format_args!(
+            "frame overrun: the interrupts took longer than the frame period ({} frames, no pulse \
+             lost): the CPU is too slow for these settings",
+            n
+        ));
+        results::line(format_args!("alarm: {}", t));
+        defmt::warn!("alarm: {=str}", t.as_str());
+        while !STATUS.stopped() {}
+        held_exit();
     }
 
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
@@ -514,6 +538,7 @@ mod app {
     /// The chatter reaction's turn (tape mode): a re-plan, a spindle speed (applied to the
     /// simulated spindle, then the AC resumes) or a refusal, into the result file and the log.
     fn react(replan: &mut Replan<RECORD>, producer: &mut Producer<'static, Block, QUEUE>) {
+        overrun_check();
         match replan.poll(producer, &STATUS) {
             replan::Event::None => {}
             replan::Event::Speed(s) => {
