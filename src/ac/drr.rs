@@ -136,7 +136,10 @@ pub struct Drr {
     /// Per channel: the code that started the current run of unchanged codes, and its length.
     frozen_at: [u16; 3],
     frozen_run: [u32; 3],
-    /// Previous in-range codes (for the jump check); None before the first sample.
+    /// Previous in-range codes (for the jump check). Before the first sample: the channels'
+    /// zero-load codes (their calibration offsets), so a fault present from the first sample (a
+    /// channel at a rail, a spike) is judged as a jump from no load like any other; it read as
+    /// an overload before, which `~` resumes without `$X`.
     prev: Option<[u16; 3]>,
     /// Consecutive samples at a rail, per channel.
     at_rail: [u32; 3],
@@ -163,7 +166,10 @@ impl Drr {
             frozen_codes: s.frozen_codes,
             frozen_at: [0; 3],
             frozen_run: [0; 3],
-            prev: None,
+            prev: Some(
+                s.cal
+                    .map(|c| c.offset.round().clamp(0.0, CODE_MAX as f32) as u16),
+            ),
             at_rail: [0; 3],
             count: 0,
             latest: Measured {

@@ -27,6 +27,19 @@ pub(super) fn codes(t_nm: f32, fu_n: f32, fv_n: f32) -> [u16; 3] {
 }
 
 /// Ten samples (one default window) of the same codes, then one period.
+/// Samples from the zero-load codes up to `k` in steps below the jump threshold (into the current
+/// window): a synthetic load that is not a cut (force without torque) then reaches the window as a
+/// ramp, not as a jump from no load the DRR would judge by F*R/T.
+pub(super) fn ease_in(c: &mut AcController, k: [u16; 3]) {
+    let step = (c.settings().jump_codes / 2).max(1) as i32;
+    let from = [MID; 3].map(i32::from);
+    let to = k.map(i32::from);
+    let n = (0..3).map(|i| (to[i] - from[i]).abs()).max().unwrap_or(0) / step + 1;
+    for j in 1..n {
+        c.sample([0, 1, 2].map(|i| (from[i] + (to[i] - from[i]) * j / n) as u16));
+    }
+}
+
 fn window(c: &mut AcController, k: [u16; 3]) -> AcOutput {
     for _ in 0..10 {
         c.sample(k);
@@ -324,6 +337,7 @@ fn overload_holds_within_one_period_and_resume_restarts_at_f_min() {
 #[test]
 fn torque_overload_holds() {
     let mut c = ctl(paper());
+    ease_in(&mut c, codes(80.0, 0.0, 0.0));
     let out = window(&mut c, codes(80.0, 0.0, 0.0)); // E = 1 - 80/72 = -0.11
     assert!(matches!(out.state, AcState::Hold(Alarm::Overload { t_nm, .. }) if t_nm == 80.0));
 }
@@ -723,6 +737,7 @@ fn the_frc_lowers_the_feed_on_the_latest_window_not_the_held_peak() {
     c.f = 2000;
     let f0 = s.f0_n();
     // One window 8 % above F0: the tenfold deceleration.
+    ease_in(&mut c, codes(0.0, 1.08 * f0, 0.0));
     let over = window(&mut c, codes(0.0, 1.08 * f0, 0.0));
     let after_over = c.f;
     assert!(after_over < 2000 - 400, "decelerated to {after_over}");
@@ -745,6 +760,7 @@ fn the_frc_lowers_the_feed_on_the_latest_window_not_the_held_peak() {
         ..s
     });
     c.f = 2000;
+    ease_in(&mut c, codes(0.0, 1.08 * f0, 0.0));
     window(&mut c, codes(0.0, 1.08 * f0, 0.0));
     let f1 = c.f;
     window(&mut c, codes(0.0, 0.98 * f0, 0.0));

@@ -480,3 +480,40 @@ fn torque_arriving_at_the_rail_unconfirmed_is_a_sensor_fault() {
     let out = c.period();
     assert!(matches!(out.alarm, Some(Alarm::Overload { .. })), "{out:?}");
 }
+
+/// A fault present from the very first sample (the injected `rail@0`, `spike@0`): judged as a
+/// jump from the channels' zero-load codes, as the same fault later in the run is, so the hold is
+/// the sensor alarm (`$X` to leave) and not an overload (which `~` resumes). Before, the first
+/// sample had no jump reference: its rail or spike entered the window and read as an overload.
+#[test]
+fn a_fault_from_the_first_sample_is_a_sensor_fault_not_an_overload() {
+    let s = AcSettings::default();
+    let cases: [(&str, [u16; 3], Sensor); 3] = [
+        ("T at the upper rail", [4095, MID, MID], Sensor::Torque),
+        ("Fu at the lower rail", [MID, 0, MID], Sensor::ForceU),
+        ("Fu spike", [MID, 4000, MID], Sensor::ForceU),
+    ];
+    for (what, first, sensor) in cases {
+        let mut c = ctl(s);
+        c.sample(first);
+        feed_live(&mut c, [MID; 3], 0, 9);
+        let out = c.period();
+        assert!(
+            matches!(out.alarm, Some(Alarm::Sensor(SensorFault::Jump { sensor: got, .. })) if got == sensor),
+            "{what}: {out:?}"
+        );
+    }
+    // A rail that stays from the first sample: the same jump fault at once (not, 1.5 s later, the
+    // stuck alarm after an overload).
+    let mut c = ctl(s);
+    feed_live(&mut c, [4095, MID, MID], 0, 10);
+    let out = c.period();
+    assert!(
+        matches!(out.alarm, Some(Alarm::Sensor(_))),
+        "rail from the start: {out:?}"
+    );
+    // A machine that starts in a real cut (force and torque agree) is load, not a fault.
+    let mut c = ctl(s);
+    feed_live(&mut c, cut_codes(3000.0, 0.9), 0, 10);
+    assert_eq!(c.period().alarm, None);
+}
