@@ -56,6 +56,8 @@ pub struct Sampler<D: ForceTorqueAdc> {
     /// The chatter monitor's sound queue (None: no chatter monitor).
     sound: Option<Producer<'static, Sound, SOUND_QUEUE>>,
     per_period: u32,
+    /// The overload trip when the AC is applied (`millac::rt::ac::Trip`; None: measure only).
+    trip: Option<millac::rt::ac::Trip>,
 }
 
 /// What the app does after a sample: `due` = spawn the AC period with this deadline base (the
@@ -80,7 +82,15 @@ impl<D: ForceTorqueAdc> Sampler<D> {
             queue,
             sound: None,
             per_period,
+            trip: None,
         }
+    }
+
+    /// Holds the feed from the sampler on the first sample above the overload hold's level (the
+    /// AC applied: its feed cap is the frame's). Init context.
+    pub fn with_trip(mut self, trip: millac::rt::ac::Trip) -> Self {
+        self.trip = Some(trip);
+        self
     }
 
     /// Queues the sound channel's codes for the chatter monitor. Init context.
@@ -93,7 +103,12 @@ impl<D: ForceTorqueAdc> Sampler<D> {
     /// monitor's (a full queue counts `samples_dropped`, or `sound_dropped`; a missed conversion
     /// queues no codes, so the period sees no fresh sample for it). Sampler task.
     pub fn sample(&mut self) -> Sampled {
-        match body::sample(&mut self.adc, self.status, self.per_period) {
+        match body::sample(
+            &mut self.adc,
+            self.status,
+            self.per_period,
+            self.trip.as_ref(),
+        ) {
             body::Sampled::Lost { due } => Sampled::Lost(due),
             body::Sampled::Codes { codes, due, sound } => {
                 if let Some(c) = codes {

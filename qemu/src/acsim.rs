@@ -306,9 +306,15 @@ type HostSampled = (
     Option<[u16; millac::wire::SOUND_PER_SAMPLE]>,
 );
 
-/// The sampler body of the firmware (`millac::rt::ac::sample`) over the host ADC.
-fn sample(adc: &mut HostAdc, status: &Status, per_period: u32) -> HostSampled {
-    match rt_ac::sample(adc, status, per_period) {
+/// The sampler body of the firmware (`millac::rt::ac::sample`, with its overload trip when the
+/// AC is applied) over the host ADC.
+fn sample(
+    adc: &mut HostAdc,
+    status: &Status,
+    per_period: u32,
+    trip: Option<&rt_ac::Trip>,
+) -> HostSampled {
+    match rt_ac::sample(adc, status, per_period, trip) {
         rt_ac::Sampled::Codes { codes, due, sound } => (codes, due, sound),
         // Not reached: the host ADC never goes away.
         rt_ac::Sampled::Lost { due } => (None, due, None),
@@ -443,6 +449,8 @@ pub fn run_with_faults(
         }
         None => None,
     };
+    // The sampler's overload trip (the AC is applied here whenever it runs).
+    let trip = ac.map(|s| rt_ac::Trip::new(&s));
     let mut chatter = match ac {
         Some(s) => millac::rt::monitor::ChatterTask::from_settings(&s)
             .map_err(|e| anyhow!("chatter settings: {}", e.message()))?,
@@ -525,9 +533,14 @@ pub fn run_with_faults(
         let mut halt = false;
         while t >= next_sample {
             next_sample += sample_ns;
-            let (codes, due, sound) = sample(&mut adc, &status, per_period);
+            let (codes, due, sound) = sample(&mut adc, &status, per_period, trip.as_ref());
             if let (Some(ac), Some(codes)) = (period.as_mut(), codes) {
                 ac.sample(codes);
+            }
+            // The sampler's trip writes the frame's cap between periods (as in the firmware,
+            // where the frame reads it every frame).
+            if period.is_some() {
+                feed_cap = status.feed_cap.load(Relaxed);
             }
             // The chatter monitor's task (its own in the firmware, below the AC task): each
             // record's spectrum. The firmware's monitor runs after the AC period of the tick that

@@ -28,6 +28,20 @@
 //! the sampler says so once ([`Sampled::Lost`]) so the app can report it: the machine stops
 //! safely with its position exact and the run leaves its report, as after any hold.
 //!
+//! # The sampler's trip
+//!
+//! The AC period holds on an overload once per period (10 ms), but the sampler sees the crossing
+//! at the sample rate (1 ms). With the AC applied, the sampler compares every fresh conversion
+//! with the overload hold's own level ([`Trip`]: F above (1 - `overload_e`) F0, or |T| above
+//! (1 - `overload_e`) T0, where the period's E falls below `overload_e`) and on the first sample
+//! above it stores a feed cap of 0 at once: the frame starts its feed hold (and a rapid its
+//! ladder) in its next frame, a period earlier than the AC period could. The AC period judges
+//! the same sample ([`AcPeriod::sample`]) and makes the hold its alarm: a sensor fault when the
+//! DRR refuses the sample, a tool breakage when the breakage monitor's tooth periods before it
+//! show a chip moved from one tooth to the next ([`crate::monitor::BreakageDetector::chip_moved`]:
+//! the broken tooth's missing chip, the next tooth's doubled one), else an overload, and keeps
+//! it until the operator resumes, whatever the window's pick says.
+//!
 //! # End of a hold
 //!
 //! With an operator (serial mode), `~` or `$X` sets `Status::ac_resume` and the next period calls
@@ -98,11 +112,59 @@ pub enum Sampled {
     },
 }
 
+/// The sampler's overload trip (see the module doc): the overload hold's level in engineering
+/// units and the calibration that gets there from the codes. Built once from the AC settings
+/// (init); used by the sampler (the hold) and by the AC period (its alarm).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Trip {
+    cal: [crate::ac::Calibration; 3],
+    /// The force level squared (N^2: no square root per sample) and the torque level (N*m).
+    f_sq: f32,
+    t_nm: f32,
+}
+
+impl Trip {
+    pub fn new(s: &crate::ac::AcSettings) -> Self {
+        let k = 1.0 - s.overload_e;
+        let f = k * s.f0_n();
+        Trip {
+            cal: s.cal,
+            f_sq: f * f,
+            t_nm: k * s.t0_nm(),
+        }
+    }
+
+    /// The sample's F (N) and |T| (N*m) when either is above the overload hold's level. Codes out
+    /// of the 12-bit range are the DRR's to judge (a fault), not a trip.
+    #[inline]
+    pub fn over(&self, c: Codes) -> Option<(f32, f32)> {
+        if c.iter().any(|&k| k > crate::ac::CODE_MAX) {
+            return None;
+        }
+        let t = self.cal[0].value(c[0]).abs();
+        let (fu, fv) = (self.cal[1].value(c[1]), self.cal[2].value(c[2]));
+        let f_sq = fu * fu + fv * fv;
+        (f_sq > self.f_sq || t > self.t_nm).then(|| (crate::ac::ecr::force(fu, fv), t))
+    }
+}
+
 /// One sample: the ADC converts with the encoder counts of this instant (a simulated ADC needs
-/// them), the sample count advances (also when the conversion was missed). Sampler task.
-pub fn sample(adc: &mut impl ForceTorqueAdc, status: &Status, per_period: u32) -> Sampled {
+/// them), the sample count advances (also when the conversion was missed). With `trip` (the AC
+/// applied), a conversion above the overload hold's level holds the feed at once (a feed cap of
+/// 0; see the module doc). Sampler task.
+pub fn sample(
+    adc: &mut impl ForceTorqueAdc,
+    status: &Status,
+    per_period: u32,
+    trip: Option<&Trip>,
+) -> Sampled {
     let i = status.samples.load(Relaxed);
     let conversion = adc.sample(i, status.encoder());
+    if let (Some(t), Conversion::Fresh(c)) = (trip, conversion) {
+        if t.over(c).is_some() {
+            status.feed_cap.store(0, Relaxed);
+        }
+    }
     let n = i.wrapping_add(1);
     status.samples.store(n, Relaxed);
     let due = (n % per_period.max(1) == 0).then_some(n);
@@ -149,6 +211,10 @@ pub struct AcPeriod {
     chatter: Option<Spectrum>,
     /// Tool breakage detection on the force (None: off).
     breakage: Option<BreakageMonitor>,
+    /// The overload hold's level per sample (the sampler's trip, see the module doc).
+    trip: Trip,
+    /// The first sample above it since the last period in Run: its F and T.
+    tripped: Option<(f32, f32)>,
 }
 
 /// A process monitor's hold entered in this period: the output says it (state, alarm to report,
@@ -188,6 +254,7 @@ impl AcPeriod {
         if enabled {
             publish(status, ctl.feed_cap(), ctl.settings());
         }
+        let trip = Trip::new(ctl.settings());
         AcPeriod {
             ctl,
             nc,
@@ -198,6 +265,8 @@ impl AcPeriod {
             moved: 0,
             chatter: None,
             breakage: None,
+            trip,
+            tripped: None,
         }
     }
 
@@ -285,6 +354,18 @@ impl AcPeriod {
     /// (from the sampler's queue) or host.
     pub fn sample(&mut self, codes: Codes) {
         self.ctl.sample(codes);
+        // The sampler's trip on this sample (see the module doc), judged before the breakage
+        // monitor takes the sample in: the tooth periods before it say what made the crossing.
+        if self.tripped.is_none() && self.ctl.state() == AcState::Run {
+            if let Some(ft) = self.trip.over(codes) {
+                self.tripped = Some(ft);
+                if let Some(m) = self.breakage.as_mut() {
+                    if let Some(b) = m.detector.chip_moved() {
+                        m.pending.get_or_insert(b);
+                    }
+                }
+            }
+        }
         if let Some(m) = self.breakage.as_mut() {
             let cal = &self.ctl.settings().cal;
             let (fu, fv) = (cal[1].value(codes[1]), cal[2].value(codes[2]));
@@ -311,6 +392,7 @@ impl AcPeriod {
                 m.pending = None;
             }
             self.chatter = None;
+            self.tripped = None;
             status.resumes.fetch_add(1, Relaxed);
         }
         self.follow_spindle(status.spindle_rpm.load(Relaxed));
@@ -335,6 +417,26 @@ impl AcPeriod {
             self.ctl.set_achieved(unscale_override(achieved, factor));
         }
         let mut out = self.ctl.period();
+        // The sampler held on a sample the period did not hold on (its pick is the latest
+        // sample, or the crossing fell before a resume's first window): an overload all the same,
+        // at the sample's F and T. The sampler's hold is never lifted by the period's cap.
+        if let Some((f_n, t_nm)) = self.tripped.take() {
+            if out.state == AcState::Run && self.enabled {
+                let s = self.ctl.settings();
+                let a = crate::ac::Alarm::Overload {
+                    f_n,
+                    t_nm,
+                    f0_n: s.f0_n(),
+                    t0_nm: s.t0_nm(),
+                    force_limit_n: s.force_limit_n,
+                    torque_limit_nm: s.torque_limit_nm,
+                    e: crate::ac::ecr::errors(f_n, t_nm, s.f0_n(), s.t0_nm()).e,
+                };
+                if self.ctl.hold(a) {
+                    held(&mut out, a, &self.ctl);
+                }
+            }
+        }
         if let Some(b) = self.breakage.as_mut().and_then(|m| m.pending.take()) {
             // Over any other hold (the broken tooth's doubled chip may have made an overload
             // first): the alarm the operator sees is the breakage, and the spindle stops.
@@ -425,7 +527,7 @@ mod tests {
         let mut states = [None; 5];
         for p in 0..5 {
             for k in 0..per {
-                let Sampled::Codes { codes, due, .. } = sample(&mut adc, &status, per) else {
+                let Sampled::Codes { codes, due, .. } = sample(&mut adc, &status, per, None) else {
                     panic!("lost before its time");
                 };
                 let i = p * per + k;
@@ -459,7 +561,7 @@ mod tests {
         let mut halted = None;
         for p in 5..(6 + HOLD_EXIT_PERIODS) {
             for k in 0..per {
-                let due = match sample(&mut adc, &status, per) {
+                let due = match sample(&mut adc, &status, per, None) {
                     Sampled::Lost { due } => due,
                     s => panic!("sample {}: {s:?}", p * per + k),
                 };
@@ -561,6 +663,74 @@ mod tests {
             cap > 0 && cap as f32 <= most,
             "resumed at {cap}, most {most}"
         );
+    }
+
+    /// Codes of a force `f_n` on Fu alone with the torque that agrees with it (F*R/T = 1 at the
+    /// default 6.35 mm radius), at the default calibration.
+    fn cut_codes(f_n: f32) -> Codes {
+        let s = AcSettings::default();
+        let code = |c: crate::ac::Calibration, v: f32| (c.offset + v / c.gain).round() as u16;
+        [
+            code(s.cal[0], f_n * s.tool_radius_mm / 1000.0),
+            code(s.cal[1], f_n),
+            code(s.cal[2], 0.0),
+        ]
+    }
+
+    /// An ADC that reads a cut at `f_n` from sample `at` on (no load before).
+    struct Step {
+        at: u32,
+        f_n: f32,
+    }
+
+    impl ForceTorqueAdc for Step {
+        fn sample(&mut self, index: u32, _encoder: [i32; 3]) -> Conversion {
+            Conversion::Fresh(cut_codes(if index >= self.at { self.f_n } else { 0.0 }))
+        }
+    }
+
+    /// The sampler's trip: the first sample above the overload hold's level (1.1 F0 at the
+    /// defaults) stores a feed cap of 0 at once, within the AC period, not at its end; a cut
+    /// just below the level does not. The AC period then holds with the overload at that
+    /// sample's force, and keeps the hold. Without the trip the cap stayed until the period.
+    #[test]
+    fn the_sampler_holds_on_the_first_sample_over_the_level() {
+        let s = AcSettings::default();
+        let trip = Trip::new(&s);
+        let level = 1.1 * s.f0_n();
+        for (f_n, trips) in [(0.98 * level, false), (1.02 * level, true)] {
+            let status = Status::new();
+            status.start();
+            let ctl = AcController::new(s).unwrap();
+            let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+            let cap = status.feed_cap.load(Relaxed);
+            assert!(cap > 0);
+            let mut adc = Step { at: 3, f_n };
+            let per = period.per_period();
+            for i in 0..per {
+                if let Sampled::Codes { codes: Some(c), .. } =
+                    sample(&mut adc, &status, per, Some(&trip))
+                {
+                    period.sample(c);
+                }
+                let now = status.feed_cap.load(Relaxed);
+                if i >= 3 && trips {
+                    assert_eq!(now, 0, "{f_n} N: not held at sample {i}");
+                } else {
+                    assert_eq!(now, cap, "{f_n} N: held at sample {i}");
+                }
+            }
+            let out = period.run(&status).out;
+            if trips {
+                assert!(
+                    matches!(out.alarm, Some(Alarm::Overload { f_n: f, .. }) if f > level),
+                    "{out:?}"
+                );
+                assert_eq!(status.feed_cap.load(Relaxed), 0);
+            } else {
+                assert_eq!(out.alarm, None);
+            }
+        }
     }
 
     /// An enabled AC period under the plan (`FeedCeiling::Plan`, the other settings the

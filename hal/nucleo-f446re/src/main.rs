@@ -226,9 +226,10 @@ mod app {
         } else {
             None
         };
-        let sampler = ac
-            .as_ref()
-            .map(|_| Sampler::new(&STATUS, TripleAdc::new(), sample_tx, period_samples));
+        let sampler = ac.as_ref().map(|_| {
+            Sampler::new(&STATUS, TripleAdc::new(), sample_tx, period_samples)
+                .with_trip(millac::rt::ac::Trip::new(&ac_settings))
+        });
         board::sample_start(board::sample_reload(ac_settings.sample_hz));
 
         let (uart_rx, rx) = cx.local.serial_rx.split();

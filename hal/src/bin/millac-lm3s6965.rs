@@ -273,6 +273,9 @@ mod app {
                 };
             let mut task = AcTask::new(&STATUS, period, rx, alarm_tx, log);
             let mut s = Sampler::new(&STATUS, adc, tx, task.per_period());
+            if enabled {
+                s = s.with_trip(millac::rt::ac::Trip::new(&ac_settings));
+            }
             // The chatter monitor ($266), its own task.
             match ChatterTask::from_settings(&ac_settings) {
                 Ok(Some(c)) => {
