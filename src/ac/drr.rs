@@ -168,7 +168,7 @@ impl Drr {
             frozen_run: [0; 3],
             prev: Some(
                 s.cal
-                    .map(|c| c.offset.round().clamp(0.0, CODE_MAX as f32) as u16),
+                    .map(|c| libm::roundf(c.offset).clamp(0.0, CODE_MAX as f32) as u16),
             ),
             at_rail: [0; 3],
             count: 0,
