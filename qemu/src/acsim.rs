@@ -259,6 +259,10 @@ pub struct HostRun {
     pub speeds: Vec<(f64, SpeedChange)>,
     /// The stock as the run left it (the plant's height map).
     pub stock: Option<Stock>,
+    /// Virtual time (ns) at which the AC first held the feed (the frame's cap went to 0: the
+    /// sampler's trip or the AC period), and of the last pulse of the run.
+    pub hold_ns: Option<u64>,
+    pub last_pulse_ns: u64,
 }
 
 /// The host's block queue: as many blocks as the QEMU board's (its 16-slot SPSC queue holds
@@ -541,6 +545,9 @@ pub fn run_with_faults(
             // where the frame reads it every frame).
             if period.is_some() {
                 feed_cap = status.feed_cap.load(Relaxed);
+                if feed_cap == 0 && out.hold_ns.is_none() {
+                    out.hold_ns = Some(next_sample - sample_ns);
+                }
             }
             // The chatter monitor's task (its own in the firmware, below the AC task): each
             // record's spectrum. The firmware's monitor runs after the AC period of the tick that
@@ -566,6 +573,9 @@ pub fn run_with_faults(
                     halt = r.halt;
                     let o = r.out;
                     feed_cap = status.feed_cap.load(Relaxed);
+                    if feed_cap == 0 && out.hold_ns.is_none() {
+                        out.hold_ns = Some(next_sample - sample_ns);
+                    }
                     plan_ratio = status.plan_ratio.load(Relaxed);
                     logged_cap = o.feed_cap;
                     if out.alarm.is_none() {
@@ -623,6 +633,7 @@ pub fn run_with_faults(
     out.samples = adc.truth;
     out.codes = adc.codes;
     out.machining_time_s = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);
+    out.last_pulse_ns = last;
     out.final_position = pos;
     out.blocks_done = frame.blocks_done() as usize;
     Ok(out)
