@@ -193,6 +193,12 @@ impl Drr {
         }
     }
 
+    /// Whether the end face may be cutting (see [`Band::plunging`]): a jump is then judged by the
+    /// band's upper end only. AC task, once per period.
+    pub fn plunging(&mut self, on: bool) {
+        self.band.plunging(on);
+    }
+
     /// Engineering values of one set of codes: [T, Fu, Fv] -> (T in N*m, Fu in N, Fv in N).
     pub fn convert(&self, codes: [u16; 3]) -> (f32, f32, f32) {
         let [ct, cu, cv] = self.cal;

@@ -213,6 +213,8 @@ pub struct AcController {
     band: plaus::Band,
     /// Periods with F*R/T of the window peaks outside the band since the last one inside it.
     mismatch: u32,
+    /// Periods left in which the end face may cut (see [`AcController::set_z_down`]).
+    z_down: u32,
     /// The feed law (strategy): the settings' (`AcSettings::strategy`), or another one from
     /// [`AcController::with_law`].
     law: law::FeedLaw,
@@ -344,6 +346,7 @@ impl AcController {
             achieved: None,
             band: plaus::Band::new(&s),
             mismatch: 0,
+            z_down: 0,
             law: law::FeedLaw::new(s.strategy, s.nominal_feed, s.f_max, s.gpc_lambda),
             // Under the plan the controller's feed number is k x f_max, and `new_job` starts it.
             f: s.f_min,
@@ -368,6 +371,22 @@ impl AcController {
     /// and plots; the firmware does not call it.
     pub fn law_estimates(&self) -> Option<[f32; 5]> {
         self.law.estimates()
+    }
+
+    /// The Z axis fed down over the last AC period (a plunge, a ramp, a helix: the end face may
+    /// cut, see [`plaus`]): the force/torque band's lower end is not judged in this period and
+    /// the held peak's windows after it, neither for the gain check nor for jumps. Without a
+    /// call the whole band is judged, as before. AC task (`crate::rt::ac::AcPeriod::run`, from
+    /// the encoder).
+    pub fn set_z_down(&mut self, down: bool) {
+        self.z_down = if down {
+            self.s.peak_windows.max(1) + 1
+        } else {
+            self.z_down.saturating_sub(1)
+        };
+        let on = self.z_down > 0;
+        self.band.plunging(on);
+        self.drr.plunging(on);
     }
 
     /// Anti-windup (beyond the paper). The frame takes min(programmed feed, cap), so while the

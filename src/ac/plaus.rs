@@ -4,6 +4,14 @@
 //! jump the torque does not confirm is a sensor fault) and by the controller every AC period on
 //! the window's peaks (a gain fault: a loose transducer). Called from the AC task.
 //!
+//! The band's lower end holds only where the cut is side milling. The end face of a flat end
+//! mill cuts where the tool feeds down (a plunge, a ramp, a helix): it makes torque with almost
+//! no net radial force (F*R/T near 0 in a plunge), a legitimate cut the lower end would call a
+//! gain fault. While the Z axis feeds down (and for the held peak's windows after it) the
+//! controller judges only the upper end ([`Band::plunging`]): no cut makes F*R/T above
+//! sqrt(1 + Kr^2), whatever its engagement, so a force that reads double, or a torque that
+//! reads half, is still caught there.
+//!
 //! Cost: three f32 multiplications and four comparisons, no division.
 
 use super::settings::AcSettings;
@@ -16,6 +24,8 @@ pub struct Band {
     lo: f32,
     hi: f32,
     floor_nm: f32,
+    /// The Z axis feeds down: the lower end is not judged (see the module doc).
+    plunging: bool,
 }
 
 impl Band {
@@ -25,7 +35,14 @@ impl Band {
             lo: s.ft_ratio_min,
             hi: s.ft_ratio_max,
             floor_nm: s.ft_floor_nm,
+            plunging: false,
         }
+    }
+
+    /// Whether the end face may be cutting (the Z axis fed down in the last AC periods): then
+    /// only the band's upper end is judged. AC task, once per period.
+    pub fn plunging(&mut self, on: bool) {
+        self.plunging = on;
     }
 
     /// Judges F (N) against |T| (N*m): `None` when both T and F*R are below the floor (nothing to
@@ -37,7 +54,7 @@ impl Band {
         if fr < self.floor_nm && t_nm < self.floor_nm {
             return None;
         }
-        Some(fr >= self.lo * t_nm && fr <= self.hi * t_nm)
+        Some((self.plunging || fr >= self.lo * t_nm) && fr <= self.hi * t_nm)
     }
 
     /// F*R/T for a report (infinity for T = 0).

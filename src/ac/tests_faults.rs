@@ -517,3 +517,47 @@ fn a_fault_from_the_first_sample_is_a_sensor_fault_not_an_overload() {
     feed_live(&mut c, cut_codes(3000.0, 0.9), 0, 10);
     assert_eq!(c.period().alarm, None);
 }
+
+/// A plunge: the end face makes torque with almost no net radial force (F*R/T about 0.05). With
+/// the Z axis feeding down the band's lower end is not judged: neither the step into the plunge
+/// (a jump F does not follow) nor the windows after it are a sensor fault. Without the Z motion
+/// the same codes are a gain fault (the check still catches a force that reads low in a side
+/// cut), and in a plunge a force that reads double (F*R/T 2.0, above what any cut makes) is
+/// still caught. Before, a plunge held as `ALARM:106` (or a torque jump, alarm 102).
+#[test]
+fn a_plunge_is_no_gain_fault_but_a_double_force_still_is() {
+    let s = AcSettings::default();
+    let plunge = cut_codes(300.0, 0.05); // T = 38 N*m, F = 300 N
+    let run = |z_down: bool, k: [u16; 3]| {
+        let mut c = ctl(s);
+        feed_live(&mut c, [MID; 3], 0, 10);
+        c.set_z_down(z_down);
+        c.period();
+        let mut first = None;
+        for p in 0..20 {
+            c.set_z_down(z_down);
+            feed_live(&mut c, k, p * 10, 10);
+            let out = c.period();
+            if first.is_none() {
+                first = out.alarm;
+            }
+        }
+        first
+    };
+    assert_eq!(run(true, plunge), None, "a plunge held");
+    assert!(
+        matches!(
+            run(false, plunge),
+            Some(Alarm::ForceTorqueMismatch { .. } | Alarm::Sensor(SensorFault::Jump { .. }))
+        ),
+        "the same codes without the Z motion"
+    );
+    let double = cut_codes(2000.0, 2.0);
+    assert!(
+        matches!(
+            run(true, double),
+            Some(Alarm::ForceTorqueMismatch { .. } | Alarm::Sensor(SensorFault::Jump { .. }))
+        ),
+        "a double force in a plunge"
+    );
+}

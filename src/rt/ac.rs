@@ -409,6 +409,8 @@ impl AcPeriod {
             }
         }
         self.moved = moved;
+        // The Z axis fed down in this period: the end face may cut (force/torque band).
+        self.ctl.set_z_down(enc[2] < self.last[2]);
         if self.anti_windup {
             let d = [0, 1, 2].map(|k| i64::from(enc[k]) - i64::from(self.last[k]));
             let period_ms = self.ctl.settings().period_ms;
