@@ -245,34 +245,37 @@ pub fn run<
     // Frames that overran their period (pulses held back), as last reported.
     let mut overruns = status.frame_overruns.load(Relaxed);
     while board.running() {
-        // A frame that found the last pulse still on the pins: the interrupts take longer than
-        // the period (a slower CPU than the settings assume). No pulse was lost (the frame held
-        // them back), but the motion no longer keeps its timing: hold, as for a long frame. Said
-        // once per hold: overruns while already held (the hold's own ramp) are not news.
+        // A frame too long for the running settings (a board that measures its frame: said
+        // again only when a longer one comes), or a frame that found the last pulse still on the
+        // pins (the interrupts take longer than the period: no pulse was lost, the frame held
+        // them back, but the motion no longer keeps its timing; said once per hold, overruns
+        // while already held are not news): hold with ALARM:111.
         let n = status.frame_overruns.load(Relaxed);
-        if core::mem::replace(&mut overruns, n) != n && !hold {
+        let late = core::mem::replace(&mut overruns, n) != n && !hold;
+        let long = match (board.frame_limit_cycles(), status.frame_cycles()) {
+            (Some(limit), Some((_, max))) if max > limit && max > overrun => {
+                overrun = max;
+                Some((max, limit))
+            }
+            _ => None,
+        };
+        if late || long.is_some() {
             hold = true;
             publish(hold, overrides);
             proto.alarm(alarm::FRAME_OVERRUN, &mut out);
-            proto.message(
-                &mut out,
-                format_args!(
-                    "Frame overran its period ({n} frames so far, no pulse lost): lower $201 or $110"
-                ),
-            );
-        }
-        if let (Some(limit), Some((_, max))) = (board.frame_limit_cycles(), status.frame_cycles()) {
-            if max > limit && max > overrun {
-                overrun = max;
-                hold = true;
-                publish(hold, overrides);
-                proto.alarm(alarm::FRAME_OVERRUN, &mut out);
-                proto.message(
+            match long {
+                Some((max, limit)) => proto.message(
                     &mut out,
                     format_args!(
                         "Frame ISR took {max} cycles, the board allows {limit}: lower $201 or $110"
                     ),
-                );
+                ),
+                None => proto.message(
+                    &mut out,
+                    format_args!(
+                        "Frame overran its period ({n} frames so far, no pulse lost): lower $201 or $110"
+                    ),
+                ),
             }
         }
         // A tool breakage (the AC task's request): the spindle stops at once and stays off; the

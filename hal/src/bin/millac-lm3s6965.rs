@@ -420,20 +420,40 @@ mod app {
     /// Program mode: the run ends on a hold with the machine standing: `millac: hold blocks=N
     /// position=x,y,z` (the exact position), exit with failure.
     fn held_exit() -> ! {
+        report_position(true);
+        exit(false);
+    }
+
+    /// The run's last line, `millac: [hold ]blocks=N position=x,y,z` (the exact position as the
+    /// frame last published it), into the result file and the log.
+    fn report_position(held: bool) {
         let [x, y, z] = STATUS.position();
         let blocks = STATUS.blocks_done.load(Relaxed);
         results::line(format_args!(
-            "millac: hold blocks={} position={},{},{}",
-            blocks, x, y, z
-        ));
-        defmt::warn!(
-            "held: blocks={=u32} position={=i32},{=i32},{=i32}",
+            "millac: {}blocks={} position={},{},{}",
+            if held { "hold " } else { "" },
             blocks,
             x,
             y,
             z
-        );
-        exit(false);
+        ));
+        if held {
+            defmt::warn!(
+                "held: blocks={=u32} position={=i32},{=i32},{=i32}",
+                blocks,
+                x,
+                y,
+                z
+            );
+        } else {
+            defmt::info!(
+                "done: blocks={=u32} position={=i32},{=i32},{=i32}",
+                blocks,
+                x,
+                y,
+                z
+            );
+        }
     }
 
     /// Program mode: a frame that overran its period (the interrupts took longer than it; the
@@ -518,23 +538,7 @@ mod app {
         for t in &errors {
             log_error(t);
         }
-        let [x, y, z] = [
-            STATUS.position[0].load(Relaxed),
-            STATUS.position[1].load(Relaxed),
-            STATUS.position[2].load(Relaxed),
-        ];
-        let blocks = STATUS.blocks_done.load(Relaxed);
-        results::line(format_args!(
-            "millac: blocks={} position={},{},{}",
-            blocks, x, y, z
-        ));
-        defmt::info!(
-            "done: blocks={=u32} position={=i32},{=i32},{=i32}",
-            blocks,
-            x,
-            y,
-            z
-        );
+        report_position(false);
         exit(ok)
     }
 
