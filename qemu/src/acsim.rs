@@ -497,7 +497,8 @@ pub fn run_with_faults(
         let rate = frame.rate();
         let was_idle = frame.idle();
         let done_before = frame.blocks_done();
-        let word = status.operator.load(Relaxed);
+        // The loader's word, held while the AC holds (as the firmware's loaders publish it).
+        let word = millac::nc::operator::with_ac_hold(status.operator.load(Relaxed), feed_cap);
         let p = frame.tick(&mut queue, (feed_cap, word, plan_ratio));
         status.publish_frame(&frame);
         let t0 = t;

@@ -222,9 +222,8 @@ impl Frame {
             };
         }
         if self.mode == Mode::Idle {
-            // A hold, the operator's or the AC's (a cap of 0), keeps the next block from
-            // starting: a rapid started under an AC hold would walk its ladder and move.
-            if !operator::held(op) && feed_cap.feed_cap() != 0 {
+            // A hold keeps the next block from starting.
+            if !operator::held(op) {
                 if let Some(b) = src.front() {
                     self.initiate(b);
                 }
@@ -242,14 +241,6 @@ impl Frame {
                 if self.count[0] | self.count[1] | self.count[2] == 0 {
                     self.done(src);
                 } else {
-                    // An AC hold (a cap of 0: overload, sensor fault, breakage, chatter) stops a
-                    // rapid as the operator's hold does: down the same ladder, position exact.
-                    // Only the feed factor is cleared: abort was handled above.
-                    let op = if feed_cap.feed_cap() == 0 {
-                        op & !operator::FEED_MASK
-                    } else {
-                        op
-                    };
                     // The ladder moves the position counters itself.
                     let steps = self.ptp(op);
                     return Pulses {

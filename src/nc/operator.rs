@@ -43,6 +43,19 @@ pub const fn word(feed_pct: u8, rapid_pct: u8, hold: bool, abort: bool) -> u32 {
     feed | rapid << RAPID_SHIFT | abort
 }
 
+/// The word as the frame must read it while the adaptive controller holds (its feed cap is 0:
+/// overload, sensor fault, breakage, chatter, the sampler's trip): held, so a running rapid walks
+/// its ladder down and no block starts, exactly as under the operator's hold (a cap of 0 alone
+/// stops only the feed). The loaders publish it (`rt::loader`, the QEMU board's program mode)
+/// and the host simulation reads it: the frame pays nothing. Loader task, host.
+pub const fn with_ac_hold(word: u32, feed_cap: u32) -> u32 {
+    if feed_cap == 0 {
+        word & !FEED_MASK
+    } else {
+        word
+    }
+}
+
 /// Whether the word holds the feed (factor 0). Frame ISR.
 #[inline(always)]
 pub const fn held(word: u32) -> bool {

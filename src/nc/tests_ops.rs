@@ -410,10 +410,12 @@ fn a_rapid_holds_down_its_ladder_and_the_rapid_override_slows_it() {
     assert_eq!(rig.pulses, d);
 }
 
-/// An AC hold (a cap of 0: overload, sensor fault, breakage, chatter) stops a running rapid down
-/// the same ladder as the operator's hold, pulse for pulse, and keeps a rapid from starting; the
-/// rapid ends exactly once the cap is back. Before, a rapid under an AC hold ran to its end (a
-/// rapid plunge into unexpected material went on to full depth).
+/// An AC hold (a cap of 0: overload, sensor fault, breakage, chatter), with the word the loaders
+/// publish for it (`operator::with_ac_hold`), stops a running rapid down the same ladder as the
+/// operator's hold, pulse for pulse, and keeps a rapid from starting; the rapid ends exactly once
+/// the cap is back. Before, a rapid under an AC hold ran to its end (a rapid plunge into
+/// unexpected material went on to full depth). The frame itself reads nothing more: its budget
+/// (the F446's rapid frame grew by 9 instructions when it loaded the cap).
 #[test]
 fn an_ac_hold_stops_a_rapid_as_the_operators_hold_does() {
     let d = [20_000i64, 5_000, -3_000];
@@ -421,10 +423,12 @@ fn an_ac_hold_stops_a_rapid_as_the_operators_hold_does() {
     let mut by_operator = Rig::new(cfg(), &[rapid(d)]);
     by_operator.run(3000, u32::MAX, RUN);
     by_operator.run(5000, u32::MAX, hold);
+    // The AC's hold: a cap of 0, and the word the loaders publish with it.
+    let ac = operator::with_ac_hold(RUN, 0);
     let mut by_ac = Rig::new(cfg(), &[rapid(d)]);
     by_ac.run(3000, u32::MAX, RUN);
     let at = by_ac.pulses;
-    by_ac.run(5000, 0, RUN);
+    by_ac.run(5000, 0, ac);
     assert!(by_ac.frame.stopped());
     assert_ne!(
         by_ac.pulses, d,
@@ -433,13 +437,13 @@ fn an_ac_hold_stops_a_rapid_as_the_operators_hold_does() {
     assert!(by_ac.pulses[0] - at[0] <= settings().ptp_steps[0] as i64 + 1);
     assert_eq!(by_ac.steps, by_operator.steps, "not the operator's ladder");
     let held = by_ac.pulses;
-    by_ac.run(2000, 0, RUN);
+    by_ac.run(2000, 0, ac);
     assert_eq!(by_ac.pulses, held, "nothing moves in the hold");
     by_ac.finish(u32::MAX, RUN, 1 << 22);
     assert_eq!(by_ac.pulses, d);
     // Under a cap of 0 a queued rapid does not start; it runs once the cap is back.
     let mut rig = Rig::new(cfg(), &[rapid(d)]);
-    rig.run(3000, 0, RUN);
+    rig.run(3000, 0, ac);
     assert_eq!(rig.pulses, [0; 3]);
     rig.finish(u32::MAX, RUN, 1 << 22);
     assert_eq!(rig.pulses, d);

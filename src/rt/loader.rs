@@ -228,10 +228,16 @@ pub fn run<
     let mut hold = false;
     let mut cancel_jog = false;
     let mut overrides = proto.overrides();
+    // The operator's word, held also while the AC holds (a cap of 0 stops only the feed: with
+    // the hold a rapid walks its ladder down and no block starts, see `operator::with_ac_hold`).
     let publish = |hold: bool, ov: Overrides| {
-        status
-            .operator
-            .store(operator::word(ov.feed, ov.rapid, hold, false), Relaxed);
+        status.operator.store(
+            operator::with_ac_hold(
+                operator::word(ov.feed, ov.rapid, hold, false),
+                status.feed_cap.load(Relaxed),
+            ),
+            Relaxed,
+        );
     };
     publish(hold, overrides);
     // The spindle output as last applied, and a line waiting to change it.
@@ -244,7 +250,13 @@ pub fn run<
     let mut overrun = 0u32;
     // Frames that overran their period (pulses held back), as last reported.
     let mut overruns = status.frame_overruns.load(Relaxed);
+    // The AC's hold as last published into the operator's word.
+    let mut ac_held = status.feed_cap.load(Relaxed) == 0;
     while board.running() {
+        if (status.feed_cap.load(Relaxed) == 0) != ac_held {
+            ac_held = !ac_held;
+            publish(hold, overrides);
+        }
         // A frame too long for the running settings (a board that measures its frame: said
         // again only when a longer one comes), or a frame that found the last pulse still on the
         // pins (the interrupts take longer than the period: no pulse was lost, the frame held
