@@ -546,14 +546,18 @@ mod app {
     /// simulated spindle, then the AC resumes) or a refusal, into the result file and the log.
     fn react(replan: &mut Replan<RECORD>, producer: &mut Producer<'static, Block, QUEUE>) {
         overrun_check();
-        // An AC hold holds rapids too (`millac::nc::operator::with_ac_hold`).
-        STATUS.operator.store(
-            millac::nc::operator::with_ac_hold(
-                millac::nc::operator::RUN,
-                STATUS.feed_cap.load(Relaxed),
-            ),
-            Relaxed,
-        );
+        // An AC hold holds rapids too (`millac::nc::operator::with_ac_hold`); not while the
+        // frame drops the queue for a re-plan: that word carries the abort bit until
+        // `Replan::poll` has finished it.
+        if !replan.aborting() {
+            STATUS.operator.store(
+                millac::nc::operator::with_ac_hold(
+                    millac::nc::operator::RUN,
+                    STATUS.feed_cap.load(Relaxed),
+                ),
+                Relaxed,
+            );
+        }
         match replan.poll(producer, &STATUS) {
             replan::Event::None => {}
             replan::Event::Speed(s) => {
