@@ -566,7 +566,14 @@ pub fn run<
                         }
                     };
                     let data = StatusData {
-                        state,
+                        // A block the look-ahead holds is a move about to start (queued at the
+                        // loader's next turn when no next line comes): the report says `Run`,
+                        // so a sender that polls after its last `ok` does not take the job for
+                        // done. (The protocol still takes a jog behind it as in Idle.)
+                        state: match state {
+                            State::Idle if tape.holds_a_block() => State::Run,
+                            s => s,
+                        },
                         position: status.encoder(),
                         feed_blu_per_min: if idle {
                             0

@@ -965,3 +965,21 @@ fn a_frame_overrun_holds_and_loses_no_pulse() {
     assert_eq!(b.status.encoder(), [10_000, 0, 0], "{}", b.out);
     assert_eq!(b.status.position(), [10_000, 0, 0]);
 }
+
+/// A status report asked for between a line's `ok` and the loader's next turn, while the
+/// look-ahead still holds the line's block (queued once no next line has come): the machine has
+/// a move to make, so the state is `Run`, not `Idle`. Before, it said `Idle` at the old
+/// position, and a sender that polls `?` after its last `ok` took the job for done (seen in
+/// `serve` once its port answered within the loader's turn).
+#[test]
+fn a_report_right_after_an_ok_is_not_idle_while_the_look_ahead_holds_a_block() {
+    let b = session(&[(5, "G20 G91 G1 X0.01 F30\n"), (6, "?")], &[], None, 400);
+    let first = b
+        .out
+        .lines()
+        .find(|l| l.starts_with('<'))
+        .expect("a report");
+    assert!(b.oks_at.first() == Some(&6), "{:?}: {}", b.oks_at, b.out);
+    assert!(first.starts_with("<Run|"), "{first}\n{}", b.out);
+    assert_eq!(b.status.encoder(), [100, 0, 0]);
+}
