@@ -568,8 +568,9 @@ fn serve(
         })
     };
     println!(
-        "millac serve: the machine's serial port (grbl 1.1) is on tcp://{tcp}; point a sender there \
-         (serial-only senders: socat pty,raw,echo=0,link=/tmp/millac-tty tcp:{tcp}). Ctrl-C ends the \
+        "millac serve: the machine's serial port (grbl 1.1) is on tcp://{tcp}, one client at a time; \
+         point a sender there (serial-only senders: socat pty,raw,echo=0,link=/tmp/millac-tty \
+         tcp:{tcp}). Ctrl-C ends the \
          session and writes {}/capture.vcd and summary.json. Settings ($N=value) persist in {}.",
         out.display(),
         settings.display()
