@@ -27,8 +27,9 @@ enum Cmd {
         program: PathBuf,
         #[arg(long, default_value = "out")]
         out: PathBuf,
-        /// QEMU -icount shift: one instruction = 2^N ns (4: 62.5 MIPS, close to a 50-72 MHz M3).
-        #[arg(long, default_value_t = 4)]
+        /// QEMU -icount shift: one instruction = 2^N ns (4: 62.5 MIPS, close to a 50-72 MHz M3);
+        /// 0..=7 (from 8 on the firmware loses step pulses in rapids).
+        #[arg(long, default_value_t = runner::DEFAULT_SHIFT, value_parser = parse_shift)]
         shift: u32,
         /// NC only: no simulated ADC and no adaptive control (the pulses then equal the host core's).
         #[arg(long, conflicts_with_all = ["faults", "strategy"])]
@@ -140,8 +141,9 @@ enum Cmd {
         /// `$N=value`, kept across sessions [default: OUT/settings.bin].
         #[arg(long)]
         settings: Option<PathBuf>,
-        /// QEMU -icount shift (virtual time = instructions * 2^N ns).
-        #[arg(long, default_value_t = 4)]
+        /// QEMU -icount shift (virtual time = instructions * 2^N ns); 0..=7 (from 8 on the
+        /// firmware loses step pulses in rapids).
+        #[arg(long, default_value_t = runner::DEFAULT_SHIFT, value_parser = parse_shift)]
         shift: u32,
         /// No simulated ADC and no adaptive control.
         #[arg(long, conflicts_with = "strategy")]
@@ -214,6 +216,15 @@ struct CutArgs {
     /// microphone (`--preset thesis-table-3.2`). `run`, `demo`, `host` (in `serve`, set $266).
     #[arg(long, value_name = "CODES")]
     chatter_threshold: Option<f32>,
+}
+
+/// `--shift N`: a number the firmware can keep ([`runner::check_shift`]).
+fn parse_shift(s: &str) -> Result<u32, String> {
+    let n: u32 = s
+        .trim()
+        .parse()
+        .map_err(|e| format!("'{s}' is not a shift (0..={}): {e}", runner::MAX_SHIFT))?;
+    runner::check_shift(n)
 }
 
 /// `--material`: the plant's materials.
@@ -475,7 +486,7 @@ fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
             ),
         }
     );
-    run(DEMO, out, 4, Some(cut))
+    run(DEMO, out, runner::DEFAULT_SHIFT, Some(cut))
 }
 
 fn run(text: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> Result<bool> {

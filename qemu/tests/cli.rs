@@ -289,3 +289,39 @@ fn the_thesis_preset_chatters_at_8_89_mm_and_not_at_2_54() {
         "peaks {peaks:?}: no chatter at 8.89 mm?"
     );
 }
+
+/// `--shift` the firmware cannot keep is refused by the command line, before anything is built
+/// or run, saying why: 99 is no QEMU shift, 8 loses step pulses in rapids. Before, 99 reached
+/// QEMU, whose "Invalid shift value" came last in a message about the plugin, and 8 ran and lost
+/// pulses.
+#[test]
+fn a_shift_the_firmware_cannot_keep_is_refused_with_why() {
+    let dir = scratch("shift");
+    let (prog, _) = slot_files(&dir);
+    let out = dir.join("out");
+    for (cmd, shift, why) in [
+        ("run", "99", "not a QEMU -icount shift"),
+        ("run", "8", "loses step pulses in rapids"),
+        ("serve", "8", "loses step pulses in rapids"),
+        ("run", "x", "is not a shift"),
+    ] {
+        let mut args: Vec<&std::ffi::OsStr> = vec![cmd.as_ref()];
+        if cmd == "run" {
+            args.push(prog.as_os_str());
+        }
+        args.extend([
+            "--out".as_ref(),
+            out.as_os_str(),
+            "--shift".as_ref(),
+            shift.as_ref(),
+        ]);
+        let o = millac(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{cmd} --shift {shift}: {err}");
+        assert!(err.contains("--shift"), "{err}");
+        assert!(err.contains(why), "{cmd} --shift {shift}: {err}");
+        assert!(err.contains("use 0..=7") || shift == "x", "{err}");
+        assert!(!err.contains("plugin"), "{err}");
+        assert!(!out.exists(), "nothing is written: {err}");
+    }
+}
