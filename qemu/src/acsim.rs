@@ -263,6 +263,9 @@ pub struct HostRun {
     /// sampler's trip or the AC period), and of the last pulse of the run.
     pub hold_ns: Option<u64>,
     pub last_pulse_ns: u64,
+    /// The run was cut short by the host tool's SIGINT or SIGTERM ([`crate::interrupt`]): what
+    /// ran until then.
+    pub interrupted: bool,
 }
 
 /// The host's block queue: as many blocks as the QEMU board's (its 16-slot SPSC queue holds
@@ -627,6 +630,10 @@ pub fn run_with_faults(
             }
         }
         if halt {
+            break;
+        }
+        if crate::interrupt::received().is_some() {
+            out.interrupted = true;
             break;
         }
     }

@@ -37,6 +37,7 @@ pub mod elf;
 pub mod f446;
 pub mod fault;
 pub mod firmware;
+pub mod interrupt;
 pub mod model;
 pub mod optimise;
 pub mod plot;

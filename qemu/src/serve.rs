@@ -159,6 +159,7 @@ pub fn serve(
     // then QEMU.
     let qemu_stop = Arc::new(AtomicBool::new(false));
     spec.stop = Some(qemu_stop.clone());
+    spec.timeout = std::time::Duration::MAX;
     let captured = AtomicBool::new(false);
     let capture = |spec: &CaptureSpec| {
         std::thread::scope(|sc| {
@@ -215,6 +216,7 @@ pub fn serve(
         alarm: ending.alarm.clone().unwrap_or_default(),
         blocks_done,
         position: [x, y, z],
+        signal: None,
     });
     let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
     // The host's comparison runs (constant feeds, the bound) at the session's spindle speed: the
