@@ -228,6 +228,32 @@ pub fn program_rpm(text: &str, settings: &Settings) -> f64 {
     }
 }
 
+/// The machine's travel in inches (the default settings' soft limits), the space a stock file
+/// must lie in ([`load_stock`]).
+pub fn travel() -> millac_plant::Envelope {
+    let s = Settings::default();
+    let (num, den) = s.blu.per_inch();
+    let inch = |blu: i32| f64::from(blu) * den as f64 / num as f64;
+    millac_plant::Envelope {
+        min_in: s.soft_min.map(inch),
+        max_in: s.soft_max.map(inch),
+    }
+}
+
+/// A stock description file (`--stock`), refused with its path and line when it does not parse
+/// or reaches outside the machine's travel ([`travel`]: a height or size no machine here has,
+/// e.g. `Z1e6`, which would otherwise simulate a cut kilometres deep for hours).
+pub fn load_stock(path: &std::path::Path) -> Result<Stock> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow!("reading the stock file {}: {e}", path.display()))?;
+    Stock::parse_within(&text, &travel()).map_err(|e| {
+        anyhow!(
+            "{}: {e}; a stock lies within the machine's travel (its soft limits)",
+            path.display()
+        )
+    })
+}
+
 /// Result of a host run.
 #[derive(Clone, Debug, Default)]
 pub struct HostRun {

@@ -662,10 +662,7 @@ fn serve(
 fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
     use millac_plant::{Material, Stock};
     let stock = match &args.stock {
-        Some(p) => Stock::parse(
-            &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
-        )
-        .map_err(|e| anyhow::anyhow!("{e}"))?,
+        Some(p) => millac_qemu::acsim::load_stock(p)?,
         None => Stock::default(),
     };
     let cut = millac_qemu::acsim::Cut {
@@ -866,10 +863,7 @@ fn optimise(
     let text = std::str::from_utf8(&bytes)
         .map_err(|e| anyhow::anyhow!("{} is not UTF-8: {e}", program.display()))?;
     let stock = match stock {
-        Some(p) => millac_plant::Stock::parse(
-            &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
-        )
-        .map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?,
+        Some(p) => acsim::load_stock(p)?,
         None => millac_plant::Stock::default(),
     };
     let settings = Settings::default();

@@ -325,3 +325,34 @@ fn a_shift_the_firmware_cannot_keep_is_refused_with_why() {
         assert!(!out.exists(), "nothing is written: {err}");
     }
 }
+
+/// A stock reaching outside the machine's travel (`Z1e6`: a blank a thousand inches high) is
+/// refused at once with its file, line and what lies where, by `host`, `run` and `optimise`,
+/// before anything is written. Before, `host` simulated a cut kilometres deep for hours with no
+/// output.
+#[test]
+fn a_stock_outside_the_machines_travel_is_refused_with_its_line() {
+    let dir = scratch("stock-travel");
+    let (prog, _) = slot_files(&dir);
+    let stock = dir.join("tall.txt");
+    std::fs::write(&stock, "# a typo\nblank X0 Y0 W5 H3 Z1e6\n").unwrap();
+    let out = dir.join("out");
+    for cmd in ["host", "run", "optimise"] {
+        let o = millac(&[
+            cmd.as_ref(),
+            prog.as_os_str(),
+            "--stock".as_ref(),
+            stock.as_os_str(),
+            "--out".as_ref(),
+            out.as_os_str(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{cmd}: {err}");
+        let want = format!(
+            "{}: stock line 2: blank: top Z at 1000000 in lies outside the Z range -4..4 in",
+            stock.display()
+        );
+        assert!(err.contains(&want), "{cmd}: {err}");
+        assert!(!out.exists(), "{cmd} wrote {}", out.display());
+    }
+}
