@@ -28,7 +28,7 @@ enum Cmd {
         #[arg(long, default_value = "out")]
         out: PathBuf,
         /// QEMU -icount shift: one instruction = 2^N ns (4: 62.5 MIPS, close to a 50-72 MHz M3);
-        /// 0..=7 (from 8 on the firmware loses step pulses in rapids).
+        /// 0..=7 (from 8 on the frame overruns its period in rapids).
         #[arg(long, default_value_t = runner::DEFAULT_SHIFT, value_parser = parse_shift)]
         shift: u32,
         /// NC only: no simulated ADC and no adaptive control (the pulses then equal the host core's).
@@ -142,7 +142,7 @@ enum Cmd {
         #[arg(long)]
         settings: Option<PathBuf>,
         /// QEMU -icount shift (virtual time = instructions * 2^N ns); 0..=7 (from 8 on the
-        /// firmware loses step pulses in rapids).
+        /// frame overruns its period in rapids).
         #[arg(long, default_value_t = runner::DEFAULT_SHIFT, value_parser = parse_shift)]
         shift: u32,
         /// No simulated ADC and no adaptive control.

@@ -15,12 +15,13 @@ pub const DEFAULT_SHIFT: u32 = 4;
 /// The largest `-icount` shift QEMU accepts (7.2: "Invalid shift value" above it).
 pub const QEMU_MAX_SHIFT: u32 = 10;
 /// The largest shift at which the firmware keeps its frame: the rapid frame period at the
-/// default settings is 38 us (26 333 Hz); the frame ISR's worst case (181 instructions) and the
-/// pulse end (41) take 28 us at shift 7 (128 ns per instruction) and 57 us at shift 8, where the
-/// frames overrun and step pulses are lost in rapids (measured: `G21 G0 X10 Y-7 Z3` and back,
-/// 9378 of 15748 X pulses at shift 8, every pulse at 7;
-/// `firmware::the_largest_shift_allowed_keeps_every_pulse_and_the_next_does_not`). The host
-/// tool refuses larger shifts ([`check_shift`]).
+/// default settings is 38 us (26 333 Hz); the frame ISR's worst case (about 185 instructions) and
+/// the pulse end (about 45) take 29 us at shift 7 (128 ns per instruction) and 59 us at shift 8,
+/// where the frames overrun in rapids: the firmware holds with its frame overrun alarm
+/// (`ALARM:111`; before it had that check it lost step pulses: 9378 of 15748 X pulses of
+/// `G21 G0 X10 Y-7 Z3` and back). Measured:
+/// `firmware::the_largest_shift_allowed_keeps_every_pulse_and_the_next_does_not`. The host tool
+/// refuses larger shifts ([`check_shift`]).
 pub const MAX_SHIFT: u32 = 7;
 
 /// `--shift N`: the QEMU time scale the firmware can keep, or why not (a message for the
@@ -36,10 +37,11 @@ pub fn check_shift(shift: u32) -> Result<u32, String> {
         let ns = 1u64 << shift;
         return Err(format!(
             "at shift {shift} one instruction takes {ns} ns: the frame interrupt's worst case \
-             (about 220 instructions with the pulse end, {} us) no longer fits the 38 us rapid \
-             frame period, and the firmware loses step pulses in rapids (measured: shift 8 loses \
-             them, 7 keeps them); use 0..={MAX_SHIFT} (default {DEFAULT_SHIFT})",
-            220 * ns / 1000
+             (about 230 instructions with the pulse end, {} us) no longer fits the 38 us rapid \
+             frame period, so the firmware cannot keep its frame in rapids (it holds with a frame \
+             overrun; measured: shift 8 overruns, 7 keeps every pulse); use 0..={MAX_SHIFT} \
+             (default {DEFAULT_SHIFT})",
+            230 * ns / 1000
         ));
     }
     Ok(shift)

@@ -291,9 +291,9 @@ fn the_thesis_preset_chatters_at_8_89_mm_and_not_at_2_54() {
 }
 
 /// `--shift` the firmware cannot keep is refused by the command line, before anything is built
-/// or run, saying why: 99 is no QEMU shift, 8 loses step pulses in rapids. Before, 99 reached
-/// QEMU, whose "Invalid shift value" came last in a message about the plugin, and 8 ran and lost
-/// pulses.
+/// or run, saying why: 99 is no QEMU shift, at 8 the frame overruns in rapids. Before, 99
+/// reached QEMU, whose "Invalid shift value" came last in a message about the plugin, and 8 ran
+/// (and lost pulses, until the firmware learnt to hold on a frame overrun).
 #[test]
 fn a_shift_the_firmware_cannot_keep_is_refused_with_why() {
     let dir = scratch("shift");
@@ -301,8 +301,8 @@ fn a_shift_the_firmware_cannot_keep_is_refused_with_why() {
     let out = dir.join("out");
     for (cmd, shift, why) in [
         ("run", "99", "not a QEMU -icount shift"),
-        ("run", "8", "loses step pulses in rapids"),
-        ("serve", "8", "loses step pulses in rapids"),
+        ("run", "8", "cannot keep its frame in rapids"),
+        ("serve", "8", "cannot keep its frame in rapids"),
         ("run", "x", "is not a shift"),
     ] {
         let mut args: Vec<&std::ffi::OsStr> = vec![cmd.as_ref()];

@@ -404,8 +404,9 @@ fn slot_cut() -> millac_qemu::acsim::Cut {
 }
 
 /// The largest `--shift` the host tool allows keeps every step pulse of rapids in three axes;
-/// the next one does not run the program exactly (its frames overrun the rapid period: pulses
-/// lost, or the firmware holds), which is why `runner::check_shift` refuses it.
+/// at the next one the frames overrun the rapid period and the program does not run to its end
+/// (the firmware holds with its frame overrun alarm; before it had that check it lost pulses),
+/// which is why `runner::check_shift` refuses it.
 #[test]
 fn the_largest_shift_allowed_keeps_every_pulse_and_the_next_does_not() {
     let program = "G21 G90\nG0 X10 Y-7 Z3\nG1 X20 F500\nG0 X0 Y0 Z0\nM2\n";
@@ -414,6 +415,8 @@ fn the_largest_shift_allowed_keeps_every_pulse_and_the_next_does_not() {
     assert_eq!(kept.summary["pulses_match_host"], true);
     let lost = runner::run(program, &out_dir("shift-over"), runner::MAX_SHIFT + 1).expect("run");
     assert!(!lost.ok, "{:#}", lost.summary);
+    let alarm = lost.summary["hold"]["alarm"].as_str().unwrap_or("");
+    assert!(alarm.starts_with("frame overrun"), "{:#}", lost.summary);
     assert!(runner::check_shift(runner::MAX_SHIFT).is_ok());
     assert!(runner::check_shift(runner::MAX_SHIFT + 1).is_err());
 }
