@@ -18,8 +18,11 @@
  *   hK_entry=0xPC   entry PC of handler K (K = 0..15, Thumb bit cleared)
  *   hK_exit=0xPC    a return-instruction PC of handler K, repeatable
  * Output is written through a buffered FILE and flushed by the plugin atexit callback; QEMU 7.2 exits
- * through exit() on semihosting SYS_EXIT, which runs it (measured).
+ * through exit() on semihosting SYS_EXIT, which runs it (measured). A write that fails (a full disk)
+ * is said at exit on stderr, "millac_plugin: cannot write PATH: REASON", so the host does not
+ * take a cut log for a whole one.
  */
+#include <errno.h>
 #include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -61,6 +64,15 @@ QEMU_PLUGIN_EXPORT int qemu_plugin_version = 1;
 #define MAX_EXITS 16
 
 static FILE *out;
+static char out_path[4096];
+static int write_errno; /* the first failed write's errno, 0: none */
+
+/* Notes the first failed write of the log. */
+static void check(int r)
+{
+    if (r < 0 && !write_errno)
+        write_errno = errno ? errno : EIO;
+}
 static uint64_t count; /* single vCPU (Cortex-M3) */
 static uint64_t ports[MAX_PORTS];
 static int n_ports;
@@ -80,7 +92,7 @@ static void on_store(unsigned int vcpu, qemu_plugin_meminfo_t info, uint64_t vad
         return;
     for (int i = 0; i < n_ports; i++) {
         if (vaddr >= ports[i] && vaddr < ports[i] + 0x1000) {
-            fprintf(out, "s %llx %llx\n", (unsigned long long)count, (unsigned long long)vaddr);
+            check(fprintf(out, "s %llx %llx\n", (unsigned long long)count, (unsigned long long)vaddr));
             return;
         }
     }
@@ -100,7 +112,7 @@ static void on_exit_insn(unsigned int vcpu, void *ud)
     (void)vcpu;
     if (h->active) {
         h->active = false;
-        fprintf(out, "h %x %llx\n", (unsigned)(h - hs), (unsigned long long)(count - h->start + 1));
+        check(fprintf(out, "h %x %llx\n", (unsigned)(h - hs), (unsigned long long)(count - h->start + 1)));
     }
 }
 
@@ -127,9 +139,12 @@ static void on_atexit(qemu_plugin_id_t id, void *ud)
 {
     (void)id; (void)ud;
     if (out) {
-        fprintf(out, "e %llx\n", (unsigned long long)count);
-        fclose(out);
+        check(fprintf(out, "e %llx\n", (unsigned long long)count));
+        check(fflush(out) == 0 ? 0 : -1);
+        check(fclose(out) == 0 ? 0 : -1);
         out = NULL;
+        if (write_errno)
+            fprintf(stderr, "millac_plugin: cannot write %s: %s\n", out_path, strerror(write_errno));
     }
 }
 
@@ -178,6 +193,7 @@ QEMU_PLUGIN_EXPORT int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_
         fprintf(stderr, "millac_plugin: missing out=PATH\n");
         return -1;
     }
+    snprintf(out_path, sizeof out_path, "%s", path);
     out = fopen(path, "w");
     if (!out) {
         perror("millac_plugin: cannot open out");

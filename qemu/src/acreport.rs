@@ -4,7 +4,7 @@
 //! Also the ac.csv text and the plot. Used by the `run`/demo commands and the benchmark.
 use crate::acsim::{self, AcRow, Cut, HostRun, LoadFigures};
 use crate::analysis::ProgBlock;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use millac::ac::AcSettings;
 use millac::gcode::tape::finish_block;
 use millac::nc::{FrameConfig, Motion};
@@ -358,6 +358,10 @@ pub fn plot(
     let ys = rows.iter().map(|r| r.pos_blu[1] as f64 / 10_000.0);
     let (x0, x1) = xs.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
     let (y0, y1) = ys.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+    // No AC period at all (a run stopped before its first): the origin, not an inverted range
+    // (plotters never returns from one).
+    let [(x0, x1), (y0, y1)] =
+        [(x0, x1), (y0, y1)].map(|(a, b)| if a <= b { (a, b) } else { (0.0, 0.0) });
     let mut c = ChartBuilder::on(&bottom)
         .caption(
             "tool path (in), colour = feed: blue slow .. red fast",
@@ -385,6 +389,22 @@ pub fn plot(
             colour.stroke_width(3),
         )
     }))?;
-    root.present()?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    /// A run with no AC period (stopped before its first, e.g. by a signal) still gets its plot.
+    /// Before, the path chart's range was inverted (f64::MAX..f64::MIN) and plotters never
+    /// returned.
+    #[test]
+    fn a_run_with_no_rows_is_plotted() {
+        let dir = std::env::temp_dir().join(format!("millac-plot-empty-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let svg = dir.join("ac.svg");
+        super::plot(&svg, &[], 3600.0, 72.0, 1.111, 30.0).unwrap();
+        assert!(std::fs::metadata(&svg).unwrap().len() > 0);
+    }
 }

@@ -228,6 +228,32 @@ pub fn program_rpm(text: &str, settings: &Settings) -> f64 {
     }
 }
 
+/// The machine's travel in inches (the default settings' soft limits), the space a stock file
+/// must lie in ([`load_stock`]).
+pub fn travel() -> millac_plant::Envelope {
+    let s = Settings::default();
+    let (num, den) = s.blu.per_inch();
+    let inch = |blu: i32| f64::from(blu) * den as f64 / num as f64;
+    millac_plant::Envelope {
+        min_in: s.soft_min.map(inch),
+        max_in: s.soft_max.map(inch),
+    }
+}
+
+/// A stock description file (`--stock`), refused with its path and line when it does not parse
+/// or reaches outside the machine's travel ([`travel`]: a height or size no machine here has,
+/// e.g. `Z1e6`, which would otherwise simulate a cut kilometres deep for hours).
+pub fn load_stock(path: &std::path::Path) -> Result<Stock> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow!("reading the stock file {}: {e}", path.display()))?;
+    Stock::parse_within(&text, &travel()).map_err(|e| {
+        anyhow!(
+            "{}: {e}; a stock lies within the machine's travel (its soft limits)",
+            path.display()
+        )
+    })
+}
+
 /// Result of a host run.
 #[derive(Clone, Debug, Default)]
 pub struct HostRun {
@@ -263,6 +289,9 @@ pub struct HostRun {
     /// sampler's trip or the AC period), and of the last pulse of the run.
     pub hold_ns: Option<u64>,
     pub last_pulse_ns: u64,
+    /// The run was cut short by the host tool's SIGINT or SIGTERM ([`crate::interrupt`]): what
+    /// ran until then.
+    pub interrupted: bool,
 }
 
 /// The host's block queue: as many blocks as the QEMU board's (its 16-slot SPSC queue holds
@@ -627,6 +656,10 @@ pub fn run_with_faults(
             }
         }
         if halt {
+            break;
+        }
+        if crate::interrupt::received().is_some() {
+            out.interrupted = true;
             break;
         }
     }

@@ -5,7 +5,7 @@
 //! (`millac::monitor::breakage`, the firmware's code) at the cut's spindle speed and flutes.
 use crate::acsim::{self, Cut, HostRun};
 use crate::analysis::ProgBlock;
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, Context, Result};
 use millac::ac::AcSettings;
 use millac::monitor::{Breakage, BreakageDetector, BreakageSettings};
 use millac::Settings;
@@ -234,6 +234,7 @@ pub fn plot_residuals(
         marks(&mut chart, -lim, lim)?;
         crate::plot::legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     }
-    root.present()?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }

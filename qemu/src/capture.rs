@@ -101,14 +101,14 @@ pub struct CaptureSpec {
     pub extra_args: Vec<String>,
     /// Handlers to time (at most 16).
     pub handlers: Vec<HandlerSpec>,
-    /// Wall-clock limit; QEMU is killed and the capture fails past it.
+    /// Wall-clock limit; QEMU is killed and the capture fails past it (`Duration::MAX`: none).
     pub timeout: Duration,
     /// GPIO blocks watched by the plugin (must cover every PL061 the firmware writes).
     pub gpio_ports: Vec<u32>,
     /// The port whose pins are reported.
     pub pin_port: u32,
-    /// Set to stop the run (`serve`): QEMU gets SIGTERM, shuts down cleanly (the plugin writes its
-    /// log) and the capture is what ran until then. No timeout applies while this is given.
+    /// Set to stop the run (`serve`, an interrupted `run`): QEMU gets SIGTERM, shuts down cleanly
+    /// (the plugin writes its log) and the capture is what ran until then.
     pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
     /// The machine (default lm3s6965evb).
     pub machine: Machine,
@@ -461,6 +461,28 @@ fn reader(mut r: impl Read + Send + 'static) -> std::thread::JoinHandle<Vec<u8>>
     })
 }
 
+/// `: the disk is full (N bytes free on the file system of DIR)` when the file system holding
+/// `dir` has (next to) no room left, else empty: why a log QEMU wrote may be incomplete.
+pub fn full_disk(dir: &Path) -> String {
+    let Ok(c) = std::ffi::CString::new(dir.as_os_str().as_encoded_bytes()) else {
+        return String::new();
+    };
+    // SAFETY: statvfs(3) reads the NUL-terminated path and fills the struct we own.
+    let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
+    if unsafe { libc::statvfs(c.as_ptr(), &mut st) } != 0 {
+        return String::new();
+    }
+    let free = st.f_bavail as u64 * st.f_frsize as u64;
+    if free < 64 * 1024 {
+        format!(
+            ": the disk is full ({free} bytes free on the file system of {})",
+            dir.display()
+        )
+    } else {
+        String::new()
+    }
+}
+
 /// Runs the firmware under QEMU and returns the capture. The firmware's own exit status is returned
 /// in [`Capture::status`]; errors are for QEMU failing to run, the timeout, or inconsistent logs.
 pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
@@ -516,10 +538,8 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
                 // SAFETY: kill(2) with the child's pid and SIGTERM: no memory is touched.
                 unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
             }
-            std::thread::sleep(Duration::from_millis(10));
-            continue;
         }
-        if start.elapsed() > spec.timeout {
+        if spec.timeout != Duration::MAX && start.elapsed() > spec.timeout {
             let _ = child.kill();
             let _ = child.wait();
             let stdout = fw_log.decode(&out.join().unwrap_or_default());
@@ -539,27 +559,50 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
             qemu_version().unwrap_or_else(|e| e.to_string())
         )
     };
+    // A log QEMU or the plugin could not write whole (a full disk): said as such, with the file.
+    if let Some(why) = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("millac_plugin: cannot write "))
+    {
+        bail!(
+            "could not write the capture's plugin log {why}{}",
+            full_disk(&dir)
+        );
+    }
     let log_text = std::fs::read_to_string(&log)
         .map_err(|e| fail(format!("no plugin log {}: {e}", log.display())))?;
-    let plog = parse_plugin_log(&log_text)?;
+    let plog = parse_plugin_log(&log_text)
+        .with_context(|| format!("{}{}", log.display(), full_disk(&dir)))?;
     let total = plog
         .total
         .ok_or_else(|| fail("plugin log has no final line (atexit did not run)".into()))?;
     let trace_text = std::fs::read_to_string(&trace).unwrap_or_default();
+    if !trace_text.is_empty() && !trace_text.ends_with('\n') {
+        bail!(
+            "QEMU's trace log {} was cut short{}",
+            trace.display(),
+            full_disk(&dir)
+        );
+    }
     let pins = match spec.machine {
-        Machine::Lm3s6965 => {
-            let writes = zip_writes(&plog.stores, &parse_trace(&trace_text)?)?;
-            replay_port(&writes, spec.pin_port, spec.icount_shift)
-        }
-        Machine::Netduinoplus2 => {
-            let writes = zip_f4_writes(
-                &plog.stores,
-                &parse_unimp_gpio(&trace_text)?,
-                &spec.gpio_ports,
-            )?;
-            replay_bsrr(&writes, spec.pin_port, F4_FIRST_PIN, spec.icount_shift)
-        }
+        Machine::Lm3s6965 => parse_trace(&trace_text)
+            .and_then(|t| zip_writes(&plog.stores, &t))
+            .map(|w| replay_port(&w, spec.pin_port, spec.icount_shift)),
+        Machine::Netduinoplus2 => parse_unimp_gpio(&trace_text)
+            .and_then(|t| zip_f4_writes(&plog.stores, &t, &spec.gpio_ports))
+            .map(|w| replay_bsrr(&w, spec.pin_port, F4_FIRST_PIN, spec.icount_shift)),
     };
+    let pins = pins.map_err(|e| {
+        let full = full_disk(&dir);
+        if full.is_empty() {
+            e
+        } else {
+            e.context(format!(
+                "QEMU's logs in {} are incomplete{full}",
+                dir.display()
+            ))
+        }
+    })?;
     let mut handlers: Vec<(String, Vec<u64>)> = spec
         .handlers
         .iter()

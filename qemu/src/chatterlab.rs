@@ -3,7 +3,7 @@
 //! microphone at 5 kHz, the core's chatter detector (`millac::monitor::chatter`, the firmware's
 //! code) judging every 256-sample record. The `chatter_thesis` example draws the figure; the
 //! tests check the detection. Host only.
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, Context, Result};
 use millac::monitor::chatter::{ChatterDetector, ChatterSettings, Spectrum, RECORD};
 use millac_plant::chatter::{thesis_table_3_2 as t, Listener, Microphone};
 use plotters::prelude::*;
@@ -209,7 +209,8 @@ pub fn plot(path: &Path, runs: &[ChatterRun], threshold: f32) -> Result<()> {
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
-    root.present()?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 
@@ -315,7 +316,8 @@ pub fn plot_suppression(path: &Path, run: &crate::acsim::HostRun, threshold: f32
         .label("X")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
     crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
-    root.present()?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 
@@ -449,6 +451,7 @@ pub fn plot_speed(
         .label("X, spindle speed")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
     crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
-    root.present()?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }

@@ -160,6 +160,7 @@ pub fn stream(
         .collect::<Result<_>>()?;
     let stop = Arc::new(AtomicBool::new(false));
     spec.stop = Some(stop.clone());
+    spec.timeout = Duration::MAX;
     let qemu = std::thread::spawn(move || run_capture(&spec));
     let talked = talk(&addr, program, Instant::now() + timeout);
     stop.store(true, Ordering::SeqCst);

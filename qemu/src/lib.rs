@@ -8,7 +8,9 @@
 //!   step counts with sigrok's `stepper_motor` decoder; [`analysis`] checks a capture against its
 //!   program (end points, path deviation, feed).
 //! - Running the firmware: [`firmware`] builds it, [`tools`] finds or installs the external tools,
-//!   [`runner`] runs a program under QEMU and analyses the capture; [`defmtlog`] decodes the
+//!   [`runner`] runs a program under QEMU and analyses the capture; [`serve`] runs the firmware
+//!   in serial mode behind [`port`], the serial port's one cable; [`interrupt`] turns SIGINT
+//!   and SIGTERM into an early end with a report; [`defmtlog`] decodes the
 //!   firmware's defmt log (QEMU's stdout), whose results are in a file of their own; [`f446`]
 //!   runs the Nucleo-F446RE firmware (its `qemu` build) on QEMU's netduinoplus2 and streams a
 //!   program to it over USART2 (pins PC4..PC9, same byte layout as below).
@@ -36,10 +38,12 @@ pub mod elf;
 pub mod f446;
 pub mod fault;
 pub mod firmware;
+pub mod interrupt;
 pub mod model;
 pub mod optimise;
 pub mod plot;
 pub mod plugin;
+pub mod port;
 pub mod repro;
 pub mod runner;
 pub mod serve;

@@ -27,8 +27,9 @@ enum Cmd {
         program: PathBuf,
         #[arg(long, default_value = "out")]
         out: PathBuf,
-        /// QEMU -icount shift: one instruction = 2^N ns (4: 62.5 MIPS, close to a 50-72 MHz M3).
-        #[arg(long, default_value_t = 4)]
+        /// QEMU -icount shift: one instruction = 2^N ns (4: 62.5 MIPS, close to a 50-72 MHz M3);
+        /// 0..=7 (from 8 on the frame overruns its period in rapids).
+        #[arg(long, default_value_t = runner::DEFAULT_SHIFT, value_parser = parse_shift)]
         shift: u32,
         /// NC only: no simulated ADC and no adaptive control (the pulses then equal the host core's).
         #[arg(long, conflicts_with_all = ["faults", "strategy"])]
@@ -140,8 +141,9 @@ enum Cmd {
         /// `$N=value`, kept across sessions [default: OUT/settings.bin].
         #[arg(long)]
         settings: Option<PathBuf>,
-        /// QEMU -icount shift (virtual time = instructions * 2^N ns).
-        #[arg(long, default_value_t = 4)]
+        /// QEMU -icount shift (virtual time = instructions * 2^N ns); 0..=7 (from 8 on the
+        /// frame overruns its period in rapids).
+        #[arg(long, default_value_t = runner::DEFAULT_SHIFT, value_parser = parse_shift)]
         shift: u32,
         /// No simulated ADC and no adaptive control.
         #[arg(long, conflicts_with = "strategy")]
@@ -214,6 +216,15 @@ struct CutArgs {
     /// microphone (`--preset thesis-table-3.2`). `run`, `demo`, `host` (in `serve`, set $266).
     #[arg(long, value_name = "CODES")]
     chatter_threshold: Option<f32>,
+}
+
+/// `--shift N`: a number the firmware can keep ([`runner::check_shift`]).
+fn parse_shift(s: &str) -> Result<u32, String> {
+    let n: u32 = s
+        .trim()
+        .parse()
+        .map_err(|e| format!("'{s}' is not a shift (0..={}): {e}", runner::MAX_SHIFT))?;
+    runner::check_shift(n)
 }
 
 /// `--material`: the plant's materials.
@@ -340,6 +351,18 @@ impl CutArgs {
 
 fn main() {
     let cli = Cli::parse();
+    // The commands that leave a report in their folder: SIGINT and SIGTERM end them with it.
+    let report: Option<(PathBuf, bool)> = match &cli.cmd {
+        None => Some((PathBuf::from("out/demo"), false)),
+        Some(Cmd::Demo { out, .. }) | Some(Cmd::Run { out, .. }) | Some(Cmd::Host { out, .. }) => {
+            Some((out.clone(), false))
+        }
+        Some(Cmd::Serve { out, .. }) => Some((out.clone(), true)),
+        _ => None,
+    };
+    if report.is_some() {
+        millac_qemu::interrupt::install();
+    }
     let result = match cli.cmd {
         None => demo(
             Path::new("out/demo"),
@@ -443,15 +466,81 @@ fn main() {
             None => host(DEMO, &out, &cut),
         },
     };
+    // A signal ends `run`, `demo` and `host` with the report of what was done and the shell's
+    // status for it (128 + the signal); it is how `serve` ends normally.
+    let interrupted =
+        millac_qemu::interrupt::received().filter(|_| report.as_ref().is_some_and(|r| !r.1));
     match result {
-        Ok(true) => {}
-        Ok(false) => std::process::exit(1),
+        Ok(ok) => {
+            if let (Some(sig), Some((out, _))) = (interrupted, &report) {
+                eprintln!(
+                    "millac: interrupted by {}: the report of what ran is in {}",
+                    millac_qemu::interrupt::name(sig),
+                    out.join("summary.json").display()
+                );
+                std::process::exit(128 + sig);
+            }
+            if !ok {
+                std::process::exit(1);
+            }
+        }
         Err(e) => {
             eprintln!("millac: {e:#}");
-            std::process::exit(2);
+            if let Some(u) = e.downcast_ref::<Unreported>() {
+                eprintln!("{}", u.line);
+            }
+            std::process::exit(interrupted.map_or(2, |sig| 128 + sig));
         }
     }
 }
+
+/// The report of a command that failed once it had begun to write into its folder (a failure
+/// of its options writes nothing): `out/summary.json` with `completed` false and `error`
+/// {`message`} (no `line`: not a program's rejection), so no earlier run's summary is left to
+/// be taken for this one. When it cannot be written, the error carries [`Unreported`]: `main`
+/// says in one line which file and why. A folder that holds `serve`'s settings is not a run's
+/// folder: `run` refuses it and nothing is written there.
+fn reported<T>(out: &Path, serve: bool, r: Result<T>) -> Result<T> {
+    let Err(e) = r else { return r };
+    let path = out.join("summary.json");
+    if !serve && std::fs::symlink_metadata(out.join(millac::wire::SETTINGS_NAME)).is_ok() {
+        return Err(e);
+    }
+    let summary = serde_json::json!({
+        "completed": false,
+        "error": {"message": format!("{e:#}")},
+    });
+    let written = std::fs::create_dir_all(out)
+        .with_context(|| format!("creating {}", out.display()))
+        .and_then(|()| runner::write_json(&path, &summary));
+    match written {
+        Ok(()) => Err(e),
+        Err(w) => Err(anyhow::Error::new(Unreported {
+            line: format!(
+                "millac: no report written: {}: {}",
+                path.display(),
+                w.root_cause()
+            ),
+            error: e,
+        })),
+    }
+}
+
+/// A failure whose report could not be written ([`reported`]): it reads as the failure;
+/// `line` says which file and why.
+#[derive(Debug)]
+struct Unreported {
+    error: anyhow::Error,
+    line: String,
+}
+
+impl std::fmt::Display for Unreported {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:#}", self.error)
+    }
+}
+
+impl std::error::Error for Unreported {}
 
 /// Reads the program file and runs `f` on its text; a file that is not UTF-8 is rejected like
 /// any bad program (summary.json `error` naming the line, status 1).
@@ -475,7 +564,7 @@ fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
             ),
         }
     );
-    run(DEMO, out, 4, Some(cut))
+    run(DEMO, out, runner::DEFAULT_SHIFT, Some(cut))
 }
 
 fn run(text: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> Result<bool> {
@@ -491,7 +580,12 @@ fn run(text: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> Result<bool
         }
         None => None,
     };
-    let o = runner::run_with(text, out, shift, ac.as_ref())?;
+    let stop = millac_qemu::interrupt::flag();
+    let o = reported(
+        out,
+        false,
+        runner::run_until(text, out, shift, ac.as_ref(), Some(stop)),
+    )?;
     if o.report.is_some() {
         runner::print_summary(&o.summary, out);
     }
@@ -517,13 +611,6 @@ fn analyse_file(capture: &Path, program: &Path) -> Result<bool> {
     Ok(runner::checks_pass(&report))
 }
 
-/// Set by SIGINT and SIGTERM (an atomic store is async-signal-safe).
-static STOP: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-
-extern "C" fn on_signal(_: libc::c_int) {
-    STOP.store(true, std::sync::atomic::Ordering::SeqCst);
-}
-
 fn serve(
     tcp: &str,
     out: &Path,
@@ -531,7 +618,6 @@ fn serve(
     shift: u32,
     cut: Option<&CutArgs>,
 ) -> Result<bool> {
-    use std::sync::atomic::Ordering;
     let ac = match cut {
         Some(c) => Some(runner::AcRun {
             // The program arrives over the serial line during the session: the simulated
@@ -551,31 +637,21 @@ fn serve(
         }),
         None => None,
     };
-    let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
-    // SAFETY: installs a handler that only stores an atomic.
-    unsafe {
-        libc::signal(libc::SIGINT, handler);
-        libc::signal(libc::SIGTERM, handler);
-    }
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let relay = {
-        let stop = stop.clone();
-        std::thread::spawn(move || {
-            while !STOP.load(Ordering::SeqCst) {
-                std::thread::sleep(std::time::Duration::from_millis(50));
-            }
-            stop.store(true, Ordering::SeqCst);
-        })
-    };
+    // SIGINT and SIGTERM end the session (the handler is installed in `main`).
+    let stop = millac_qemu::interrupt::flag();
     println!(
-        "millac serve: the machine's serial port (grbl 1.1) is on tcp://{tcp}; point a sender there \
-         (serial-only senders: socat pty,raw,echo=0,link=/tmp/millac-tty tcp:{tcp}). Ctrl-C ends the \
+        "millac serve: the machine's serial port (grbl 1.1) is on tcp://{tcp}, one client at a time; \
+         point a sender there (serial-only senders: socat pty,raw,echo=0,link=/tmp/millac-tty \
+         tcp:{tcp}). Ctrl-C ends the \
          session and writes {}/capture.vcd and summary.json. Settings ($N=value) persist in {}.",
         out.display(),
         settings.display()
     );
-    let served = millac_qemu::serve::serve(out, settings, tcp, shift, ac.as_ref(), stop)?;
-    drop(relay);
+    let served = reported(
+        out,
+        true,
+        millac_qemu::serve::serve(out, settings, tcp, shift, ac.as_ref(), stop),
+    )?;
     println!(
         "{}",
         serde_json::to_string_pretty(&served.summary).unwrap_or_default()
@@ -586,10 +662,7 @@ fn serve(
 fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
     use millac_plant::{Material, Stock};
     let stock = match &args.stock {
-        Some(p) => Stock::parse(
-            &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
-        )
-        .map_err(|e| anyhow::anyhow!("{e}"))?,
+        Some(p) => millac_qemu::acsim::load_stock(p)?,
         None => Stock::default(),
     };
     let cut = millac_qemu::acsim::Cut {
@@ -656,88 +729,123 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
     };
     let cut = cut_setup(text, args)?;
     let acs = args.ac_settings(&cut);
-    std::fs::create_dir_all(out)?;
-    let run = acsim::run_with_faults(
-        &prog,
-        &settings,
-        &cut,
-        (!args.no_ac).then_some(acs),
-        true,
-        &args.faults,
-    )?;
-    std::fs::write(out.join("ac.csv"), acsim::csv(&run.rows))?;
-    let f0 = acs.f0_n() as f64;
-    let t0 = acs.t0_nm() as f64;
-    acreport::plot(
-        &out.join("ac.svg"),
-        &run.rows,
-        f0,
-        t0,
-        1.0 / acs.optimal_fraction as f64,
-        acsim::feed_ipm(&settings, settings.q0),
-    )?;
-    let load = acsim::load_figures(
-        &run.samples,
-        &cut.tool,
-        acs.optimal_fraction as f64,
-        acs.sample_hz,
-    );
-    let cmp = acreport::compare(&prog, &settings, &cut, &acs)?;
-    println!(
-        "millac host run ({}): final position {:?}",
-        match (args.no_ac, args.strategy) {
-            (true, _) => "no AC".to_string(),
-            (false, None) => "AC".to_string(),
-            (false, Some(_)) => format!("AC, strategy {}", acs.strategy.name()),
-        },
-        run.final_position
-    );
-    if let Some(a) = run.alarm {
-        println!("  alarm: {a}");
-    }
-    // The keys of `run`'s summary.json that apply to a host run.
-    let completed = run.blocks_done >= prog.len();
-    let [x, y, z] = run.final_position;
-    let mut summary = serde_json::json!({
-        "blocks": prog.len(),
-        "machining_time_s": (run.machining_time_s * 1e6).round() / 1e6,
-        "final_position_blu": {"x": x, "y": y, "z": z},
-        "completed": completed,
-    });
-    summary["ac"] = acreport::ac_json(run.machining_time_s, &load, &cmp);
-    summary["ac"]["enabled"] = serde_json::json!(!args.no_ac);
-    summary["ac"]["strategy"] = serde_json::json!(acs.strategy.name());
-    summary["ac"]["samples"] = serde_json::json!(run.samples.len());
-    summary["ac"]["holds"] = serde_json::json!(run
-        .rows
-        .iter()
-        .filter(|r| r.state.starts_with("hold"))
-        .count());
-    let hold = (!completed).then(|| runner::Hold {
-        alarm: run.alarm.map(|a| a.to_string()).unwrap_or_default(),
-        blocks_done: run.blocks_done,
-        position: run.final_position,
-    });
-    if let Some(h) = &hold {
-        summary["hold"] = runner::hold_json(&prog, h);
-    }
-    let why = hold.as_ref().map(|h| runner::held_at(&prog, h));
-    acreport::print_table(
-        run.machining_time_s,
-        &load,
-        &cmp,
-        why.as_deref(),
-        acs.strategy,
-    );
-    runner::write_json(&out.join("summary.json"), &summary)?;
-    println!(
-        "  wrote {}/ac.csv, {}/ac.svg and {}/summary.json",
-        out.display(),
-        out.display(),
-        out.display()
-    );
-    let end = prog.last().map_or([0; 3], |b| b.end).map(i64::from);
-    Ok(completed && run.final_position == end)
+    // From here on the folder is written: a failure leaves its report there.
+    reported(
+        out,
+        false,
+        (|| -> Result<bool> {
+            std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+            let run = acsim::run_with_faults(
+                &prog,
+                &settings,
+                &cut,
+                (!args.no_ac).then_some(acs),
+                true,
+                &args.faults,
+            )?;
+            let csv = out.join("ac.csv");
+            std::fs::write(&csv, acsim::csv(&run.rows))
+                .with_context(|| format!("writing {}", csv.display()))?;
+            let f0 = acs.f0_n() as f64;
+            let t0 = acs.t0_nm() as f64;
+            acreport::plot(
+                &out.join("ac.svg"),
+                &run.rows,
+                f0,
+                t0,
+                1.0 / acs.optimal_fraction as f64,
+                acsim::feed_ipm(&settings, settings.q0),
+            )?;
+            let load = acsim::load_figures(
+                &run.samples,
+                &cut.tool,
+                acs.optimal_fraction as f64,
+                acs.sample_hz,
+            );
+            // The comparison's runs (constant feeds, the oracle) are left out once a signal has come:
+            // they would be cut short too.
+            let cmp = match millac_qemu::interrupt::received() {
+                None => Some(acreport::compare(&prog, &settings, &cut, &acs)?),
+                Some(_) => None,
+            };
+            let signal = millac_qemu::interrupt::received().map(millac_qemu::interrupt::name);
+            let cmp = cmp.filter(|_| signal.is_none());
+            println!(
+                "millac host run ({}): final position {:?}",
+                match (args.no_ac, args.strategy) {
+                    (true, _) => "no AC".to_string(),
+                    (false, None) => "AC".to_string(),
+                    (false, Some(_)) => format!("AC, strategy {}", acs.strategy.name()),
+                },
+                run.final_position
+            );
+            if let Some(a) = run.alarm {
+                println!("  alarm: {a}");
+            }
+            // The keys of `run`'s summary.json that apply to a host run.
+            let completed = run.blocks_done >= prog.len() && !run.interrupted;
+            let [x, y, z] = run.final_position;
+            let mut summary = serde_json::json!({
+                "blocks": prog.len(),
+                "machining_time_s": (run.machining_time_s * 1e6).round() / 1e6,
+                "final_position_blu": {"x": x, "y": y, "z": z},
+                "completed": completed,
+            });
+            summary["ac"] = match &cmp {
+                Some(cmp) => acreport::ac_json(run.machining_time_s, &load, cmp),
+                None => serde_json::json!({}),
+            };
+            summary["ac"]["enabled"] = serde_json::json!(!args.no_ac);
+            summary["ac"]["strategy"] = serde_json::json!(acs.strategy.name());
+            summary["ac"]["samples"] = serde_json::json!(run.samples.len());
+            summary["ac"]["holds"] = serde_json::json!(run
+                .rows
+                .iter()
+                .filter(|r| r.state.starts_with("hold"))
+                .count());
+            let hold = (!completed).then(|| runner::Hold {
+                alarm: run.alarm.map(|a| a.to_string()).unwrap_or_default(),
+                blocks_done: run.blocks_done,
+                position: run.final_position,
+                signal: signal.clone().filter(|_| run.interrupted),
+            });
+            if let Some(h) = &hold {
+                let key = if h.signal.is_some() {
+                    "interrupted"
+                } else {
+                    "hold"
+                };
+                summary[key] = runner::hold_json(&prog, h);
+            }
+            if let (Some(s), false) = (&signal, run.interrupted) {
+                // The run itself finished; only the comparison was left out.
+                summary["interrupted"] = serde_json::json!({"signal": s, "left_out": "comparison"});
+            }
+            let why = hold.as_ref().map(|h| runner::held_at(&prog, h));
+            match &cmp {
+                Some(cmp) => acreport::print_table(
+                    run.machining_time_s,
+                    &load,
+                    cmp,
+                    why.as_deref(),
+                    acs.strategy,
+                ),
+                None => println!(
+                "  interrupted: {}; the comparison with constant feeds and the oracle is left out",
+                why.as_deref().unwrap_or("the run had finished")
+            ),
+            }
+            runner::write_json(&out.join("summary.json"), &summary)?;
+            println!(
+                "  wrote {}/ac.csv, {}/ac.svg and {}/summary.json",
+                out.display(),
+                out.display(),
+                out.display()
+            );
+            let end = prog.last().map_or([0; 3], |b| b.end).map(i64::from);
+            Ok(completed && run.final_position == end)
+        })(),
+    )
 }
 
 /// `optimise`: the offline feed optimisation (`millac_qemu::optimise`), its files and a summary
@@ -755,10 +863,7 @@ fn optimise(
     let text = std::str::from_utf8(&bytes)
         .map_err(|e| anyhow::anyhow!("{} is not UTF-8: {e}", program.display()))?;
     let stock = match stock {
-        Some(p) => millac_plant::Stock::parse(
-            &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
-        )
-        .map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?,
+        Some(p) => acsim::load_stock(p)?,
         None => millac_plant::Stock::default(),
     };
     let settings = Settings::default();

@@ -24,7 +24,7 @@
 use crate::acreport::{oracle_walk, WalkPoint};
 use crate::acsim::{self, Cut, HostRun};
 use crate::analysis::{self, ProgBlock};
-use anyhow::{anyhow, bail, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use millac::nc::{Motion, Plane, X, Y, Z};
 use millac::Blu;
 use millac::Settings;
@@ -858,7 +858,8 @@ pub fn plot(path: &std::path::Path, title: &str, o: &Optimised) -> Result<()> {
         .label("F0")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
     crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
-    root.present()?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 
@@ -949,7 +950,8 @@ pub fn plot_combined(
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c));
     }
     crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
-    root.present()?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 

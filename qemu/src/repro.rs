@@ -16,7 +16,7 @@
 //! without the transducer's noise.
 use crate::acsim::{self, Cut, HostRun};
 use crate::analysis;
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, Context, Result};
 use millac::ac::law::Strategy;
 use millac::ac::{AcSettings, FeedCeiling};
 use millac::Settings;
@@ -491,7 +491,8 @@ pub fn plot_load_and_feed(path: &Path, title: &str, traces: &[Trace], marks: &[f
             ))?;
         }
     }
-    body.present()?;
+    body.present()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 
@@ -574,7 +575,8 @@ pub fn plot_estimates(path: &Path, title: &str, traces: &[Trace], marks: &[f64])
             .border_style(BLACK)
             .draw()?;
     }
-    body.present()?;
+    body.present()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 

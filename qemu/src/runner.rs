@@ -9,6 +9,44 @@ use serde_json::{json, Value};
 use std::path::Path;
 use std::time::Duration;
 
+/// The default QEMU `-icount` shift of the host tool: one instruction = 16 ns (62.5 MIPS, close
+/// to a 50-72 MHz Cortex-M3).
+pub const DEFAULT_SHIFT: u32 = 4;
+/// The largest `-icount` shift QEMU accepts (7.2: "Invalid shift value" above it).
+pub const QEMU_MAX_SHIFT: u32 = 10;
+/// The largest shift at which the firmware keeps its frame: the rapid frame period at the
+/// default settings is 38 us (26 333 Hz); the frame ISR's worst case (about 185 instructions) and
+/// the pulse end (about 45) take 29 us at shift 7 (128 ns per instruction) and 59 us at shift 8,
+/// where the frames overrun in rapids: the firmware holds with its frame overrun alarm
+/// (`ALARM:111`; before it had that check it lost step pulses: 9378 of 15748 X pulses of
+/// `G21 G0 X10 Y-7 Z3` and back). Measured:
+/// `firmware::the_largest_shift_allowed_keeps_every_pulse_and_the_next_does_not`. The host tool
+/// refuses larger shifts ([`check_shift`]).
+pub const MAX_SHIFT: u32 = 7;
+
+/// `--shift N`: the QEMU time scale the firmware can keep, or why not (a message for the
+/// command line).
+pub fn check_shift(shift: u32) -> Result<u32, String> {
+    if shift > QEMU_MAX_SHIFT {
+        return Err(format!(
+            "{shift} is not a QEMU -icount shift (0..={QEMU_MAX_SHIFT}); the firmware keeps its \
+             frame up to {MAX_SHIFT}: use 0..={MAX_SHIFT} (default {DEFAULT_SHIFT})"
+        ));
+    }
+    if shift > MAX_SHIFT {
+        let ns = 1u64 << shift;
+        return Err(format!(
+            "at shift {shift} one instruction takes {ns} ns: the frame interrupt's worst case \
+             (about 230 instructions with the pulse end, {} us) no longer fits the 38 us rapid \
+             frame period, so the firmware cannot keep its frame in rapids (it holds with a frame \
+             overrun; measured: shift 8 overruns, 7 keeps every pulse); use 0..={MAX_SHIFT} \
+             (default {DEFAULT_SHIFT})",
+            230 * ns / 1000
+        ));
+    }
+    Ok(shift)
+}
+
 /// What a run produced.
 pub struct Outcome {
     /// summary.json as written.
@@ -28,7 +66,13 @@ pub struct Outcome {
 /// (handlers: TIMER_0A frame, TIMER_1A pulse end). The firmware's exit status is in the capture.
 /// The simulated ADC is absent (stale FIFOs of an earlier co-simulation in `out` are removed).
 pub fn execute(text: &str, out: &Path, shift: u32) -> Result<Capture> {
-    let spec = prepare(text, out, shift)?;
+    execute_until(text, out, shift, None)
+}
+
+/// [`execute`], QEMU stopped early (SIGTERM, the capture is what ran) once `stop` is set.
+fn execute_until(text: &str, out: &Path, shift: u32, stop: Option<Stop>) -> Result<Capture> {
+    let mut spec = prepare(text, out, shift)?;
+    spec.stop = stop;
     for f in [cosim::REQ, cosim::RESP] {
         let p = out.join(f);
         if std::fs::symlink_metadata(&p).is_ok() {
@@ -53,7 +97,8 @@ fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
     }
     let elf = firmware::build()?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    std::fs::write(out.join("program.nc"), text)?;
+    let program = out.join("program.nc");
+    std::fs::write(&program, text).with_context(|| format!("writing {}", program.display()))?;
     let mut spec = CaptureSpec::new(&elf, out);
     spec.icount_shift = shift;
     spec.timeout = Duration::from_secs(1800);
@@ -129,7 +174,21 @@ pub fn execute_with_plant_settings(
     ac_enabled: bool,
     acs: &millac::ac::AcSettings,
 ) -> Result<(Capture, Vec<cosim::Exchange>)> {
-    let spec = prepare(text, out, shift)?;
+    execute_with_plant_until(text, out, shift, plant, ac_enabled, acs, None)
+}
+
+/// [`execute_with_plant_settings`], QEMU stopped early once `stop` is set.
+fn execute_with_plant_until(
+    text: &str,
+    out: &Path,
+    shift: u32,
+    plant: Box<dyn cosim::Plant + Send>,
+    ac_enabled: bool,
+    acs: &millac::ac::AcSettings,
+    stop: Option<Stop>,
+) -> Result<(Capture, Vec<cosim::Exchange>)> {
+    let mut spec = prepare(text, out, shift)?;
+    spec.stop = stop;
     let _ = std::fs::remove_file(out.join(cosim::AC_LOG));
     let _record = RunSettings::write(out, Some(acs))?;
     let bridge = cosim::Bridge::start(out, plant, acs.sample_hz, ac_enabled)?;
@@ -268,8 +327,25 @@ pub fn write_rejection(out: &Path, r: &Rejected) -> Result<Value> {
     Ok(summary)
 }
 
+/// A flag that stops a run early ([`run_until`]).
+pub type Stop = std::sync::Arc<std::sync::atomic::AtomicBool>;
+
 /// Pre-checks, runs (optionally against the cutting process) and analyses a program.
 pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Result<Outcome> {
+    run_until(text, out, shift, ac, None)
+}
+
+/// [`run_with`], stopped early when `stop` is set (the host tool sets it on SIGINT and SIGTERM,
+/// [`crate::interrupt`]): QEMU is stopped cleanly and what ran is reported like a hold, under
+/// `interrupted` (`signal`, the line that was running, the blocks done, the position), with
+/// `completed` false and the capture of what ran in capture.vcd.
+pub fn run_until(
+    text: &str,
+    out: &Path,
+    shift: u32,
+    ac: Option<&AcRun>,
+    stop: Option<Stop>,
+) -> Result<Outcome> {
     let settings = Settings::default();
     settings
         .validate()
@@ -297,15 +373,33 @@ pub fn run_with(text: &str, out: &Path, shift: u32, ac: Option<&AcRun>) -> Resul
     };
     let truth = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
     let (cap, exchanges) = match ac {
-        None => (execute(text, out, shift)?, Vec::new()),
+        None => (execute_until(text, out, shift, stop.clone())?, Vec::new()),
         Some(a) => {
             let plant = plant_with_truth(a, truth.clone())?;
-            execute_with_plant_settings(text, out, shift, plant, a.ac, &a.settings)?
+            execute_with_plant_until(text, out, shift, plant, a.ac, &a.settings, stop.clone())?
         }
     };
     // A hold the firmware reported is a result (the run did not complete), anything else that
-    // ends the firmware with failure is not.
-    let hold = firmware_hold(&cap.result);
+    // ends the firmware with failure is not; nor is a run stopped by a signal, reported with what
+    // ran (the blocks that ran to their end in the capture).
+    let interrupted = stop
+        .as_ref()
+        .is_some_and(|s| s.load(std::sync::atomic::Ordering::SeqCst))
+        && !cap.result.lines().any(|l| l.starts_with("millac: "));
+    let hold = if interrupted {
+        let ran = analysis::analyse(&prog, &settings, 0, &cap.pins);
+        Some(Hold {
+            alarm: String::new(),
+            blocks_done: ran.blocks.iter().take_while(|b| b.completed).count(),
+            position: vcd::positions(0, &cap.pins),
+            signal: Some(
+                crate::interrupt::received()
+                    .map_or_else(|| "a stop request".into(), crate::interrupt::name),
+            ),
+        })
+    } else {
+        firmware_hold(&cap.result)
+    };
     if cap.status != Some(0) && hold.is_none() {
         anyhow::bail!(
             "firmware exited with {:?}: {}\nfirmware log:\n{}{}",
@@ -382,7 +476,12 @@ pub fn summarise(
     summary["icount_shift"] = json!(shift);
     summary["completed"] = json!(hold.is_none());
     if let Some(h) = hold {
-        summary["hold"] = hold_json(prog, h);
+        let key = if h.signal.is_some() {
+            "interrupted"
+        } else {
+            "hold"
+        };
+        summary[key] = hold_json(prog, h);
         eprintln!("millac: {}", not_finished(prog, h));
     }
     let mut records = Vec::new();
@@ -391,7 +490,9 @@ pub fn summarise(
         records = cosim::parse_ac_log(&log)?;
         let acs = a.run.settings;
         let rows = ac_rows(settings, &acs, &records, a.truth);
-        std::fs::write(out.join("ac.csv"), crate::acsim::csv(&rows))?;
+        let csv = out.join("ac.csv");
+        std::fs::write(&csv, crate::acsim::csv(&rows))
+            .with_context(|| format!("writing {}", csv.display()))?;
         crate::acreport::plot(
             &out.join("ac.svg"),
             &rows,
@@ -475,6 +576,8 @@ pub struct Hold {
     pub alarm: String,
     pub blocks_done: usize,
     pub position: [i64; 3],
+    /// Not a hold of the firmware: the run was stopped by this signal (`SIGINT`, `SIGTERM`).
+    pub signal: Option<String>,
 }
 
 /// The firmware's report of a hold in its result file ([`Capture::result`]): `alarm: <text>`
@@ -498,36 +601,54 @@ pub fn firmware_hold(result: &str) -> Option<Hold> {
         alarm,
         blocks_done,
         position: firmware_position(result)?,
+        signal: None,
     })
 }
 
-/// `held at line N` (the program line of the block that was running).
+/// `held at line N` (the program line of the block that was running; `stopped by SIGINT at line
+/// N` for a run a signal stopped).
 pub fn held_at(prog: &[ProgBlock], h: &Hold) -> String {
+    let verb = match &h.signal {
+        Some(s) => format!("stopped by {s}"),
+        None => "held".to_string(),
+    };
     match prog.get(h.blocks_done) {
-        Some(b) => format!("held at line {}", b.block.line),
-        None => "held after the last block".to_string(),
+        Some(b) => format!("{verb} at line {}", b.block.line),
+        None => format!("{verb} after the last block"),
     }
 }
 
 fn not_finished(prog: &[ProgBlock], h: &Hold) -> String {
     let [x, y, z] = h.position;
+    let why = if h.alarm.is_empty() {
+        String::new()
+    } else {
+        format!(": {}", h.alarm)
+    };
     format!(
-        "the program did not finish: {} (position {x},{y},{z} BLU): {}",
-        held_at(prog, h),
-        h.alarm
+        "the program did not finish: {} (position {x},{y},{z} BLU){why}",
+        held_at(prog, h)
     )
 }
 
 /// summary.json's `hold`: the alarm, the line of the running block (`block`, null after the last
-/// block), the blocks completed and the position.
+/// block), the blocks completed and the position. For a run a signal stopped, `interrupted`'s
+/// value: `signal` instead of `alarm`.
 pub fn hold_json(prog: &[ProgBlock], h: &Hold) -> Value {
     let [x, y, z] = h.position;
-    json!({
+    let mut v = json!({
         "alarm": h.alarm,
         "block": prog.get(h.blocks_done).map(|b| b.block.line),
         "blocks_done": h.blocks_done,
         "position_blu": {"x": x, "y": y, "z": z},
-    })
+    });
+    if let Some(s) = &h.signal {
+        v["signal"] = json!(s);
+        if let Some(o) = v.as_object_mut() {
+            o.remove("alarm");
+        }
+    }
+    v
 }
 
 /// The final (or held) position in the firmware's result file ([`Capture::result`]):
@@ -556,10 +677,17 @@ pub fn summary_json(prog: &[ProgBlock], r: &Report) -> Value {
     })
 }
 
+/// Writes `v` as pretty JSON. A file that could not be written whole (a full disk) is removed:
+/// no cut or earlier report is left under the name.
 pub fn write_json(path: &Path, v: &Value) -> Result<()> {
     let mut s = serde_json::to_string_pretty(v)?;
     s.push('\n');
-    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+    std::fs::write(path, s).map_err(|e| {
+        if !path.is_dir() {
+            let _ = std::fs::remove_file(path);
+        }
+        anyhow::Error::new(e).context(format!("writing {}", path.display()))
+    })
 }
 
 pub fn print_summary(s: &Value, out: &Path) {

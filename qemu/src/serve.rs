@@ -6,9 +6,19 @@
 //! accepted line, jog, early run of a held block and soft reset; `millac::wire::SessionLine`),
 //! replayed here ([`replay`]) into exactly the blocks the firmware queued.
 //!
-//! QEMU gets `-serial tcp:ADDR,server=on,wait=off` (a sender can connect, disconnect and reconnect
-//! while the machine runs) and `-monitor none`; stopping sends QEMU SIGTERM, which shuts it down
-//! cleanly, so the virtual logic analyser's log is complete.
+//! The serial port is [`crate::port`]: QEMU's UART on a Unix socket of a small TCP front that
+//! takes one client at a time (others get a line saying the port is in use and are closed),
+//! greets each client with the grbl banner, and forwards a client's bytes line by line
+//! (realtime bytes at once), so a line left unfinished by a client that disconnects is dropped,
+//! never glued to the next client's first line. QEMU gets `-monitor none`; stopping first closes
+//! the client and asks the firmware for a status report (the state the session ended in), then
+//! sends QEMU SIGTERM, which shuts it down cleanly, so the virtual logic analyser's log is
+//! complete.
+//!
+//! The summary's `completed` is true only when the machine ended `Idle` and every block the
+//! session queued ran to its end in the capture; otherwise `hold` says what was left: the state
+//! the machine ended in, the last alarm it reported, the line of the first block that did not
+//! run to its end, the blocks done and the position.
 //!
 //! Settings persist in the operator's settings file (`--settings`, default `out/settings.bin`):
 //! the firmware opens `settings.bin` in its working directory (`out`), which [`link_settings`]
@@ -25,7 +35,7 @@ use millac::wire::{self, SessionLine};
 use millac::Settings;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 /// The default address of the serial port.
@@ -132,11 +142,12 @@ pub fn serve(
         .ok()
         .and_then(|b| millac::protocol::settings::record::decode(&b).ok())
         .unwrap_or_default();
+    let port = crate::port::Port::open(tcp)?;
     let mut spec = CaptureSpec::new(&elf, out);
     spec.icount_shift = shift;
     spec.extra_args = vec![
         "-serial".into(),
-        format!("tcp:{tcp},server=on,wait=off"),
+        port.qemu_arg(),
         "-monitor".into(),
         "none".into(),
     ];
@@ -144,7 +155,28 @@ pub fn serve(
         HandlerSpec::from_elf(&elf, "TIMER_0A")?,
         HandlerSpec::from_elf(&elf, "TIMER_1A")?,
     ];
-    spec.stop = Some(stop);
+    // The caller's stop ends the port first (the client closed, the final state asked for),
+    // then QEMU.
+    let qemu_stop = Arc::new(AtomicBool::new(false));
+    spec.stop = Some(qemu_stop.clone());
+    spec.timeout = std::time::Duration::MAX;
+    let captured = AtomicBool::new(false);
+    let capture = |spec: &CaptureSpec| {
+        std::thread::scope(|sc| {
+            let watcher = sc.spawn(|| {
+                while !stop.load(Ordering::SeqCst) && !captured.load(Ordering::SeqCst) {
+                    std::thread::sleep(std::time::Duration::from_millis(20));
+                }
+                let ending = port.finish();
+                qemu_stop.store(true, Ordering::SeqCst);
+                ending
+            });
+            let cap = run_capture(spec);
+            captured.store(true, Ordering::SeqCst);
+            let ending = watcher.join().unwrap_or_default();
+            (cap, ending)
+        })
+    };
     let truth = Arc::new(std::sync::Mutex::new(Vec::new()));
     // The simulated ADC, the report and the plot take the AC settings the firmware starts with.
     let ac = ac.map(|a| AcRun {
@@ -152,16 +184,20 @@ pub fn serve(
         ..a.clone()
     });
     let ac = ac.as_ref();
-    let (cap, samples) = match ac {
-        None => (run_capture(&spec)?, 0),
+    let (cap, samples, ending) = match ac {
+        None => {
+            let (cap, ending) = capture(&spec);
+            (cap?, 0, ending)
+        }
         Some(a) => {
             let plant = runner::plant_with_truth(a, truth.clone())?;
             let bridge = cosim::Bridge::start(out, plant, stored.ac.sample_hz, a.ac)?;
-            let cap = run_capture(&spec);
+            let (cap, ending) = capture(&spec);
             let exchanges = bridge.finish().unwrap_or_default();
-            (cap?, exchanges.len())
+            (cap?, exchanges.len(), ending)
         }
     };
+    drop(port);
     vcd::write_vcd(&out.join("capture.vcd"), 0, &cap.pins, Some(cap.end_ns))?;
     // The session as a program: the blocks the firmware queued, from its log, with the settings
     // the firmware started with.
@@ -171,7 +207,17 @@ pub fn serve(
     let prog = analysis::program_of_blocks(
         replay(&log, &settings).with_context(|| format!("replaying {}", log_path.display()))?,
     );
-    let hold = runner::firmware_hold(&cap.result);
+    // What the session left: the blocks that ran to their end in the capture, and the state.
+    let [x, y, z] = vcd::positions(0, &cap.pins);
+    let ran = analysis::analyse(&prog, &settings, 0, &cap.pins);
+    let blocks_done = ran.blocks.iter().take_while(|b| b.completed).count();
+    let idle = ending.state.as_deref() == Some("Idle");
+    let hold = (!idle || blocks_done < prog.len()).then(|| runner::Hold {
+        alarm: ending.alarm.clone().unwrap_or_default(),
+        blocks_done,
+        position: [x, y, z],
+        signal: None,
+    });
     let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
     // The host's comparison runs (constant feeds, the bound) at the session's spindle speed: the
     // last S of its log (the plant followed every spindle change live; a session that changes
@@ -187,9 +233,12 @@ pub fn serve(
     });
     let (mut summary, _, _) =
         runner::summarise(&prog, &settings, &cap, out, shift, hold.as_ref(), ac_in)?;
+    if hold.is_some() {
+        summary["hold"]["state"] = json!(ending.state);
+        summary["hold"]["alarm"] = json!(ending.alarm);
+    }
     // The end of the whole capture (in `run` the analysis' end equals it when the pulse counts
     // match; here it stays the capture's even if the log missed a block).
-    let [x, y, z] = vcd::positions(0, &cap.pins);
     summary["final_position_blu"] = json!({"x": x, "y": y, "z": z});
     summary["virtual_time_s"] = json!(cap.end_ns as f64 * 1e-9);
     if let Some(a) = ac {

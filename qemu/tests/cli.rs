@@ -289,3 +289,70 @@ fn the_thesis_preset_chatters_at_8_89_mm_and_not_at_2_54() {
         "peaks {peaks:?}: no chatter at 8.89 mm?"
     );
 }
+
+/// `--shift` the firmware cannot keep is refused by the command line, before anything is built
+/// or run, saying why: 99 is no QEMU shift, at 8 the frame overruns in rapids. Before, 99
+/// reached QEMU, whose "Invalid shift value" came last in a message about the plugin, and 8 ran
+/// (and lost pulses, until the firmware learnt to hold on a frame overrun).
+#[test]
+fn a_shift_the_firmware_cannot_keep_is_refused_with_why() {
+    let dir = scratch("shift");
+    let (prog, _) = slot_files(&dir);
+    let out = dir.join("out");
+    for (cmd, shift, why) in [
+        ("run", "99", "not a QEMU -icount shift"),
+        ("run", "8", "cannot keep its frame in rapids"),
+        ("serve", "8", "cannot keep its frame in rapids"),
+        ("run", "x", "is not a shift"),
+    ] {
+        let mut args: Vec<&std::ffi::OsStr> = vec![cmd.as_ref()];
+        if cmd == "run" {
+            args.push(prog.as_os_str());
+        }
+        args.extend([
+            "--out".as_ref(),
+            out.as_os_str(),
+            "--shift".as_ref(),
+            shift.as_ref(),
+        ]);
+        let o = millac(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{cmd} --shift {shift}: {err}");
+        assert!(err.contains("--shift"), "{err}");
+        assert!(err.contains(why), "{cmd} --shift {shift}: {err}");
+        assert!(err.contains("use 0..=7") || shift == "x", "{err}");
+        assert!(!err.contains("plugin"), "{err}");
+        assert!(!out.exists(), "nothing is written: {err}");
+    }
+}
+
+/// A stock reaching outside the machine's travel (`Z1e6`: a blank a thousand inches high) is
+/// refused at once with its file, line and what lies where, by `host`, `run` and `optimise`,
+/// before anything is written. Before, `host` simulated a cut kilometres deep for hours with no
+/// output.
+#[test]
+fn a_stock_outside_the_machines_travel_is_refused_with_its_line() {
+    let dir = scratch("stock-travel");
+    let (prog, _) = slot_files(&dir);
+    let stock = dir.join("tall.txt");
+    std::fs::write(&stock, "# a typo\nblank X0 Y0 W5 H3 Z1e6\n").unwrap();
+    let out = dir.join("out");
+    for cmd in ["host", "run", "optimise"] {
+        let o = millac(&[
+            cmd.as_ref(),
+            prog.as_os_str(),
+            "--stock".as_ref(),
+            stock.as_os_str(),
+            "--out".as_ref(),
+            out.as_os_str(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{cmd}: {err}");
+        let want = format!(
+            "{}: stock line 2: blank: top Z at 1000000 in lies outside the Z range -4..4 in",
+            stock.display()
+        );
+        assert!(err.contains(&want), "{cmd}: {err}");
+        assert!(!out.exists(), "{cmd} wrote {}", out.display());
+    }
+}

@@ -402,3 +402,21 @@ fn slot_cut() -> millac_qemu::acsim::Cut {
     let stock = millac_plant::Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap();
     millac_qemu::acsim::Cut::steel(stock, 3)
 }
+
+/// The largest `--shift` the host tool allows keeps every step pulse of rapids in three axes;
+/// at the next one the frames overrun the rapid period and the program does not run to its end
+/// (the firmware holds with its frame overrun alarm; before it had that check it lost pulses),
+/// which is why `runner::check_shift` refuses it.
+#[test]
+fn the_largest_shift_allowed_keeps_every_pulse_and_the_next_does_not() {
+    let program = "G21 G90\nG0 X10 Y-7 Z3\nG1 X20 F500\nG0 X0 Y0 Z0\nM2\n";
+    let kept = runner::run(program, &out_dir("shift-max"), runner::MAX_SHIFT).expect("run");
+    assert!(kept.ok, "{:#}", kept.summary);
+    assert_eq!(kept.summary["pulses_match_host"], true);
+    let lost = runner::run(program, &out_dir("shift-over"), runner::MAX_SHIFT + 1).expect("run");
+    assert!(!lost.ok, "{:#}", lost.summary);
+    let alarm = lost.summary["hold"]["alarm"].as_str().unwrap_or("");
+    assert!(alarm.starts_with("frame overrun"), "{:#}", lost.summary);
+    assert!(runner::check_shift(runner::MAX_SHIFT).is_ok());
+    assert!(runner::check_shift(runner::MAX_SHIFT + 1).is_err());
+}

@@ -3,7 +3,7 @@
 //! until the machine is idle, and after the stop the capture ends where the lines programmed.
 //! Settings set over the line persist into the next session; a corrupt record starts locked.
 use millac_qemu::serve;
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -56,8 +56,6 @@ fn read_until(r: &mut BufReader<TcpStream>, done: impl Fn(&str) -> bool) -> Vec<
     }
 }
 
-/// Soft resets until a whole banner comes (the first one went out before we connected, or while
-/// we did, and the firmware may still be starting): what a sender does.
 /// `serve` with the simulated cut of a 5 x 3 in steel block (transducer noise `seed`; `ac`: the
 /// AC applies its cap, else it measures only) in `out`, connected and past the banner: the stop
 /// flag, the server thread and the connection's two ends.
@@ -97,7 +95,24 @@ fn serve_steel_block(
     (stop, server, w, r)
 }
 
+/// The banner the port greets a client with, then a soft reset and the banner after it: the
+/// lines up to that second banner's end.
 fn banner(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> Vec<String> {
+    // The port greets every client with the banner (the firmware's first one may come too, if
+    // it starts while we connect); then a soft reset gives the banner the tests read after.
+    let greeting = whole_banner(r, Duration::from_secs(120));
+    assert!(greeting.is_some(), "no banner on connect");
+    w.write_all(&[0x18]).expect("0x18");
+    let got = whole_banner(r, Duration::from_secs(120)).expect("no banner after 0x18");
+    r.get_ref()
+        .set_read_timeout(Some(Duration::from_secs(60)))
+        .unwrap();
+    got
+}
+
+/// Reads lines until a whole banner (`Grbl 1.1...` then `[MSG:millac ...]`) has come, within
+/// `limit`; the lines read, or None.
+fn whole_banner(r: &mut BufReader<TcpStream>, limit: Duration) -> Option<Vec<String>> {
     r.get_ref()
         .set_read_timeout(Some(Duration::from_secs(2)))
         .unwrap();
@@ -105,47 +120,24 @@ fn banner(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> Vec<String> {
     let mut got = Vec::new();
     // A line cut by the read timeout goes on in the next read (kept across the retries).
     let mut l = String::new();
-    let addr = w.peer_addr().expect("connected").to_string();
-    loop {
-        // The port closed under us before the banner (seen twice in CI, as a broken pipe here,
-        // with firmware that passed in other runs): connect again, as a sender would.
-        if w.write_all(&[0x18]).is_err() {
-            let s = connect(&addr);
-            s.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
-            *w = s.try_clone().unwrap();
-            *r = BufReader::new(s);
-            l.clear();
-            assert!(
-                t0.elapsed() < Duration::from_secs(120),
-                "no banner: {got:?}"
-            );
-            continue;
+    while t0.elapsed() < limit {
+        match r.read_line(&mut l) {
+            Ok(0) => return None,
+            Ok(_) => {}
+            Err(_) => continue,
         }
-        while let Ok(n) = r.read_line(&mut l) {
-            if n == 0 {
-                break;
-            }
-            let line = l.trim_end().to_string();
-            l.clear();
-            // A whole banner: connecting while the first one went out can cut its `Grbl` line,
-            // then the next reset gives a whole one.
-            let done = line.starts_with("[MSG:millac")
-                && got
-                    .last()
-                    .is_some_and(|g: &String| g.starts_with("Grbl 1.1"));
-            got.push(line);
-            if done {
-                r.get_ref()
-                    .set_read_timeout(Some(Duration::from_secs(60)))
-                    .unwrap();
-                return got;
-            }
+        let line = l.trim_end().to_string();
+        l.clear();
+        let done = line.starts_with("[MSG:millac")
+            && got
+                .last()
+                .is_some_and(|g: &String| g.starts_with("Grbl 1.1"));
+        got.push(line);
+        if done {
+            return Some(got);
         }
-        assert!(
-            t0.elapsed() < Duration::from_secs(120),
-            "no banner: {got:?}"
-        );
     }
+    None
 }
 
 /// A `serve` session (NC only) on its own port and directory, in a thread until `stop`.
@@ -1249,4 +1241,146 @@ fn the_s_word_of_a_session_sets_the_simulated_spindle_speed() {
     for (p, host) in [(p600, host600), (p1200, host1200)] {
         assert!((host * 4000.0 / p - 1.0).abs() < 0.1, "{host} vs {p} N");
     }
+}
+
+/// A client of the session: its two ends, past the banner the port greets it with (nothing
+/// sent: bCNC and CNCjs do not reset on open).
+fn greeted(addr: &str) -> (TcpStream, BufReader<TcpStream>) {
+    let stream = connect(addr);
+    let w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    let hello = whole_banner(&mut r, Duration::from_secs(120));
+    assert!(hello.is_some(), "no banner on connect");
+    r.get_ref()
+        .set_read_timeout(Some(Duration::from_secs(60)))
+        .unwrap();
+    (w, r)
+}
+
+/// The end of `program` from the origin in the default modes, BLU.
+fn end_of(program: &str) -> [i64; 3] {
+    let p = millac_qemu::analysis::load_program(program, &millac::Settings::default()).unwrap();
+    p.last().unwrap().end.map(i64::from)
+}
+
+/// The G-code lines the firmware accepted in a session (its log `serve.nc` without markers).
+fn gcode_lines(out: &std::path::Path) -> Vec<String> {
+    let log = std::fs::read_to_string(out.join("serve.nc")).unwrap();
+    log.lines()
+        .filter(|l| !millac::wire::SessionLine::is_marker(l))
+        .map(str::to_string)
+        .collect()
+}
+
+/// The capture's end position in a session's summary.
+fn final_blu(s: &serde_json::Value) -> [i64; 3] {
+    let p = &s["final_position_blu"];
+    ["x", "y", "z"].map(|k| p[k].as_i64().unwrap())
+}
+
+/// One cable: a client leaves `G0 X1` unfinished (no line end) and disconnects; the next client
+/// is greeted with the banner without sending anything, its `G0 Y1` is answered `ok` and the
+/// machine goes to Y1 only. Before, the next client saw no banner and its first line was glued
+/// to the half line (`G0 X1G0 Y1`: an error, or a move made of two halves).
+#[test]
+fn a_half_line_left_by_a_client_is_dropped_and_the_next_client_starts_clean() {
+    let Session {
+        out,
+        addr,
+        stop,
+        server,
+    } = start("half-line");
+    {
+        let (mut w, _r) = greeted(&addr);
+        w.write_all(b"G0 X1").unwrap();
+    }
+    let (mut w, mut r) = greeted(&addr);
+    assert_eq!(send(&mut w, &mut r, "G0 Y1").last().unwrap(), "ok");
+    let idle = poll_idle(&mut w, &mut r);
+    assert!(idle.starts_with("<Idle|MPos:0.000,25.400,0.000|"), "{idle}");
+    drop((w, r));
+    stop.store(true, Ordering::SeqCst);
+    let served = server.join().unwrap().expect("serve");
+    let s = &served.summary;
+    assert_eq!(final_blu(s), end_of("G0 Y1\n"), "{s}");
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(gcode_lines(&out), ["G0 Y1"]);
+}
+
+/// One cable: while a client is connected, a second one gets one line saying the port is in
+/// use and is closed; what it sent never runs, and the first client's stream goes on as before
+/// (its replies, in order, nothing of the refusal). Before, the second client's bytes waited
+/// unseen and ran when the first left.
+#[test]
+fn a_second_client_is_refused_and_its_bytes_never_run() {
+    let Session {
+        out,
+        addr,
+        stop,
+        server,
+    } = start("second");
+    let (mut w, mut r) = greeted(&addr);
+    assert_eq!(send(&mut w, &mut r, "G20 G91").last().unwrap(), "ok");
+    let mut other = connect(&addr);
+    other.write_all(b"G0 X1\n").unwrap();
+    other
+        .set_read_timeout(Some(Duration::from_secs(30)))
+        .unwrap();
+    let mut told = String::new();
+    BufReader::new(other)
+        .read_to_string(&mut told)
+        .expect("the refusal, then the end");
+    assert_eq!(told, format!("{}\r\n", millac_qemu::port::REFUSED));
+    let got = send(&mut w, &mut r, "G0 Y0.1");
+    assert_eq!(got, ["ok"]);
+    let idle = poll_idle(&mut w, &mut r);
+    assert!(idle.starts_with("<Idle|MPos:0.000,2.540,0.000|"), "{idle}");
+    drop((w, r));
+    stop.store(true, Ordering::SeqCst);
+    let served = server.join().unwrap().expect("serve");
+    let s = &served.summary;
+    assert_eq!(final_blu(s), [0, 1000, 0], "{s}");
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(gcode_lines(&out), ["G20 G91", "G0 Y0.1"]);
+}
+
+/// A session that ends in an alarm with accepted lines not run is not `completed`: a soft reset
+/// during a feed (`ALARM:3`, the queue dropped) and the stop. The summary's `hold` says the
+/// state the machine ended in, the alarm, the line that did not finish and the blocks done.
+/// Before, `completed` was true and there was no `hold`.
+#[test]
+fn a_session_that_ends_in_an_alarm_with_lines_not_run_is_not_completed() {
+    let Session {
+        addr, stop, server, ..
+    } = start("alarm-end");
+    let (mut w, mut r) = greeted(&addr);
+    for line in ["G20 G91 G1 F10 X1", "G1 Y0.5"] {
+        assert_eq!(send(&mut w, &mut r, line).last().unwrap(), "ok", "{line}");
+    }
+    let t0 = Instant::now();
+    loop {
+        w.write_all(b"?").unwrap();
+        let report = read_until(&mut r, |s| s.starts_with('<')).pop().unwrap();
+        if report.starts_with("<Run") && mpos_x(&report) > 0.0 {
+            break;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "never ran: {report}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    w.write_all(&[0x18]).unwrap();
+    read_until(&mut r, |s| s == "ALARM:3");
+    drop((w, r));
+    stop.store(true, Ordering::SeqCst);
+    let served = server.join().unwrap().expect("serve");
+    let s = &served.summary;
+    assert_eq!(s["completed"], false, "{s}");
+    let h = &s["hold"];
+    assert_eq!(h["state"], "Alarm", "{s}");
+    assert_eq!(h["alarm"], "ALARM:3", "{s}");
+    assert_eq!(h["block"], 1, "{s}");
+    assert_eq!(h["blocks_done"], 0, "{s}");
+    assert_eq!(h["position_blu"], s["final_position_blu"], "{s}");
 }

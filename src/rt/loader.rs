@@ -210,6 +210,9 @@ pub fn run<
     let settings = table.settings.nc;
     // The AC's limits F0, T0 for the `AC:` field, as the AC task started with them.
     let ac_settings = table.settings.ac;
+    // The AC caps the feed (the boards give the ceiling only then): the status report's `AC:`
+    // field is about that, so a measure-only AC has none.
+    let ac_enabled = ceiling.is_some();
     let mut tape = match ceiling {
         Some(c) => Tape::with_ac_ceiling(settings, c),
         None => Tape::new(settings),
@@ -547,6 +550,7 @@ pub fn run<
                     let options = table.report_options();
                     let v = status.velocity_q8.load(Relaxed);
                     let ac = match status.ac_state.load(Relaxed) {
+                        _ if !ac_enabled => None,
                         0 => None,
                         n => {
                             let (f, t) = status.ac_measured();
@@ -566,7 +570,14 @@ pub fn run<
                         }
                     };
                     let data = StatusData {
-                        state,
+                        // A block the look-ahead holds is a move about to start (queued at the
+                        // loader's next turn when no next line comes): the report says `Run`,
+                        // so a sender that polls after its last `ok` does not take the job for
+                        // done. (The protocol still takes a jog behind it as in Idle.)
+                        state: match state {
+                            State::Idle if tape.holds_a_block() => State::Run,
+                            s => s,
+                        },
                         position: status.encoder(),
                         feed_blu_per_min: if idle {
                             0

@@ -28,6 +28,14 @@ use crate::protocol::rx::RxShared;
 use crate::protocol::settings::Persistent;
 use crate::protocol::Protocol;
 
+std::thread_local! {
+    /// The session's AC task: None (the default) no AC; `Some(ceiling)` an AC task whose periods
+    /// run (`Status::ac_state` is `AC_RUN` from the first frame on), the loader getting
+    /// `ceiling`: `Some` when the AC is enabled (the boards pass it so), None measure-only.
+    static AC_TASK: core::cell::Cell<Option<Option<crate::ac::FeedCeiling>>> =
+        const { core::cell::Cell::new(None) };
+}
+
 const Q: usize = 16;
 const T: usize = 1024;
 const A: usize = 4;
@@ -175,6 +183,9 @@ impl<const S: bool> Bench<S> {
             _ => 400,
         };
         let s = self.status;
+        if AC_TASK.with(|c| c.get()).is_some() && s.ac_state.load(Relaxed) == 0 {
+            s.ac_state.store(crate::rt::ac::AC_RUN, Relaxed);
+        }
         if let Some((at, AcEvent::Chatter { .. })) = self.ac_event {
             if at == self.frames {
                 s.feed_cap.store(0, Relaxed);
@@ -416,7 +427,7 @@ fn session_on<const S: bool>(
         &mut blocks_tx,
         &mut replan,
         &mut table,
-        None,
+        AC_TASK.with(|c| c.get()).flatten(),
         &mut proto,
         &mut tx_p,
         &mut alarms,
@@ -964,4 +975,46 @@ fn a_frame_overrun_holds_and_loses_no_pulse() {
     assert!(b.status.frame_overruns.load(Relaxed) > 0);
     assert_eq!(b.status.encoder(), [10_000, 0, 0], "{}", b.out);
     assert_eq!(b.status.position(), [10_000, 0, 0]);
+}
+
+/// A status report asked for between a line's `ok` and the loader's next turn, while the
+/// look-ahead still holds the line's block (queued once no next line has come): the machine has
+/// a move to make, so the state is `Run`, not `Idle`. Before, it said `Idle` at the old
+/// position, and a sender that polls `?` after its last `ok` took the job for done (seen in
+/// `serve` once its port answered within the loader's turn).
+#[test]
+fn a_report_right_after_an_ok_is_not_idle_while_the_look_ahead_holds_a_block() {
+    let b = session(&[(5, "G20 G91 G1 X0.01 F30\n"), (6, "?")], &[], None, 400);
+    let first = b
+        .out
+        .lines()
+        .find(|l| l.starts_with('<'))
+        .expect("a report");
+    assert!(b.oks_at.first() == Some(&6), "{:?}: {}", b.oks_at, b.out);
+    assert!(first.starts_with("<Run|"), "{first}\n{}", b.out);
+    assert_eq!(b.status.encoder(), [100, 0, 0]);
+}
+
+/// The status report's `AC:` field is there only when the adaptive control is enabled (the
+/// loader's feed ceiling given, as the boards give it with `$250=1` and the host's flag): a
+/// measure-only AC (`--no-ac`) runs its periods but caps nothing, and the field's feed share and
+/// `hold:N` would say it does. Before, the field came whenever an AC period had run.
+#[test]
+fn the_ac_field_is_reported_only_when_the_ac_is_enabled() {
+    for enabled in [false, true] {
+        let ceiling = enabled.then(|| crate::ac::AcSettings::default().ceiling);
+        AC_TASK.with(|c| c.set(Some(ceiling)));
+        let b = session(&[(5, "?")], &[], None, 40);
+        AC_TASK.with(|c| c.set(None));
+        let report = b
+            .out
+            .lines()
+            .find(|l| l.starts_with('<'))
+            .expect("a report");
+        assert_eq!(
+            report.contains("|AC:"),
+            enabled,
+            "enabled {enabled}: {report}"
+        );
+    }
 }

@@ -42,7 +42,7 @@ mod tests;
 pub use drive::{Drive, DriveModel};
 pub use oracle::{oracle_time, OracleLimits, OraclePoint, OracleResult};
 pub use process::{Process, Sample};
-pub use stock::{Stock, StockError};
+pub use stock::{Envelope, Stock, StockError};
 pub use teeth::{Damage, Teeth, ToothEvent};
 
 /// mm per BLU (0.0001 in).

@@ -29,6 +29,34 @@ hole X1.25 Y1.5 D0.5 Z-0.6
 /// Largest grid, cells (guards against a typo asking for gigabytes).
 const MAX_CELLS: usize = 40_000_000;
 
+/// The space a stock must lie in, inches per axis X, Y, Z (the description's unit): every
+/// edge of a blank or pocket, every hole's extent and every top Z (a blank's bottom B only needs
+/// to be below its top). The host tool gives the machine's travel ([`Stock::parse_within`]), so
+/// a typo such as `Z1e6` is refused with its line instead of a cut kilometres deep that takes
+/// hours to simulate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Envelope {
+    pub min_in: [f64; 3],
+    pub max_in: [f64; 3],
+}
+
+impl Envelope {
+    /// `what` (`v` inches on `axis` 0..=2) inside, or the error of line `line`.
+    fn check(&self, line: usize, what: &str, axis: usize, v: f64) -> Result<(), StockError> {
+        let (lo, hi) = (self.min_in[axis], self.max_in[axis]);
+        if (lo..=hi).contains(&v) {
+            return Ok(());
+        }
+        Err(StockError {
+            line,
+            msg: format!(
+                "{what} at {v} in lies outside the {} range {lo}..{hi} in",
+                ["X", "Y", "Z"][axis]
+            ),
+        })
+    }
+}
+
 /// A stock description error: 1-based line number and what is wrong.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StockError {
@@ -118,6 +146,16 @@ impl Default for Stock {
 impl Stock {
     /// Parses a stock description (see the module docs).
     pub fn parse(src: &str) -> Result<Stock, StockError> {
+        Stock::parse_in(src, None)
+    }
+
+    /// Parses a stock description that must lie within `envelope` (see [`Envelope`]): a
+    /// statement reaching outside it is refused with its line.
+    pub fn parse_within(src: &str, envelope: &Envelope) -> Result<Stock, StockError> {
+        Stock::parse_in(src, Some(envelope))
+    }
+
+    fn parse_in(src: &str, envelope: Option<&Envelope>) -> Result<Stock, StockError> {
         let mut cell_mm = 0.25;
         let mut shapes = Vec::new();
         for (i, raw) in src.lines().enumerate() {
@@ -154,6 +192,15 @@ impl Stock {
                     if g(&w, 'W') <= 0.0 || g(&w, 'H') <= 0.0 {
                         return Err(err("width W and height H must be > 0 (inches)"));
                     }
+                    if let Some(e) = envelope {
+                        let (x, y, z) = (g(&w, 'X'), g(&w, 'Y'), g(&w, 'Z'));
+                        e.check(line, &format!("{kw}: X"), 0, x)?;
+                        e.check(line, &format!("{kw}: X + W"), 0, x + g(&w, 'W'))?;
+                        e.check(line, &format!("{kw}: Y"), 1, y)?;
+                        e.check(line, &format!("{kw}: Y + H"), 1, y + g(&w, 'H'))?;
+                        let top = if blank { "top Z" } else { "floor Z" };
+                        e.check(line, &format!("{kw}: {top}"), 2, z)?;
+                    }
                     let (x, y) = (to_mm(g(&w, 'X')), to_mm(g(&w, 'Y')));
                     let r = [x, y, x + to_mm(g(&w, 'W')), y + to_mm(g(&w, 'H'))];
                     let z = to_mm(g(&w, 'Z'));
@@ -171,6 +218,14 @@ impl Stock {
                     let w = words(line, "hole", rest, "XYDZ", "XYDZ")?;
                     if g(&w, 'D') <= 0.0 {
                         return Err(err("hole: diameter D must be > 0 (inches)"));
+                    }
+                    if let Some(e) = envelope {
+                        let (x, y, r) = (g(&w, 'X'), g(&w, 'Y'), g(&w, 'D') / 2.0);
+                        e.check(line, "hole: X - D/2", 0, x - r)?;
+                        e.check(line, "hole: X + D/2", 0, x + r)?;
+                        e.check(line, "hole: Y - D/2", 1, y - r)?;
+                        e.check(line, "hole: Y + D/2", 1, y + r)?;
+                        e.check(line, "hole: bottom Z", 2, g(&w, 'Z'))?;
                     }
                     shapes.push((
                         line,
@@ -384,4 +439,50 @@ impl Stock {
 
 fn in_rect(r: [f64; 4], x: f64, y: f64) -> bool {
     x >= r[0] && x < r[2] && y >= r[1] && y < r[3]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TRAVEL: Envelope = Envelope {
+        min_in: [-10.0, -10.0, -4.0],
+        max_in: [10.0, 10.0, 4.0],
+    };
+
+    /// A stock outside the envelope is refused with its line and what lies where; the default
+    /// stock and a stock at the envelope's edges are taken. Without an envelope `parse` takes
+    /// any finite size, as before.
+    #[test]
+    fn a_stock_outside_the_envelope_is_refused_with_its_line() {
+        for (src, line, what) in [
+            (
+                "blank X0 Y0 W5 H3 Z1e6\n",
+                1,
+                "blank: top Z at 1000000 in lies outside the Z range -4..4 in",
+            ),
+            (
+                "# c\nblank X0 Y0 W50 H3 Z0\n",
+                2,
+                "blank: X + W at 50 in lies outside the X range -10..10 in",
+            ),
+            (
+                "blank X0 Y0 W5 H3 Z0\npocket X1 Y1 W1 H1 Z-9\n",
+                2,
+                "pocket: floor Z",
+            ),
+            (
+                "blank X0 Y0 W5 H3 Z0\nhole X1 Y9.9 D0.5 Z-1\n",
+                2,
+                "hole: Y + D/2",
+            ),
+        ] {
+            let e = Stock::parse_within(src, &TRAVEL).unwrap_err();
+            assert_eq!(e.line, line, "{src}: {e}");
+            assert!(e.msg.contains(what), "{src}: {e}");
+            assert!(Stock::parse(src).is_ok(), "{src}");
+        }
+        assert!(Stock::parse_within(FIG1_STOCK, &TRAVEL).is_ok());
+        assert!(Stock::parse_within("blank X-10 Y-10 W20 H20 Z4 B-30\n", &TRAVEL).is_ok());
+    }
 }
