@@ -210,10 +210,6 @@ pub fn ensure_cargo_tool(tool: &CargoTool, dir: &Path) -> Result<PathBuf> {
         return Ok(p);
     }
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    // One install at a time within this process (tests build in parallel); across processes
-    // cargo locks the install root.
-    static INSTALL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    let _guard = INSTALL.lock().unwrap_or_else(|e| e.into_inner());
     ensure_cargo_tool_in(
         tool,
         Path::new(&cargo),
@@ -238,6 +234,11 @@ pub fn ensure_cargo_tool_in(
         version,
     } = *tool;
     let installed = root.join("bin").join(program);
+    // One install at a time within this process (tests build in parallel): two installs into
+    // two roots from one build folder failed to copy the program while the other replaced it.
+    // Across processes cargo locks the install root and the build folder.
+    static INSTALL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = INSTALL.lock().unwrap_or_else(|e| e.into_inner());
     if installed.is_file() {
         return Ok(installed);
     }
