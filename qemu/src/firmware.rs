@@ -13,10 +13,13 @@ use std::process::Command;
 pub const TARGET: &str = "thumbv7m-none-eabi";
 pub const BIN: &str = "millac-lm3s6965";
 
-/// A firmware binary: its package, target and binary name.
+/// A firmware binary: its package (and the package's manifest), target and binary name.
 #[derive(Clone, Copy, Debug)]
 pub struct Board {
     pub package: &'static str,
+    /// The package's Cargo.toml, from the workspace root (the Nucleo-F446RE is a workspace of its
+    /// own, see Cargo.toml).
+    pub manifest: &'static str,
     pub target: &'static str,
     pub bin: &'static str,
     /// Cargo features of the package (e.g. `qemu`).
@@ -26,6 +29,7 @@ pub struct Board {
 /// The QEMU board.
 pub const LM3S6965: Board = Board {
     package: "millac-hal",
+    manifest: "hal/Cargo.toml",
     target: TARGET,
     bin: BIN,
     features: &[],
@@ -34,6 +38,7 @@ pub const LM3S6965: Board = Board {
 /// The Nucleo-F446RE (links with flip-link, see .cargo/config.toml).
 pub const NUCLEO_F446RE: Board = Board {
     package: "millac-nucleo-f446re",
+    manifest: "hal/nucleo-f446re/Cargo.toml",
     target: "thumbv7em-none-eabihf",
     bin: "millac-nucleo-f446re",
     features: &[],
@@ -99,6 +104,7 @@ pub fn linker_of(target: &str) -> Option<&'static crate::tools::CargoTool> {
 pub fn build_board_in(board: &Board, target_dir: &Path, linker: Option<&Path>) -> Result<PathBuf> {
     let Board {
         package,
+        manifest,
         target: tgt,
         bin,
         features,
@@ -116,17 +122,9 @@ pub fn build_board_in(board: &Board, target_dir: &Path, linker: Option<&Path>) -
     }
     let out = command
         .current_dir(&ws)
-        .args([
-            "build",
-            "--quiet",
-            "--release",
-            "-p",
-            package,
-            "--target",
-            tgt,
-            "--bin",
-            bin,
-        ])
+        .args(["build", "--quiet", "--release", "--manifest-path"])
+        .arg(ws.join(manifest))
+        .args(["-p", package, "--target", tgt, "--bin", bin])
         .args(if features.is_empty() {
             Vec::new()
         } else {
