@@ -1,18 +1,18 @@
 //! Build script of millac-hal (host, at build time): for the QEMU app only (feature `lm3s6965`),
-//! puts the lm3s6965evb's memory.x where cortex-m-rt's link.x finds it and links defmt's linker
-//! script (`defmt.x`, from defmt's build script: the `.defmt` section that holds the log's format
-//! strings). The Nucleo board is another package with its own memory.x and link arguments (it
-//! depends on this crate without the feature, so nothing here reaches its link), and the library
-//! links nothing.
+//! puts the default board's memory map (the lm3s6965evb's, `memory.x` at the workspace root)
+//! where cortex-m-rt's link.x finds it and links defmt's linker script (`defmt.x`, from defmt's
+//! build script: the `.defmt` section that holds the log's format strings). The Nucleo board is
+//! a workspace of its own with its own memory.x and link arguments (it depends on this crate
+//! without the feature, so nothing here reaches its link), and the library links nothing.
 use std::{env, fs, path::PathBuf};
 
 fn main() {
     if env::var_os("CARGO_FEATURE_LM3S6965").is_some() {
         let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-        fs::write(out.join("memory.x"), include_bytes!("memory.x")).expect("write memory.x");
+        fs::write(out.join("memory.x"), include_bytes!("../memory.x")).expect("write memory.x");
         println!("cargo:rustc-link-search={}", out.display());
         println!("cargo:rustc-link-arg-bin=millac-lm3s6965=-Tdefmt.x");
     }
-    println!("cargo:rerun-if-changed=memory.x");
+    println!("cargo:rerun-if-changed=../memory.x");
     println!("cargo:rerun-if-changed=build.rs");
 }

@@ -1,8 +1,10 @@
 //! Builds the firmware from the workspace (host): the QEMU board (millac-hal for
 //! thumbv7m-none-eabi, [`build`]) and the real boards ([`build_board`], e.g. [`NUCLEO_F446RE`] for
-//! the CI checks of its size and its ISRs, and [`NUCLEO_F446RE_QEMU`] to run it under QEMU). A nested cargo with its own target directory, so it
-//! never waits on the lock of the cargo that runs us; the thumb target is added with rustup first
-//! when missing (see `tools::ensure_rust_target`).
+//! the CI checks of its size and its ISRs, and [`NUCLEO_F446RE_QEMU`] to run it under QEMU). A
+//! nested cargo with its own target directory, so it never waits on the lock of the cargo that
+//! runs us. What a fresh toolchain lacks is installed first: the thumb target with rustup
+//! (`tools::ensure_rust_target`), the real boards' linker wrapper flip-link with `cargo install`
+//! (`tools::ensure_cargo_tool`).
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -11,10 +13,13 @@ use std::process::Command;
 pub const TARGET: &str = "thumbv7m-none-eabi";
 pub const BIN: &str = "millac-lm3s6965";
 
-/// A firmware binary: its package, target and binary name.
+/// A firmware binary: its package (and the package's manifest), target and binary name.
 #[derive(Clone, Copy, Debug)]
 pub struct Board {
     pub package: &'static str,
+    /// The package's Cargo.toml, from the workspace root (the Nucleo-F446RE is a workspace of its
+    /// own, see Cargo.toml).
+    pub manifest: &'static str,
     pub target: &'static str,
     pub bin: &'static str,
     /// Cargo features of the package (e.g. `qemu`).
@@ -24,6 +29,7 @@ pub struct Board {
 /// The QEMU board.
 pub const LM3S6965: Board = Board {
     package: "millac-hal",
+    manifest: "hal/Cargo.toml",
     target: TARGET,
     bin: BIN,
     features: &[],
@@ -32,6 +38,7 @@ pub const LM3S6965: Board = Board {
 /// The Nucleo-F446RE (links with flip-link, see .cargo/config.toml).
 pub const NUCLEO_F446RE: Board = Board {
     package: "millac-nucleo-f446re",
+    manifest: "hal/nucleo-f446re/Cargo.toml",
     target: "thumbv7em-none-eabihf",
     bin: "millac-nucleo-f446re",
     features: &[],
@@ -59,44 +66,71 @@ pub fn build() -> Result<PathBuf> {
 }
 
 /// Builds a board's firmware in release mode and returns the ELF path (one target directory per
-/// board, so two tests building two boards do not wait on each other's lock).
+/// board, so two tests building two boards do not wait on each other's lock). Installs first what
+/// the toolchain lacks: the Rust target (rustup) and the target's linker wrapper (flip-link for
+/// the real boards, see [`linker_of`]).
 pub fn build_board(board: &Board) -> Result<PathBuf> {
+    let ws = workspace();
+    let linker = linker_of(board.target)
+        .map(|tool| crate::tools::ensure_cargo_tool(tool, &ws))
+        .transpose()?;
+    let target_dir = if board.package == LM3S6965.package {
+        ws.join("target").join("firmware")
+    } else if board.features.is_empty() {
+        ws.join("target").join(format!("firmware-{}", board.bin))
+    } else {
+        ws.join("target").join(format!(
+            "firmware-{}-{}",
+            board.bin,
+            board.features.join("-")
+        ))
+    };
+    build_board_in(board, &target_dir, linker.as_deref())
+}
+
+/// The program .cargo/config.toml names as the linker of `target` where it is not rustc's own:
+/// flip-link for thumbv7em-none-eabihf (the real boards). [`build_board`] installs it when
+/// missing.
+pub fn linker_of(target: &str) -> Option<&'static crate::tools::CargoTool> {
+    match target {
+        "thumbv7em-none-eabihf" => Some(&crate::tools::FLIP_LINK),
+        _ => None,
+    }
+}
+
+/// [`build_board`] in `target_dir`, linked with `linker` (a path: cargo's
+/// `CARGO_TARGET_<TRIPLE>_LINKER`, instead of the program .cargo/config.toml names for the target
+/// and PATH finds). Adds the Rust target with rustup when missing.
+pub fn build_board_in(board: &Board, target_dir: &Path, linker: Option<&Path>) -> Result<PathBuf> {
     let Board {
         package,
+        manifest,
         target: tgt,
         bin,
         features,
     } = *board;
     let ws = workspace();
     crate::tools::ensure_rust_target(tgt, &ws)?;
-    let target_dir = if package == LM3S6965.package {
-        ws.join("target").join("firmware")
-    } else if features.is_empty() {
-        ws.join("target").join(format!("firmware-{bin}"))
-    } else {
-        ws.join("target")
-            .join(format!("firmware-{bin}-{}", features.join("-")))
-    };
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let out = Command::new(&cargo)
+    let mut command = Command::new(&cargo);
+    if let Some(linker) = linker {
+        let var = format!(
+            "CARGO_TARGET_{}_LINKER",
+            tgt.to_uppercase().replace(['-', '.'], "_")
+        );
+        command.env(var, linker);
+    }
+    let out = command
         .current_dir(&ws)
-        .args([
-            "build",
-            "--quiet",
-            "--release",
-            "-p",
-            package,
-            "--target",
-            tgt,
-            "--bin",
-            bin,
-        ])
+        .args(["build", "--quiet", "--release", "--manifest-path"])
+        .arg(ws.join(manifest))
+        .args(["-p", package, "--target", tgt, "--bin", bin])
         .args(if features.is_empty() {
             Vec::new()
         } else {
             vec!["--features".to_string(), features.join(",")]
         })
-        .env("CARGO_TARGET_DIR", &target_dir)
+        .env("CARGO_TARGET_DIR", target_dir)
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_BUILD_TARGET")
         .env_remove("CARGO_ENCODED_RUSTFLAGS")
@@ -108,8 +142,6 @@ pub fn build_board(board: &Board) -> Result<PathBuf> {
             || err.contains("target may not be installed")
         {
             format!("\nhint: install the target with `rustup target add {tgt}`")
-        } else if err.contains("flip-link") {
-            "\nhint: install the linker wrapper with `cargo install flip-link`".to_string()
         } else {
             String::new()
         };
@@ -120,4 +152,46 @@ pub fn build_board(board: &Board) -> Result<PathBuf> {
         bail!("firmware ELF missing after build: {}", elf.display());
     }
     Ok(elf)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `linker_of` names the linker .cargo/config.toml sets for each board's target (none: rustc's
+    /// own), so that what `build_board` installs is what the build runs.
+    #[test]
+    fn the_linkers_installed_are_those_of_the_cargo_config() {
+        let path = workspace().join(".cargo").join("config.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mut section = String::new();
+        let mut linkers = Vec::new();
+        for line in text.lines().map(str::trim) {
+            if line.starts_with('[') {
+                section = line.trim_matches(['[', ']']).to_string();
+            } else if let Some((key, value)) = line.split_once('=') {
+                if key.trim() == "linker" {
+                    let target = section.strip_prefix("target.").unwrap_or(&section);
+                    linkers.push((
+                        target.to_string(),
+                        value.trim().trim_matches('"').to_string(),
+                    ));
+                }
+            }
+        }
+        for board in [LM3S6965, NUCLEO_F446RE] {
+            let configured = linkers
+                .iter()
+                .find(|(t, _)| t == board.target)
+                .map(|(_, l)| l.as_str());
+            assert_eq!(
+                configured,
+                linker_of(board.target).map(|t| t.program),
+                "{}: the linker of {} in {}",
+                board.package,
+                board.target,
+                path.display()
+            );
+        }
+    }
 }

@@ -1,6 +1,7 @@
 //! External tools the host tool needs (qemu-system-arm, sigrok-cli, a C compiler, the Rust target of
-//! the firmware): find them and install the missing ones (apt-get when running as root; `rustup
-//! target add` for a Rust target) (host).
+//! the firmware, the boards' linker wrapper flip-link): find them and install the missing ones
+//! (apt-get when running as root; `rustup target add` for a Rust target; `cargo install` for a
+//! program from crates.io) (host).
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -165,6 +166,112 @@ pub fn ensure_rust_target_with(
         );
     }
     Ok(true)
+}
+
+/// A host program that comes from crates.io (`cargo install`), with the version the project
+/// builds with.
+#[derive(Clone, Copy, Debug)]
+pub struct CargoTool {
+    /// The program's name (in `bin/` of cargo's install root, and on PATH when that is).
+    pub program: &'static str,
+    /// The crate that provides it.
+    pub krate: &'static str,
+    /// The version installed when it is missing (`cargo install --version`).
+    pub version: &'static str,
+}
+
+/// flip-link, the linker wrapper of the real boards' firmware (target thumbv7em-none-eabihf in
+/// .cargo/config.toml): it puts the stack below the statics, so an overflow faults instead of
+/// overwriting them.
+pub const FLIP_LINK: CargoTool = CargoTool {
+    program: "flip-link",
+    krate: "flip-link",
+    version: "0.1.12",
+};
+
+/// Cargo's install root: `$CARGO_INSTALL_ROOT`, else `$CARGO_HOME`, else `~/.cargo` (its `bin/`
+/// holds what `cargo install` installed).
+pub fn cargo_install_root() -> Result<PathBuf> {
+    let var = |name: &str| std::env::var_os(name).filter(|v| !v.is_empty());
+    if let Some(root) = var("CARGO_INSTALL_ROOT").or_else(|| var("CARGO_HOME")) {
+        return Ok(PathBuf::from(root));
+    }
+    let home = var("HOME").context("neither CARGO_INSTALL_ROOT, CARGO_HOME nor HOME is set")?;
+    Ok(PathBuf::from(home).join(".cargo"))
+}
+
+/// Returns the path of `tool`: found on PATH, else in `bin/` of cargo's install root, else
+/// installed there with `cargo install <crate> --version <version> --locked` (saying so on
+/// stderr; it builds in `target/cargo-install` of `dir`, the workspace, so an install repeated
+/// there does not build again). `cargo` runs in `dir`, with the toolchain of its
+/// `rust-toolchain.toml`.
+pub fn ensure_cargo_tool(tool: &CargoTool, dir: &Path) -> Result<PathBuf> {
+    if let Some(p) = find_on_path(tool.program) {
+        return Ok(p);
+    }
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    ensure_cargo_tool_in(
+        tool,
+        Path::new(&cargo),
+        &cargo_install_root()?,
+        &dir.join("target").join("cargo-install"),
+        dir,
+    )
+}
+
+/// [`ensure_cargo_tool`] without the PATH look-up: `tool` in `root/bin`, installed there when
+/// missing by `cargo` (run in `dir`, building in `build_dir`). Returns its path.
+pub fn ensure_cargo_tool_in(
+    tool: &CargoTool,
+    cargo: &Path,
+    root: &Path,
+    build_dir: &Path,
+    dir: &Path,
+) -> Result<PathBuf> {
+    let CargoTool {
+        program,
+        krate,
+        version,
+    } = *tool;
+    let installed = root.join("bin").join(program);
+    // One install at a time within this process (tests build in parallel): two installs into
+    // two roots from one build folder failed to copy the program while the other replaced it.
+    // Across processes cargo locks the install root and the build folder.
+    static INSTALL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = INSTALL.lock().unwrap_or_else(|e| e.into_inner());
+    if installed.is_file() {
+        return Ok(installed);
+    }
+    eprintln!(
+        "millac: `{program}` is missing, running `cargo install {krate} --version {version} \
+         --locked --root {}`",
+        root.display()
+    );
+    let status = Command::new(cargo)
+        .args(["install", krate, "--version", version, "--locked", "--root"])
+        .arg(root)
+        .current_dir(dir)
+        .env("CARGO_TARGET_DIR", build_dir)
+        // What the cargo that runs us set for its own build is not for this one.
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET")
+        .status()
+        .with_context(|| format!("running `{} install {krate}`", cargo.display()))?;
+    if !status.success() {
+        bail!(
+            "`{program}` is missing and `cargo install {krate} --version {version} --locked --root {}` \
+             failed ({status})",
+            root.display()
+        );
+    }
+    if !installed.is_file() {
+        bail!(
+            "`cargo install {krate}` succeeded but {} is missing",
+            installed.display()
+        );
+    }
+    Ok(installed)
 }
 
 /// The third-party grbl sender the end-to-end tests drive `serve` with: pygrbl-streamer 1.0.5

@@ -5,8 +5,11 @@
 //! protocol gets its `ok`s, ends `Idle` at the right MPos, and the GPIOC BSRR stores carry exactly
 //! the host core's pulses.
 use millac::protocol::settings::MachineSettings;
-use millac_qemu::firmware::{build_board, workspace, NUCLEO_F446RE, NUCLEO_F446RE_QEMU};
-use millac_qemu::{analysis, elf, f446, vcd};
+use millac_qemu::firmware::{
+    build_board, build_board_in, linker_of, workspace, NUCLEO_F446RE, NUCLEO_F446RE_QEMU,
+};
+use millac_qemu::{analysis, elf, f446, tools, vcd};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// `key = value` lines of the budget file (comments start with `#`).
@@ -19,6 +22,79 @@ fn budget(key: &str) -> u64 {
         .find(|(k, _)| k.trim() == key)
         .map(|(_, v)| v.trim().parse().unwrap())
         .unwrap_or_else(|| panic!("{key} missing in {}", path.display()))
+}
+
+/// The layout of an F446 image: linked with the board's own memory map and by flip-link.
+fn assert_board_layout(elf: &Path) {
+    // The board's own memory map (hal/nucleo-f446re/memory.x): the vector table at the start of
+    // the F446's flash, where probe-rs flashes it (a memory.x in the linker's working directory,
+    // the workspace root, used to win: the LM3S map, flash at 0).
+    use object::{Object, ObjectSection};
+    let data = std::fs::read(elf).unwrap();
+    let file = object::File::parse(&*data).unwrap();
+    let vt = file.section_by_name(".vector_table").unwrap();
+    assert_eq!(vt.address(), 0x0800_0000, "vector table address");
+    // flip-link puts the statics at the top of RAM (the stack below them): they end at the end
+    // of the F446's 128 KiB, short of it by less than 8 bytes: flip-link moves them by a multiple
+    // of 8 (the stack pointer's alignment under the AAPCS, and at least the sections' own), so a
+    // size that is not a multiple of 8 leaves a gap (4 bytes when issue 10 added a status word).
+    let ram_sections: Vec<_> = file
+        .sections()
+        .filter(|s| s.address() >= 0x2000_0000 && s.size() > 0)
+        .collect();
+    let top = ram_sections
+        .iter()
+        .map(|s| s.address() + s.size())
+        .max()
+        .unwrap();
+    let align = ram_sections.iter().map(|s| s.align()).max().unwrap();
+    let end = 0x2000_0000 + 128 * 1024;
+    assert!(
+        top <= end && end - top < align.max(8),
+        "end of the statics {top:#x}, RAM ends at {end:#x}, alignment {align}"
+    );
+}
+
+/// The fresh machine: on a toolchain without flip-link (an empty cargo install root, PATH not
+/// looked at) the set-up `build_board` runs installs it, and the firmware links with that copy
+/// (flip-link's layout is there). The install builds in target/cargo-install, as `build_board`'s
+/// does, so only the first run builds flip-link; the firmware's ELF is removed first, so every
+/// run links it.
+#[test]
+fn f446_links_with_the_flip_link_installed_on_a_toolchain_without_it() {
+    let ws = workspace();
+    let root = ws.join("target").join("fresh-toolchain");
+    let _ = std::fs::remove_dir_all(&root);
+    let tool = linker_of(NUCLEO_F446RE.target).expect("the F446 links with a wrapper");
+    assert!(!root.join("bin").join(tool.program).exists());
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let linker = tools::ensure_cargo_tool_in(
+        tool,
+        Path::new(&cargo),
+        &root,
+        &ws.join("target").join("cargo-install"),
+        &ws,
+    )
+    .unwrap();
+    assert_eq!(linker, root.join("bin").join(tool.program));
+    assert!(linker.is_file());
+
+    let target_dir = ws.join("target").join("firmware-fresh-toolchain");
+    let release = target_dir.join(NUCLEO_F446RE.target).join("release");
+    let _ = std::fs::remove_file(release.join(NUCLEO_F446RE.bin));
+    let stem = NUCLEO_F446RE.bin.replace('-', "_");
+    for entry in std::fs::read_dir(release.join("deps"))
+        .into_iter()
+        .flatten()
+    {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        if name.starts_with(&format!("{stem}-")) && path.extension().is_none() {
+            std::fs::remove_file(&path).unwrap();
+        }
+    }
+    let elf = build_board_in(&NUCLEO_F446RE, &target_dir, Some(&linker)).unwrap();
+    assert_board_layout(&elf);
 }
 
 #[test]
@@ -53,33 +129,7 @@ fn f446_fits_its_flash_and_ram_budgets() {
         m.flash
     );
     assert!(m.flash <= flash, "flash {} > budget {flash}", m.flash);
-    // Linked with the board's own memory map (hal/nucleo-f446re/memory.x): the vector table at
-    // the start of the F446's flash, where probe-rs flashes it (a memory.x in the linker's
-    // working directory, the workspace root, used to win: the LM3S map, flash at 0).
-    use object::{Object, ObjectSection};
-    let data = std::fs::read(&elf).unwrap();
-    let file = object::File::parse(&*data).unwrap();
-    let vt = file.section_by_name(".vector_table").unwrap();
-    assert_eq!(vt.address(), 0x0800_0000, "vector table address");
-    // flip-link puts the statics at the top of RAM (the stack below them): they end at the end
-    // of the F446's 128 KiB, short of it by less than 8 bytes: flip-link moves them by a multiple
-    // of 8 (the stack pointer's alignment under the AAPCS, and at least the sections' own), so a
-    // size that is not a multiple of 8 leaves a gap (4 bytes when issue 10 added a status word).
-    let ram_sections: Vec<_> = file
-        .sections()
-        .filter(|s| s.address() >= 0x2000_0000 && s.size() > 0)
-        .collect();
-    let top = ram_sections
-        .iter()
-        .map(|s| s.address() + s.size())
-        .max()
-        .unwrap();
-    let align = ram_sections.iter().map(|s| s.align()).max().unwrap();
-    let end = 0x2000_0000 + 128 * 1024;
-    assert!(
-        top <= end && end - top < align.max(8),
-        "end of the statics {top:#x}, RAM ends at {end:#x}, alignment {align}"
-    );
+    assert_board_layout(&elf);
     assert!(m.ram <= ram, "RAM {} > budget {ram}", m.ram);
 }
 
