@@ -10,6 +10,10 @@
 //! cargo run -p millac-qemu --release --example frame_budget_f446
 //! ```
 //!
+//! (or `... -- ELF` to measure an ELF built elsewhere, e.g. of another commit: its `qemu` build).
+//! `FRAME_BUDGET_ONLY=NAME` runs the programs whose name contains NAME; `FRAME_BUDGET_TRACE=N`
+//! prints the PCs of every frame longer than N instructions (as `frame_budget` does).
+//!
 //! Prints the worst cases against the instruction bounds the board's stated ISR times come from
 //! (`millac::settings::F446_ISR_BOUNDS`), and the highest W0 the F446 sustains with the default
 //! pulse timing and with 2 us + 2 us: with the stated times (`BoardLimits::NUCLEO_F446RE`, the
@@ -24,22 +28,29 @@ use std::time::Duration;
 mod programs;
 
 fn main() -> Result<()> {
-    let elf = build_board(&NUCLEO_F446RE_QEMU)?;
+    let elf = match std::env::args_os().nth(1) {
+        Some(elf) => std::path::PathBuf::from(elf),
+        None => build_board(&NUCLEO_F446RE_QEMU)?,
+    };
     let root = std::env::temp_dir().join(format!("millac-f446-budget-{}", std::process::id()));
     let (mut fworst, mut pworst) = (0, 0);
     programs::print_header();
     for (k, (name, program)) in programs::all().into_iter().enumerate() {
-        let s = f446::stream(
-            &elf,
-            &root.join(format!("p{k}")),
-            &program,
-            4,
-            &["TIM2", "TIM5"],
-            Duration::from_secs(300),
-        )
-        .with_context(|| format!("program `{name}`"))?;
+        let opts = f446::StreamOptions {
+            trace: programs::trace_option(),
+            ..f446::StreamOptions::new(&["TIM2", "TIM5"], Duration::from_secs(300))
+        };
+        let s = f446::stream_with(&elf, &root.join(format!("p{k}")), &program, &opts)
+            .with_context(|| format!("program `{name}`"))?;
         let (f, p) = (&s.capture.handlers[0].1, &s.capture.handlers[1].1);
         let (fmax, pmax) = programs::print_row(name, f, p);
+        programs::print_worst(
+            &program,
+            f,
+            &s.capture.handler_starts[0],
+            &s.capture.pins,
+            &s.capture.traces,
+        );
         fworst = fworst.max(fmax);
         pworst = pworst.max(pmax);
     }

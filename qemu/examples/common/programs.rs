@@ -40,10 +40,13 @@ pub fn short_blocks() -> String {
     s
 }
 
-/// (name, program text) of every program, the short blocks generated.
+/// (name, program text) of every program, the short blocks generated; with `FRAME_BUDGET_ONLY`
+/// set, only the programs whose name contains it.
 pub fn all() -> Vec<(&'static str, String)> {
+    let only = std::env::var("FRAME_BUDGET_ONLY").unwrap_or_default();
     PROGRAMS
         .iter()
+        .filter(|(name, _)| name.contains(only.as_str()))
         .map(|&(name, p)| {
             let text = if p.is_empty() {
                 short_blocks()
@@ -84,4 +87,66 @@ pub fn print_row(name: &str, frames: &[u64], pulses: &[u64]) -> (u64, u64) {
         pulses.len()
     );
     (fmax, pmax)
+}
+
+/// Where the worst frame of a run was: its index among the frames, its virtual time (ms), its
+/// count, and the program line whose pulses surround it (from the pins, as `analysis` splits
+/// them into blocks); then the traced frames (PCs in hex, entry to return: `addr2line -e ELF`
+/// names them).
+pub fn print_worst(
+    program: &str,
+    frames: &[u64],
+    starts: &[u64],
+    pins: &[(u64, u8)],
+    traces: &[millac_qemu::capture::HandlerTrace],
+) {
+    let ms = |t: u64| format!("{}.{:03} ms", t / 1_000_000, t / 1_000 % 1_000);
+    if let Some((i, n)) = frames
+        .iter()
+        .enumerate()
+        .max_by_key(|&(i, n)| (n, usize::MAX - i))
+    {
+        let t = starts.get(i).copied().unwrap_or(0);
+        let same = frames.iter().filter(|&m| m == n).count();
+        println!(
+            "  worst frame: #{i} of {} at {}, {n} instructions ({same} frame(s) of that count)",
+            frames.len(),
+            ms(t)
+        );
+        let settings = millac::protocol::settings::MachineSettings::default().nc;
+        if let Ok(prog) = millac_qemu::analysis::load_program(program, &settings) {
+            let report = millac_qemu::analysis::analyse(&prog, &settings, 0, pins);
+            let text = |line: u32| program.lines().nth(line as usize - 1).unwrap_or("");
+            // Blocks with pulses (a dwell has none: its times are 0).
+            let mut moved = report.blocks.iter().filter(|b| b.t_end_ns > 0);
+            let last = moved.clone().rfind(|b| b.t_start_ns <= t);
+            let next = moved.find(|b| b.t_start_ns > t);
+            for (what, b) in [("in or after", last), ("before", next)] {
+                if let Some(b) = b {
+                    println!(
+                        "    {what} line {} `{}` (pulses {} to {})",
+                        b.line,
+                        text(b.line),
+                        ms(b.t_start_ns),
+                        ms(b.t_end_ns)
+                    );
+                }
+            }
+        }
+    }
+    for tr in traces {
+        let pcs: Vec<String> = tr.pcs.iter().map(|p| format!("{p:x}")).collect();
+        println!(
+            "  trace at {} ns ({}): {}",
+            tr.start_ns,
+            tr.pcs.len(),
+            pcs.join(" ")
+        );
+    }
+}
+
+/// `FRAME_BUDGET_TRACE=N`: trace the frames longer than N instructions (handler 0).
+pub fn trace_option() -> Option<(usize, u64)> {
+    let n = std::env::var("FRAME_BUDGET_TRACE").ok()?;
+    Some((0, n.trim().parse().ok()?))
 }
