@@ -1,6 +1,7 @@
 //! Frame ISR budget of the Nucleo-F446RE firmware, measured under QEMU (host): builds its `qemu`
 //! feature (netduinoplus2, see `millac_qemu::f446`), streams each program of `frame_budget` over
-//! USART2 and prints min / median / max instructions (entry to return, inclusive) of the frame ISR
+//! USART2 (queued under a hold before it runs, `StreamOptions::queue_first`: the blocks meet as
+//! in the QEMU board's file, whatever the host's load) and prints min / median / max instructions (entry to return, inclusive) of the frame ISR
 //! (TIM2, with the DWT reads and the frame counter around the core's body) and of the pulse-end
 //! ISR (TIM5). The `qemu` build's pin writes keep the levels in RAM for the read-back as well
 //! (one byte store per pin write, see hal/nucleo-f446re/src/board.rs): the real build runs a
@@ -38,6 +39,7 @@ fn main() -> Result<()> {
     for (k, (name, program)) in programs::all().into_iter().enumerate() {
         let opts = f446::StreamOptions {
             trace: programs::trace_option(),
+            queue_first: true,
             ..f446::StreamOptions::new(&["TIM2", "TIM5"], Duration::from_secs(300))
         };
         let s = f446::stream_with(&elf, &root.join(format!("p{k}")), &program, &opts)

@@ -37,6 +37,9 @@ pub struct Session {
     pub answers: Vec<(String, Vec<String>)>,
     /// The last status report (`<Idle|MPos:...>`).
     pub status: String,
+    /// With [`StreamOptions::queue_first`]: the status report just before the release (`~`),
+    /// `<Hold:0|MPos:...>` with the start position when nothing moved while the lines came.
+    pub held_status: Option<String>,
 }
 
 /// A free TCP port on the loopback interface (the OS may hand it to another later).
@@ -70,6 +73,17 @@ struct Talk {
     banner: Vec<String>,
     answers: Vec<(String, Vec<String>)>,
     status: String,
+    held_status: Option<String>,
+}
+
+/// The next status report (`<...>`), skipping other lines.
+fn status_report(r: &mut BufReader<TcpStream>, deadline: Instant) -> Result<String> {
+    loop {
+        let a = line(r, deadline).context("status report")?;
+        if a.starts_with('<') {
+            return Ok(a);
+        }
+    }
 }
 
 /// The grbl side of a session: banner, lines, status until idle (`queue_first`: see
@@ -113,9 +127,12 @@ fn talk(addr: &str, program: &str, queue_first: bool, deadline: Instant) -> Resu
     if queue_first {
         w.write_all(b"!")?;
     }
+    let mut held_status = None;
     for (k, l) in lines.iter().enumerate() {
         let held = queue_first && k + 1 < lines.len();
         if queue_first && !held {
+            w.write_all(b"?")?;
+            held_status = Some(status_report(&mut r, deadline)?);
             w.write_all(b"~")?;
         }
         w.write_all(format!("{l}\n").as_bytes())?;
@@ -142,12 +159,7 @@ fn talk(addr: &str, program: &str, queue_first: bool, deadline: Instant) -> Resu
     // `?` until the machine is idle.
     let status = loop {
         w.write_all(b"?")?;
-        let s = loop {
-            let a = line(&mut r, deadline).context("status report")?;
-            if a.starts_with('<') {
-                break a;
-            }
-        };
+        let s = status_report(&mut r, deadline)?;
         if s.starts_with("<Idle") {
             break s;
         }
@@ -157,6 +169,7 @@ fn talk(addr: &str, program: &str, queue_first: bool, deadline: Instant) -> Resu
         banner,
         answers,
         status,
+        held_status,
     })
 }
 
@@ -255,6 +268,7 @@ pub fn stream_with(elf: &Path, dir: &Path, program: &str, opts: &StreamOptions) 
         banner: t.banner,
         answers: t.answers,
         status: t.status,
+        held_status: t.held_status,
     })
 }
 

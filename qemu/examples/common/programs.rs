@@ -1,6 +1,22 @@
 //! The programs of the frame budget benchmarks (`frame_budget` for the QEMU board,
-//! `frame_budget_f446` for the Nucleo-F446RE under QEMU): one small program per block type, and
-//! the table both print.
+//! `frame_budget_f446` for the Nucleo-F446RE under QEMU, and its CI test `board_f446`): one small
+//! program per block type, and the table both print (host).
+//!
+//! The worst frame is the one that ends a line with deceleration and starts the next line
+//! (`nc::frame`: the deceleration multiply, the last command with its pulses, the block's end and
+//! the chained load in one frame). [`CORNERS`] runs that frame on purpose, with all three axes in
+//! the last command. It needs the next line queued before the line ends: the QEMU board reads
+//! its program from a file, so every block is queued in time; the F446 benchmark streams with
+//! `f446::StreamOptions::queue_first` (the machine held until all but the last line are queued),
+//! so the same frames run whatever the host's load (streamed one line per `ok` without it, a
+//! quiet host saw the queue run dry before each corner and never measured this frame). Every
+//! program fits the F446's block queue for that.
+
+/// Lines that decelerate into the next line: every corner is sharper than 30 degrees (the
+/// look-ahead's rule), and each line moves X, Y and Z by the same distance, so its last command
+/// pulses all three axes (|d_k| > q / 2). Incremental, back to the start.
+pub const CORNERS: &str = "G20 G91\nG1 X0.01 Y0.01 Z0.01 F30\nG1 X-0.01 Y0.01 Z-0.01\n\
+                           G1 X0.01 Y-0.01 Z0.01\nG1 X-0.01 Y-0.01 Z-0.01\nM2\n";
 
 /// (name, program). Each runs for well under a second of virtual time.
 pub const PROGRAMS: &[(&str, &str)] = &[
@@ -22,12 +38,14 @@ pub const PROGRAMS: &[(&str, &str)] = &[
          G0 X0 Y0\nG2 X0.01 Y0.01 I0.01 J0 F30\nM2\n",
     ),
     ("G4 dwell", "G20 G90\nG4 P0.05\nG1 X0.001 F30\nG4 P0.02\nG4 P0.02\nM2\n"),
+    ("G1 corners", CORNERS),
 ];
 
-/// Many one- and two-BLU blocks back to back: the Initiator loads a block every few frames.
+/// One- and two-BLU blocks back to back (24: they fit the F446's queue, see the module doc): the
+/// Initiator loads a block every few frames.
 pub fn short_blocks() -> String {
     let mut s = String::from("G20 G91\n");
-    for k in 0..200 {
+    for k in 0..24 {
         let (x, y) = match k % 4 {
             0 => ("0.0001", "0"),
             1 => ("0", "0.0002"),
