@@ -12,11 +12,14 @@
 //!     target/thumbv7m-none-eabi/release/millac-lm3s6965
 //! ```
 //!
-//! (with `CARGO_TARGET_DIR` set, the ELF is under that directory). `FRAME_BUDGET_DETAIL=1` also
-//! lists the frames over budget and the counts around the worst one. Exits with status 1 when a
-//! program fails or the frame ISR exceeds the budget.
+//! (with `CARGO_TARGET_DIR` set, the ELF is under that directory). Each program's row is followed
+//! by where its worst frame was: its index, virtual time and the program line whose end it is in
+//! or near. `FRAME_BUDGET_DETAIL=1` also lists the frames over budget and the counts around the
+//! worst one; `FRAME_BUDGET_TRACE=N` prints the PCs of every frame longer than N instructions
+//! (`addr2line -e ELF` names them); `FRAME_BUDGET_ONLY=NAME` runs the programs whose name
+//! contains NAME. Exits with status 1 when a program fails or the frame ISR exceeds the budget.
 use anyhow::{bail, ensure, Context, Result};
-use millac_qemu::capture::{run_capture, CaptureSpec, HandlerSpec};
+use millac_qemu::capture::{run_capture, Capture, CaptureSpec, HandlerSpec};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -26,11 +29,12 @@ const BUDGET: u64 = 199;
 #[path = "common/programs.rs"]
 mod programs;
 
-fn run(elf: &Path, dir: &Path, program: &str, handlers: &[HandlerSpec]) -> Result<Vec<Vec<u64>>> {
+fn run(elf: &Path, dir: &Path, program: &str, handlers: &[HandlerSpec]) -> Result<Capture> {
     std::fs::create_dir_all(dir)?;
     std::fs::write(dir.join("program.nc"), program)?;
     let mut spec = CaptureSpec::new(elf, dir);
     spec.handlers = handlers.to_vec();
+    spec.trace = programs::trace_option();
     spec.timeout = Duration::from_secs(300);
     let cap = run_capture(&spec)?;
     ensure!(
@@ -40,7 +44,7 @@ fn run(elf: &Path, dir: &Path, program: &str, handlers: &[HandlerSpec]) -> Resul
         cap.result,
         cap.stdout
     );
-    Ok(cap.handlers.into_iter().map(|(_, v)| v).collect())
+    Ok(cap)
 }
 
 fn main() -> Result<()> {
@@ -56,10 +60,11 @@ fn main() -> Result<()> {
     programs::print_header();
     for (k, (name, program)) in programs::all().into_iter().enumerate() {
         let dir = root.join(format!("p{k}"));
-        let counts =
+        let cap =
             run(&elf, &dir, &program, &handlers).with_context(|| format!("program `{name}`"))?;
-        let (f, p) = (&counts[0], &counts[1]);
+        let (f, p) = (&cap.handlers[0].1, &cap.handlers[1].1);
         let (fmax, _) = programs::print_row(name, f, p);
+        programs::print_worst(&program, f, &cap.handler_starts[0], &cap.pins, &cap.traces);
         worst = worst.max(fmax);
         if std::env::var_os("FRAME_BUDGET_DETAIL").is_some() {
             // The frames over budget: instruction count, how often, and the counts around the first.

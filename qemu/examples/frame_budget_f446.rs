@@ -1,6 +1,7 @@
 //! Frame ISR budget of the Nucleo-F446RE firmware, measured under QEMU (host): builds its `qemu`
 //! feature (netduinoplus2, see `millac_qemu::f446`), streams each program of `frame_budget` over
-//! USART2 and prints min / median / max instructions (entry to return, inclusive) of the frame ISR
+//! USART2 (queued under a hold before it runs, `StreamOptions::queue_first`: the blocks meet as
+//! in the QEMU board's file, whatever the host's load) and prints min / median / max instructions (entry to return, inclusive) of the frame ISR
 //! (TIM2, with the DWT reads and the frame counter around the core's body) and of the pulse-end
 //! ISR (TIM5). The `qemu` build's pin writes keep the levels in RAM for the read-back as well
 //! (one byte store per pin write, see hal/nucleo-f446re/src/board.rs): the real build runs a
@@ -9,6 +10,10 @@
 //! ```text
 //! cargo run -p millac-qemu --release --example frame_budget_f446
 //! ```
+//!
+//! (or `... -- ELF` to measure an ELF built elsewhere, e.g. of another commit: its `qemu` build).
+//! `FRAME_BUDGET_ONLY=NAME` runs the programs whose name contains NAME; `FRAME_BUDGET_TRACE=N`
+//! prints the PCs of every frame longer than N instructions (as `frame_budget` does).
 //!
 //! Prints the worst cases against the instruction bounds the board's stated ISR times come from
 //! (`millac::settings::F446_ISR_BOUNDS`), and the highest W0 the F446 sustains with the default
@@ -24,22 +29,30 @@ use std::time::Duration;
 mod programs;
 
 fn main() -> Result<()> {
-    let elf = build_board(&NUCLEO_F446RE_QEMU)?;
+    let elf = match std::env::args_os().nth(1) {
+        Some(elf) => std::path::PathBuf::from(elf),
+        None => build_board(&NUCLEO_F446RE_QEMU)?,
+    };
     let root = std::env::temp_dir().join(format!("millac-f446-budget-{}", std::process::id()));
     let (mut fworst, mut pworst) = (0, 0);
     programs::print_header();
     for (k, (name, program)) in programs::all().into_iter().enumerate() {
-        let s = f446::stream(
-            &elf,
-            &root.join(format!("p{k}")),
-            &program,
-            4,
-            &["TIM2", "TIM5"],
-            Duration::from_secs(300),
-        )
-        .with_context(|| format!("program `{name}`"))?;
+        let opts = f446::StreamOptions {
+            trace: programs::trace_option(),
+            queue_first: true,
+            ..f446::StreamOptions::new(&["TIM2", "TIM5"], Duration::from_secs(300))
+        };
+        let s = f446::stream_with(&elf, &root.join(format!("p{k}")), &program, &opts)
+            .with_context(|| format!("program `{name}`"))?;
         let (f, p) = (&s.capture.handlers[0].1, &s.capture.handlers[1].1);
         let (fmax, pmax) = programs::print_row(name, f, p);
+        programs::print_worst(
+            &program,
+            f,
+            &s.capture.handler_starts[0],
+            &s.capture.pins,
+            &s.capture.traces,
+        );
         fworst = fworst.max(fmax);
         pworst = pworst.max(pmax);
     }

@@ -8,8 +8,12 @@
  *  - every executed instruction adds 1 to a 64-bit counter (inline add, no call);
  *  - every store whose address lies in [base, base+0x1000) of a watched GPIO port:  "s COUNT ADDR" (hex);
  *  - per interrupt handler k, from executing its entry instruction to executing one of its exit
- *    (return) instructions, inclusive:                                             "h K INSNS" (hex).
- *    A handler preempted by another counts the preempting instructions too.
+ *    (return) instructions, inclusive, and the count of its entry instruction (instruction k of
+ *    the run has count k, as in the store records):                              "h K INSNS START"
+ *    (hex). A handler preempted by another counts the preempting instructions too.
+ *  - with trace=K, over=N: the PCs of every call of handler K longer than N instructions, in the
+ *    order executed (at most MAX_TRACE):                          "t K START PC PC PC ..." (hex).
+ *    Every instruction then gets an execution callback: a run is slower, the counts the same.
  * Last line written at exit: "e COUNT" (total instructions, hex).
  *
  * Arguments (QEMU 7.2 form: -plugin lib.so,key=value,key=value ...):
@@ -17,6 +21,8 @@
  *   gpio=0xADDR     watched 4 KiB GPIO block base, repeatable (max 16)
  *   hK_entry=0xPC   entry PC of handler K (K = 0..15, Thumb bit cleared)
  *   hK_exit=0xPC    a return-instruction PC of handler K, repeatable
+ *   trace=K         trace handler K's long calls (see above; needs over=)
+ *   over=N          the length (instructions) a call must exceed to be traced
  * Output is written through a buffered FILE and flushed by the plugin atexit callback; QEMU 7.2 exits
  * through exit() on semihosting SYS_EXIT, which runs it (measured). A write that fails (a full disk)
  * is said at exit on stderr, "millac_plugin: cannot write PATH: REASON", so the host does not
@@ -62,6 +68,7 @@ QEMU_PLUGIN_EXPORT int qemu_plugin_version = 1;
 #define MAX_PORTS 16
 #define MAX_H 16
 #define MAX_EXITS 16
+#define MAX_TRACE 1024
 
 static FILE *out;
 static char out_path[4096];
@@ -83,6 +90,10 @@ static struct handler {
     bool has_entry, active;
     uint64_t start;
 } hs[MAX_H];
+static int trace_k = -1;
+static uint64_t trace_over;
+static uint64_t trace_pcs[MAX_TRACE];
+static size_t trace_n;
 
 static void on_store(unsigned int vcpu, qemu_plugin_meminfo_t info, uint64_t vaddr, void *ud)
 {
@@ -104,6 +115,17 @@ static void on_entry(unsigned int vcpu, void *ud)
     (void)vcpu;
     h->active = true;
     h->start = count;
+    if (h - hs == trace_k) {
+        trace_pcs[0] = h->entry;
+        trace_n = 1;
+    }
+}
+
+static void on_traced_insn(unsigned int vcpu, void *ud)
+{
+    (void)vcpu;
+    if (hs[trace_k].active && trace_n < MAX_TRACE)
+        trace_pcs[trace_n++] = (uint64_t)(uintptr_t)ud;
 }
 
 static void on_exit_insn(unsigned int vcpu, void *ud)
@@ -111,8 +133,18 @@ static void on_exit_insn(unsigned int vcpu, void *ud)
     struct handler *h = ud;
     (void)vcpu;
     if (h->active) {
+        uint64_t n = count - h->start + 1;
         h->active = false;
-        check(fprintf(out, "h %x %llx\n", (unsigned)(h - hs), (unsigned long long)(count - h->start + 1)));
+        /* An execution callback runs before its instruction's inline add (measured on 7.2): the
+         * entry instruction's own count, as a store's, is start + 1. */
+        check(fprintf(out, "h %x %llx %llx\n", (unsigned)(h - hs), (unsigned long long)n,
+                      (unsigned long long)(h->start + 1)));
+        if (h - hs == trace_k && n > trace_over) {
+            check(fprintf(out, "t %x %llx", (unsigned)(h - hs), (unsigned long long)(h->start + 1)));
+            for (size_t i = 0; i < trace_n; i++)
+                check(fprintf(out, " %llx", (unsigned long long)trace_pcs[i]));
+            check(fputc('\n', out) == EOF ? -1 : 0);
+        }
     }
 }
 
@@ -125,6 +157,12 @@ static void on_tb_trans(qemu_plugin_id_t id, struct qemu_plugin_tb *tb)
         uint64_t pc = qemu_plugin_insn_vaddr(insn);
         qemu_plugin_register_vcpu_insn_exec_inline(insn, QEMU_PLUGIN_INLINE_ADD_U64, &count, 1);
         qemu_plugin_register_vcpu_mem_cb(insn, on_store, QEMU_PLUGIN_CB_NO_REGS, QEMU_PLUGIN_MEM_W, NULL);
+        /* Registered before the handlers' callbacks (QEMU calls them in that order): the entry
+         * callback records the entry PC itself, and the exit PC is recorded before the exit
+         * callback writes the trace, so a trace holds all INSNS PCs. */
+        if (trace_k >= 0)
+            qemu_plugin_register_vcpu_insn_exec_cb(insn, on_traced_insn, QEMU_PLUGIN_CB_NO_REGS,
+                                                   (void *)(uintptr_t)pc);
         for (int k = 0; k < MAX_H; k++) {
             if (hs[k].has_entry && hs[k].entry == pc)
                 qemu_plugin_register_vcpu_insn_exec_cb(insn, on_entry, QEMU_PLUGIN_CB_NO_REGS, &hs[k]);
@@ -171,6 +209,12 @@ QEMU_PLUGIN_EXPORT int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_
         } else if (!strncmp(a, "gpio=", 5)) {
             if (n_ports == MAX_PORTS || parse_u64(eq + 1, &v)) goto bad;
             ports[n_ports++] = v;
+        } else if (!strncmp(a, "trace=", 6)) {
+            if (parse_u64(eq + 1, &v) || v >= MAX_H) goto bad;
+            trace_k = (int)v;
+        } else if (!strncmp(a, "over=", 5)) {
+            if (parse_u64(eq + 1, &v)) goto bad;
+            trace_over = v;
         } else if (sscanf(a, "h%d_%n", &k, &off) == 1 && off > 0 && k >= 0 && k < MAX_H) {
             if (parse_u64(eq + 1, &v)) goto bad;
             if (!strncmp(a + off, "entry=", 6)) {

@@ -112,6 +112,10 @@ pub struct CaptureSpec {
     pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
     /// The machine (default lm3s6965evb).
     pub machine: Machine,
+    /// (handler index, instructions): trace the PCs of every call of that handler longer than
+    /// that ([`Capture::traces`]; every instruction then gets a plugin callback, so the run is
+    /// slower, its counts unchanged). None: no trace.
+    pub trace: Option<(usize, u64)>,
 }
 
 impl CaptureSpec {
@@ -128,6 +132,7 @@ impl CaptureSpec {
             pin_port: PORT_B,
             stop: None,
             machine: Machine::Lm3s6965,
+            trace: None,
         }
     }
 
@@ -150,6 +155,11 @@ pub struct Capture {
     pub pins: Vec<(u64, u8)>,
     /// Per handler (same order as the spec): instructions from entry to return, inclusive, per call.
     pub handlers: Vec<(String, Vec<u64>)>,
+    /// Per handler, per call (as in `handlers`): the virtual time of its entry instruction, ns
+    /// (its instruction count << shift, as the pins' times).
+    pub handler_starts: Vec<Vec<u64>>,
+    /// The traced calls ([`CaptureSpec::trace`]), in order.
+    pub traces: Vec<HandlerTrace>,
     /// Total instructions executed.
     pub total_instructions: u64,
     /// Virtual time at exit, ns.
@@ -168,13 +178,27 @@ pub struct Capture {
     pub status: Option<i32>,
 }
 
+/// One traced handler call: the PCs it executed, entry to return.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct HandlerTrace {
+    /// Index of the handler in the spec.
+    pub handler: usize,
+    /// Virtual time of its entry instruction, ns.
+    pub start_ns: u64,
+    /// The PCs executed, in order (at most 1024; the call's count is in `handlers`).
+    pub pcs: Vec<u32>,
+}
+
 /// Parsed plugin output.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct PluginLog {
     /// (instruction count, address) of each store to a watched GPIO block.
     pub stores: Vec<(u64, u32)>,
-    /// (handler index, instructions) per completed handler invocation.
-    pub handlers: Vec<(usize, u64)>,
+    /// (handler index, instructions, instruction count at its entry) per completed handler
+    /// invocation.
+    pub handlers: Vec<(usize, u64, u64)>,
+    /// (handler index, instruction count at its entry, PCs) per traced invocation.
+    pub traces: Vec<(usize, u64, Vec<u32>)>,
     /// Total instruction count, from the final line written at exit.
     pub total: Option<u64>,
 }
@@ -201,7 +225,8 @@ fn hex(s: &str) -> Result<u64> {
     u64::from_str_radix(s, 16).with_context(|| format!("bad hex number `{s}`"))
 }
 
-/// Parses the plugin's text output (`s COUNT ADDR`, `h K INSNS`, `e COUNT`, all hex).
+/// Parses the plugin's text output (`s COUNT ADDR`, `h K INSNS START`, `t K START PC...`,
+/// `e COUNT`, all hex).
 pub fn parse_plugin_log(text: &str) -> Result<PluginLog> {
     let mut log = PluginLog::default();
     for (n, line) in text.lines().enumerate() {
@@ -209,7 +234,14 @@ pub fn parse_plugin_log(text: &str) -> Result<PluginLog> {
         let parsed: Result<()> = (|| {
             match f.as_slice() {
                 ["s", c, a] => log.stores.push((hex(c)?, hex(a)? as u32)),
-                ["h", k, i] => log.handlers.push((hex(k)? as usize, hex(i)?)),
+                ["h", k, i, c] => log.handlers.push((hex(k)? as usize, hex(i)?, hex(c)?)),
+                ["t", k, c, pcs @ ..] => log.traces.push((
+                    hex(k)? as usize,
+                    hex(c)?,
+                    pcs.iter()
+                        .map(|p| Ok(hex(p)? as u32))
+                        .collect::<Result<_>>()?,
+                )),
                 ["e", c] => log.total = Some(hex(c)?),
                 _ => bail!("unexpected line"),
             }
@@ -418,6 +450,9 @@ pub fn qemu_command(
             plugin_arg += &format!(",h{k}_exit={e:#x}");
         }
     }
+    if let Some((k, over)) = spec.trace {
+        plugin_arg += &format!(",trace={k},over={over}");
+    }
     let mut cmd = Command::new("qemu-system-arm");
     match spec.machine {
         Machine::Lm3s6965 => cmd
@@ -487,6 +522,12 @@ pub fn full_disk(dir: &Path) -> String {
 /// in [`Capture::status`]; errors are for QEMU failing to run, the timeout, or inconsistent logs.
 pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
     ensure!(spec.handlers.len() <= 16, "at most 16 handlers");
+    if let Some((k, _)) = spec.trace {
+        ensure!(
+            k < spec.handlers.len(),
+            "traced handler {k}: no such handler"
+        );
+    }
     crate::tools::ensure_tool("qemu-system-arm")?;
     let elf = std::fs::canonicalize(&spec.elf)
         .with_context(|| format!("firmware ELF {}", spec.elf.display()))?;
@@ -608,16 +649,29 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
         .iter()
         .map(|h| (h.name.clone(), Vec::new()))
         .collect();
-    for &(k, n) in &plog.handlers {
+    let mut handler_starts = vec![Vec::new(); handlers.len()];
+    for &(k, n, c) in &plog.handlers {
         handlers
             .get_mut(k)
             .with_context(|| format!("plugin reported unknown handler {k}"))?
             .1
             .push(n);
+        handler_starts[k].push(c << spec.icount_shift);
     }
+    let traces = plog
+        .traces
+        .into_iter()
+        .map(|(handler, c, pcs)| HandlerTrace {
+            handler,
+            start_ns: c << spec.icount_shift,
+            pcs,
+        })
+        .collect();
     Ok(Capture {
         pins,
         handlers,
+        handler_starts,
+        traces,
         total_instructions: total,
         end_ns: total << spec.icount_shift,
         stdout,
@@ -657,11 +711,14 @@ mod tests {
 
     #[test]
     fn parses_plugin_log() {
-        let l = parse_plugin_log("s 36 40005400\nh 0 13\ne 1e9c9\n").unwrap();
+        let l = parse_plugin_log("s 36 40005400\nh 0 13 20\nt 0 20 4c 4e\ne 1e9c9\n").unwrap();
         assert_eq!(l.stores, vec![(0x36, 0x4000_5400)]);
-        assert_eq!(l.handlers, vec![(0, 0x13)]);
+        assert_eq!(l.handlers, vec![(0, 0x13, 0x20)]);
+        assert_eq!(l.traces, vec![(0, 0x20, vec![0x4c, 0x4e])]);
         assert_eq!(l.total, Some(0x1e9c9));
         assert!(parse_plugin_log("x 1\n").is_err());
+        assert!(parse_plugin_log("h 0 13\n").is_err());
+        assert!(parse_plugin_log("t 0 20 zz\n").is_err());
     }
 
     fn tw(dev: &str, offset: u32, value: u32) -> TraceWrite {

@@ -93,10 +93,27 @@ fn capture_of_a_hand_assembled_image() {
         ]
     );
     assert_eq!(c.handlers, vec![("block".to_string(), vec![9])]);
+    // The "handler" starts at instruction 5.
+    assert_eq!(c.handler_starts, vec![vec![5 << 3]]);
+    assert!(c.traces.is_empty());
     assert_eq!(c.total_instructions, 16);
     assert_eq!(c.end_ns, 16 << 3);
     // Deterministic: a second run gives the same capture.
     assert_eq!(run_capture(&spec).unwrap(), c);
+    // A traced run: the same counts, and the PCs of the calls longer than 8 instructions, entry
+    // to return (the four-byte store.w at 0x5a is one instruction).
+    let mut traced = spec.clone();
+    traced.trace = Some((0, 8));
+    let t = run_capture(&traced).unwrap();
+    assert_eq!((&t.pins, &t.handlers), (&c.pins, &c.handlers));
+    assert_eq!(t.traces.len(), 1);
+    assert_eq!(t.traces[0].start_ns, 5 << 3);
+    assert_eq!(
+        t.traces[0].pcs,
+        vec![0x4c, 0x4e, 0x50, 0x52, 0x54, 0x56, 0x58, 0x5a, 0x5e]
+    );
+    traced.trace = Some((0, 9));
+    assert!(run_capture(&traced).unwrap().traces.is_empty());
     // QEMU failing to start is an error that carries QEMU's stderr.
     spec.extra_args.push("-no-such-option".into());
     let e = format!("{:#}", run_capture(&spec).unwrap_err());

@@ -87,8 +87,8 @@ mod app {
     #[local]
     struct Local {
         // With the plan ratio only where the board's limits say so (`BoardLimits::plan_ratio`,
-        // which also decides whether `$263=2` is accepted): the F446's frame is at its 200 kHz
-        // budget without it.
+        // which also decides whether `$263=2` is accepted): the F446's frame is past its
+        // instruction bound with it (`BoardLimits::NUCLEO_F446RE`).
         frame: FrameTask<{ board::LIMITS.plan_ratio }>,
         consumer: Consumer<'static, Block, QUEUE>,
         producer: Producer<'static, Block, QUEUE>,
