@@ -69,8 +69,8 @@
 //!   summed over the teeth; torque `T = R sum Ft`. `Fu`, `Fv`: the resultant in the holder frame
 //!   rotating with the spindle (`u` axis at world angle `-theta`, `v` 90 degrees
 //!   counter-clockwise from it), so `F = sqrt(Fu^2 + Fv^2)` is invariant.
-//! - Run-out and damaged teeth ([`crate::teeth`]): each tooth's chip `h_k` replaces
-//!   `min(c, extent) cos(alpha)` (and its end chip `c_z`) as that module describes; the intact
+//! - Run-out and damaged teeth ([`crate::teeth`]): each tooth's chip `h_k` replaces `c cos(alpha)`
+//!   (and its end chip `c_z`) as that module describes, at most `extent cos(alpha)`; the intact
 //!   tool without run-out keeps the arithmetic above.
 //! - Removal after the force: cells within R of the segment from the previous sample's position
 //!   to this one get `top = min(top, tip Z)`.
@@ -276,9 +276,11 @@ impl Cutter {
             };
             f.capped |= st.extent.is_finite();
             let (s, co) = (st.sin, st.cos);
-            // The chip: the feed per tooth, limited by the material behind the edge.
-            let cc = c.min(st.extent) * st.cos_a;
-            let mut h = teeth.map(|d| crate::teeth::chip_mm(k as usize, cc, d));
+            // The chip: the feed per tooth, limited by the material behind the edge (also the
+            // chip a damaged tooth leaves to the next one).
+            let cap = st.extent * st.cos_a;
+            let cc = (c * st.cos_a).min(cap);
+            let mut h = teeth.map(|d| crate::teeth::chip_mm(k as usize, c * st.cos_a, d).min(cap));
             if let Some(w) = wave {
                 let h0 = h.unwrap_or(cc);
                 h = Some(if h0 > 0.0 {

@@ -1486,3 +1486,65 @@ fn into_an_inside_corner_the_engagement_rises_as_the_geometry_says() {
     }
     assert!(arcs.windows(2).all(|w| w[1] > w[0]), "{arcs:?}");
 }
+
+/// Entering a wall the material limits a damaged tool's chips too: the tooth after a broken one
+/// takes what lies behind its edge, not twice the feed per tooth (the teeth model's doubled
+/// chip). A wall across the path on a cell boundary (material at X >= 30 mm), the tool fed along
+/// +X at 30 ipm 0.15 mm into it: behind every engaged edge lies at most the 0.15 mm the tool went
+/// in (R cos(alpha) - R + 0.15), less than c = 0.3175 mm, so with tooth 1 broken the peak torque
+/// over the spindle's turn is at most the intact tool's (each tooth's chip `extent cos(alpha)`
+/// either way, the broken one's share going nowhere); 3 mm further on, in the full slot, the
+/// next tooth takes the doubled chip and the peak torque rises by half or more.
+#[test]
+fn entering_a_wall_the_tooth_after_a_broken_one_takes_what_is_there() {
+    let st = Stock::parse(&format!(
+        "blank X0 Y0 W2 H1 Z0\npocket X0 Y0 W{} H1 Z-0.5",
+        30.0 / 25.4
+    ))
+    .unwrap();
+    let mut p = steel(st, 1);
+    let (y, z) = (blu(12.7), -2000);
+    let peak_t = |p: &Process, tip_blu: [i64; 3], teeth: Option<&[f64]>| {
+        let tip = tip_blu.map(|v| v as f64 * MM_PER_BLU);
+        (0..360)
+            .map(|i| {
+                let f = p.cutter().forces(
+                    p.stock(),
+                    tip,
+                    (i as f64).to_radians(),
+                    [1.0, 0.0],
+                    C_30IPM,
+                    C_30IPM,
+                    crate::process::EndCut::NONE,
+                    teeth,
+                    None,
+                );
+                f.t
+            })
+            .fold(0.0, f64::max)
+    };
+    let mut teeth = Teeth::default();
+    let broken = ToothEvent {
+        tooth: 1,
+        t_s: 0.0,
+        damage: Damage::Broken,
+    };
+    teeth.add(4, broken).unwrap();
+    let mut d = [0.0; crate::teeth::MAX_FLUTES];
+    assert!(teeth.offsets(4, 1.0, &mut d));
+    let into = [blu(30.0 - R_MM + 0.15), y, z];
+    let s = run(&mut p, 0.0, [blu(10.0), y, z], into, 30.0);
+    let (intact, damaged) = (peak_t(&p, into, None), peak_t(&p, into, Some(&d[..4])));
+    assert!(intact > 0.0);
+    assert!(
+        damaged <= intact * (1.0 + 1e-12),
+        "entering: {damaged} N*m with tooth 1 broken, {intact} N*m intact"
+    );
+    let deep = [blu(30.0 - R_MM + 3.0), y, z];
+    run(&mut p, s.len() as f64 / RATE, into, deep, 30.0);
+    let (intact, damaged) = (peak_t(&p, deep, None), peak_t(&p, deep, Some(&d[..4])));
+    assert!(
+        damaged > 1.5 * intact,
+        "in the slot: {damaged} N*m with tooth 1 broken, {intact} N*m intact"
+    );
+}
