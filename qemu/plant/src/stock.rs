@@ -67,10 +67,8 @@ pub struct Stock {
     floor_mm: f64,
     /// XY path length swept by [`Stock::cut_capsule`] so far, mm.
     odometer_mm: f64,
-    /// Per cell: the odometer reading when the tool last lowered it, `NEG_INFINITY` for never
-    /// (f32: 1e-2 mm resolution up to 100 m of path, far finer than the few mm it is compared
-    /// over; half the memory of the tops).
-    lowered_at: Vec<f32>,
+    /// Per cell: the odometer reading when the tool last lowered it, `NEG_INFINITY` for never.
+    lowered_at: Vec<f64>,
 }
 
 /// What a cell holds for a tool whose bottom is at some Z (see [`Stock::cell_class`]).
@@ -261,7 +259,7 @@ impl Stock {
             top: vec![f64::NEG_INFINITY; nx * ny],
             floor_mm,
             odometer_mm: 0.0,
-            lowered_at: vec![f32::NEG_INFINITY; nx * ny],
+            lowered_at: vec![f64::NEG_INFINITY; nx * ny],
         };
         for (_, s) in &shapes {
             match *s {
@@ -304,7 +302,7 @@ impl Stock {
                 .iter()
                 .map(|&t| if t.is_finite() { top } else { t })
                 .collect(),
-            lowered_at: vec![f32::NEG_INFINITY; self.top.len()],
+            lowered_at: vec![f64::NEG_INFINITY; self.top.len()],
             ..self.clone()
         }
     }
@@ -378,7 +376,7 @@ impl Stock {
     pub(crate) fn cell_class(&self, k: Option<usize>, base_mm: f64, recent_mm: f64) -> Cell {
         match k {
             Some(k) if self.top[k] > base_mm => Cell::Material,
-            Some(k) if f64::from(self.lowered_at[k]) >= recent_mm => Cell::Recent,
+            Some(k) if self.lowered_at[k] >= recent_mm => Cell::Recent,
             _ => Cell::Old,
         }
     }
@@ -470,7 +468,7 @@ impl Stock {
                     let k = j * self.nx + i;
                     if z < self.top[k] {
                         self.top[k] = z;
-                        self.lowered_at[k] = (odo + s * len) as f32;
+                        self.lowered_at[k] = odo + s * len;
                     }
                 }
             }
