@@ -22,9 +22,13 @@ fn by(traces: &[Trace], s: Strategy) -> &Trace {
 ///   (peak to peak 0.96), entered at the program's conservative F8 it settles in its dead zone
 ///   (0.954 F0). Not asserted at 3 mm.
 /// - MRAC and GPC (adaptive) stay settled at every depth (their Fig. 3): from 1 s after each step
-///   MRAC and GPC within 0.25 of F0 (measured 0.15 and 0.19 at 3 mm: isolated dips; GPC at
-///   its default lambda 10, 0.08 at lambda 5); both within 0.1 peak to peak over each section's last second and within 3 % of F0
-///   on average.
+///   MRAC and GPC within 0.25 of F0 (measured 0.15 and 0.12 at 3 mm: isolated dips; GPC at
+///   its default lambda 10); both within 0.1 peak to peak over the last second of the 1 and 2 mm
+///   sections and within 3 % of F0 on average. At 3 mm the band is the stepper's: at about
+///   6.4 ipm a tooth period's travel is 27 or 28 whole BLU, so the held peaks move in steps of
+///   3.5 % of F0, and over the last second MRAC wanders over 3 to 6 of them (peak to peak 0.106 to 0.212
+///   over the noise seeds 1 to 8, as much with the plant before issue 20's chip as after; seed 1
+///   read 0.071 before and 0.141 after), GPC over 1 to 3: settled there is below 0.25.
 #[test]
 fn depth_step_fixed_gains_oscillate_at_3_mm_adaptive_laws_stay_settled() {
     let (sc, nominal) = repro::depth_step().unwrap();
@@ -57,7 +61,8 @@ fn depth_step_fixed_gains_oscillate_at_3_mm_adaptive_laws_stay_settled() {
         assert!(!tr.run.held, "{}", tr.name);
         for (d, x) in figs(tr).iter().enumerate() {
             assert!(x.worst < band, "{} at {} mm: {x:?}", tr.name, d + 1);
-            assert!(x.ptp_last < 0.1, "{} at {} mm: {x:?}", tr.name, d + 1);
+            let settled = if d == 2 { 0.25 } else { 0.1 };
+            assert!(x.ptp_last < settled, "{} at {} mm: {x:?}", tr.name, d + 1);
             assert!((x.mean_last - 1.0).abs() < 0.03, "{} {x:?}", tr.name);
         }
     }
@@ -109,9 +114,14 @@ fn tiim_step_overshoots_every_law_and_the_adaptive_ones_settle_within_1_s() {
     assert!(after > 1.2 * before, "{before} -> {after}");
 }
 
-/// The pocket after the thesis' Fig. 5.8, default settings: the paper's FRC, MRAC and GPC finish
-/// it without a hold (GPC within 1.05 F0 at its peaks, the thesis' corners showed 25 %); the
-/// integral law (default `$264`) holds on an overload in the first wall. GPC's estimates move
+/// The pocket after the thesis' Fig. 5.8, default settings: the paper's FRC and GPC finish it
+/// without a hold (GPC within 1.05 F0 at its peaks, the thesis' corners showed 25 %); the
+/// integral law (default `$264`) holds on an overload in the first wall, MRAC at the first
+/// corner: after the stop the cut along +Y is a slot whose engagement grows from half to full
+/// over the tool's radius (the first wall's slot side lies R beyond its path), MRAC reads the
+/// light windows after the corner and raises the feed by the full step, and the growing
+/// engagement takes a window to 1.15 F0. (MRAC finished while the plant's probe read that side
+/// wall up to 2 mm early, a full chip where there was air: issue 20.) GPC's estimates move
 /// during the run (Fig. 5.11).
 #[test]
 fn pocket_adaptive_laws_finish_and_the_integral_law_holds() {
@@ -123,7 +133,7 @@ fn pocket_adaptive_laws_finish_and_the_integral_law_holds() {
             tr.name, tr.run.machining_time_s, tr.run.held
         );
         match tr.strategy {
-            Strategy::Integral => assert!(tr.run.held),
+            Strategy::Integral | Strategy::Mrac => assert!(tr.run.held, "{}", tr.name),
             _ => {
                 assert!(!tr.run.held, "{}", tr.name);
                 assert!(peak < repro::DEFAULT_HOLD_LOAD, "{}: {peak}", tr.name);

@@ -14,10 +14,15 @@
 //!    path `c = v / (z rpm / 60)` splits into the side chip `c_xy = c * XY share` and, moving
 //!    down, the end-face chip `c_z = c * (-Z share)`; the peaks include the end teeth (see
 //!    [`crate::process`]), so a plunge into material is limited by T0 (and by F0 where the end
-//!    face is partly engaged). With a constant Ks every tooth's force is linear in `c`, so the
-//!    peaks are computed once at unit `c` and the safe feed at the point is
+//!    face is partly engaged). The side chips are the process' (`min(c, extent) cos(alpha)`,
+//!    the material behind each edge measured up to the XY feed per tooth at the point's
+//!    ceiling, the largest the schedule can take there). With a constant Ks every tooth's force
+//!    is linear in `c` where no chip is limited by the material behind its edge, so the peaks
+//!    are computed once at unit `c` and the safe feed at the point is
 //!    `min(F0 / F_per_c, T0 / T_per_c) * z * rpm / 60`; capped by the programmed feed of the
-//!    point. With Kienzle's Ks(h) (exponent m > 0) every tooth's force is `Ks1 a h^(1-m)` with
+//!    point. Where a chip is limited (a tooth entering a wall) the peaks grow more slowly than
+//!    `c`: the point's limit is searched (the ceiling's `c` doubled until over a limit, then
+//!    bisection) and its peaks are re-evaluated at the scheduled feed along a second walk. With Kienzle's Ks(h) (exponent m > 0) every tooth's force is `Ks1 a h^(1-m)` with
 //!    `h` proportional to `c`, so all teeth scale by the same `c^(1-m)` except those whose chip
 //!    is below the clamp [`crate::H_MIN_MM`] (near entry and exit angles), which scale linearly,
 //!    faster than `c^(1-m)` going up. So the point's limit is found by evaluation: the peaks at
@@ -111,19 +116,31 @@ pub const DIR_WINDOW_MM: f64 = 0.25;
 /// from: far above any feed a cut allows, so the limit does not depend on the ceiling.
 const KIENZLE_PROBE_IPM: f64 = 10_000.0;
 
-/// Peak resultant force and peak torque over one tooth pitch of spindle angles at side feed per
-/// tooth `c` and end cut `end`, and whether the end face met material.
+/// Peak resultant force (N) and peak torque (N*m) over one tooth pitch of spindle angles.
+#[derive(Clone, Copy, Debug, Default)]
+struct Peak {
+    f: f64,
+    t: f64,
+    /// The end face met material.
+    engaged: bool,
+    /// Some side tooth's chip was limited by the material behind its edge (not linear in c).
+    capped: bool,
+}
+
+/// The peaks at side feed per tooth `c` (the chip's extent measured up to `reach`, mm) and end
+/// cut `end`.
 fn peak(
     cut: &Cutter,
     stock: &Stock,
     tip: [f64; 3],
     u: [f64; 2],
     c: f64,
+    reach: f64,
     end: EndCut,
-) -> (f64, f64, bool) {
+) -> Peak {
     let pitch = std::f64::consts::TAU / cut.flutes as f64;
     let steps = (360 / cut.flutes).max(8);
-    let (mut f, mut t, mut engaged) = (0.0f64, 0.0f64, false);
+    let mut pk = Peak::default();
     for i in 0..steps {
         let r = cut.forces(
             stock,
@@ -131,15 +148,17 @@ fn peak(
             pitch * i as f64 / steps as f64,
             u,
             c,
+            reach,
             end,
             None,
             None,
         );
-        f = f.max(r.fx.hypot(r.fy));
-        t = t.max(r.t);
-        engaged |= r.end_engaged;
+        pk.f = pk.f.max(r.fx.hypot(r.fy));
+        pk.t = pk.t.max(r.t);
+        pk.engaged |= r.end_engaged;
+        pk.capped |= r.capped;
     }
-    (f, t, engaged)
+    pk
 }
 
 /// Whether `m` lies within 2 BLU of the line through `w` along `d` (a window of the path without
@@ -153,7 +172,8 @@ fn straight(m: &[f64; 3], w: &[f64; 3], d: &[f64; 3]) -> bool {
 }
 
 /// The cut at one point per mm of feed per tooth along the path: XY direction, XY share, -Z share
-/// (> 0 moving down) and the end face's material test.
+/// (> 0 moving down), the end face's material test and the side chip's reach (mm: the XY feed
+/// per tooth at the point's ceiling, the largest a schedule can take there).
 #[derive(Clone, Copy, Debug)]
 struct PointCut {
     tip: [f64; 3],
@@ -161,17 +181,57 @@ struct PointCut {
     share: f64,
     share_z: f64,
     hold: bool,
+    reach: f64,
 }
 
 impl PointCut {
     /// Peaks at feed per tooth `c` (mm) along the path.
-    fn peak(&self, cut: &Cutter, stock: &Stock, c: f64) -> (f64, f64, bool) {
+    fn peak(&self, cut: &Cutter, stock: &Stock, c: f64) -> Peak {
         let end = if self.share_z > 0.0 {
             EndCut::new(c * self.share_z, self.tip[2], self.hold)
         } else {
             EndCut::NONE
         };
-        peak(cut, stock, self.tip, self.u, c * self.share, end)
+        peak(
+            cut,
+            stock,
+            self.tip,
+            self.u,
+            c * self.share,
+            self.reach,
+            end,
+        )
+    }
+
+    /// The largest feed per tooth (mm, along the path) whose peaks are within `f0` and `t0`
+    /// where some chip is limited by the material (the force is not linear in c there): the
+    /// first of c_ceil, 2 c_ceil, 4 c_ceil, ... over a limit, then bisection (the peaks grow
+    /// with c: every tooth's chip min(c, extent) does). Infinite if none is over within 2^40
+    /// times the ceiling (only limited chips, all small).
+    fn limit_c(&self, cut: &Cutter, stock: &Stock, c_ceil: f64, f0: f64, t0: f64) -> f64 {
+        let within = |c: f64| {
+            let p = self.peak(cut, stock, c);
+            p.f <= f0 && p.t <= t0
+        };
+        let (mut lo, mut hi) = (0.0, c_ceil.max(1e-3));
+        let mut doublings = 0;
+        while within(hi) {
+            if doublings == 40 {
+                return f64::INFINITY;
+            }
+            lo = hi;
+            hi *= 2.0;
+            doublings += 1;
+        }
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            if within(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
     }
 }
 
@@ -219,7 +279,8 @@ pub fn oracle_time(
     let mut cut_limit = vec![f64::INFINITY; n];
     let kienzle = material.ks_exponent > 0.0;
     let expo = 1.0 / (1.0 - material.ks_exponent);
-    let start_stock = kienzle.then(|| stock.clone());
+    let start_stock = stock.clone();
+    let mut capped = vec![false; n];
     let c_of = |v_ipm: f64| v_ipm * MM_S_PER_IPM / teeth_hz;
     let mut end_engaged = false;
     for i in 0..n {
@@ -264,48 +325,57 @@ pub fn oracle_time(
             (0.0, 0.0)
         };
         let hold = end_engaged && i > 0 && a[2] == p[2];
+        let c_ceil = c_of(path[i].feed_ipm);
         let pc = PointCut {
             tip: p,
             u,
             share,
             share_z,
             hold,
+            reach: c_ceil * share,
         };
         // The force and torque limit alone (infinite where nothing is cut), then the ceiling.
         let mut v = f64::INFINITY;
         if !kienzle {
-            let (fc, tc, mult) = if share_z > 0.0 {
-                let (fc, tc, e) = pc.peak(&cut, &stock, 1.0);
-                end_engaged = e;
-                (fc, tc, 1.0)
+            let (pk, mult) = if share_z > 0.0 {
+                (pc.peak(&cut, &stock, 1.0), 1.0)
             } else if dxy > 0.0 {
-                end_engaged = false;
-                let (fc, tc, _) = peak(&cut, &stock, p, u, 1.0, EndCut::NONE);
-                (fc, tc, share)
+                let end = EndCut::NONE;
+                (peak(&cut, &stock, p, u, 1.0, pc.reach, end), share)
             } else {
-                end_engaged = false;
-                (0.0, 0.0, share)
+                (Peak::default(), share)
             };
-            per_c[i] = (fc, tc, mult);
-            if fc * mult > 0.0 {
-                v = v.min(l.f0_n / (fc * mult) * teeth_hz / MM_S_PER_IPM);
-            }
-            if tc * mult > 0.0 {
-                v = v.min(l.t0_nm / (tc * mult) * teeth_hz / MM_S_PER_IPM);
+            end_engaged = pk.engaged;
+            if pk.capped {
+                // Not linear in c: searched, and re-evaluated at the schedule's feed.
+                capped[i] = true;
+                let c = pc.limit_c(&cut, &stock, c_ceil, l.f0_n, l.t0_nm);
+                v = c * teeth_hz / MM_S_PER_IPM;
+            } else {
+                let (fc, tc) = (pk.f, pk.t);
+                per_c[i] = (fc, tc, mult);
+                if fc * mult > 0.0 {
+                    v = v.min(l.f0_n / (fc * mult) * teeth_hz / MM_S_PER_IPM);
+                }
+                if tc * mult > 0.0 {
+                    v = v.min(l.t0_nm / (tc * mult) * teeth_hz / MM_S_PER_IPM);
+                }
             }
         } else if dxy > 0.0 || share_z > 0.0 {
             // From a feed far above any cut's limit down by the c^(1-m) estimate.
             v = KIENZLE_PROBE_IPM;
-            let (mut f, mut t, e) = pc.peak(&cut, &stock, c_of(v));
+            let pk = pc.peak(&cut, &stock, c_of(v));
+            let (mut f, mut t) = (pk.f, pk.t);
             if f == 0.0 && t == 0.0 {
                 v = f64::INFINITY;
             }
-            end_engaged = e;
+            end_engaged = pk.engaged;
             let mut steps = 0;
             while (f > l.f0_n || t > l.t0_nm) && steps < 50 {
                 let ratio = (l.f0_n / f).min(l.t0_nm / t);
                 v *= ratio.powf(expo) * (1.0 - 1e-12);
-                (f, t, _) = pc.peak(&cut, &stock, c_of(v));
+                let pk = pc.peak(&cut, &stock, c_of(v));
+                (f, t) = (pk.f, pk.t);
                 steps += 1;
             }
             if f > l.f0_n || t > l.t0_nm {
@@ -345,28 +415,23 @@ pub fn oracle_time(
             };
         }
     }
-    let (f_peak_n, t_peak_nm) = match start_stock {
-        None => {
-            let c = |i: usize| v[i] * MM_S_PER_IPM * per_c[i].2 / teeth_hz;
-            (
-                (0..n).map(|i| per_c[i].0 * c(i)).collect(),
-                (0..n).map(|i| per_c[i].1 * c(i)).collect(),
-            )
-        }
-        Some(mut stock) => {
-            // Re-evaluated at the scheduled feed along a second walk.
-            let (mut fp, mut tp) = (vec![0.0; n], vec![0.0; n]);
-            for i in 0..n {
-                let p = mm(&path[i]);
-                if v[i] > 0.0 {
-                    (fp[i], tp[i], _) = pcs[i].peak(&cut, &stock, c_of(v[i]));
-                }
-                let from = if i > 0 { mm(&path[i - 1]) } else { p };
-                stock.cut_capsule(from, p, cut.r_mm);
+    // Linear in c: scaled; otherwise (Kienzle's Ks, chips limited by the material)
+    // re-evaluated at the scheduled feed along a second walk.
+    let c = |i: usize| v[i] * MM_S_PER_IPM * per_c[i].2 / teeth_hz;
+    let mut f_peak_n: Vec<f64> = (0..n).map(|i| per_c[i].0 * c(i)).collect();
+    let mut t_peak_nm: Vec<f64> = (0..n).map(|i| per_c[i].1 * c(i)).collect();
+    if kienzle || capped.iter().any(|&c| c) {
+        let mut stock = start_stock;
+        for i in 0..n {
+            let p = mm(&path[i]);
+            if (kienzle || capped[i]) && v[i] > 0.0 {
+                let pk = pcs[i].peak(&cut, &stock, c_of(v[i]));
+                (f_peak_n[i], t_peak_nm[i]) = (pk.f, pk.t);
             }
-            (fp, tp)
+            let from = if i > 0 { mm(&path[i - 1]) } else { p };
+            stock.cut_capsule(from, p, cut.r_mm);
         }
-    };
+    }
     Ok(OracleResult {
         time_s,
         f_peak_n,

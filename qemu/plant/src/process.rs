@@ -11,22 +11,42 @@
 //!   period `60 / (rpm z)` (the chip is the material between this tooth's path and the previous
 //!   one's): `c = |d_xy| / (z rpm / 60 * dt)`. The window also smooths the BLU quantisation of
 //!   the position. Z motion down makes the end-face chip `c_z = -dz / (z rpm / 60 * dt)` (below).
-//! - Tooth k cuts when it faces the feed (`cos(alpha) = r_k . u > 0`, so entry and exit angles
-//!   come from the geometry) and material is there: the axial depth is `a = top - max(tip Z,
-//!   floor)` read in the cell of the material this edge meets next: from the edge point one cell
-//!   inside the tool (`E = C + (R - cell) r_k`, lateral offset `y` from the path line) along the
-//!   feed to one cell beyond the envelope of the discs already swept along a straight path
-//!   (`P = E + (x_env - (R - cell) cos(alpha) + m) u`, `x_env = sqrt(R^2 - y^2)`, the margin
-//!   `m = min(cell R / x_env, 8 cell)` puts P one cell beyond the envelope along its normal). So
-//!   the cells the last samples cleared are not read as air on a first pass, and on a second
-//!   pass along the same straight path every probe falls inside the cleared slot (cell centres
-//!   within R of the path) and reads air. Artefact: the probe runs up to `x_env + m` (about
-//!   2.7 mm for a 0.5 in tool) ahead of the edge, so within that distance of the end of a slot
-//!   already cut a second pass still reads the material beyond its end. When the motion stops,
-//!   `c` falls to zero over one tooth period (a real tool also cuts its last, thinning chips).
-//!   Chip `h = c cos(alpha)` (the paper's `c sin(phi)` with phi measured from the entry side);
-//!   `Ft = Ks(h) a h`, `Fr = Kr Ft` (`Ks(h)` = [`Material::ks_at`]: constant unless the material
-//!   has a size-effect exponent).
+//! - Side teeth: the chip a tooth takes is the material between its path and the previous
+//!   tooth's path, on the line along the feed through its edge. The process cuts the stock at
+//!   every sample, so by the time a tooth comes round that material is mostly gone from the
+//!   height map; what the map keeps is its memory (see [`crate::stock`]): each cell knows at which
+//!   point of the tool's XY path (the stock's odometer) the tool last lowered it. Along the line
+//!   a cell is material (its top above `base = max(tip Z, floor)`), air the tool made recently
+//!   (lowered within the last `L` mm of path: the material this swath is taking) or old air (air
+//!   before: a drilled hole, an earlier pass, outside the blank). Tooth k cuts when (i) it faces
+//!   the feed (`cos(alpha) = r_k . u > 0`, so entry and exit angles come from the geometry);
+//!   (ii) its line (lateral offset `y = R sin(alpha)` of the edge from the path, at most half a
+//!   cell inside the swath's side, so a line never runs in the row of cells just beyond the
+//!   swath, never cut) has material at the probe `P`, one cell beyond the envelope of the discs
+//!   swept along a straight path along the envelope's normal (`x_env = sqrt(R^2 - y^2)` ahead of
+//!   the axis, `P` at `x_env + m`, `m = min(cell R / x_env, 8 cell)`); the axial depth is
+//!   `a = top(P) - base`; (iii) walking back from `P` along the line to `back = max(c, 2 m)`
+//!   behind the envelope, no old air lies between `P` and the envelope (a gap the tool has not
+//!   crossed: coming back along its own slot, or the far wall of a hole of its own size just
+//!   ahead), and some cell on the way is air the tool made recently (the tool is taking
+//!   material on this line, not only touching a cell whose square reaches into its disc: the
+//!   grid knows material at cell centres only). Its chip's length along the feed is then
+//!   `min(c, extent)`, `extent` the distance from the envelope back to the first old air (the
+//!   material behind the edge: entering a wall, the tool's penetration; unlimited when there is
+//!   none within `back`): chip `h = min(c, extent) cos(alpha)` (the paper's `c sin(phi)` with
+//!   phi measured from the entry side); `Ft = Ks(h) a h`, `Fr = Kr Ft` (`Ks(h)` =
+//!   [`Material::ks_at`]: constant unless the material has a size-effect exponent). The recent
+//!   path is `L = back + 2 cell + sqrt(R^2 - (|y| - cell / sqrt(2))^2) - x_env`: how far back
+//!   along the path a cell on the line within `back` of the envelope can have been lowered (near
+//!   the tool's sides the disc reaches a cell well before the edge passes it). Resolution: the
+//!   grid's. Along a wall the engaged edge angles are the textbook's (`acos(1 - 2 ae / D)`) for a
+//!   wall on a cell boundary, within half a cell of radial depth otherwise; entering a wall, a
+//!   tooth starts cutting once the tool has covered a material cell centre on its line (half a
+//!   cell past the wall at the front, about `cell / 2 (1 + tan |alpha|)` towards the sides); a
+//!   gap ahead is seen, except one narrower than a cell left by the tool's own swath within `L`
+//!   of path (a reversal within about a cell and a feed per tooth of where it turned). When the
+//!   motion stops, `c` falls to zero over one tooth period (a real tool also cuts its last,
+//!   thinning chips).
 //! - End face (plunges and ramps; a simple mechanistic model of our own, the thesis has none):
 //!   when the tip moved down over the window (`c_z > 0`), each end tooth k (center cutting: an
 //!   edge from the axis to R at the angle `psi_k`) cuts a chip of thickness `c_z` over its engaged
@@ -50,13 +70,14 @@
 //!   rotating with the spindle (`u` axis at world angle `-theta`, `v` 90 degrees
 //!   counter-clockwise from it), so `F = sqrt(Fu^2 + Fv^2)` is invariant.
 //! - Run-out and damaged teeth ([`crate::teeth`]): each tooth's chip `h_k` replaces `c cos(alpha)`
-//!   (and its end chip `c_z`) as that module describes; the intact tool without run-out keeps the
-//!   arithmetic above.
+//!   (and its end chip `c_z`) as that module describes, at most `extent cos(alpha)`; the intact
+//!   tool without run-out keeps the arithmetic above.
 //! - Removal after the force: cells within R of the segment from the previous sample's position
 //!   to this one get `top = min(top, tip Z)`.
 use std::collections::VecDeque;
 
 use crate::drive::{Drive, DriveModel};
+use crate::stock::Cell;
 use crate::teeth::{Damage, Teeth, ToothEvent};
 use crate::{validate, CutError, Material, Stock, Tool, Transducer, MM_PER_BLU};
 
@@ -104,8 +125,9 @@ impl EndCut {
     }
 }
 
-/// Forces on the tool at one instant: (Fx, Fy) N in XY, torque N*m, axial force N, and whether
-/// an end tooth met material.
+/// Forces on the tool at one instant: (Fx, Fy) N in XY, torque N*m, axial force N, whether
+/// an end tooth met material, and whether some side tooth's chip was limited by the material
+/// behind its edge (its extent shorter than the reach: the force is not linear in the feed).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Forces {
     pub fx: f64,
@@ -113,6 +135,20 @@ pub(crate) struct Forces {
     pub t: f64,
     pub fa: f64,
     pub end_engaged: bool,
+    pub capped: bool,
+}
+
+/// A side tooth in the cut (see [`Cutter::side_tooth`]): its world angle's sine and cosine,
+/// `cos(alpha)` (the chip per mm of feed), the axial depth `a` (mm) and the extent of the
+/// material behind its edge along the feed (mm; infinite: at least the reach), which limits the
+/// feed per tooth it sees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct SideTooth {
+    pub sin: f64,
+    pub cos: f64,
+    pub cos_a: f64,
+    pub a: f64,
+    pub extent: f64,
 }
 
 /// Geometry and model constants shared by the process and the oracle.
@@ -135,13 +171,85 @@ impl Cutter {
         }
     }
 
+    /// Where side tooth `psi` (world angle, rad) of the tool with its tip at `tip` (mm), moving
+    /// along `u` (unit, XY), meets material, and how much of it lies behind its edge: None when
+    /// the tooth faces away from the feed or cuts nothing (see the module docs). `reach`: the
+    /// longest feed per tooth (mm, XY) the extent is measured for (the process: its `c`).
+    #[inline]
+    pub fn side_tooth(
+        &self,
+        stock: &Stock,
+        tip: [f64; 3],
+        psi: f64,
+        u: [f64; 2],
+        reach: f64,
+    ) -> Option<SideTooth> {
+        let (s, co) = psi.sin_cos();
+        let cos_a = co * u[0] + s * u[1];
+        if cos_a <= 0.0 {
+            return None;
+        }
+        let base = tip[2].max(stock.floor_mm());
+        // The line along the feed through the edge (y: its lateral offset from the path, at most
+        // half a cell inside the swath's side), the envelope of the swept discs on it at `x_env`
+        // ahead of the axis, the probe one cell beyond the envelope along its normal.
+        let cell = self.probe_mm;
+        let y_max = self.r_mm - 0.5 * cell;
+        let y = (self.r_mm * (co * u[1] - s * u[0])).clamp(-y_max, y_max);
+        let x_env = (self.r_mm * self.r_mm - y * y).sqrt();
+        let margin = (cell * self.r_mm / x_env).min(8.0 * cell);
+        let ahead = x_env + margin;
+        let px = tip[0] + y * u[1] + ahead * u[0];
+        let py = tip[1] - y * u[0] + ahead * u[1];
+        let a = stock.top_at(px, py) - base;
+        if a <= 0.0 {
+            return None;
+        }
+        // Back from the probe along the line to one feed per tooth (at least one cell) behind
+        // the envelope: no old air before the envelope, some air the tool made recently, and
+        // the extent of what is not old air behind the envelope.
+        let back = reach.max(2.0 * margin);
+        let hd = cell * std::f64::consts::FRAC_1_SQRT_2;
+        let side = (self.r_mm * self.r_mm - (y.abs() - hd).max(0.0).powi(2)).sqrt() - x_env;
+        let recent = stock.odometer_mm() - (back + 2.0 * cell + side);
+        let (mut made, mut extent) = (false, f64::INFINITY);
+        stock.walk([px, py], [-u[0], -u[1]], margin + back, |t, k| match stock
+            .cell_class(k, base, recent)
+        {
+            Cell::Material => true,
+            Cell::Recent => {
+                made = true;
+                true
+            }
+            Cell::Old => {
+                extent = t - margin;
+                false
+            }
+        });
+        if !made || extent <= 0.0 {
+            return None;
+        }
+        Some(SideTooth {
+            sin: s,
+            cos: co,
+            cos_a,
+            a,
+            extent: if extent >= reach {
+                f64::INFINITY
+            } else {
+                extent
+            },
+        })
+    }
+
     /// Forces of all teeth at spindle angle `theta` (rad, clockwise), tool tip at `tip` (mm),
     /// unit feed direction `u` (XY; [0, 0] when the tool does not move in XY), feed per tooth
-    /// `c` (mm, XY) and the end-face chip `end`. `teeth`: the teeth's radius offsets (mm, -inf =
-    /// broken; [`crate::teeth`]), None for the intact tool without run-out (the original
-    /// arithmetic, bit for bit). `wave`: the flexible tool's deflection now minus one tooth
-    /// period ago (mm, XY; [`Process::with_tool_modes`]), added to every side chip along the
-    /// tooth's radial direction (the regenerative chip); None for a rigid tool.
+    /// `c` (mm, XY), the side chip's extent measured up to `reach` (mm, >= the feeds per tooth
+    /// the result is used for; the process: `c`) and the end-face chip `end`. `teeth`: the
+    /// teeth's radius offsets (mm, -inf = broken; [`crate::teeth`]), None for the intact tool
+    /// without run-out. `wave`: the flexible tool's deflection now minus one tooth period ago
+    /// (mm, XY; [`Process::with_tool_modes`]), added to every side chip along the tooth's radial
+    /// direction (the regenerative chip); None for a rigid tool.
     #[allow(clippy::too_many_arguments)]
     pub fn forces(
         &self,
@@ -150,24 +258,31 @@ impl Cutter {
         theta: f64,
         u: [f64; 2],
         c: f64,
+        reach: f64,
         end: EndCut,
         teeth: Option<&[f64]>,
         wave: Option<[f64; 2]>,
     ) -> Forces {
         let mut f = Forces::default();
-        let base = tip[2].max(stock.floor_mm());
         let pitch = std::f64::consts::TAU / self.flutes as f64;
         let m = &self.material;
         for k in 0..self.flutes {
-            let psi = -theta - k as f64 * pitch;
-            let (s, co) = psi.sin_cos();
-            let cos_a = co * u[0] + s * u[1];
-            if cos_a <= 0.0 {
-                continue;
+            if c <= 0.0 {
+                break;
             }
-            let mut h = teeth.map(|d| crate::teeth::chip_mm(k as usize, c * cos_a, d));
+            let psi = -theta - k as f64 * pitch;
+            let Some(st) = self.side_tooth(stock, tip, psi, u, reach) else {
+                continue;
+            };
+            f.capped |= st.extent.is_finite();
+            let (s, co) = (st.sin, st.cos);
+            // The chip: the feed per tooth, limited by the material behind the edge (also the
+            // chip a damaged tooth leaves to the next one).
+            let cap = st.extent * st.cos_a;
+            let cc = (c * st.cos_a).min(cap);
+            let mut h = teeth.map(|d| crate::teeth::chip_mm(k as usize, c * st.cos_a, d).min(cap));
             if let Some(w) = wave {
-                let h0 = h.unwrap_or(c * cos_a);
+                let h0 = h.unwrap_or(cc);
                 h = Some(if h0 > 0.0 {
                     h0 + w[0] * co + w[1] * s
                 } else {
@@ -177,21 +292,9 @@ impl Cutter {
             if h.is_some_and(|h| h <= 0.0) {
                 continue;
             }
-            // The edge point a cell inside the tool (y: lateral offset from the path line), then
-            // along the feed to one cell beyond the envelope of the swept discs.
-            let re = self.r_mm - self.probe_mm;
-            let y = re * (co * u[1] - s * u[0]);
-            let x_env = (self.r_mm * self.r_mm - y * y).sqrt();
-            let margin = (self.probe_mm * self.r_mm / x_env).min(8.0 * self.probe_mm);
-            let ahead = x_env - re * cos_a + margin;
-            let px = tip[0] + re * co + ahead * u[0];
-            let py = tip[1] + re * s + ahead * u[1];
-            let a = stock.top_at(px, py) - base;
-            if a <= 0.0 {
-                continue;
-            }
+            let a = st.a;
             let ft = match h {
-                None => m.ks_at(c * cos_a) * a * c * cos_a,
+                None => m.ks_at(cc) * a * cc,
                 Some(h) => m.ks_at(h) * a * h,
             };
             let fr = m.kr * ft;
@@ -520,6 +623,12 @@ impl Process {
         self.stock
     }
 
+    /// The cutter's geometry and model (the tests' view of the chip).
+    #[cfg(test)]
+    pub(crate) fn cutter(&self) -> &Cutter {
+        &self.cutter
+    }
+
     pub fn tool(&self) -> &Tool {
         &self.tool
     }
@@ -567,7 +676,7 @@ impl Process {
             match self.flex.as_mut() {
                 None => self
                     .cutter
-                    .forces(&self.stock, p, theta, u, c, end, teeth, None),
+                    .forces(&self.stock, p, theta, u, c, c, end, teeth, None),
                 Some(flex) => flex_to(
                     flex,
                     &self.cutter,
@@ -664,7 +773,7 @@ fn flex_to(
         let now = flex.deflection_mm();
         let past = flex.ring.get(flex.at).copied().unwrap_or(now);
         let wave = [now[0] - past[0], now[1] - past[1]];
-        cutter.forces(stock, p, theta, u, c, end, teeth, Some(wave))
+        cutter.forces(stock, p, theta, u, c, c, end, teeth, Some(wave))
     };
     while flex.t + flex.dt <= t_s {
         let theta = std::f64::consts::TAU * rpm * flex.t / 60.0;

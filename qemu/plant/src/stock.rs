@@ -3,6 +3,13 @@
 //! lowest blank bottom, unbounded unless given). Air is `f64::NEG_INFINITY`. Material removal
 //! lowers the tops under the swept tool disc. Built from a small text description.
 //!
+//! The removal's memory: the stock counts the XY path the tool has swept over it (its odometer,
+//! mm, advanced by every [`Stock::cut_capsule`]) and each cell keeps the odometer reading at which
+//! the tool last lowered it (never: the cell is as described, e.g. a drilled hole). The process
+//! reads it to tell the material a tooth is cutting now (lowered within the last few mm of path,
+//! or still there) from air that was air before (an earlier pass, a hole): see
+//! [`crate::process`].
+//!
 //! Stock description (inches, like the G20 programs; one statement per line; `#` starts a comment;
 //! keywords and word letters are case-insensitive; words in any order, each once):
 //!
@@ -86,6 +93,21 @@ pub struct Stock {
     ny: usize,
     top: Vec<f64>,
     floor_mm: f64,
+    /// XY path length swept by [`Stock::cut_capsule`] so far, mm.
+    odometer_mm: f64,
+    /// Per cell: the odometer reading when the tool last lowered it, `NEG_INFINITY` for never.
+    lowered_at: Vec<f64>,
+}
+
+/// What a cell holds for a tool whose bottom is at some Z (see [`Stock::cell_class`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Cell {
+    /// Material above the tool's bottom.
+    Material,
+    /// Air the tool made within the recent path (it lowered the cell).
+    Recent,
+    /// Air that was air before: never lowered by the tool, lowered longer ago, or outside.
+    Old,
 }
 
 enum Shape {
@@ -291,6 +313,8 @@ impl Stock {
             ny,
             top: vec![f64::NEG_INFINITY; nx * ny],
             floor_mm,
+            odometer_mm: 0.0,
+            lowered_at: vec![f64::NEG_INFINITY; nx * ny],
         };
         for (_, s) in &shapes {
             match *s {
@@ -333,6 +357,7 @@ impl Stock {
                 .iter()
                 .map(|&t| if t.is_finite() { top } else { t })
                 .collect(),
+            lowered_at: vec![f64::NEG_INFINITY; self.top.len()],
             ..self.clone()
         }
     }
@@ -395,6 +420,69 @@ impl Stock {
         self.top[j * self.nx + i]
     }
 
+    /// The XY path length the tool has swept over this stock, mm (see the module docs).
+    pub fn odometer_mm(&self) -> f64 {
+        self.odometer_mm
+    }
+
+    /// The cell containing (x, y) mm for a tool whose bottom is at `base_mm`: material above
+    /// it, air the tool made at odometer `recent_mm` or later, or older air (also outside).
+    #[inline]
+    pub(crate) fn cell_class(&self, k: Option<usize>, base_mm: f64, recent_mm: f64) -> Cell {
+        match k {
+            Some(k) if self.top[k] > base_mm => Cell::Material,
+            Some(k) if self.lowered_at[k] >= recent_mm => Cell::Recent,
+            _ => Cell::Old,
+        }
+    }
+
+    /// Walks the cells a segment crosses: from (x, y) mm along the unit XY direction `d` for
+    /// `len_mm`, calling `f(t, cell)` with the distance along the segment at which each cell is
+    /// entered (0 for the first) and its index (None outside the grid, where the walk ends), in
+    /// order, until `f` returns false.
+    pub(crate) fn walk(
+        &self,
+        p: [f64; 2],
+        d: [f64; 2],
+        len_mm: f64,
+        mut f: impl FnMut(f64, Option<usize>) -> bool,
+    ) {
+        let fx = (p[0] - self.x0_mm) / self.cell_mm;
+        let fy = (p[1] - self.y0_mm) / self.cell_mm;
+        let (mut i, mut j) = (fx.floor(), fy.floor());
+        let axis = |f: f64, i: f64, d: f64| {
+            if d > 0.0 {
+                (((i + 1.0) - f) * self.cell_mm / d, self.cell_mm / d, 1.0)
+            } else if d < 0.0 {
+                ((f - i) * self.cell_mm / -d, self.cell_mm / -d, -1.0)
+            } else {
+                (f64::INFINITY, f64::INFINITY, 0.0)
+            }
+        };
+        let (mut tx, dtx, si) = axis(fx, i, d[0]);
+        let (mut ty, dty, sj) = axis(fy, j, d[1]);
+        let mut t = 0.0;
+        loop {
+            let inside = i >= 0.0 && j >= 0.0 && i < self.nx as f64 && j < self.ny as f64;
+            let k = inside.then(|| j as usize * self.nx + i as usize);
+            if !f(t, k) || k.is_none() {
+                return;
+            }
+            if tx < ty {
+                t = tx;
+                tx += dtx;
+                i += si;
+            } else {
+                t = ty;
+                ty += dty;
+                j += sj;
+            }
+            if t > len_mm {
+                return;
+            }
+        }
+    }
+
     /// Volume of material above `z_ref_mm` (mm^3), for tests and reports.
     pub fn volume_above_mm3(&self, z_ref_mm: f64) -> f64 {
         let a = self.cell_mm * self.cell_mm;
@@ -403,10 +491,15 @@ impl Stock {
 
     /// Removes the material swept by a disc of radius `r_mm` whose centre moves along the segment
     /// from `a` to `b` (mm; the tool tip Z interpolated along it): every cell whose centre lies
-    /// within `r_mm` of the segment gets `top = min(top, tip Z at the nearest segment point)`.
+    /// within `r_mm` of the segment gets `top = min(top, tip Z at the nearest segment point)`;
+    /// a cell so lowered remembers the odometer at that point, and the odometer advances by the
+    /// segment's XY length.
     pub fn cut_capsule(&mut self, a: [f64; 3], b: [f64; 3], r_mm: f64) {
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
         let len2 = dx * dx + dy * dy;
+        let odo = self.odometer_mm;
+        let len = len2.sqrt();
+        self.odometer_mm += len;
         let lo = |v: f64, o: f64| ((v - o) / self.cell_mm).floor();
         let i0 = lo(a[0].min(b[0]) - r_mm, self.x0_mm).max(0.0);
         let i1 = lo(a[0].max(b[0]) + r_mm, self.x0_mm).min(self.nx as f64 - 1.0);
@@ -430,6 +523,7 @@ impl Stock {
                     let k = j * self.nx + i;
                     if z < self.top[k] {
                         self.top[k] = z;
+                        self.lowered_at[k] = odo + s * len;
                     }
                 }
             }

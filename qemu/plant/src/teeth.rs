@@ -20,7 +20,10 @@
 //!   run-out takes 10 um more and the tooth after it 10 um less (while `c cos(alpha)` exceeds
 //!   10 um); a chip of depth d moves (up to) d of the damaged tooth's chip to the next tooth.
 //!   The sum of the chips over one revolution is `z c cos(alpha)` whatever the offsets: the
-//!   damage redistributes the material between the teeth, it does not remove more.
+//!   damage redistributes the material between the teeth, it does not remove more. The
+//!   material behind the edge limits every chip: `h_k <= extent cos(alpha)` (entering a wall,
+//!   the tooth after a broken one takes what is there, not twice the first tooth's sliver; see
+//!   [`crate::process`]).
 //! - Static: the offsets in force at the sample's time apply to every tooth at once (the surface
 //!   left by the previous teeth is taken as cut with today's offsets): from the time of a chip or
 //!   break on, the next tooth takes the rest. Real breakage shows one transitional tooth pass.
