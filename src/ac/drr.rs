@@ -23,12 +23,15 @@
 //! jump is therefore judged by its physical plausibility before the sample may enter the window,
 //! first by the other channels, F*R/T of the jumped sample against the force/torque band
 //! ([`super::plaus`]):
-//! - outside the band (a Fu spike does not move T, a T stuck at a rail does not move F):
-//!   [`SensorFault::Jump`] at once, the sample kept out;
+//! - outside the band (a Fu spike does not move T, a T stuck at a rail does not move F), or a
+//!   force that moved by more than the torque's change allows ([`Band::step_plausible`]: a Fu
+//!   spike on a loaded tool, whose total may still look like a cut): [`SensorFault::Jump`] at once,
+//!   the sample kept out;
 //! - inside the band: load, into the window at once, even a one-sample pulse (the model makes
 //!   them when a tooth meets a wall: the chips made it, so it counts);
 //! - both F*R and T below the band's floor (nothing to judge; with the default 1500 codes and
-//!   5 N*m floor a jump is always large enough to judge): by persistence. The sample is kept out
+//!   5 N*m floor a jump is always large enough to judge), or a channel that arrived at its rail
+//!   (a saturated code is a bound, not a value): by persistence. The sample is kept out
 //!   until the next one; if a jumped channel is back (closer to its code before the jump than to
 //!   the jumped code) it was a lone spike, [`SensorFault::Jump`]; otherwise it enters the window.
 //!
@@ -260,8 +263,10 @@ impl Drr {
         let m = self.measure(codes);
         if let Some(p) = prev {
             let rail = |c: u16| c == 0 || c == CODE_MAX;
+            let mut saturated = false;
             let jumped = (0..3).fold(0u8, |acc, k| {
                 let arrives = self.jump_codes < CODE_MAX && rail(codes[k]) && !rail(p[k]);
+                saturated |= arrives;
                 acc | (u8::from(arrives || p[k].abs_diff(codes[k]) > self.jump_codes) << k)
             });
             if jumped != 0 {
@@ -274,10 +279,22 @@ impl Drr {
                 match self.band.judge(m.f_n, m.t_nm) {
                     // Force and torque disagree: the other channels do not confirm the jump.
                     Some(false) => return Err(fault.unwrap_or(s.fault(first))),
-                    // They agree: load (even a one-sample pulse: the chips made it).
-                    Some(true) => {}
-                    // Too small to judge: kept out until the next sample shows it persists.
-                    None => {
+                    // The force moved by more than the torque's change allows: a force spike
+                    // on a loaded tool, whose new total may still look like a cut.
+                    _ if !self
+                        .band
+                        .step_plausible(self.convert(p), self.convert(codes)) =>
+                    {
+                        return Err(fault.unwrap_or(s.fault(first)))
+                    }
+                    // They agree: load (even a one-sample pulse: the chips made it), unless a
+                    // channel arrived at its rail: a saturated code is a bound, not a value (a
+                    // Fu spike clamped at 4095 from near the top of the scale moves F by a few
+                    // hundred N, within what the torque's noise allows).
+                    Some(true) if !saturated => {}
+                    // Too small to judge, or saturated: kept out until the next sample shows
+                    // whether it persists.
+                    _ => {
                         self.suspect = Some(s);
                         return fault.map_or(Ok(()), Err);
                     }
@@ -289,6 +306,12 @@ impl Drr {
         }
         self.admit(m);
         Ok(())
+    }
+
+    /// Whether a jumped sample waits for the next one to be judged (see the module docs): the
+    /// sampler's trip on it is then the DRR's to classify, a period later at most.
+    pub fn judging(&self) -> bool {
+        self.suspect.is_some()
     }
 
     /// One accepted sample into the window.

@@ -403,6 +403,12 @@ impl AcController {
         &self.s
     }
 
+    /// Whether the DRR holds a jumped sample back until the next one tells a spike from load
+    /// (see [`drr`]). AC task.
+    pub fn judging(&self) -> bool {
+        self.drr.judging()
+    }
+
     pub fn state(&self) -> AcState {
         self.state
     }

@@ -28,6 +28,11 @@ pub struct Band {
     plunging: bool,
 }
 
+/// The part of the force the holder's frame (Fu, Fv turn with the spindle) may move it between
+/// two samples with no change of load: 2 sin(10 deg), a turn of 20 degrees per sample (3300 rpm
+/// at the default 1 kHz).
+pub const FRAME_TURN: f32 = 0.35;
+
 impl Band {
     pub fn new(s: &AcSettings) -> Self {
         Band {
@@ -55,6 +60,30 @@ impl Band {
             return None;
         }
         Some((self.plunging || fr >= self.lo * t_nm) && fr <= self.hi * t_nm)
+    }
+
+    /// Whether a jump from the sample `from` to `to` (T, Fu, Fv in N*m and N) is one that load
+    /// can make: the force vector may not move by more than the band's upper end allows for the
+    /// torque's change, plus the floor (noise) and the turn of the holder's frame between two
+    /// samples ([`FRAME_TURN`] of the larger force). A tooth whose chip changes moves F by
+    /// sqrt(1 + Kr^2) times its tangential force and T by R times it; a spike on Fu or Fv moves F
+    /// alone, also when the new total still looks like a cut (a loaded tool at F*R/T = 0.75 with
+    /// Fu 2000 N higher reads 1.2; Fu -3600 N spiking to +3900 N keeps F). Judged on jumps only
+    /// (a code moved by more than `jump_codes`), where the frame's turn is small beside it. The
+    /// torque's own jumps are judged by the totals ([`Band::judge`]): at a plunge's end face T
+    /// moves with no force. AC task (the DRR), per jumped sample.
+    #[inline]
+    pub fn step_plausible(&self, from: (f32, f32, f32), to: (f32, f32, f32)) -> bool {
+        let (t0, u0, v0) = from;
+        let (t1, u1, v1) = to;
+        let df = crate::ac::ecr::force(u1 - u0, v1 - v0);
+        let f = crate::ac::ecr::force(u0, v0).max(crate::ac::ecr::force(u1, v1));
+        let dt = if t1.abs() > t0.abs() {
+            t1.abs() - t0.abs()
+        } else {
+            t0.abs() - t1.abs()
+        };
+        df * self.r_m <= self.hi * dt + self.floor_nm + FRAME_TURN * f * self.r_m
     }
 
     /// F*R/T for a report (infinity for T = 0).

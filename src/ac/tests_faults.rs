@@ -118,6 +118,61 @@ fn lone_spike_on_fu_is_a_jump_fault_kept_out_of_the_window() {
     assert!(out.f_n < 2700.0, "{out:?}");
 }
 
+/// A spike of +3000 codes on Fu on a tool loaded near F0 with Fu positive (F*R/T 0.74, as the
+/// Fig. 1 cavity at 7 s on the simulated cut) leaves the spiked sample's totals inside the band
+/// (F*R/T about 1.2): the force rose with no torque, which no chip makes. A sensor fault, kept out
+/// of the window; the alarm corpus (`millac_qemu::alarmlab`) held it as an overload before.
+///
+/// The same for the pocket's spike at 4.9 s: Fu at -3500 N, +3000 codes, reads +4000 N; F goes
+/// from 3570 to 4090 N (over the overload level) and F*R/T stays 0.85, but the force vector
+/// moved by 7500 N with no torque.
+#[test]
+fn a_force_spike_on_a_loaded_tool_is_a_jump_even_when_the_total_looks_like_a_cut() {
+    for base in [codes(31.0, 3300.0, 1450.0), codes(30.6, -3500.0, 700.0)] {
+        force_spike_on(base);
+    }
+}
+
+fn force_spike_on(base: [u16; 3]) {
+    let s = AcSettings::default();
+    let spike = [base[0], (base[1] + 3000).min(4095), base[2]];
+    let value = |k: [u16; 3]| {
+        let (fu, fv) = (s.cal[1].value(k[1]), s.cal[2].value(k[2]));
+        (ecr::force(fu, fv), s.cal[0].value(k[0]).abs())
+    };
+    // The premise: the spiked sample alone looks like a cut.
+    let (f, t) = value(spike);
+    assert_eq!(
+        plaus::Band::new(&s).judge(f, t),
+        Some(true),
+        "{f} N {t} N*m"
+    );
+    let mut c = ctl(s);
+    super::tests::ease_in(&mut c, base);
+    feed_live(&mut c, base, 0, 10);
+    let before = c.period();
+    assert_eq!(
+        (before.state, before.alarm),
+        (AcState::Run, None),
+        "{before:?}"
+    );
+    feed_live(&mut c, base, 1, 4);
+    c.sample(spike);
+    c.sample(base);
+    feed_live(&mut c, base, 2, 4);
+    let out = c.period();
+    assert_eq!(
+        out.alarm,
+        Some(Alarm::Sensor(SensorFault::Jump {
+            sensor: Sensor::ForceU,
+            from: base[1],
+            to: spike[1],
+        })),
+        "{out:?}"
+    );
+    assert!(out.f_n < before.f_n + 20.0, "{out:?} vs {before:?}");
+}
+
 /// A jump that force and torque agree on (all channels together) is load at once, even when it
 /// returns at the next sample (a one-sample pulse of a tooth meeting a wall is real).
 #[test]
@@ -470,13 +525,15 @@ fn torque_arriving_at_the_rail_unconfirmed_is_a_sensor_fault() {
         ),
         "{out:?}"
     );
-    // Confirmed by the force: an overload.
+    // Confirmed by the force: an overload. (Fu at its lower rail, the way the cut's Fu points:
+    // a Fu that flips from -2700 N to the upper rail would move the force vector by 7800 N with
+    // T up 14 N*m, which no chip does.)
     let high = cut_codes(5000.0, 0.9);
     let mut c = ctl(s);
     feed_live(&mut c, cut_codes(3000.0, 0.9), 0, 10);
     c.period();
-    c.sample([high[0], 4095, high[2]]);
-    c.sample([high[0], 4095, high[2]]);
+    c.sample([high[0], 0, high[2]]);
+    c.sample([high[0], 0, high[2]]);
     let out = c.period();
     assert!(matches!(out.alarm, Some(Alarm::Overload { .. })), "{out:?}");
 }

@@ -423,7 +423,12 @@ impl AcPeriod {
         // sample, or the crossing fell before a resume's first window): an overload all the same,
         // at the sample's F and T. The sampler's hold is never lifted by the period's cap.
         if let Some((f_n, t_nm)) = self.tripped.take() {
-            if out.state == AcState::Run && self.enabled {
+            if out.state == AcState::Run && self.enabled && self.ctl.judging() {
+                // The DRR waits for the next sample to tell a spike from load (a channel at its
+                // rail): the alarm is the next period's, and the sampler's hold stays meanwhile.
+                self.tripped = Some((f_n, t_nm));
+                out.feed_cap = 0;
+            } else if out.state == AcState::Run && self.enabled {
                 let s = self.ctl.settings();
                 let a = crate::ac::Alarm::Overload {
                     f_n,
@@ -733,6 +738,75 @@ mod tests {
                 assert_eq!(out.alarm, None);
             }
         }
+    }
+
+    /// A cut with Fu 3000 N, Fv -2000 N (F 3606 N, below the trip) and T 30.5 N*m, whose Fu
+    /// spikes to its upper rail at sample `at` only.
+    struct RailSpike {
+        at: u32,
+    }
+
+    impl RailSpike {
+        fn base() -> Codes {
+            let s = AcSettings::default();
+            let code = |c: crate::ac::Calibration, v: f32| (c.offset + v / c.gain).round() as u16;
+            [
+                code(s.cal[0], 30.5),
+                code(s.cal[1], 3000.0),
+                code(s.cal[2], -2000.0),
+            ]
+        }
+    }
+
+    impl ForceTorqueAdc for RailSpike {
+        fn sample(&mut self, index: u32, _encoder: [i32; 3]) -> Conversion {
+            let mut c = Self::base();
+            if index == self.at {
+                c[1] = crate::ac::CODE_MAX;
+            }
+            Conversion::Fresh(c)
+        }
+    }
+
+    /// A Fu spike to its rail as the last sample of a period: 850 codes from the rail (no jump
+    /// by size), F*R/T 1.14 and a force step the torque's noise and the holder's turn could
+    /// explain, but a saturated code is a bound, not a value. The sampler trips at once (F reads
+    /// 5490 N); the period does not call it an overload while the DRR waits for the next sample,
+    /// and keeps the cap at 0; the next period holds with the spike's sensor fault. Before, the
+    /// period made the trip an overload (alarm 100, which `~` resumes) at once.
+    #[test]
+    fn a_spike_to_the_rail_at_a_periods_end_is_told_by_the_next_sample() {
+        let s = AcSettings::default();
+        let trip = Trip::new(&s);
+        let status = Status::new();
+        status.start();
+        let ctl = AcController::new(s).unwrap();
+        let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+        let per = period.per_period();
+        let mut adc = RailSpike { at: 2 * per - 1 };
+        let mut outs = Vec::new();
+        for _ in 0..3 {
+            for _ in 0..per {
+                if let Sampled::Codes { codes: Some(c), .. } =
+                    sample(&mut adc, &status, per, Some(&trip))
+                {
+                    period.sample(c);
+                }
+            }
+            let out = period.run(&status).out;
+            outs.push((out.state, out.alarm, status.feed_cap.load(Relaxed)));
+        }
+        assert!(
+            matches!(outs[0], (AcState::Run, None, cap) if cap > 0),
+            "{outs:?}"
+        );
+        assert_eq!(outs[1], (AcState::Run, None, 0), "{outs:?}");
+        let want = Alarm::Sensor(crate::ac::SensorFault::Jump {
+            sensor: crate::ac::Sensor::ForceU,
+            from: RailSpike::base()[1],
+            to: crate::ac::CODE_MAX,
+        });
+        assert_eq!(outs[2], (AcState::Hold(want), Some(want), 0), "{outs:?}");
     }
 
     /// An enabled AC period under the plan (`FeedCeiling::Plan`, the other settings the
