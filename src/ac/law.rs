@@ -277,18 +277,29 @@ impl GpcLaw {
         }
         self.ys = [y, y1];
         self.us = [u_prev, u2];
+        // The estimate drives the control only while it is one a cut can be: a positive steady
+        // gain not far below the nominal's, not near an integrator, and a step response over the
+        // horizon that rises (the control divides by it). A noisy stretch can leave an estimate
+        // with b0 < 0 whose first steps fall: its sum of g_k is then negative and the control
+        // would lower the feed for a load far below the reference, down to f_min, and stay there
+        // while the load is too small to update the estimate (seen on a 3D raster: 40 s at
+        // 1 ipm and 2 % of F0). The nominal model then steers until the data say more.
         let theta = {
             let [a1, a2, b0, b1, b2] = self.rls.theta;
             let [n1, n2, nb, _, _] = self.nominal;
             let (a_sum, b_sum) = (1.0 + a1 + a2, b0 + b1 + b2);
             let nominal_gain = nb / (1.0 + n1 + n2);
-            if a_sum > 0.05 && b_sum / a_sum >= 0.25 * nominal_gain {
+            let rises = |t: &[f32; 5]| step_response(t).iter().sum::<f32>();
+            if a_sum > 0.05
+                && b_sum / a_sum >= 0.25 * nominal_gain
+                && rises(&self.rls.theta) >= 0.25 * rises(&self.nominal)
+            {
                 self.rls.theta
             } else {
                 self.nominal
             }
         };
-        let [a1, a2, b0, b1, b2] = theta;
+        let [a1, a2, _, b1, b2] = theta;
         // Free response: Delta f = 0 from now on.
         let (mut df1, mut df2) = (u_prev - u2, u2 - u3);
         let (mut dy1, mut dy2) = (y - y1, y1 - y2);
@@ -303,28 +314,35 @@ impl GpcLaw {
             df2 = df1;
             df1 = 0.0;
         }
-        // Step response of F to Delta f(t) = 1.
-        let mut g = [0.0f32; GPC_N2];
-        let (mut s1, mut s2) = (0.0f32, 0.0f32);
-        let mut cum = 0.0;
-        for (k, gk) in g.iter_mut().enumerate() {
-            let input = match k {
-                0 => b0,
-                1 => b1,
-                2 => b2,
-                _ => 0.0,
-            };
-            let dy = -a1 * s1 - a2 * s2 + input;
-            cum += dy;
-            *gk = cum;
-            s2 = s1;
-            s1 = dy;
-        }
+        let g = step_response(&theta);
         let num: f32 = g.iter().zip(&free).map(|(gk, fk)| gk * (1.0 - fk)).sum();
         let den: f32 = g.iter().map(|gk| gk * gk).sum::<f32>() + self.lambda;
         let du = if den > 0.0 { num / den } else { 0.0 };
         u_prev + du
     }
+}
+
+/// The step response g_1..g_N2 of the load to a unit step of the feed at t, for the model
+/// theta = [a1, a2, b0, b1, b2] (the GPC's, see [`GpcLaw`]).
+fn step_response(theta: &[f32; 5]) -> [f32; GPC_N2] {
+    let [a1, a2, b0, b1, b2] = *theta;
+    let mut g = [0.0f32; GPC_N2];
+    let (mut s1, mut s2) = (0.0f32, 0.0f32);
+    let mut cum = 0.0;
+    for (k, gk) in g.iter_mut().enumerate() {
+        let input = match k {
+            0 => b0,
+            1 => b1,
+            2 => b2,
+            _ => 0.0,
+        };
+        let dy = -a1 * s1 - a2 * s2 + input;
+        cum += dy;
+        *gk = cum;
+        s2 = s1;
+        s1 = dy;
+    }
+    g
 }
 
 /// A feed law with its state.
@@ -463,6 +481,38 @@ mod tests {
         // ... and it is no start-up transient: just as large at the end as after the step.
         let early = &y[2 * n + 10..2 * n + 110];
         assert!(spread(late) >= 0.9 * spread(early));
+    }
+
+    /// The estimate a 3D raster left after a plunge at the row's start (the alarm corpus,
+    /// `millac_qemu::alarmlab`): a positive steady gain, but b0 < 0 and a step response whose sum
+    /// over the horizon is negative. With a load of 1.5 % of the reference (too little to update
+    /// the estimate) the law must raise the feed, not hold it at f_min, where it crawled at
+    /// 1 ipm for 40 s and the breakage monitor then misread the tiny force.
+    #[test]
+    fn gpc_raises_the_feed_on_a_light_load_whatever_a_falling_estimate_says() {
+        let theta = [
+            -1.104_875_8,
+            0.304_739_33,
+            -0.139_098_99,
+            0.113_709_53,
+            0.132_812_47,
+        ];
+        let [a1, a2, b0, b1, b2] = theta;
+        // The premise: the steady gain alone would accept it, the horizon falls.
+        assert!((b0 + b1 + b2) / (1.0 + a1 + a2) > 0.0);
+        assert!(step_response(&theta).iter().sum::<f32>() < 0.0);
+        let mut law = GpcLaw::new(
+            NOMINAL_POLE,
+            0.5,
+            crate::ac::AcSettings::default().gpc_lambda,
+        );
+        law.rls.theta = theta;
+        let mut u = 0.02f32;
+        for _ in 0..20 {
+            u = law.next(0.015, u).clamp(0.02, 1.0);
+        }
+        assert!(u > 0.3, "u = {u}");
+        assert_eq!(law.rls.theta, theta, "a light load leaves the estimate");
     }
 
     #[test]
