@@ -27,6 +27,7 @@
 //! PB4 Y_SIGN, PB5 Z_SIGN. Sign high = positive direction; a rising step edge = one BLU.
 pub mod acreport;
 pub mod acsim;
+pub mod alarmlab;
 pub mod analysis;
 pub mod bench;
 pub mod breaklab;
