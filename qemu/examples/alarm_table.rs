@@ -12,6 +12,7 @@
 //! --monitor-breakage --fault KIND@SECONDS` and look at its ac.csv and ac.svg).
 use anyhow::Result;
 use millac_qemu::alarmlab;
+use millac_qemu::fault::FaultKind;
 use std::path::Path;
 
 fn main() -> Result<()> {
@@ -83,9 +84,49 @@ fn main() -> Result<()> {
         );
     }
     println!(
-        "\ndetected within bound: {} of {} injected faults",
+        "\ndetected within bound: {} of {} injected faults\n",
         cases.len() - missed,
         cases.len()
     );
+    // The same, one cell per program and fault: the alarm(s) and the fault-to-hold times.
+    let kinds = FaultKind::ALL;
+    let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
+    println!("| program | {} |", names.join(" | "));
+    println!("| --- |{}", " --- |".repeat(kinds.len()));
+    for &(i, _) in &faulted {
+        let cells: Vec<String> = kinds
+            .iter()
+            .map(|&k| {
+                let runs: Vec<_> = cases
+                    .iter()
+                    .zip(&found)
+                    .filter(|((j, f), _)| *j == i && f.kind == k)
+                    .map(|(_, d)| d)
+                    .collect();
+                let mut codes: Vec<String> = runs
+                    .iter()
+                    .map(|d| alarmlab::code(d.alarm.as_ref()))
+                    .collect();
+                codes.dedup();
+                let times: Vec<String> = runs
+                    .iter()
+                    .map(|d| d.to_hold_ms.map_or("-".into(), |t| format!("{t:.0}")))
+                    .collect();
+                let all = if runs.iter().all(|d| d.ok) {
+                    ""
+                } else {
+                    " MISSED"
+                };
+                format!("{}: {} ms{all}", codes.join("/"), times.join(", "))
+            })
+            .collect();
+        println!("| {} | {} |", corpus[i].name, cells.join(" | "));
+    }
+    let ac = &base[0].ac;
+    let bounds: Vec<String> = kinds
+        .iter()
+        .map(|&k| format!("{:.0} ms", alarmlab::bound_ms(k, ac)))
+        .collect();
+    println!("| bound | {} |", bounds.join(" | "));
     Ok(())
 }

@@ -1,7 +1,8 @@
 //! External tools the host tool needs (qemu-system-arm, sigrok-cli, a C compiler, the Rust target of
-//! the firmware, the boards' linker wrapper flip-link): find them and install the missing ones
-//! (apt-get when running as root; `rustup target add` for a Rust target; `cargo install` for a
-//! program from crates.io) (host).
+//! the firmware, the boards' linker wrapper flip-link) and the third-party senders its tests drive
+//! (pygrbl-streamer, bCNC): find them and install the missing ones (apt-get when running as root;
+//! `rustup target add` for a Rust target; `cargo install` for a program from crates.io; a Python
+//! virtual environment and pip for a sender) (host).
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -57,26 +58,31 @@ pub fn ensure_tool(program: &str) -> Result<PathBuf> {
     if !is_root() {
         bail!("`{program}` not found on PATH: install it with `sudo apt-get install -y {package}`");
     }
-    let apt_install = || {
+    apt_install(package).with_context(|| format!("`{program}` missing"))?;
+    find_on_path(program).with_context(|| {
+        format!("installed package {package} but `{program}` is still not on PATH")
+    })
+}
+
+/// `apt-get install -y package` (running `apt-get update` first if that fails), waiting up to
+/// 5 min for another install's dpkg lock. Root only (the callers check).
+fn apt_install(package: &str) -> Result<()> {
+    let install = || {
         Command::new("apt-get")
             .args(["-o", "DPkg::Lock::Timeout=300", "install", "-y", package])
             .env("DEBIAN_FRONTEND", "noninteractive")
             .status()
     };
-    let ok = apt_install().map(|s| s.success()).unwrap_or(false);
-    if !ok {
-        let updated = Command::new("apt-get")
-            .args(["-o", "DPkg::Lock::Timeout=300", "update"])
-            .status();
-        let ok = matches!(updated, Ok(s) if s.success())
-            && apt_install().map(|s| s.success()).unwrap_or(false);
-        if !ok {
-            bail!("`{program}` missing and `apt-get install -y {package}` failed");
-        }
+    if install().map(|s| s.success()).unwrap_or(false) {
+        return Ok(());
     }
-    find_on_path(program).with_context(|| {
-        format!("installed package {package} but `{program}` is still not on PATH")
-    })
+    let updated = Command::new("apt-get")
+        .args(["-o", "DPkg::Lock::Timeout=300", "update"])
+        .status();
+    if matches!(updated, Ok(s) if s.success()) && install().map(|s| s.success()).unwrap_or(false) {
+        return Ok(());
+    }
+    bail!("`apt-get install -y {package}` failed")
 }
 
 /// A C compiler: `$CC`, else `cc` or `gcc` (installing gcc as root when none is present).
@@ -278,11 +284,59 @@ pub fn ensure_cargo_tool_in(
 /// (PyPI; it streams with character counting against grbl's 128-byte buffer) and pyserial, in a
 /// virtual environment under `dir` that is created (once) with `python3 -m venv` and pip. Returns
 /// the environment's python.
-pub fn ensure_python_sender(dir: &std::path::Path) -> Result<PathBuf> {
+pub fn ensure_python_sender(dir: &Path) -> Result<PathBuf> {
+    python_env(
+        dir,
+        "pygrbl-streamer 1.0.5",
+        "import pygrbl_streamer, serial",
+        &[&["pygrbl-streamer==1.0.5", "pyserial"]],
+    )
+}
+
+/// The bCNC sender (PyPI bCNC 0.9.16: its own Sender, G-code compiler and grbl 1.1 controller,
+/// driven headless by `qemu/senders/bcnc_stream.py`) in a virtual environment under `dir`:
+/// bCNC without its GUI-only dependencies (OpenCV, Pillow), with the three its non-GUI classes
+/// import (pyserial, numpy, svgelements). Its modules import tkinter, so the system Python needs
+/// Tk (Debian: python3-tk, installed as root when missing; no display is used). Returns the
+/// environment's python.
+pub fn ensure_bcnc(dir: &Path) -> Result<PathBuf> {
+    let sys = find_on_path("python3").context("python3 not found on PATH")?;
+    let tk = || {
+        Command::new(&sys)
+            .args(["-c", "import tkinter"])
+            .output()
+            .map(|o| o.status.success())
+            .unwrap_or(false)
+    };
+    if !tk() {
+        static INSTALL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let _guard = INSTALL.lock().unwrap_or_else(|e| e.into_inner());
+        if !tk() {
+            if !is_root() {
+                bail!("bCNC needs Python's tkinter: install it with `sudo apt-get install -y python3-tk`");
+            }
+            apt_install("python3-tk").context("bCNC needs Python's tkinter")?;
+        }
+    }
+    python_env(
+        dir,
+        "bCNC 0.9.16",
+        "import tkinter, serial, numpy, svgelements, importlib.util; \
+         assert importlib.util.find_spec('bCNC')",
+        &[
+            &["--no-deps", "bCNC==0.9.16"],
+            &["pyserial", "numpy", "svgelements"],
+        ],
+    )
+}
+
+/// A virtual environment under `dir` (`label` in messages) in which `check` (Python source)
+/// runs: created once with `python3 -m venv` and the `pip install` steps. Returns its python.
+fn python_env(dir: &Path, label: &str, check: &str, steps: &[&[&str]]) -> Result<PathBuf> {
     let python = dir.join("bin").join("python");
-    let has = |py: &std::path::Path| {
+    let has = |py: &Path| {
         Command::new(py)
-            .args(["-c", "import pygrbl_streamer, serial"])
+            .args(["-c", check])
             .output()
             .map(|o| o.status.success())
             .unwrap_or(false)
@@ -297,7 +351,7 @@ pub fn ensure_python_sender(dir: &std::path::Path) -> Result<PathBuf> {
     }
     let sys = find_on_path("python3").context("python3 not found on PATH")?;
     eprintln!(
-        "millac: creating a Python environment in {} with pygrbl-streamer 1.0.5",
+        "millac: creating a Python environment in {} with {label}",
         dir.display()
     );
     let ok = Command::new(&sys)
@@ -312,21 +366,24 @@ pub fn ensure_python_sender(dir: &std::path::Path) -> Result<PathBuf> {
             dir.display()
         );
     }
-    let ok = Command::new(&python)
-        .args([
-            "-m",
-            "pip",
-            "install",
-            "-q",
-            "pygrbl-streamer==1.0.5",
-            "pyserial",
-        ])
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false);
-    if !ok || !has(&python) {
+    for step in steps {
+        let ok = Command::new(&python)
+            .args(["-m", "pip", "install", "-q"])
+            .args(*step)
+            .status()
+            .map(|s| s.success())
+            .unwrap_or(false);
+        if !ok {
+            bail!(
+                "`pip install {}` into {} failed",
+                step.join(" "),
+                dir.display()
+            );
+        }
+    }
+    if !has(&python) {
         bail!(
-            "installing pygrbl-streamer 1.0.5 and pyserial into {} failed",
+            "installed {label} into {} but `{check}` fails",
             dir.display()
         );
     }

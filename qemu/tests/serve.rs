@@ -546,6 +546,81 @@ print(json.dumps(obs))
     check_capture_against(&prog, &settings, &served);
 }
 
+/// The real bCNC (PyPI 0.9.16, its own Sender, G-code compiler and grbl 1.1 controller, driven
+/// headless by `qemu/senders/bcnc_stream.py`) streams a job to `serve` over TCP and moves the feed
+/// override the way its slider does: its `overrideSet()` writes `chr(0x91)` UTF-8 encoded, `C2 91`
+/// on the wire, and `C2 90` to go back (grbl 1.1 drops the `C2`). The job runs to its end: no
+/// error, the override seen in the status reports (at least 110 %, bCNC steps from the last Ov:
+/// it saw) and back at 100 %, Idle at the end, and the capture ends every block on its end point.
+/// After the job bCNC sends `!` and a soft reset, as it does on every job end. Before the RX
+/// path dropped the `C2`, the line after it got `error:1` and bCNC stopped the job.
+#[test]
+fn bcnc_streams_a_job_with_its_feed_override_to_the_end() {
+    use millac::Settings;
+    use millac_qemu::{analysis, tools};
+    use std::process::Command;
+    let ws = millac_qemu::firmware::workspace();
+    let python = tools::ensure_bcnc(&ws.join("target").join("bcnc")).expect("bCNC");
+    let Session {
+        out,
+        addr,
+        stop,
+        server,
+    } = start("bcnc");
+    // Wait until the firmware answers (bCNC flushes the banner and would not wait for it).
+    {
+        let stream = connect(&addr);
+        let mut w = stream.try_clone().unwrap();
+        let mut r = BufReader::new(stream);
+        banner(&mut w, &mut r);
+    }
+    std::fs::create_dir_all(&out).unwrap();
+    let program = out.join("square.nc");
+    let text = "G20 G90 G17\nG0 X0.5 Y0.5\nG1 X2 F30\nG1 Y2\nG1 X0.5\nG1 Y0.5\nG0 X0 Y0\nM2\n";
+    std::fs::write(&program, text).unwrap();
+    let sender = Command::new(&python)
+        .arg(ws.join("qemu").join("senders").join("bcnc_stream.py"))
+        .arg(&addr)
+        .arg(&program)
+        .args(["--override-at", "2", "--override", "110"])
+        .args(["--override-back-at", "6", "--timeout", "600"])
+        .output()
+        .expect("run bCNC");
+    stop.store(true, Ordering::SeqCst);
+    let served = server.join().unwrap().expect("serve");
+    let said = String::from_utf8_lossy(&sender.stdout);
+    let log = String::from_utf8_lossy(&sender.stderr);
+    assert!(sender.status.success(), "bCNC failed: {said}\n{log}");
+    let obs: serde_json::Value = serde_json::from_str(said.trim()).expect("bCNC's JSON");
+    eprintln!("bCNC saw: {obs:#}");
+    assert_eq!(obs["ok"], true, "{obs:#}");
+    assert_eq!(obs["errors"].as_array().map(Vec::len), Some(0), "{obs:#}");
+    let ov: Vec<u32> = obs["ov_reports"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|r| {
+            let r = r["report"].as_str()?;
+            r.split("Ov:").nth(1)?.split(',').next()?.parse().ok()
+        })
+        .collect();
+    assert!(
+        ov.iter().any(|&f| f >= 110),
+        "the override never took: {ov:?}"
+    );
+    assert_eq!(ov.last(), Some(&100), "not back at 100 %: {ov:?}");
+    assert!(
+        obs["last_report"]
+            .as_str()
+            .unwrap_or("")
+            .starts_with("<Idle"),
+        "{obs:#}"
+    );
+    let settings = Settings::default();
+    let prog = analysis::load_program(text, &settings).unwrap();
+    check_capture_against(&prog, &settings, &served);
+}
+
 /// Sends `line` and reads to its `ok` / `error:N`; every line read.
 fn ask(w: &mut TcpStream, r: &mut BufReader<TcpStream>, line: &str) -> Vec<String> {
     w.write_all(format!("{line}\n").as_bytes()).unwrap();
