@@ -63,7 +63,12 @@ fn main() -> Result<()> {
         .into_iter()
         .map(|i| (i, &base[i]))
         .collect();
-    let cases = alarmlab::fault_cases(&faulted);
+    let plunged: Vec<_> = alarmlab::indices(&corpus, &alarmlab::PLUNGED)?
+        .into_iter()
+        .map(|i| (i, &base[i]))
+        .collect();
+    let mut cases = alarmlab::fault_cases(&faulted);
+    cases.extend(alarmlab::plunge_cases(&plunged));
     let found = alarmlab::parallel(&cases, |&(i, f)| alarmlab::detect(&corpus[i], f))?;
     println!("| program | fault | at (s) | alarm | fault to hold (ms) | bound (ms) | |");
     println!("| --- | --- | ---: | --- | ---: | ---: | --- |");
@@ -93,7 +98,7 @@ fn main() -> Result<()> {
     let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
     println!("| program | {} |", names.join(" | "));
     println!("| --- |{}", " --- |".repeat(kinds.len()));
-    for &(i, _) in &faulted {
+    for &(i, _) in faulted.iter().chain(&plunged) {
         let cells: Vec<String> = kinds
             .iter()
             .map(|&k| {
@@ -112,6 +117,9 @@ fn main() -> Result<()> {
                     .iter()
                     .map(|d| d.to_hold_ms.map_or("-".into(), |t| format!("{t:.0}")))
                     .collect();
+                if runs.is_empty() {
+                    return "-".to_string();
+                }
                 let all = if runs.iter().all(|d| d.ok) {
                     ""
                 } else {

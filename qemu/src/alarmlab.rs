@@ -48,7 +48,31 @@ pub const TIMES_PER_PROGRAM: usize = 3;
 
 /// The indices in `corpus` of [`FAULTED`].
 pub fn faulted(corpus: &[Program]) -> Result<Vec<usize>> {
-    FAULTED
+    indices(corpus, &FAULTED)
+}
+
+/// Every (program index, fault) to inject: each kind at [`TIMES_PER_PROGRAM`] steady times of
+/// each faulted program's run without a fault (`base`: (index, its outcome)).
+pub fn fault_cases(base: &[(usize, &Outcome)]) -> Vec<(usize, Fault)> {
+    let mut cases = Vec::new();
+    for &(i, o) in base {
+        for at_s in fault_times(o, TIMES_PER_PROGRAM) {
+            for kind in FaultKind::ALL {
+                cases.push((i, Fault { kind, at_s }));
+            }
+        }
+    }
+    cases
+}
+
+/// The programs the faults are also injected into while the tool feeds down (names in
+/// [`corpus`]): every kind but `gain` (a transducer reading half the force is not seen at an end
+/// face, which makes torque without force; it is caught once the cut loads the side).
+pub const PLUNGED: [&str; 2] = ["plunge 0.25 in F5", "ramp 7 deg F10"];
+
+/// The indices in `corpus` of `names`.
+pub fn indices(corpus: &[Program], names: &[&str]) -> Result<Vec<usize>> {
+    names
         .iter()
         .map(|name| {
             corpus
@@ -59,13 +83,19 @@ pub fn faulted(corpus: &[Program]) -> Result<Vec<usize>> {
         .collect()
 }
 
-/// Every (program index, fault) to inject: each kind at [`TIMES_PER_PROGRAM`] steady times of
-/// each faulted program's run without a fault (`base`: (index, its outcome)).
-pub fn fault_cases(base: &[(usize, &Outcome)]) -> Vec<(usize, Fault)> {
+/// Every (program index, fault) to inject while Z feeds down: each kind but `gain` at a half and
+/// three quarters of each program's first block that moves Z down (`base`: (index, its outcome)).
+pub fn plunge_cases(base: &[(usize, &Outcome)]) -> Vec<(usize, Fault)> {
     let mut cases = Vec::new();
     for &(i, o) in base {
-        for at_s in fault_times(o, TIMES_PER_PROGRAM) {
-            for kind in FaultKind::ALL {
+        let Some(&(_, start, end)) = o.run.spans.iter().find(|s| block_feeds_down(&o.run, s.0))
+        else {
+            continue;
+        };
+        for share in [0.5, 0.75] {
+            let t = start as f64 + share * (end - start) as f64;
+            let at_s = (t * 1e-6).round() / 1000.0;
+            for kind in FaultKind::ALL.into_iter().filter(|&k| k != FaultKind::Gain) {
                 cases.push((i, Fault { kind, at_s }));
             }
         }

@@ -35,13 +35,20 @@ fn every_injected_fault_is_held_with_its_alarm_within_its_bound() {
     let idx = alarmlab::faulted(&corpus).unwrap();
     let base = alarmlab::parallel(&idx, |&i| alarmlab::run(&corpus[i], &[])).unwrap();
     let faulted: Vec<_> = idx.iter().copied().zip(&base).collect();
-    let cases = alarmlab::fault_cases(&faulted);
+    let mut cases = alarmlab::fault_cases(&faulted);
     // Every faulted program has its steady times (a corpus change that loses them shows here).
     assert_eq!(
         cases.len(),
         idx.len() * alarmlab::TIMES_PER_PROGRAM * 5,
         "fault cases"
     );
+    // And while the tool feeds down (every kind but gain, at two times of each plunge).
+    let pidx = alarmlab::indices(&corpus, &alarmlab::PLUNGED).unwrap();
+    let pbase = alarmlab::parallel(&pidx, |&i| alarmlab::run(&corpus[i], &[])).unwrap();
+    let plunged: Vec<_> = pidx.iter().copied().zip(&pbase).collect();
+    let more = alarmlab::plunge_cases(&plunged);
+    assert_eq!(more.len(), pidx.len() * 2 * 4, "plunge cases");
+    cases.extend(more);
     let found = alarmlab::parallel(&cases, |&(i, f)| alarmlab::detect(&corpus[i], f)).unwrap();
     let missed: Vec<String> = cases
         .iter()

@@ -35,15 +35,16 @@
 //!   until the next one; if a jumped channel is back (closer to its code before the jump than to
 //!   the jumped code) it was a lone spike, [`SensorFault::Jump`]; otherwise it enters the window.
 //!
-//! A code that *arrives at a rail* (0 or 4095) is judged the same way whatever its size: a
-//! saturated channel is the `rail` fault's signature, and T = 4095 alone (102 N*m) would read as
-//! an overload. A load beyond the range that the other channels confirm is still an overload.
+//! A code that *arrives at a rail* (0 or 4095) is judged the same way whatever its size, with both
+//! ends of the band also while the tool plunges ([`Band::judge_both_ends`]): a saturated channel
+//! is the `rail` fault's signature, and T = 4095 alone (102 N*m) would read as an overload. A
+//! load beyond the range that the other channels confirm is still an overload.
 //!
 //! So a real load step reaches the ECR with its own sample and an overload is reported as an
 //! overload; a spike never reaches the window. The `spike` fault (one sample of Fu +3000 codes,
 //! then back) gives `sensor hold: Fu jumped from code A to B` and holds the feed at the end of
-//! the AC period. (A spike that happens to leave F and T consistent, e.g. Fu -3750 N -> +3750 N,
-//! passes as load: it does not change F, so it cannot mislead the feed.)
+//! the AC period. (A Fu that flips from -3750 N to +3750 N keeps F and its totals, but its force
+//! vector moved by 7500 N with no torque: [`Band::step_plausible`] refuses it.)
 
 use super::ecr;
 use super::plaus::Band;
@@ -276,7 +277,12 @@ impl Drr {
                     jumped,
                 };
                 let first = jumped.trailing_zeros() as usize;
-                match self.band.judge(m.f_n, m.t_nm) {
+                let verdict = if saturated {
+                    self.band.judge_both_ends(m.f_n, m.t_nm)
+                } else {
+                    self.band.judge(m.f_n, m.t_nm)
+                };
+                match verdict {
                     // Force and torque disagree: the other channels do not confirm the jump.
                     Some(false) => return Err(fault.unwrap_or(s.fault(first))),
                     // The force moved by more than the torque's change allows: a force spike

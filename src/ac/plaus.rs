@@ -86,6 +86,18 @@ impl Band {
         df * self.r_m <= self.hi * dt + self.floor_nm + FRAME_TURN * f * self.r_m
     }
 
+    /// As [`Band::judge`] with both ends judged also while plunging: for a sample with a channel
+    /// at its rail, whose value is only a bound (T at the rail in a plunge is the `rail` fault's
+    /// signature, not an end face: no end face makes the torque's full scale within a sample).
+    #[inline]
+    pub fn judge_both_ends(&self, f_n: f32, t_nm: f32) -> Option<bool> {
+        let fr = f_n * self.r_m;
+        if fr < self.floor_nm && t_nm < self.floor_nm {
+            return None;
+        }
+        Some(fr >= self.lo * t_nm && fr <= self.hi * t_nm)
+    }
+
     /// F*R/T for a report (infinity for T = 0).
     pub fn ratio(&self, f_n: f32, t_nm: f32) -> f32 {
         if t_nm > 0.0 {

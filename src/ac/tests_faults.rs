@@ -538,6 +538,39 @@ fn torque_arriving_at_the_rail_unconfirmed_is_a_sensor_fault() {
     assert!(matches!(out.alarm, Some(Alarm::Overload { .. })), "{out:?}");
 }
 
+/// The `rail` fault while the tool feeds down in air (the Fig. 1 cavity at 1.5 s, Z going into the
+/// start hole): T jumps from 0.3 to 102 N*m at its rail with no force. While plunging the band's
+/// lower end is not judged (an end face makes torque without force), but a code at its rail is a
+/// bound, not a value, and no end face reaches the torque's full scale within a sample: a sensor
+/// fault, not load. With the plunge rule alone it entered the window and held as an overload
+/// (hold_latency's rail row said "overload").
+#[test]
+fn torque_at_the_rail_while_plunging_in_air_is_a_sensor_fault() {
+    let s = AcSettings::default();
+    let air = codes(0.3, 10.0, -5.0);
+    let mut c = ctl(s);
+    feed_live(&mut c, air, 0, 10);
+    c.set_z_down(true);
+    assert_eq!(c.period().alarm, None);
+    c.set_z_down(true);
+    feed_live(&mut c, air, 1, 4);
+    for _ in 0..6 {
+        c.sample([4095, air[1], air[2]]);
+    }
+    let out = c.period();
+    assert!(
+        matches!(
+            out.alarm,
+            Some(Alarm::Sensor(SensorFault::Jump {
+                sensor: Sensor::Torque,
+                to: 4095,
+                ..
+            }))
+        ),
+        "{out:?}"
+    );
+}
+
 /// A fault present from the very first sample (the injected `rail@0`, `spike@0`): judged as a
 /// jump from the channels' zero-load codes, as the same fault later in the run is, so the hold is
 /// the sensor alarm (`$X` to leave) and not an overload (which `~` resumes). Before, the first
