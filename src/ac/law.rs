@@ -272,18 +272,22 @@ impl GpcLaw {
     pub fn next(&mut self, y: f32, u_prev: f32) -> f32 {
         let [y1, y2] = self.ys;
         let [u2, u3] = self.us;
-        if y.max(y1).max(y2) >= EXCITATION_FLOOR {
+        let learning = y.max(y1).max(y2) >= EXCITATION_FLOOR;
+        if learning {
             self.rls.update(&[-y1, -y2, u_prev, u2, u3], y);
         }
         self.ys = [y, y1];
         self.us = [u_prev, u2];
         // The estimate drives the control only while it is one a cut can be: a positive steady
-        // gain not far below the nominal's, not near an integrator, and a step response over the
-        // horizon that rises (the control divides by it). A noisy stretch can leave an estimate
-        // with b0 < 0 whose first steps fall: its sum of g_k is then negative and the control
-        // would lower the feed for a load far below the reference, down to f_min, and stay there
-        // while the load is too small to update the estimate (seen on a 3D raster: 40 s at
-        // 1 ipm and 2 % of F0). The nominal model then steers until the data say more.
+        // gain not far below the nominal's, not near an integrator, and, while the load is too
+        // light to update it, a step response over the horizon that rises (the control divides
+        // by it). A stretch of cutting can leave an estimate with b0 < 0 whose first steps fall:
+        // its sum of g_k is then negative, and once the load falls below the excitation floor
+        // the control would lower the feed for a load far below the reference, down to f_min,
+        // and stay there, the estimate frozen (seen on a 3D raster: 40 s at 1 ipm and 2 % of
+        // F0). The nominal model then steers until the load is enough to learn from. (Under load
+        // the estimate keeps steering: the estimator corrects it, and the nominal's larger step
+        // held the pocket behind the servo drive.)
         let theta = {
             let [a1, a2, b0, b1, b2] = self.rls.theta;
             let [n1, n2, nb, _, _] = self.nominal;
@@ -292,7 +296,7 @@ impl GpcLaw {
             let rises = |t: &[f32; 5]| step_response(t).iter().sum::<f32>();
             if a_sum > 0.05
                 && b_sum / a_sum >= 0.25 * nominal_gain
-                && rises(&self.rls.theta) >= 0.25 * rises(&self.nominal)
+                && (learning || rises(&self.rls.theta) >= 0.25 * rises(&self.nominal))
             {
                 self.rls.theta
             } else {
