@@ -55,11 +55,7 @@ impl Band {
     /// a force with no torque, or a torque with no force).
     #[inline]
     pub fn judge(&self, f_n: f32, t_nm: f32) -> Option<bool> {
-        let fr = f_n * self.r_m;
-        if fr < self.floor_nm && t_nm < self.floor_nm {
-            return None;
-        }
-        Some((self.plunging || fr >= self.lo * t_nm) && fr <= self.hi * t_nm)
+        self.judge_ends(f_n, t_nm, self.plunging)
     }
 
     /// Whether a jump from the sample `from` to `to` (T, Fu, Fv in N*m and N) is one that load
@@ -91,11 +87,17 @@ impl Band {
     /// signature, not an end face: no end face makes the torque's full scale within a sample).
     #[inline]
     pub fn judge_both_ends(&self, f_n: f32, t_nm: f32) -> Option<bool> {
+        self.judge_ends(f_n, t_nm, false)
+    }
+
+    /// The judgement of both: the lower end waived when `upper_only`.
+    #[inline]
+    fn judge_ends(&self, f_n: f32, t_nm: f32, upper_only: bool) -> Option<bool> {
         let fr = f_n * self.r_m;
         if fr < self.floor_nm && t_nm < self.floor_nm {
             return None;
         }
-        Some(fr >= self.lo * t_nm && fr <= self.hi * t_nm)
+        Some((upper_only || fr >= self.lo * t_nm) && fr <= self.hi * t_nm)
     }
 
     /// F*R/T for a report (infinity for T = 0).
