@@ -213,6 +213,9 @@ pub fn run<
     // The AC caps the feed (the boards give the ceiling only then): the status report's `AC:`
     // field is about that, so a measure-only AC has none.
     let ac_enabled = ceiling.is_some();
+    if !ac_enabled {
+        replan.without_reactions();
+    }
     let mut tape = match ceiling {
         Some(c) => Tape::with_ac_ceiling(settings, c),
         None => Tape::new(settings),
@@ -307,6 +310,15 @@ pub fn run<
         // AC holds: said once each, as they come. A chatter hold with a depth step or a spindle
         // speed reaction set is answered (below), not an alarm, unless the reaction is refused.
         while let Some(a) = ac_alarms.dequeue() {
+            if !ac_enabled {
+                // A measure-only AC holds nothing: what it would have held for is told, and the
+                // machine goes on unlocked (an alarm would refuse the sender's next line).
+                proto.message(
+                    &mut out,
+                    format_args!("AC (measure only) would hold: {}", a),
+                );
+                continue;
+            }
             proto.message(&mut out, format_args!("AC hold: {}", a));
             let replanned = matches!(a, Alarm::Chatter { .. }) && replan.reacts();
             if !matches!(a, Alarm::Overload { .. }) && !replanned {
@@ -388,7 +400,8 @@ pub fn run<
         if idle {
             jogging = false;
         }
-        let ac_held = status.ac_state.load(Relaxed) > AC_RUN;
+        // A measure-only AC's verdict holds nothing (its state is only logged).
+        let ac_held = ac_enabled && status.ac_state.load(Relaxed) > AC_RUN;
         if cancel_jog && status.stopped() {
             // The jog has stopped: drop it and any jog queued behind it. The parser keeps its
             // modes (a jog changes none) and stands where the machine stopped.

@@ -462,6 +462,13 @@ impl<const N: usize> Replan<N> {
         }
     }
 
+    /// No reaction to chatter (a measure-only AC holds nothing, so nothing is re-planned: its
+    /// verdicts are only told). Loader task, at start.
+    pub fn without_reactions(&mut self) {
+        self.lift = 0;
+        self.max_rpm = 0;
+    }
+
     /// A chatter hold gets a reaction (a depth step or a spindle speed), not only an alarm.
     pub fn reacts(&self) -> bool {
         self.lift > 0 || self.max_rpm > 0

@@ -113,6 +113,10 @@ struct SpindleCall {
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum AcEvent {
     Breakage,
+    /// A measure-only AC's breakage verdict: the alarm for the loader and the state, as
+    /// `rt::ac::AcPeriod::run` makes them when the AC is not enabled (no feed cap, no spindle
+    /// stop).
+    MeasuredBreakage,
     /// The board's interrupts overrun the period for this many frames: the pulse-end interrupt
     /// runs only after every other frame (it waits behind the next frame), as on a CPU too slow
     /// for the settings.
@@ -217,6 +221,19 @@ impl<const S: bool> Bench<S> {
                 .store(crate::protocol::codes::alarm::AC_BREAKAGE, Relaxed);
             s.spindle_stop.store(true, Relaxed);
             let _ = self.alarms.enqueue(Alarm::ToolBreakage(b));
+        }
+        if self.ac_event == Some((self.frames, AcEvent::MeasuredBreakage)) {
+            s.ac_state
+                .store(crate::protocol::codes::alarm::AC_BREAKAGE, Relaxed);
+            let _ = self
+                .alarms
+                .enqueue(Alarm::ToolBreakage(crate::monitor::Breakage {
+                    tooth_period: 1234,
+                    e1: -900.0,
+                    e2: -950.0,
+                    th1: 300.0,
+                    th2: 200.0,
+                }));
         }
         if s.frame_cycles_min.load(Relaxed) == 0 || cycles < s.frame_cycles_min.load(Relaxed) {
             s.frame_cycles_min.store(cycles, Relaxed);
@@ -420,6 +437,15 @@ fn session_on<const S: bool>(
         job_end_at: None,
         oks_at: Vec::new(),
     };
+    // The breakage and chatter events are an enabled AC's (its holds apply): the loader gets its
+    // ceiling, as the boards give it with `$250=1`.
+    let ceiling = match (AC_TASK.with(|c| c.get()), ac_event) {
+        (Some(c), _) => c,
+        (None, Some((_, AcEvent::Breakage | AcEvent::Chatter { .. }))) => {
+            Some(crate::ac::AcSettings::default().ceiling)
+        }
+        _ => None,
+    };
     let mut replan = Box::new(crate::rt::replan::Replan::<
         { crate::rt::replan::record_len(Q) },
     >::new(settings, &table.settings.ac, [0; 3]));
@@ -427,7 +453,7 @@ fn session_on<const S: bool>(
         &mut blocks_tx,
         &mut replan,
         &mut table,
-        AC_TASK.with(|c| c.get()).flatten(),
+        ceiling,
         &mut proto,
         &mut tx_p,
         &mut alarms,
@@ -1017,4 +1043,34 @@ fn the_ac_field_is_reported_only_when_the_ac_is_enabled() {
             "enabled {enabled}: {report}"
         );
     }
+}
+
+/// A measure-only AC (`$250=0`, `--no-ac`) holds nothing: a verdict it would have held for is told
+/// in a message, never as an alarm, and the sender's lines after it run. Before, the loader raised
+/// `ALARM:108` for it while the machine went on, and the next line got `error:9`.
+#[test]
+fn a_measure_only_ac_tells_its_verdicts_without_an_alarm() {
+    AC_TASK.with(|c| c.set(Some(None)));
+    let sends = [(1, "G91 G1 F30 X0.01\n"), (300, "G1 Y0.01\n"), (900, "?")];
+    let b = session_full(
+        &sends,
+        &[],
+        None,
+        1000,
+        ESTOP,
+        None,
+        Some((50, AcEvent::MeasuredBreakage)),
+    );
+    AC_TASK.with(|c| c.set(None));
+    assert!(!b.out.contains("ALARM:"), "{}", b.out);
+    assert!(!b.out.contains("error:"), "{}", b.out);
+    assert!(
+        b.out
+            .contains("[MSG:AC (measure only) would hold: breakage hold: tool breakage"),
+        "{}",
+        b.out
+    );
+    assert_eq!(oks(&b.out), 2, "{}", b.out);
+    assert!(b.out.contains("<Idle|"), "{}", b.out);
+    assert_eq!(b.status.encoder(), [100, 100, 0]);
 }
