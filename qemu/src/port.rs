@@ -15,7 +15,8 @@
 //!   (`millac::protocol::rx::byte::is_realtime`) at once, the bytes of a line when its line end
 //!   (CR or LF) comes. A line the client has not finished when it disconnects is dropped with it
 //!   and never reaches the firmware, as if the port had been reopened: the next client's first
-//!   line starts clean. A soft reset (0x18) drops the line in progress, as the firmware's own
+//!   line starts clean (a client that ended its last line with a lone CR gets the LF the firmware
+//!   skips after a CR, so the next client's first line end is its own). A soft reset (0x18) drops the line in progress, as the firmware's own
 //!   reset does. Only the bytes of an unfinished line wait (a sender writes its lines whole, and
 //!   a character-counting sender's count stays an upper bound of what the firmware holds); a UTF-8
 //!   lead byte (0xC2, 0xC3) right before a realtime byte goes with it, so `C2 91` from bCNC and
@@ -59,6 +60,10 @@ const NOTE_MAX: usize = 512;
 pub struct LineGate {
     /// The line in progress (at most `LINE_MAX + 1` bytes).
     line: Vec<u8>,
+    /// The last line end passed was a CR: the firmware skips an LF that comes next (CRLF ends
+    /// one line), so a client that leaves after a lone CR would have the next client's first LF
+    /// taken as the pair's second half.
+    after_cr: bool,
 }
 
 impl LineGate {
@@ -68,6 +73,7 @@ impl LineGate {
             if b == byte::RESET {
                 // The firmware's reset discards the line in progress: so does the gate.
                 self.line.clear();
+                self.after_cr = false;
                 out.push(b);
             } else if byte::is_realtime(b) {
                 // A UTF-8 lead byte right before an extended realtime byte goes with it.
@@ -78,9 +84,20 @@ impl LineGate {
             } else if b == b'\n' || b == b'\r' {
                 out.append(&mut self.line);
                 out.push(b);
+                self.after_cr = b == b'\r';
             } else if self.line.len() <= LINE_MAX {
                 self.line.push(b);
             }
+        }
+    }
+
+    /// The client has gone: its unfinished line is dropped, and a lone CR it ended its last line
+    /// with gets the LF the firmware then skips (appended to `out`), so the next client's first
+    /// line end counts as its own.
+    pub fn close(&mut self, out: &mut Vec<u8>) {
+        self.line.clear();
+        if core::mem::take(&mut self.after_cr) {
+            out.push(b'\n');
         }
     }
 
@@ -504,6 +521,11 @@ fn client_loop(s: &Shared, id: u64, mut stream: TcpStream) {
             break;
         }
     }
+    fwd.clear();
+    gate.close(&mut fwd);
+    if !fwd.is_empty() {
+        let _ = to_uart(s, &fwd);
+    }
     let mut st = lock(&s.state);
     if st.client.as_ref().is_some_and(|c| c.id == id) {
         st.client = None;
@@ -526,6 +548,28 @@ mod tests {
 
     /// Lines pass when they end; the unfinished one waits; realtime bytes pass at once, ahead of
     /// the unfinished line's bytes and in place between whole lines.
+    /// A client that leaves after a lone CR (realtime bytes after it change nothing) gets the
+    /// LF the firmware skips; after a CRLF, an LF, a reset or an unfinished line, nothing.
+    #[test]
+    fn a_lone_cr_is_completed_when_the_client_leaves() {
+        for (sent, tail) in [
+            (&b"G0 X1\r"[..], &b"\n"[..]),
+            (b"G0 X1\r?G0 Y", b"\n"),
+            (b"G0 X1\r\n", b""),
+            (b"G0 X1\n", b""),
+            (b"G0 X1\r\x18", b""),
+            (b"G0 X1", b""),
+        ] {
+            let mut g = LineGate::default();
+            let mut out = Vec::new();
+            g.push(sent, &mut out);
+            let mut end = Vec::new();
+            g.close(&mut end);
+            assert_eq!(end, tail, "{:?}", String::from_utf8_lossy(sent));
+            assert!(g.pending().is_empty());
+        }
+    }
+
     #[test]
     fn the_gate_passes_whole_lines_and_realtime_bytes() {
         let (out, pending) = through(&[b"G0 X1\nG1 Y", b"2?", b"\r\nG0 Z"]);

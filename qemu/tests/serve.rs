@@ -1382,6 +1382,39 @@ fn a_half_line_left_by_a_client_is_dropped_and_the_next_client_starts_clean() {
     assert_eq!(gcode_lines(&out), ["G0 Y1"]);
 }
 
+/// One cable: a client ends its last line with a lone CR (as a sender set to CR line ends does)
+/// and disconnects; the next client's empty line (a sender's wake-up) is answered `ok`. Before,
+/// the firmware took that LF as the second half of the CR's CRLF and never answered it.
+#[test]
+fn a_lone_cr_left_by_a_client_does_not_swallow_the_next_clients_line_end() {
+    let Session {
+        out: _,
+        addr,
+        stop,
+        server,
+    } = start("lone-cr");
+    {
+        let (mut w, mut r) = greeted(&addr);
+        w.write_all(b"G0 X1\r").unwrap();
+        let got = read_until(&mut r, |s| s == "ok" || s.starts_with("error:"));
+        assert_eq!(got.last().unwrap(), "ok");
+    }
+    let (mut w, mut r) = greeted(&addr);
+    r.get_ref()
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    assert_eq!(send(&mut w, &mut r, "").last().unwrap(), "ok");
+    assert_eq!(send(&mut w, &mut r, "G0 Y1").last().unwrap(), "ok");
+    let idle = poll_idle(&mut w, &mut r);
+    assert!(
+        idle.starts_with("<Idle|MPos:25.400,25.400,0.000|"),
+        "{idle}"
+    );
+    drop((w, r));
+    stop.store(true, Ordering::SeqCst);
+    server.join().unwrap().expect("serve");
+}
+
 /// One cable: while a client is connected, a second one gets one line saying the port is in
 /// use and is closed; what it sent never runs, and the first client's stream goes on as before
 /// (its replies, in order, nothing of the refusal). Before, the second client's bytes waited
