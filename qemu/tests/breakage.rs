@@ -246,9 +246,11 @@ fn the_residual_trace_is_the_detectors() {
 /// (`BreakageDetector::chip_moved`): a chip lost a tooth period before the crossing is the
 /// breakage (alarm 108, the spindle stopped, a reset needed), not an overload `~` would resume.
 /// Measured over teeth 0 and 1 broken at 15 .. 90 % of the cavity and the pocket (24 breaks,
-/// the `breaks_under_ac` example), 11 are classified as breakage (before the sampler's trip:
-/// none; every one was an overload); the others cross within the tooth period of the break,
-/// before a complete tooth period shows the loss, and stay overloads. A real overload is never called a breakage: the full-depth entry
+/// the `breaks_under_ac` example), 15 are classified as breakage (before the sampler's trip:
+/// none; every one was an overload; with the tooth periods alone, before the per-sample
+/// comparison with the revolution before: 11); the other 9 cross before any loss shows (the
+/// first per cent of the doubled chip, where two teeth's passes overlap, crosses the trip level
+/// the AC holds the force just under) and stay overloads. A real overload is never called a breakage: the full-depth entry
 /// and the thesis' TIIM depth step (+38 %) hold as overloads with the monitor on.
 #[test]
 fn a_broken_tooth_under_the_ac_holds_as_a_breakage_not_an_overload() {

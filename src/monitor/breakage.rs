@@ -40,7 +40,9 @@
 //! square root, one division and an m-term sum, the chip-transfer test's ten more (no
 //! division), and while a curvature episode is open about 20 more, four divisions and two
 //! m-term sums (host, steady cut: ~8 ns per sample, ~10 ns per tooth period,
-//! `cost_on_the_host`). State: 512 bytes on the host (`state_size`), most of it the per-tooth
+//! `cost_on_the_host`), and one store of the force into a ring of [`REV_RING`] samples for
+//! the sampler trip's signature (judged at a trip only). State: the ring's 1 KiB and 512 bytes on the host
+//! (`state_size`), most of the rest the per-tooth
 //! suspicion ring, the quiet pattern and the episode's curvatures (the chip-transfer test's two
 //! once-per-revolution differences took the place of dFa(j-1), which is Fa(j-1) - Fa(j-2)
 //! from the two forces kept anyway, and of a u32 for the flutes, now a u8).
@@ -126,6 +128,18 @@ pub const CONSERVE_FRACTION: f32 = 0.25;
 /// plant (`qemu/tests/breakage.rs`): at 0.5, 4 of 24 breaks were classified; at 0.2, 14, and the
 /// real overloads tried (the full-depth entry, the TIIM depth step) stay overloads.
 pub const CHIP_MOVED_MIN: f32 = 0.2;
+/// Samples of force kept for the sampler trip's per-sample comparison with the revolution before
+/// ([`BreakageDetector::rev_loss`]): a revolution and two tooth periods of up to this many
+/// samples (at 1 kHz with 4 flutes: 352 rpm and faster). Slower, the trip is judged by the tooth
+/// periods alone.
+pub const REV_RING: usize = 256;
+/// The sampler trip's per-sample breakage signature ([`BreakageDetector::rev_loss`]): the
+/// smallest loss of force against the same spindle angle a revolution before, averaged over
+/// half a tooth period within the two tooth periods before the crossing, as a fraction of the
+/// level. A broken tooth's missing pass loses about the level or more there wherever the tooth
+/// periods' boundaries fall (0.75 .. 2.2 on the simulated plant's breaks the tooth-period test
+/// missed); a real overload's rise loses nothing (the TIIM depth step: 0.01).
+pub const REV_LOSS_MIN: f32 = 0.5;
 /// Curvature confirmation: the smallest relative curvature judged (a chip of 7 % of a tooth's
 /// load moved to the next tooth makes about 1.5 x 7 %).
 pub const CURVATURE_MIN: f32 = 0.1;
@@ -518,6 +532,14 @@ pub struct BreakageDetector {
     latched: Option<Breakage>,
     /// No suspicion is raised or confirmed before this tooth period ([`Self::feed_step`]).
     hold_until: u32,
+    /// The force of the last [`REV_RING`] samples (NaN: no valid sample), oldest overwritten.
+    ring: [f32; REV_RING],
+    /// The next sample's index in `ring`.
+    ring_at: u16,
+    /// Samples in the ring since the last restart (saturating at [`REV_RING`]).
+    ring_len: u16,
+    /// Samples per revolution, rounded (0: unknown or longer than the ring).
+    rev: u16,
     /// The last residuals (e1, e2), for the host's tests and figures (not in the firmware).
     #[cfg(any(test, feature = "std"))]
     e_last: (f32, f32),
@@ -556,6 +578,10 @@ impl BreakageDetector {
             pending: [None; MAX_FLUTES],
             latched: None,
             hold_until: 0,
+            ring: [0.0; REV_RING],
+            ring_at: 0,
+            ring_len: 0,
+            rev: 0,
             #[cfg(any(test, feature = "std"))]
             e_last: (0.0, 0.0),
         })
@@ -587,6 +613,12 @@ impl BreakageDetector {
             self.flutes = flutes;
             self.decay = libm::exp2f(-1.0 / (self.s.decay_revs * z as f32));
         }
+        let rev = libm::roundf(samples * z as f32);
+        self.rev = if ok && rev <= REV_RING as f32 {
+            rev as u16
+        } else {
+            0
+        };
         self.acc_q16 = 0;
         self.sum = 0.0;
         self.count = 0;
@@ -661,10 +693,19 @@ impl BreakageDetector {
         if self.period_q16 == 0 {
             return None;
         }
-        if f_n.is_finite() {
-            self.sum += f_n.clamp(0.0, FORCE_MAX_N);
+        let f = if f_n.is_finite() {
+            let f = f_n.clamp(0.0, FORCE_MAX_N);
+            self.sum += f;
             self.count += 1;
+            f
+        } else {
+            f32::NAN
+        };
+        if let Some(slot) = self.ring.get_mut(usize::from(self.ring_at)) {
+            *slot = f;
         }
+        self.ring_at = (self.ring_at + 1) % REV_RING as u16;
+        self.ring_len = self.ring_len.saturating_add(1).min(REV_RING as u16);
         self.acc_q16 = self.acc_q16.saturating_add(Q16);
         if self.acc_q16 < self.period_q16 {
             return None;
@@ -680,20 +721,26 @@ impl BreakageDetector {
         self.tooth_period(fa)
     }
 
-    /// Whether the tooth periods before this instant show a chip moved from one tooth to the
-    /// next: the last complete tooth period's average force lost at least [`CHIP_MOVED_MIN`] of
-    /// the level against the same tooth period a revolution before (a broken tooth's missing
-    /// chip). Asked when a sample crosses the overload level (the AC period's sampler trip,
+    /// Whether the force before this instant shows a chip moved from one tooth to the next: one
+    /// of the last two complete tooth periods' average force lost at least [`CHIP_MOVED_MIN`] of
+    /// the level against the same tooth period a revolution before, or the samples of the last
+    /// two tooth periods, against the same spindle angle a revolution before, lost at least
+    /// [`REV_LOSS_MIN`] of the level over half a tooth period ([`Self::rev_loss`]: the broken
+    /// tooth's missing pass where it falls inside the tooth period not yet complete, or splits
+    /// over two). Asked when a sample crosses the overload level (the AC period's sampler trip,
     /// `crate::rt::ac`): the crossing right after such a loss is the next tooth's doubled chip,
     /// the breakage's own signature, and the hold is a breakage, not an overload. A real
     /// overload (a harder spot, a deeper cut, a boss) raises the force without the loss before
-    /// it. Needs a known spindle and a revolution of cut (and a detector not latched); the
-    /// report carries the loss as e2 and its threshold as th2, the first difference as e1.
+    /// it. Needs a known spindle and a revolution of cut (one tooth period below the air floor
+    /// is the broken tooth cutting alone; two are air) and a detector not latched; the report
+    /// carries the loss as e2 and its threshold as th2, the first difference as e1.
     pub fn chip_moved(&self) -> Option<Breakage> {
+        // A revolution of cut (one tooth period below the air floor is a broken tooth that cuts
+        // alone, not air), a known spindle, not latched.
         if self.period_q16 == 0
             || self.latched.is_some()
             || self.n_cut <= self.m().saturating_add(1)
-            || self.n_air > 0
+            || self.n_air > 1
         {
             return None;
         }
@@ -701,13 +748,59 @@ impl BreakageDetector {
         // fall in either of the last two.
         let dm = self.dm_prev.min(self.dm_prev2);
         let th = CHIP_MOVED_MIN * self.level;
-        (-dm >= th).then_some(Breakage {
+        let loss = self.rev_loss();
+        let periods = self.n_air == 0 && -dm >= th;
+        let samples = loss.is_some_and(|l| l >= REV_LOSS_MIN);
+        (periods || samples).then_some(Breakage {
             tooth_period: self.j,
             e1: self.prev_fa - self.prev_fa2,
-            e2: dm,
+            e2: if periods {
+                dm
+            } else {
+                -loss.unwrap_or(0.0) * self.level
+            },
             th1: th,
-            th2: th,
+            th2: if periods {
+                th
+            } else {
+                REV_LOSS_MIN * self.level
+            },
         })
+    }
+
+    /// The largest loss of force against the same spindle angle a revolution before (the
+    /// revolution rounded to whole samples), averaged over half a tooth period, within the last
+    /// two tooth periods of samples, as a fraction of the level (None: a revolution and two
+    /// tooth periods are more than [`REV_RING`] samples, or more than the samples since the cut
+    /// began). Asked at a sampler trip only (about 500 subtractions at 600 rpm, 4 flutes, 1 kHz).
+    pub fn rev_loss(&self) -> Option<f32> {
+        let rev = usize::from(self.rev);
+        let tp = (self.period_q16 / Q16) as usize;
+        let half = (tp / 2).max(1);
+        let span = 2 * tp;
+        if rev == 0
+            || rev + span > REV_RING
+            || usize::from(self.ring_len) < rev + span
+            || self.level <= 0.0
+        {
+            return None;
+        }
+        let at = |back: usize| -> f32 {
+            let i = (usize::from(self.ring_at) + REV_RING * 2 - back) % REV_RING;
+            self.ring.get(i).copied().unwrap_or(f32::NAN)
+        };
+        // d(k) = F(now - k) - F(now - k - rev), k = 1 ..= span; windows of `half` samples.
+        let mut worst = 0.0f32;
+        for end in 1..=(span + 1 - half) {
+            let mut sum = 0.0f32;
+            for k in end..end + half {
+                sum += at(k) - at(k + rev);
+            }
+            if sum.is_finite() {
+                worst = worst.min(sum / half as f32);
+            }
+        }
+        Some(-worst / self.level)
     }
 
     /// One ADC sample as its rotating-frame components Fu, Fv in N.
@@ -1021,6 +1114,7 @@ impl BreakageDetector {
 
     /// Back to air: filters, history, learning and suspicions restart (the latch stays).
     fn restart(&mut self) {
+        self.ring_len = 0;
         self.n_cut = 0;
         self.n_air = 0;
         self.n_steady = 0;
