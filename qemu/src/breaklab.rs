@@ -8,7 +8,7 @@ use crate::analysis::ProgBlock;
 use anyhow::{anyhow, Context, Result};
 use millac::ac::AcSettings;
 use millac::monitor::{Breakage, BreakageDetector, BreakageSettings};
-use millac::rt::ac::{FEED_STEP_MIN_BLU, FEED_STEP_PCT};
+use millac::rt::ac::FeedNotice;
 use millac::Settings;
 
 /// The breakage slot (`programs/breakage-slot.nc`): a full slot 0.3 in deep in steel at F8, so
@@ -88,15 +88,16 @@ pub fn trace(run: &HostRun, cut: &Cut, bs: BreakageSettings) -> Result<Trace> {
     det.set_spindle(cut.spindle_rpm as f32, flutes);
     let (mut rows, mut detection) = (Vec::new(), None);
     let (mut sum, mut count, mut periods) = (0.0, 0u32, det.periods());
-    // With the AC, the AC period's feed-step notice, as the firmware's (`millac::rt::ac::AcPeriod`
-    // runs the detector and tells it of feed steps): after every period's samples, the motion of
-    // the period (the largest axis' BLU, from the positions the rows log) against the period
-    // before's. (Without the AC the firmware has no AC period to tell it; the host's runs at
+    // With the AC, the AC period's feed notices, as the firmware's (`millac::rt::ac::AcPeriod`
+    // runs the detector and tells it of feed steps and ramps, `FeedNotice`): after every
+    // period's samples, from the positions the rows log. (Without the AC the firmware has no AC period to tell it; the host's runs at
     // the programmed feeds have none either.)
     let with_ac = run.rows.iter().any(|r| r.state != "off");
     let per_period = (u64::from(bs.sample_hz) * u64::from(AcSettings::default().period_ms) / 1000)
         .max(1) as usize;
-    let (mut last_pos, mut moved_before) = ([0i64; 3], 0u32);
+    let mut feed = FeedNotice::new();
+    let period_ms = AcSettings::default().period_ms;
+    let rpm = cut.spindle_rpm.round() as u32;
     for (i, c) in run.codes.iter().enumerate() {
         if let Some([_, fu, fv]) = c {
             let f = cal[1].value(*fu).hypot(cal[2].value(*fv));
@@ -128,15 +129,10 @@ pub fn trace(run: &HostRun, cut: &Cut, bs: BreakageSettings) -> Result<Trace> {
         else {
             continue;
         };
-        let moved = (0..3)
-            .map(|k| u32::try_from((r.pos_blu[k] - last_pos[k]).unsigned_abs()).unwrap_or(u32::MAX))
-            .max()
-            .unwrap_or(0);
-        let (lo, hi) = (moved.min(moved_before), moved.max(moved_before));
-        if hi >= FEED_STEP_MIN_BLU && u64::from(hi - lo) * 100 > u64::from(hi) * FEED_STEP_PCT {
+        let enc = r.pos_blu.map(|v| i32::try_from(v).unwrap_or(i32::MAX));
+        if feed.period(enc, rpm, period_ms) {
             det.feed_step();
         }
-        (last_pos, moved_before) = (r.pos_blu, moved);
     }
     Ok((rows, detection))
 }

@@ -50,7 +50,10 @@
 //! # Measured on the simulated plant (`qemu/tests/breakage.rs`, defaults, 600 rpm, 4 flutes)
 //! - False alarms with a sound tool: none over the Fig. 1 cavity (58 s) and the pocket (18 s),
 //!   run-out 5/0/-3/0 um at the programmed feeds and with the AC (told of feed steps as the AC
-//!   period tells it), 10/0/-6/0 um at the programmed feeds.
+//!   period tells it), 10/0/-6/0 um at the programmed feeds; with the AC and the thesis' servo
+//!   drives, whose corners the AC recovers from over several revolutions (told as a feed ramp,
+//!   `crate::rt::ac::FEED_RAMP_PCT`; before, a false breakage 0.3 s after the cavity's corner at
+//!   19.07 s).
 //! - Broken tooth (tooth 0 and 1 at 15, 30, ... 90 % of the machining time where the cut is
 //!   above 1000 N, programmed feeds), delay in revolutions, tooth 0 / tooth 1, and the rule
 //!   that decided (R the revolution confirmation (ii)-(iii), C the curvature, T the chip

@@ -192,6 +192,92 @@ pub const FEED_STEP_PCT: u64 = 30;
 /// ... and the larger is at least this many BLU per period (below it one pulse more or less is a
 /// step of more than 10 %: 10 BLU in 10 ms is 6 ipm at 0.0001 in).
 pub const FEED_STEP_MIN_BLU: u32 = 10;
+/// A feed ramp for the breakage monitor: the motion of the last revolution's AC periods differs
+/// from the revolution's before by more than this percentage of the larger. The AC's recovery
+/// after a corner raises the feed by 10 to 20 % per period, below [`FEED_STEP_PCT`], for several
+/// revolutions; the force follows it revolution by revolution, which the detector's
+/// once-per-revolution differences would otherwise judge (the Fig. 1 cavity with the servo
+/// drive: a breakage declared 0.3 s after a corner, with a sound tool). The AC's own regulation
+/// in a steady cut moves a revolution's motion by a few per cent.
+pub const FEED_RAMP_PCT: u64 = 15;
+/// AC periods of motion kept for the ramp test: two revolutions of up to half as many periods
+/// (at 10 ms periods: 375 rpm and faster; slower spindles compare 16 periods).
+const MOTION_RING: usize = 32;
+
+/// The feed notices the breakage monitor gets ([`BreakageDetector::feed_step`]): from the encoder
+/// at the end of every AC period, a step ([`FEED_STEP_PCT`]: the motion of the period against the
+/// period before's) or a ramp ([`FEED_RAMP_PCT`]: the last revolution's periods against the
+/// revolution's before). AC task ([`AcPeriod`]), and the host's replays of the detector.
+///
+/// [`BreakageDetector::feed_step`]: crate::monitor::BreakageDetector::feed_step
+#[derive(Clone, Debug)]
+pub struct FeedNotice {
+    last: [i32; 3],
+    /// The path's motion (BLU, the largest axis') of the last [`MOTION_RING`] periods, the
+    /// newest at `at` - 1.
+    motion: [u32; MOTION_RING],
+    at: usize,
+}
+
+impl Default for FeedNotice {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FeedNotice {
+    /// No motion yet, from the origin.
+    pub const fn new() -> Self {
+        FeedNotice {
+            last: [0; 3],
+            motion: [0; MOTION_RING],
+            at: 0,
+        }
+    }
+
+    /// The period that ended at encoder `enc` (a spindle at `rpm`, 0: unknown, and periods of
+    /// `period_ms`): whether the feed stepped or ramps.
+    pub fn period(&mut self, enc: [i32; 3], rpm: u32, period_ms: u32) -> bool {
+        let moved = (0..3)
+            .map(|k| enc[k].wrapping_sub(self.last[k]).unsigned_abs())
+            .max()
+            .unwrap_or(0);
+        self.last = enc;
+        let before = self.back(0);
+        if let Some(slot) = self.motion.get_mut(self.at) {
+            *slot = moved;
+        }
+        self.at = (self.at + 1) % MOTION_RING;
+        let (lo, hi) = (moved.min(before), moved.max(before));
+        let step =
+            hi >= FEED_STEP_MIN_BLU && u64::from(hi - lo) * 100 > u64::from(hi) * FEED_STEP_PCT;
+        step || self.ramp(rpm, period_ms)
+    }
+
+    /// The motion `k` periods before the newest.
+    fn back(&self, k: usize) -> u32 {
+        self.motion
+            .get((self.at + 2 * MOTION_RING - 1 - k) % MOTION_RING)
+            .copied()
+            .unwrap_or(0)
+    }
+
+    /// Whether the motion of the last revolution's periods (at `rpm`, rounded to whole periods,
+    /// 1 ..= [`MOTION_RING`] / 2) differs from the revolution's before by more than
+    /// [`FEED_RAMP_PCT`] of the larger, the larger being at least [`FEED_STEP_MIN_BLU`] per
+    /// period.
+    fn ramp(&self, rpm: u32, period_ms: u32) -> bool {
+        let per_rev = rpm.saturating_mul(period_ms.max(1));
+        if per_rev == 0 {
+            return false;
+        }
+        let n = ((60_000 + per_rev / 2) / per_rev).clamp(1, MOTION_RING as u32 / 2) as usize;
+        let new: u64 = (0..n).map(|k| u64::from(self.back(k))).sum();
+        let old: u64 = (n..2 * n).map(|k| u64::from(self.back(k))).sum();
+        let (lo, hi) = (new.min(old), new.max(old));
+        hi >= u64::from(FEED_STEP_MIN_BLU) * n as u64 && (hi - lo) * 100 > hi * FEED_RAMP_PCT
+    }
+}
 
 /// The AC period's state: the controller and what the period keeps between periods.
 pub struct AcPeriod {
@@ -204,9 +290,8 @@ pub struct AcPeriod {
     anti_windup: bool,
     last: [i32; 3],
     still: u32,
-    /// The path's motion in the last period (BLU, the largest axis'): the breakage monitor is
-    /// told of a feed step ([`FEED_STEP`]).
-    moved: u32,
+    /// The breakage monitor's feed notices.
+    feed: FeedNotice,
     /// A chatter verdict of the monitor task not yet acted on ([`AcPeriod::heard`]).
     chatter: Option<Spectrum>,
     /// Tool breakage detection on the force (None: off).
@@ -262,7 +347,7 @@ impl AcPeriod {
             anti_windup: true,
             last: [0; 3],
             still: 0,
-            moved: 0,
+            feed: FeedNotice::new(),
             chatter: None,
             breakage: None,
             trip,
@@ -398,17 +483,11 @@ impl AcPeriod {
         self.follow_spindle(status.spindle_rpm.load(Relaxed));
         // A feed step (a corner's deceleration and the acceleration after it, a hold, a
         // resume): the breakage monitor does not judge the force's transient as a tooth's.
-        let moved = (0..3)
-            .map(|k| enc[k].wrapping_sub(self.last[k]).unsigned_abs())
-            .max()
-            .unwrap_or(0);
-        let (lo, hi) = (moved.min(self.moved), moved.max(self.moved));
-        if hi >= FEED_STEP_MIN_BLU && u64::from(hi - lo) * 100 > u64::from(hi) * FEED_STEP_PCT {
-            if let Some(m) = self.breakage.as_mut() {
-                m.detector.feed_step();
-            }
+        let rpm = self.breakage.as_ref().map_or(0, |m| m.rpm);
+        let notice = self.feed.period(enc, rpm, self.ctl.settings().period_ms);
+        if let Some(m) = self.breakage.as_mut().filter(|_| notice) {
+            m.detector.feed_step();
         }
-        self.moved = moved;
         // The Z axis fed down in this period: the end face may cut (force/torque band).
         self.ctl.set_z_down(enc[2] < self.last[2]);
         if self.anti_windup {
