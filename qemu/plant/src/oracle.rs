@@ -181,12 +181,33 @@ fn peak(cut: &Cutter, contacts: &Contacts, c: f64, end: EndCut) -> Peak {
     let mut pk = Peak::default();
     for at in contacts.teeth.chunks_exact(contacts.flutes) {
         let r = cut.forces_of(at, contacts.end_ok, c, end, None, None);
-        pk.f = pk.f.max(r.fx.hypot(r.fy));
+        if !surely_below(r.fx, r.fy, pk.f) {
+            pk.f = pk.f.max(r.fx.hypot(r.fy));
+        }
         pk.t = pk.t.max(r.t);
         pk.engaged |= r.end_engaged;
         pk.capped |= r.capped;
     }
     pk
+}
+
+/// Whether the peaks at side feed per tooth `c` and end cut `end` (see [`peak`]) are within `f0`
+/// and `t0` (both > 0): the first angle over a limit answers (a NaN counts as within, as the
+/// peaks' `f64::max` ignores it).
+fn peak_within(cut: &Cutter, contacts: &Contacts, c: f64, end: EndCut, f0: f64, t0: f64) -> bool {
+    debug_assert!(end.cz <= 0.0 || contacts.z_min == Some(end.z_min));
+    contacts.teeth.chunks_exact(contacts.flutes).all(|at| {
+        let r = cut.forces_of(at, contacts.end_ok, c, end, None, None);
+        let over = |v: f64, limit: f64| v > limit;
+        !over(r.t, t0) && (surely_below(r.fx, r.fy, f0) || !over(r.fx.hypot(r.fy), f0))
+    })
+}
+
+/// Whether `hypot(x, y) <= f` is sure without computing it: `|x| + |y|`, which is at least the
+/// hypotenuse, is below `f` by far more than the roundings of either.
+#[inline]
+fn surely_below(x: f64, y: f64, f: f64) -> bool {
+    x.abs() + y.abs() <= f * (1.0 - 1e-12)
 }
 
 /// Whether `m` lies within 2 BLU of the line through `w` along `d` (a window of the path without
@@ -219,14 +240,18 @@ impl PointCut {
         Contacts::new(cut, stock, self.tip, self.u, self.reach, z_min)
     }
 
-    /// Peaks at feed per tooth `c` (mm) along the path, from the point's `contacts`.
-    fn peak(&self, cut: &Cutter, contacts: &Contacts, c: f64) -> Peak {
-        let end = if self.share_z > 0.0 {
+    /// The end cut at feed per tooth `c` (mm) along the path.
+    fn end(&self, c: f64) -> EndCut {
+        if self.share_z > 0.0 {
             EndCut::new(c * self.share_z, self.tip[2], self.hold)
         } else {
             EndCut::NONE
-        };
-        peak(cut, contacts, c * self.share, end)
+        }
+    }
+
+    /// Peaks at feed per tooth `c` (mm) along the path, from the point's `contacts`.
+    fn peak(&self, cut: &Cutter, contacts: &Contacts, c: f64) -> Peak {
+        peak(cut, contacts, c * self.share, self.end(c))
     }
 
     /// The largest feed per tooth (mm, along the path) whose peaks are within `f0` and `t0`
@@ -235,10 +260,7 @@ impl PointCut {
     /// with c: every tooth's chip min(c, extent) does). Infinite if none is over within 2^40
     /// times the ceiling (only limited chips, all small).
     fn limit_c(&self, cut: &Cutter, contacts: &Contacts, c_ceil: f64, f0: f64, t0: f64) -> f64 {
-        let within = |c: f64| {
-            let p = self.peak(cut, contacts, c);
-            p.f <= f0 && p.t <= t0
-        };
+        let within = |c: f64| peak_within(cut, contacts, c * self.share, self.end(c), f0, t0);
         let (mut lo, mut hi) = (0.0, c_ceil.max(1e-3));
         let mut doublings = 0;
         while within(hi) {
