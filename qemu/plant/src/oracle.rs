@@ -22,7 +22,10 @@
 //!    `min(F0 / F_per_c, T0 / T_per_c) * z * rpm / 60`; capped by the programmed feed of the
 //!    point. Where a chip is limited (a tooth entering a wall) the peaks grow more slowly than
 //!    `c`: the point's limit is searched (the ceiling's `c` doubled until over a limit, then
-//!    bisection) and its peaks are re-evaluated at the scheduled feed along a second walk. With Kienzle's Ks(h) (exponent m > 0) every tooth's force is `Ks1 a h^(1-m)` with
+//!    bisection) and its peaks are re-evaluated at the scheduled feed along a second walk (what
+//!    the peaks read of the stock, each tooth's contact at each angle, does not depend on the
+//!    feed: it is read once per point and summed at every feed tried). With Kienzle's Ks(h)
+//!    (exponent m > 0) every tooth's force is `Ks1 a h^(1-m)` with
 //!    `h` proportional to `c`, so all teeth scale by the same `c^(1-m)` except those whose chip
 //!    is below the clamp [`crate::H_MIN_MM`] (near entry and exit angles), which scale linearly,
 //!    faster than `c^(1-m)` going up. So the point's limit is found by evaluation: the peaks at
@@ -53,7 +56,7 @@
 //! exponential deceleration at the end of blocks with the paper's deceleration flag is not ramped
 //! (it can slow down faster than the acceleration): it only slows a schedule at a block end, and
 //! the bound does not slow there.
-use crate::process::{Cutter, EndCut};
+use crate::process::{Contact, Cutter, EndCut};
 use crate::{validate, CutError, Material, Stock, Tool, MM_PER_BLU, MM_S_PER_IPM};
 
 /// One point of the tool path: tool tip position (BLU), the ceiling of the schedule there (ipm:
@@ -127,38 +130,84 @@ struct Peak {
     capped: bool,
 }
 
-/// The peaks at side feed per tooth `c` (the chip's extent measured up to `reach`, mm) and end
-/// cut `end`.
-fn peak(
-    cut: &Cutter,
-    stock: &Stock,
-    tip: [f64; 3],
-    u: [f64; 2],
-    c: f64,
-    reach: f64,
-    end: EndCut,
-) -> Peak {
-    let pitch = std::f64::consts::TAU / cut.flutes as f64;
-    let steps = (360 / cut.flutes).max(8);
+/// The teeth's contacts with the stock at the spindle angles [`peak`] scans (one tooth pitch),
+/// for one tip, feed direction, reach and end face: what the peaks read of the stock, which does
+/// not depend on the feed, read once for a point's search over the feed (the same bytes as
+/// reading the stock at every evaluation).
+struct Contacts {
+    flutes: usize,
+    /// Per angle, per tooth.
+    teeth: Vec<Contact>,
+    /// The end face can cut (see [`Cutter::contacts`]).
+    end_ok: bool,
+    /// The end face's material test (None: no end cut at this point).
+    z_min: Option<f64>,
+}
+
+impl Contacts {
+    /// The contacts of the tool with its tip at `tip` moving along `u`, the side chip's extent
+    /// measured up to `reach` (mm), the end face against the material above `z_min` (None: the
+    /// peaks are asked for without an end cut).
+    fn new(
+        cut: &Cutter,
+        stock: &Stock,
+        tip: [f64; 3],
+        u: [f64; 2],
+        reach: f64,
+        z_min: Option<f64>,
+    ) -> Contacts {
+        let flutes = cut.flutes as usize;
+        let pitch = std::f64::consts::TAU / cut.flutes as f64;
+        let steps = (360 / cut.flutes).max(8);
+        let mut teeth = vec![Contact::default(); steps as usize * flutes];
+        let mut end_ok = false;
+        for (i, at) in teeth.chunks_exact_mut(flutes).enumerate() {
+            let theta = pitch * i as f64 / steps as f64;
+            end_ok = cut.contacts(stock, tip, theta, u, reach, z_min, at);
+        }
+        Contacts {
+            flutes,
+            teeth,
+            end_ok,
+            z_min,
+        }
+    }
+}
+
+/// The peaks at side feed per tooth `c` (the chip's extent measured up to the contacts' reach,
+/// mm) and end cut `end` (its `z_min` the contacts' when it cuts).
+fn peak(cut: &Cutter, contacts: &Contacts, c: f64, end: EndCut) -> Peak {
+    debug_assert!(end.cz <= 0.0 || contacts.z_min == Some(end.z_min));
     let mut pk = Peak::default();
-    for i in 0..steps {
-        let r = cut.forces(
-            stock,
-            tip,
-            pitch * i as f64 / steps as f64,
-            u,
-            c,
-            reach,
-            end,
-            None,
-            None,
-        );
-        pk.f = pk.f.max(r.fx.hypot(r.fy));
+    for at in contacts.teeth.chunks_exact(contacts.flutes) {
+        let r = cut.forces_of(at, contacts.end_ok, c, end, None, None);
+        if !surely_below(r.fx, r.fy, pk.f) {
+            pk.f = pk.f.max(r.fx.hypot(r.fy));
+        }
         pk.t = pk.t.max(r.t);
         pk.engaged |= r.end_engaged;
         pk.capped |= r.capped;
     }
     pk
+}
+
+/// Whether the peaks at side feed per tooth `c` and end cut `end` (see [`peak`]) are within `f0`
+/// and `t0` (both > 0): the first angle over a limit answers (a NaN counts as within, as the
+/// peaks' `f64::max` ignores it).
+fn peak_within(cut: &Cutter, contacts: &Contacts, c: f64, end: EndCut, f0: f64, t0: f64) -> bool {
+    debug_assert!(end.cz <= 0.0 || contacts.z_min == Some(end.z_min));
+    contacts.teeth.chunks_exact(contacts.flutes).all(|at| {
+        let r = cut.forces_of(at, contacts.end_ok, c, end, None, None);
+        let over = |v: f64, limit: f64| v > limit;
+        !over(r.t, t0) && (surely_below(r.fx, r.fy, f0) || !over(r.fx.hypot(r.fy), f0))
+    })
+}
+
+/// Whether `hypot(x, y) <= f` is sure without computing it: `|x| + |y|`, which is at least the
+/// hypotenuse, is below `f` by far more than the roundings of either.
+#[inline]
+fn surely_below(x: f64, y: f64, f: f64) -> bool {
+    x.abs() + y.abs() <= f * (1.0 - 1e-12)
 }
 
 /// Whether `m` lies within 2 BLU of the line through `w` along `d` (a window of the path without
@@ -185,22 +234,24 @@ struct PointCut {
 }
 
 impl PointCut {
-    /// Peaks at feed per tooth `c` (mm) along the path.
-    fn peak(&self, cut: &Cutter, stock: &Stock, c: f64) -> Peak {
-        let end = if self.share_z > 0.0 {
+    /// The teeth's contacts with `stock` at this point (for [`PointCut::peak`]).
+    fn contacts(&self, cut: &Cutter, stock: &Stock) -> Contacts {
+        let z_min = (self.share_z > 0.0).then(|| EndCut::new(1.0, self.tip[2], self.hold).z_min);
+        Contacts::new(cut, stock, self.tip, self.u, self.reach, z_min)
+    }
+
+    /// The end cut at feed per tooth `c` (mm) along the path.
+    fn end(&self, c: f64) -> EndCut {
+        if self.share_z > 0.0 {
             EndCut::new(c * self.share_z, self.tip[2], self.hold)
         } else {
             EndCut::NONE
-        };
-        peak(
-            cut,
-            stock,
-            self.tip,
-            self.u,
-            c * self.share,
-            self.reach,
-            end,
-        )
+        }
+    }
+
+    /// Peaks at feed per tooth `c` (mm) along the path, from the point's `contacts`.
+    fn peak(&self, cut: &Cutter, contacts: &Contacts, c: f64) -> Peak {
+        peak(cut, contacts, c * self.share, self.end(c))
     }
 
     /// The largest feed per tooth (mm, along the path) whose peaks are within `f0` and `t0`
@@ -208,11 +259,8 @@ impl PointCut {
     /// first of c_ceil, 2 c_ceil, 4 c_ceil, ... over a limit, then bisection (the peaks grow
     /// with c: every tooth's chip min(c, extent) does). Infinite if none is over within 2^40
     /// times the ceiling (only limited chips, all small).
-    fn limit_c(&self, cut: &Cutter, stock: &Stock, c_ceil: f64, f0: f64, t0: f64) -> f64 {
-        let within = |c: f64| {
-            let p = self.peak(cut, stock, c);
-            p.f <= f0 && p.t <= t0
-        };
+    fn limit_c(&self, cut: &Cutter, contacts: &Contacts, c_ceil: f64, f0: f64, t0: f64) -> f64 {
+        let within = |c: f64| peak_within(cut, contacts, c * self.share, self.end(c), f0, t0);
         let (mut lo, mut hi) = (0.0, c_ceil.max(1e-3));
         let mut doublings = 0;
         while within(hi) {
@@ -336,20 +384,19 @@ pub fn oracle_time(
         };
         // The force and torque limit alone (infinite where nothing is cut), then the ceiling.
         let mut v = f64::INFINITY;
+        // What the peaks read of the stock here, read once for all the feeds tried.
+        let contacts = (dxy > 0.0 || share_z > 0.0).then(|| pc.contacts(&cut, &stock));
         if !kienzle {
-            let (pk, mult) = if share_z > 0.0 {
-                (pc.peak(&cut, &stock, 1.0), 1.0)
-            } else if dxy > 0.0 {
-                let end = EndCut::NONE;
-                (peak(&cut, &stock, p, u, 1.0, pc.reach, end), share)
-            } else {
-                (Peak::default(), share)
+            let (pk, mult) = match &contacts {
+                Some(ct) if share_z > 0.0 => (pc.peak(&cut, ct, 1.0), 1.0),
+                Some(ct) => (peak(&cut, ct, 1.0, EndCut::NONE), share),
+                None => (Peak::default(), share),
             };
             end_engaged = pk.engaged;
-            if pk.capped {
+            if let (true, Some(ct)) = (pk.capped, &contacts) {
                 // Not linear in c: searched, and re-evaluated at the schedule's feed.
                 capped[i] = true;
-                let c = pc.limit_c(&cut, &stock, c_ceil, l.f0_n, l.t0_nm);
+                let c = pc.limit_c(&cut, ct, c_ceil, l.f0_n, l.t0_nm);
                 v = c * teeth_hz / MM_S_PER_IPM;
             } else {
                 let (fc, tc) = (pk.f, pk.t);
@@ -361,10 +408,10 @@ pub fn oracle_time(
                     v = v.min(l.t0_nm / (tc * mult) * teeth_hz / MM_S_PER_IPM);
                 }
             }
-        } else if dxy > 0.0 || share_z > 0.0 {
+        } else if let Some(ct) = &contacts {
             // From a feed far above any cut's limit down by the c^(1-m) estimate.
             v = KIENZLE_PROBE_IPM;
-            let pk = pc.peak(&cut, &stock, c_of(v));
+            let pk = pc.peak(&cut, ct, c_of(v));
             let (mut f, mut t) = (pk.f, pk.t);
             if f == 0.0 && t == 0.0 {
                 v = f64::INFINITY;
@@ -374,7 +421,7 @@ pub fn oracle_time(
             while (f > l.f0_n || t > l.t0_nm) && steps < 50 {
                 let ratio = (l.f0_n / f).min(l.t0_nm / t);
                 v *= ratio.powf(expo) * (1.0 - 1e-12);
-                let pk = pc.peak(&cut, &stock, c_of(v));
+                let pk = pc.peak(&cut, ct, c_of(v));
                 (f, t) = (pk.f, pk.t);
                 steps += 1;
             }
@@ -425,7 +472,7 @@ pub fn oracle_time(
         for i in 0..n {
             let p = mm(&path[i]);
             if (kienzle || capped[i]) && v[i] > 0.0 {
-                let pk = pcs[i].peak(&cut, &stock, c_of(v[i]));
+                let pk = pcs[i].peak(&cut, &pcs[i].contacts(&cut, &stock), c_of(v[i]));
                 (f_peak_n[i], t_peak_nm[i]) = (pk.f, pk.t);
             }
             let from = if i > 0 { mm(&path[i - 1]) } else { p };

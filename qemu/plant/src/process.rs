@@ -151,6 +151,24 @@ pub(crate) struct SideTooth {
     pub extent: f64,
 }
 
+/// An end tooth against the material (see [`Cutter::forces`]): its world angle's sine and
+/// cosine, its engaged radial width `w` (mm) and `sum(r dr)` over it (mm^2).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct EndTooth {
+    pub sin: f64,
+    pub cos: f64,
+    pub w: f64,
+    pub moment: f64,
+}
+
+/// One tooth's contacts with the stock at one instant ([`Cutter::contacts`]): its side chip's
+/// geometry (None: the side tooth cuts nothing) and its end face's.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Contact {
+    pub side: Option<SideTooth>,
+    pub end: EndTooth,
+}
+
 /// Geometry and model constants shared by the process and the oracle.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Cutter {
@@ -242,6 +260,32 @@ impl Cutter {
         })
     }
 
+    /// End tooth `psi` (world angle, rad) of the tool with its tip at `tip` (mm) against the
+    /// material above `z_min` (mm; [`EndCut`]): its world angle's sine and cosine, its engaged
+    /// radial width `w` (mm) and `sum(r dr)` (mm^2) over it (see the module docs).
+    #[inline]
+    fn end_tooth(&self, stock: &Stock, tip: [f64; 3], psi: f64, z_min: f64) -> EndTooth {
+        // Each end tooth's edge sampled at (about) cell spacing from the axis to the rim.
+        let n = (self.r_mm / self.probe_mm).ceil().max(1.0);
+        let dr = self.r_mm / n;
+        let (s, co) = psi.sin_cos();
+        let (mut w, mut moment) = (0.0, 0.0);
+        for j in 0..n as usize {
+            let r = (j as f64 + 0.5) * dr;
+            let top = stock.top_in_disc(tip[0] + r * co, tip[1] + r * s, tip[0], tip[1], self.r_mm);
+            if top > z_min {
+                w += dr;
+                moment += r * dr;
+            }
+        }
+        EndTooth {
+            sin: s,
+            cos: co,
+            w,
+            moment,
+        }
+    }
+
     /// Forces of all teeth at spindle angle `theta` (rad, clockwise), tool tip at `tip` (mm),
     /// unit feed direction `u` (XY; [0, 0] when the tool does not move in XY), feed per tooth
     /// `c` (mm, XY), the side chip's extent measured up to `reach` (mm, >= the feeds per tooth
@@ -263,15 +307,95 @@ impl Cutter {
         teeth: Option<&[f64]>,
         wave: Option<[f64; 2]>,
     ) -> Forces {
-        let mut f = Forces::default();
         let pitch = std::f64::consts::TAU / self.flutes as f64;
+        let psi = |k: u32| -theta - k as f64 * pitch;
+        self.sum_forces(
+            c,
+            end,
+            end.cz > 0.0 && tip[2] >= stock.floor_mm(),
+            teeth,
+            wave,
+            |k| self.side_tooth(stock, tip, psi(k), u, reach),
+            |k| self.end_tooth(stock, tip, psi(k), end.z_min),
+        )
+    }
+
+    /// The teeth's contacts with `stock` at spindle angle `theta` (rad), the tool tip at `tip`
+    /// (mm) moving along `u` (unit, XY), the side chip's extent measured up to `reach` (mm) and
+    /// the end teeth against the material above `z_min` (mm; None: no end cut), one per tooth
+    /// into `out` (`flutes` long): what [`Cutter::forces`] reads of the stock, which does not
+    /// depend on the feed. [`Cutter::forces_of`] sums them at a feed (the oracle's searches).
+    /// Returns whether the end face can cut (the tip not below the blank's floor).
+    #[allow(clippy::too_many_arguments)]
+    pub fn contacts(
+        &self,
+        stock: &Stock,
+        tip: [f64; 3],
+        theta: f64,
+        u: [f64; 2],
+        reach: f64,
+        z_min: Option<f64>,
+        out: &mut [Contact],
+    ) -> bool {
+        let pitch = std::f64::consts::TAU / self.flutes as f64;
+        let end_ok = z_min.is_some() && tip[2] >= stock.floor_mm();
+        for (k, slot) in out.iter_mut().enumerate().take(self.flutes as usize) {
+            let psi = -theta - k as f64 * pitch;
+            *slot = Contact {
+                side: self.side_tooth(stock, tip, psi, u, reach),
+                end: match z_min {
+                    Some(z) if end_ok => self.end_tooth(stock, tip, psi, z),
+                    _ => EndTooth::default(),
+                },
+            };
+        }
+        end_ok
+    }
+
+    /// [`Cutter::forces`] from the teeth's `contacts` ([`Cutter::contacts`], made with the same
+    /// tip, angle, direction and reach, and `end`'s `z_min` when `end.cz > 0`; `end_ok` its
+    /// answer): the same bytes.
+    pub fn forces_of(
+        &self,
+        contacts: &[Contact],
+        end_ok: bool,
+        c: f64,
+        end: EndCut,
+        teeth: Option<&[f64]>,
+        wave: Option<[f64; 2]>,
+    ) -> Forces {
+        self.sum_forces(
+            c,
+            end,
+            end.cz > 0.0 && end_ok,
+            teeth,
+            wave,
+            |k| contacts[k as usize].side,
+            |k| contacts[k as usize].end,
+        )
+    }
+
+    /// The forces' sum over the teeth (see [`Cutter::forces`]), tooth k's side contact from
+    /// `side(k)` (asked only while `c > 0`) and, when `end_on`, its end contact from `end_at(k)`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn sum_forces(
+        &self,
+        c: f64,
+        end: EndCut,
+        end_on: bool,
+        teeth: Option<&[f64]>,
+        wave: Option<[f64; 2]>,
+        mut side: impl FnMut(u32) -> Option<SideTooth>,
+        mut end_at: impl FnMut(u32) -> EndTooth,
+    ) -> Forces {
+        let mut f = Forces::default();
         let m = &self.material;
         for k in 0..self.flutes {
             if c <= 0.0 {
                 break;
             }
-            let psi = -theta - k as f64 * pitch;
-            let Some(st) = self.side_tooth(stock, tip, psi, u, reach) else {
+            let Some(st) = side(k) else {
                 continue;
             };
             f.capped |= st.extent.is_finite();
@@ -302,10 +426,7 @@ impl Cutter {
             f.fy += ft * co - fr * s;
             f.t += ft * self.r_mm / 1000.0;
         }
-        if end.cz > 0.0 && tip[2] >= stock.floor_mm() {
-            // Each end tooth's edge sampled at (about) cell spacing from the axis to the rim.
-            let n = (self.r_mm / self.probe_mm).ceil().max(1.0);
-            let dr = self.r_mm / n;
+        if end_on {
             let ks = m.ks_at(end.cz);
             for k in 0..self.flutes {
                 // A broken end tooth cuts nothing; the next intact one takes its share.
@@ -314,23 +435,12 @@ impl Cutter {
                     Some(0.0) => continue,
                     Some(n) => (n * end.cz, m.ks_at(n * end.cz)),
                 };
-                let psi = -theta - k as f64 * pitch;
-                let (s, co) = psi.sin_cos();
-                let (mut w, mut moment) = (0.0, 0.0);
-                for j in 0..n as usize {
-                    let r = (j as f64 + 0.5) * dr;
-                    let top = stock.top_in_disc(
-                        tip[0] + r * co,
-                        tip[1] + r * s,
-                        tip[0],
-                        tip[1],
-                        self.r_mm,
-                    );
-                    if top > end.z_min {
-                        w += dr;
-                        moment += r * dr;
-                    }
-                }
+                let EndTooth {
+                    sin: s,
+                    cos: co,
+                    w,
+                    moment,
+                } = end_at(k);
                 if w > 0.0 {
                     let ft = ks * cz * w;
                     f.fx += -ft * s;

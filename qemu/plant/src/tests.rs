@@ -1548,3 +1548,78 @@ fn entering_a_wall_the_tooth_after_a_broken_one_takes_what_is_there() {
         "in the slot: {damaged} N*m with tooth 1 broken, {intact} N*m intact"
     );
 }
+
+/// The teeth's contacts read once ([`crate::process::Cutter::contacts`], the oracle's searches)
+/// and summed at a feed give the same bytes as [`crate::process::Cutter::forces`] reading the
+/// stock: a slot cut into the Fig. 1 blank, then tips around its end (ahead in the material,
+/// on the wall, over the floor, plunging), every spindle angle of a turn, side and end cuts,
+/// the intact tool, a broken tooth and a flexible tool's wave.
+#[test]
+fn forces_from_contacts_are_the_forces_read_from_the_stock() {
+    let mut p = steel(Stock::default(), 1);
+    let z = blu(-3.0);
+    run(
+        &mut p,
+        0.0,
+        [blu(20.0), blu(38.1), z],
+        [blu(40.0), blu(38.1), z],
+        30.0,
+    );
+    let cut = *p.cutter();
+    let mut teeth = Teeth::default();
+    let broken = ToothEvent {
+        tooth: 1,
+        t_s: 0.0,
+        damage: Damage::Broken,
+    };
+    teeth.add(4, broken).unwrap();
+    let mut d = [0.0; crate::teeth::MAX_FLUTES];
+    assert!(teeth.offsets(4, 1.0, &mut d));
+    let mut contacts = [crate::process::Contact::default(); 4];
+    let mut checked = 0;
+    for (x, y, zt) in [
+        (40.0, 38.1, -3.0),
+        (40.3, 38.1, -3.0),
+        (41.0, 39.0, -2.0),
+        (38.0, 40.0, -3.0),
+        (40.0, 38.1, -3.5),
+        (30.0, 36.0, -1.0),
+    ] {
+        let tip = [x, y, zt];
+        for (u, reach) in [([1.0, 0.0], C_30IPM), ([0.6, 0.8], 0.1), ([0.0, 0.0], 0.0)] {
+            for hold in [false, true] {
+                let end = crate::process::EndCut::new(0.05, zt, hold);
+                for i in 0..360 {
+                    let theta = (i as f64).to_radians();
+                    let end_ok = cut.contacts(
+                        p.stock(),
+                        tip,
+                        theta,
+                        u,
+                        reach,
+                        Some(end.z_min),
+                        &mut contacts,
+                    );
+                    for c in [0.0, 0.05, C_30IPM, 1.0] {
+                        for e in [end, crate::process::EndCut::NONE] {
+                            for t in [None, Some(&d[..4])] {
+                                for wave in [None, Some([0.001, -0.002])] {
+                                    let a =
+                                        cut.forces(p.stock(), tip, theta, u, c, reach, e, t, wave);
+                                    let b = cut.forces_of(&contacts, end_ok, c, e, t, wave);
+                                    let bits = |f: crate::process::Forces| {
+                                        [f.fx, f.fy, f.t, f.fa].map(f64::to_bits)
+                                    };
+                                    assert_eq!(bits(a), bits(b), "{tip:?} {u:?} {theta} {c}");
+                                    assert_eq!(a, b);
+                                    checked += usize::from(a.t != 0.0);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked > 1000, "only {checked} loaded cases");
+}
