@@ -3,7 +3,7 @@
 //! detector (its defaults): no false alarm over a whole program with a sound tool (5/-3 um and
 //! 10/-6 um run-out), and a broken tooth detected within two spindle revolutions at every break
 //! time (teeth 0 and 1 at 15, 30, ... 90 % of the machining time where the cut is above 1000 N:
-//! 18 breaks on the two programs, one of them a known miss, see [`KNOWN_MISS`]).
+//! 18 breaks on the two programs).
 use millac::ac::AcSettings;
 use millac::monitor::BreakageSettings;
 use millac::Settings;
@@ -11,20 +11,6 @@ use millac_plant::teeth::{Damage, ToothEvent};
 use millac_plant::DriveModel;
 use millac_qemu::acsim::Cut;
 use millac_qemu::{bench, breaklab};
-
-/// The known miss (open): on the pocket at programmed feeds, tooth 1 broken at 13.64 s (75 % of
-/// the machining time) is never declared. The break falls on the diagonal entry into the island
-/// while the detector still learns, after the next tooth's pass of the same tooth period began:
-/// its doubled chip shows in that period and the loss a revolution later, so the chip-transfer
-/// test's pair (loss, gain against the revolution before) does not balance (-1052 N, +492 N:
-/// 863 N off against a tolerance of 772 N), and the detector then learns the broken tooth's
-/// pattern. A marginal case of the detector, not of the cut: tooth 0 broken at 13.60 s is
-/// declared only 11 to 12 revolutions later with either plant, and tooth 1 broken 20 ms either
-/// side of 13.64 s within 1.2 revolutions. It crossed the margin when the plant's chip came to be limited
-/// by the material there (issue 20): the island's entry is now lighter where the tool's edge is
-/// only a sliver into it (1190 against 1320 N before the break). Kept in sight by
-/// `known_miss_a_break_on_the_islands_entry_while_learning` (ignored) until the detector is fixed.
-const KNOWN_MISS: (&str, f64, u32) = ("pocket (Fig. 5.8)", 0.75, 1);
 
 /// 5, 0, -3, 0 um: the run-out of a 4-flute end mill in a good collet.
 const RUNOUT_MM: [f64; 4] = [0.005, 0.0, -0.003, 0.0];
@@ -154,9 +140,6 @@ fn broken_tooth_detected_within_two_revolutions_on_the_cavity_and_the_pocket() {
                 continue;
             }
             for tooth in [0, 1] {
-                if (case.name, frac, tooth) == KNOWN_MISS {
-                    continue;
-                }
                 let events = vec![ToothEvent {
                     tooth,
                     t_s: t,
@@ -199,42 +182,6 @@ fn broken_tooth_detected_within_two_revolutions_on_the_cavity_and_the_pocket() {
         all_bad.extend(bad);
     }
     assert!(all_bad.is_empty(), "{all_bad:#?}");
-}
-
-/// The known miss ([`KNOWN_MISS`]): declared within two revolutions once the detector is fixed.
-#[test]
-#[ignore = "known miss of the breakage detector, open (issue 20: the island's entry while learning)"]
-fn known_miss_a_break_on_the_islands_entry_while_learning() {
-    let s = Settings::default();
-    let case = bench::CASES
-        .iter()
-        .find(|c| c.name == KNOWN_MISS.0)
-        .unwrap();
-    let prog = case.load(&s).unwrap();
-    let sound = breaklab::run(
-        &prog,
-        &s,
-        &cut(case, vec![]),
-        None,
-        BreakageSettings::default(),
-    )
-    .unwrap();
-    let t = KNOWN_MISS.1 * sound.run.machining_time_s;
-    let events = vec![ToothEvent {
-        tooth: KNOWN_MISS.2,
-        t_s: t,
-        damage: Damage::Broken,
-    }];
-    let r = breaklab::run(
-        &prog,
-        &s,
-        &cut(case, events),
-        None,
-        BreakageSettings::default(),
-    )
-    .unwrap();
-    let (at, _) = r.detection.expect("declared");
-    assert!((at - t) / (60.0 / sound_rpm(case)) <= 2.0, "{at} s");
 }
 
 fn sound_rpm(case: &bench::Case) -> f64 {
@@ -284,11 +231,9 @@ fn the_residual_trace_is_the_detectors() {
 /// (`BreakageDetector::chip_moved`): a chip lost a tooth period before the crossing is the
 /// breakage (alarm 108, the spindle stopped, a reset needed), not an overload `~` would resume.
 /// Measured over teeth 0 and 1 broken at 15 .. 90 % of the cavity and the pocket (24 breaks,
-/// the `breaks_under_ac` example), 15 are classified as breakage (before the sampler's trip:
-/// none; every one was an overload; with the tooth periods alone, before the per-sample
-/// comparison with the revolution before: 11); the other 9 cross before any loss shows (the
-/// first per cent of the doubled chip, where two teeth's passes overlap, crosses the trip level
-/// the AC holds the force just under) and stay overloads. A real overload is never called a breakage: the full-depth entry
+/// the `breaks_under_ac` example), all 24 are classified as breakage (before the sampler's
+/// trip: none; every one was an overload; with the tooth periods alone, before the per-sample
+/// comparison with the revolution before: 18). A real overload is never called a breakage: the full-depth entry
 /// and the thesis' TIIM depth step (+38 %) hold as overloads with the monitor on.
 #[test]
 fn a_broken_tooth_under_the_ac_holds_as_a_breakage_not_an_overload() {

@@ -55,21 +55,18 @@
 //!   `crate::rt::ac::FEED_RAMP_PCT`; before, a false breakage 0.3 s after the cavity's corner at
 //!   19.07 s).
 //! - Broken tooth (tooth 0 and 1 at 15, 30, ... 90 % of the machining time where the cut is
-//!   above 1000 N, programmed feeds), delay in revolutions, tooth 0 / tooth 1, and the rule
-//!   that decided (R the revolution confirmation (ii)-(iii), C the curvature, T the chip
-//!   transfer): cavity 8.70 s 1.46 R / 1.21 R, 17.41 s 1.67 C / 1.92 C, 26.11 s 1.38 T /
-//!   1.63 C, 43.52 s 1.06 T / 1.31 T; pocket 5.46 s 1.44 R / 1.44 C, 8.18 s 0.41 C / 1.41 C,
-//!   10.91 s 1.39 R / 1.39 C, 13.64 s 1.11 T (while learning, on the re-entry's ramp) / not
-//!   declared (since the plant's chip is limited by the material there, issue 20: the doubled
-//!   chip shows a revolution before the loss, the chip-transfer test's pair does not balance and
-//!   the learning takes the broken pattern; 1.36 T before; open, `KNOWN_MISS` there),
-//!   16.37 s 1.58 C / 1.83 C (the exit starts with the break). 17 of 18 within two
-//!   revolutions, worst 1.92 (history: 7 of 18 with the revolution confirmation alone, 12 with
-//!   the curvature confirmation, 18 with the chip-transfer test, the curvature from the
-//!   suspicion's own period on, its persistence rule and level guard 0.25). At 8.18 s tooth 0
-//!   the curvature's first bend is the geometric dip one revolution before the break (same
-//!   slot, same sign as the break's), its second the break's.
-//! - The same detector on further runs (not in the test, measured with the same plant):
+//!   above 1000 N, programmed feeds), delay in revolutions, tooth 0 / tooth 1, with the plant's
+//!   causal breakage (the next tooth's doubled chip a tooth period after the break,
+//!   `millac_plant::teeth`): cavity 8.70 s 0.71 / 1.21, 17.41 s 1.42 / 1.92, 26.11 s 1.38 /
+//!   1.63, 43.52 s 1.06 / 1.31; pocket 5.46 s 1.44 / 1.69, 8.18 s 1.91 / 1.41, 10.91 s 1.39 /
+//!   1.64, 13.64 s 1.11 / 1.36 (the island's entry while learning, a miss with the static
+//!   plant, whose doubled chip came in the sample of the break, before the loss), 16.37 s 1.58 /
+//!   1.83 (the exit starts with the break). 18 of 18 within two revolutions, worst 1.92
+//!   (history: 7 of 18 with the revolution confirmation alone, 12 with the curvature
+//!   confirmation, 18 with the chip-transfer test, the curvature from the suspicion's own period
+//!   on, its persistence rule and level guard 0.25; the rule of each is in the test's output).
+//! - The same detector on further runs (not in the test, measured with the static plant, before
+//!   its causal breakage):
 //!   no false alarm over the cavity and the pocket with run-out 8/0/-5/0 and 0/6/0/-4 um at the
 //!   programmed feeds and with the AC, and 3/2/-4/1 um with the AC; one over the cavity with
 //!   3/2/-4/1 um at the programmed feeds (at 18.3 s, as before these rules: open). None on the
@@ -141,7 +138,8 @@ pub const REV_RING: usize = 256;
 /// half a tooth period within the two tooth periods before the crossing, as a fraction of the
 /// level. A broken tooth's missing pass loses about the level or more there wherever the tooth
 /// periods' boundaries fall (0.75 .. 2.2 on the simulated plant's breaks the tooth-period test
-/// missed); a real overload's rise loses nothing (the TIIM depth step: 0.01).
+/// missed); a real overload's rise loses nothing (the TIIM depth step: 0.01). Under the AC
+/// (`breaks_under_ac`): 24 of 24 broken teeth told, 18 by the tooth periods alone.
 pub const REV_LOSS_MIN: f32 = 0.5;
 /// Curvature confirmation: the smallest relative curvature judged (a chip of 7 % of a tooth's
 /// load moved to the next tooth makes about 1.5 x 7 %).

@@ -404,7 +404,9 @@ impl Cutter {
             // chip a damaged tooth leaves to the next one).
             let cap = st.extent * st.cos_a;
             let cc = (c * st.cos_a).min(cap);
-            let mut h = teeth.map(|d| crate::teeth::chip_mm(k as usize, c * st.cos_a, d).min(cap));
+            let z = self.flutes as usize;
+            let mut h =
+                teeth.map(|d| crate::teeth::chip_mm(k as usize, z, c * st.cos_a, d).min(cap));
             if let Some(w) = wave {
                 let h0 = h.unwrap_or(cc);
                 h = Some(if h0 > 0.0 {
@@ -430,7 +432,8 @@ impl Cutter {
             let ks = m.ks_at(end.cz);
             for k in 0..self.flutes {
                 // A broken end tooth cuts nothing; the next intact one takes its share.
-                let (cz, ks) = match teeth.map(|d| crate::teeth::end_share(k as usize, d)) {
+                let z = self.flutes as usize;
+                let (cz, ks) = match teeth.map(|d| crate::teeth::end_share(k as usize, z, d)) {
                     None => (end.cz, ks),
                     Some(0.0) => continue,
                     Some(n) => (n * end.cz, m.ks_at(n * end.cz)),
@@ -778,11 +781,11 @@ impl Process {
             };
             let hold = self.end_engaged && prev.is_some_and(|a| a[2] == p[2]);
             let end = EndCut::new(cz, p[2], hold);
-            let mut d = [0.0; crate::teeth::MAX_FLUTES];
-            let teeth = self
+            let mut d = [0.0; crate::teeth::HISTORY_LEN];
+            let n = self
                 .teeth
-                .offsets(self.cutter.flutes, t_s, &mut d)
-                .then_some(&d[..self.cutter.flutes as usize]);
+                .history(self.cutter.flutes, t_s, tooth_period, &mut d);
+            let teeth = (n > 0).then_some(&d[..n]);
             match self.flex.as_mut() {
                 None => self
                     .cutter

@@ -24,9 +24,13 @@
 //!   material behind the edge limits every chip: `h_k <= extent cos(alpha)` (entering a wall,
 //!   the tooth after a broken one takes what is there, not twice the first tooth's sliver; see
 //!   [`crate::process`]).
-//! - Static: the offsets in force at the sample's time apply to every tooth at once (the surface
-//!   left by the previous teeth is taken as cut with today's offsets): from the time of a chip or
-//!   break on, the next tooth takes the rest. Real breakage shows one transitional tooth pass.
+//! - Causal: tooth k's own offset is the one in force now, and tooth k-i's the one it had when it
+//!   passed the same angle, i tooth periods ago (at the spindle speed of now): a tooth that
+//!   breaks stops cutting at once, and the next tooth takes its chip from the angle where the
+//!   broken tooth stopped cutting on, a tooth period later (the material the broken tooth had cut
+//!   before it broke is not cut again). Until issue 20 the model was static (the offsets of the
+//!   sample's time applied to every tooth at once), which doubled the next tooth's chip in the
+//!   very sample of the break, before the broken tooth's loss: a jump no real fracture makes.
 //! - The probe of the axial depth, the engagement angle and the torque's lever arm stay at the
 //!   nominal radius R (run-out is microns, a chip tenths of a mm against R = 6.35 mm).
 //! - End face (plunges and ramps): the end edges see only breakage. A broken tooth's end edge cuts
@@ -174,19 +178,60 @@ impl Teeth {
         out[..z].copy_from_slice(&d[..z]);
         out[..z].iter().any(|o| *o != 0.0)
     }
+
+    /// The offsets the chips at time `t_s` depend on, with tooth periods of `tooth_s` seconds:
+    /// row i (i = 0..=z) the offsets at `t_s - i tooth_s` ([`Self::offsets`]), `(z + 1) z`
+    /// values; only the z of now when no damage event falls within the last z tooth periods
+    /// (every row the same); 0 when every offset is 0 (the intact tool without run-out). Returns
+    /// how many values of `out` it wrote.
+    pub(crate) fn history(
+        &self,
+        flutes: u32,
+        t_s: f64,
+        tooth_s: f64,
+        out: &mut [f64; HISTORY_LEN],
+    ) -> usize {
+        let z = flutes as usize;
+        let mut row = [0.0; MAX_FLUTES];
+        let any = self.offsets(flutes, t_s, &mut row);
+        out[..z].copy_from_slice(&row[..z]);
+        let since = t_s - z as f64 * tooth_s;
+        let recent = self.events.iter().any(|e| e.t_s > since && e.t_s <= t_s);
+        if !recent {
+            return if any { z } else { 0 };
+        }
+        for i in 1..=z {
+            self.offsets(flutes, t_s - i as f64 * tooth_s, &mut row);
+            out[i * z..(i + 1) * z].copy_from_slice(&row[..z]);
+        }
+        (z + 1) * z
+    }
 }
 
-/// Chip thickness of the tooth of geometric index `g` (mm) when the intact tool's chip there is
-/// `cc = c cos(alpha)` (> 0), with the radius offsets `d` of all teeth in geometric numbering
-/// ([`Teeth::offsets`]; the tooth i places before g in cutting order is g + i mod z).
-pub(crate) fn chip_mm(g: usize, cc: f64, d: &[f64]) -> f64 {
-    let z = d.len();
+/// Most values [`Teeth::history`] writes: the offsets of every tooth now and at each of the
+/// last `z` tooth periods.
+pub(crate) const HISTORY_LEN: usize = MAX_FLUTES * (MAX_FLUTES + 1);
+
+/// The offset of the tooth `i` places before tooth `g` (geometric numbering, `z` teeth) when it
+/// passed the angle where `g` is now: from a history ([`Teeth::history`], `(z + 1) z` values,
+/// row i the offsets i tooth periods ago) or, from `z` values, the offsets of every tooth now.
+fn before(d: &[f64], z: usize, g: usize, i: usize) -> f64 {
+    let j = (g + i) % z;
+    let row = if d.len() > z { i * z } else { 0 };
+    d.get(row + j).copied().unwrap_or(0.0)
+}
+
+/// Chip thickness of the tooth of geometric index `g` of `z` (mm) when the intact tool's chip
+/// there is `cc = c cos(alpha)` (> 0), with the radius offsets `d` ([`Teeth::history`], or the
+/// offsets of all teeth now, [`Teeth::offsets`]; the tooth i places before g in cutting order is
+/// g + i mod z).
+pub(crate) fn chip_mm(g: usize, z: usize, cc: f64, d: &[f64]) -> f64 {
     if d[g] == f64::NEG_INFINITY {
         return 0.0;
     }
     let mut h = f64::INFINITY;
     for i in 1..=z {
-        let prev = d[(g + i) % z];
+        let prev = before(d, z, g, i);
         if prev == f64::NEG_INFINITY {
             continue;
         }
@@ -195,15 +240,15 @@ pub(crate) fn chip_mm(g: usize, cc: f64, d: &[f64]) -> f64 {
     h.max(0.0)
 }
 
-/// The end-face chip of the tooth of geometric index `g` as a multiple of `c_z`: 0 for a broken
-/// tooth, else 1 + the number of broken teeth right before it in cutting order.
-pub(crate) fn end_share(g: usize, d: &[f64]) -> f64 {
-    let z = d.len();
+/// The end-face chip of the tooth of geometric index `g` of `z` as a multiple of `c_z`: 0 for a
+/// broken tooth, else 1 + the number of teeth right before it in cutting order that were broken
+/// when they passed (`d` as for [`chip_mm`]).
+pub(crate) fn end_share(g: usize, z: usize, d: &[f64]) -> f64 {
     if d[g] == f64::NEG_INFINITY {
         return 0.0;
     }
     let broken_before = (1..z)
-        .take_while(|i| d[(g + i) % z] == f64::NEG_INFINITY)
+        .take_while(|&i| before(d, z, g, i) == f64::NEG_INFINITY)
         .count();
     (broken_before + 1) as f64
 }

@@ -740,7 +740,7 @@ fn kienzle_oracle_stays_within_the_limits() {
 fn chip_of(teeth: &Teeth, z: u32, t_s: f64, n: u32, cc: f64) -> f64 {
     let mut d = [0.0; teeth::MAX_FLUTES];
     teeth.offsets(z, t_s, &mut d);
-    teeth::chip_mm(((z - n) % z) as usize, cc, &d[..z as usize])
+    teeth::chip_mm(((z - n) % z) as usize, z as usize, cc, &d[..z as usize])
 }
 
 /// Hand calculation of the run-out model on four teeth at an intact chip of 0.1 mm: +10 um of
@@ -901,6 +901,41 @@ fn a_broken_tooth_cuts_nothing_and_the_next_takes_twice_its_chip() {
         before > 20 && zero > 20 && twice > 20,
         "{before} {zero} {twice}"
     );
+}
+
+/// A tooth that breaks mid-pass stops cutting at once, and the tooth after it takes the chip
+/// only from the angle where the broken tooth stopped cutting on, a tooth period later: no sample
+/// of the tooth period after the break is above the intact tool's, and the doubled chip comes in
+/// the tooth period after that. Before the causal model (the break's offsets applied to every
+/// tooth at once), the next tooth's chip doubled in the very sample of the break: 2400 N above
+/// the intact force at once on the pocket's slot, a jump no fracture makes.
+#[test]
+fn a_tooth_broken_mid_pass_leaves_its_chip_a_tooth_period_later() {
+    let intact = slot(&mut steel(blank(), 1));
+    // 600 rpm, 4 teeth: 25 ms tooth periods; breaks at several phases of a pass.
+    for phase in [0.0, 0.007, 0.013, 0.019] {
+        let t_break = 7.0 + phase;
+        let mut p = steel(blank(), 1).break_tooth(1, t_break).unwrap();
+        let broken = slot(&mut p);
+        let (mut rise_first, mut rise_second) = (f64::MIN, f64::MIN);
+        for (i, ((_, a), (_, b))) in intact.iter().zip(&broken).enumerate() {
+            let t = SLOT_T0 + i as f64 / RATE;
+            let d = b.f_true_n - a.f_true_n;
+            if t >= t_break && t < t_break + 0.025 {
+                rise_first = rise_first.max(d / a.f_true_n);
+            } else if t >= t_break + 0.025 && t < t_break + 0.05 {
+                rise_second = rise_second.max(d / a.f_true_n);
+            }
+        }
+        assert!(
+            rise_first <= 0.01,
+            "break at {t_break}: {rise_first} in the first tooth period"
+        );
+        assert!(
+            rise_second > 0.3,
+            "break at {t_break}: {rise_second} in the second"
+        );
+    }
 }
 
 /// On four flutes two teeth share each tooth period (the one entering, the one leaving, each
