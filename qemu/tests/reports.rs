@@ -14,8 +14,21 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
+/// The tool, with SIGINT and SIGTERM at their default action: a test run from a shell's
+/// background job inherits SIGINT ignored (POSIX: `cmd &` in a non-interactive shell), which the
+/// tool keeps, as a shell's child should, and the SIGINT test would see a run that went on.
 fn tool() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_millac-qemu"))
+    use std::os::unix::process::CommandExt;
+    let mut c = Command::new(env!("CARGO_BIN_EXE_millac-qemu"));
+    // SAFETY: signal(2) is async-signal-safe; nothing else runs between fork and exec.
+    unsafe {
+        c.pre_exec(|| {
+            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            libc::signal(libc::SIGTERM, libc::SIG_DFL);
+            Ok(())
+        });
+    }
+    c
 }
 
 fn summary(out: &Path) -> Value {
