@@ -546,8 +546,6 @@ mod tests {
         (out, g.pending().to_vec())
     }
 
-    /// Lines pass when they end; the unfinished one waits; realtime bytes pass at once, ahead of
-    /// the unfinished line's bytes and in place between whole lines.
     /// A client that leaves after a lone CR (realtime bytes after it change nothing) gets the
     /// LF the firmware skips; after a CRLF, an LF, a reset or an unfinished line, nothing.
     #[test]
@@ -570,6 +568,8 @@ mod tests {
         }
     }
 
+    /// Lines pass when they end; the unfinished one waits; realtime bytes pass at once, ahead of
+    /// the unfinished line's bytes and in place between whole lines.
     #[test]
     fn the_gate_passes_whole_lines_and_realtime_bytes() {
         let (out, pending) = through(&[b"G0 X1\nG1 Y", b"2?", b"\r\nG0 Z"]);

@@ -646,8 +646,9 @@ impl BreakageDetector {
     }
 
     /// The feed changed by a step the controller knows of (the frame's deceleration at a corner
-    /// and the acceleration after it, an AC hold or resume): the force follows the feed, whole
-    /// revolutions alike. Open suspicions and a curvature episode are dropped, and for one
+    /// and the acceleration after it, an AC hold or resume), or ramps revolution by revolution
+    /// (the AC's recovery after a corner; `crate::rt::ac::FeedNotice`): the force follows the
+    /// feed, whole revolutions alike. Open suspicions and a curvature episode are dropped, and for one
     /// revolution from now none is raised or confirmed (the filters and the history go on). A
     /// corner's dip and recovery otherwise look like a tooth's lost chip to the suspicion and
     /// its confirmations (the pocket under QEMU with the AC at 16.45 s: declared at the

@@ -312,11 +312,14 @@ pub fn run<
         while let Some(a) = ac_alarms.dequeue() {
             if !ac_enabled {
                 // A measure-only AC holds nothing: what it would have held for is told, and the
-                // machine goes on unlocked (an alarm would refuse the sender's next line).
+                // machine goes on unlocked (an alarm would refuse the sender's next line). The
+                // AC's controller entered its hold with the verdict: it resumes at once, so the
+                // next verdict is told too.
                 proto.message(
                     &mut out,
                     format_args!("AC (measure only) would hold: {}", a),
                 );
+                status.ac_resume.store(true, Relaxed);
                 continue;
             }
             proto.message(&mut out, format_args!("AC hold: {}", a));

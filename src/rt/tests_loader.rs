@@ -1073,4 +1073,6 @@ fn a_measure_only_ac_tells_its_verdicts_without_an_alarm() {
     assert_eq!(oks(&b.out), 2, "{}", b.out);
     assert!(b.out.contains("<Idle|"), "{}", b.out);
     assert_eq!(b.status.encoder(), [100, 100, 0]);
+    // The AC, held by its verdict, is asked to resume, so its next verdict is told too.
+    assert!(b.status.ac_resume.load(Relaxed), "the AC stays deaf");
 }

@@ -5,7 +5,8 @@
 //! turns the offsets into chip thicknesses. millac-qemu's `Cut` and its CLI (`--runout`,
 //! `--chip-tooth`, `--break-tooth`) set it.
 //!
-//! Model (the standard static run-out model, e.g. Kline and DeVor 1983; Munasinghe 1994 section
+//! Model (the standard static run-out model, e.g. Kline and DeVor 1983, with damage applied
+//! causally, see below; Munasinghe 1994 section
 //! 3.2 for breakage: "the next tooth has to remove the material the damaged tooth left"):
 //! - Tooth k's effective cutting radius is `rho_k = R + runout_k - loss_k(t)`: `runout_k` (mm,
 //!   signed, per tooth, default 0) is its radial run-out, `loss_k(t)` the radius its edge has
