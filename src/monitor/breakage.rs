@@ -750,23 +750,21 @@ impl BreakageDetector {
         // fall in either of the last two.
         let dm = self.dm_prev.min(self.dm_prev2);
         let th = CHIP_MOVED_MIN * self.level;
-        let loss = self.rev_loss();
-        let periods = self.n_air == 0 && -dm >= th;
-        let samples = loss.is_some_and(|l| l >= REV_LOSS_MIN);
-        (periods || samples).then_some(Breakage {
+        // The report: the tooth periods' loss and threshold where they tell it, else the samples'.
+        let (e2, th2) = if self.n_air == 0 && -dm >= th {
+            (dm, th)
+        } else {
+            match self.rev_loss() {
+                Some(l) if l >= REV_LOSS_MIN => (-l * self.level, REV_LOSS_MIN * self.level),
+                _ => return None,
+            }
+        };
+        Some(Breakage {
             tooth_period: self.j,
             e1: self.prev_fa - self.prev_fa2,
-            e2: if periods {
-                dm
-            } else {
-                -loss.unwrap_or(0.0) * self.level
-            },
+            e2,
             th1: th,
-            th2: if periods {
-                th
-            } else {
-                REV_LOSS_MIN * self.level
-            },
+            th2,
         })
     }
 

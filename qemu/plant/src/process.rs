@@ -391,6 +391,7 @@ impl Cutter {
     ) -> Forces {
         let mut f = Forces::default();
         let m = &self.material;
+        let z = self.flutes as usize;
         for k in 0..self.flutes {
             if c <= 0.0 {
                 break;
@@ -404,7 +405,6 @@ impl Cutter {
             // chip a damaged tooth leaves to the next one).
             let cap = st.extent * st.cos_a;
             let cc = (c * st.cos_a).min(cap);
-            let z = self.flutes as usize;
             let mut h =
                 teeth.map(|d| crate::teeth::chip_mm(k as usize, z, c * st.cos_a, d).min(cap));
             if let Some(w) = wave {
@@ -432,7 +432,6 @@ impl Cutter {
             let ks = m.ks_at(end.cz);
             for k in 0..self.flutes {
                 // A broken end tooth cuts nothing; the next intact one takes its share.
-                let z = self.flutes as usize;
                 let (cz, ks) = match teeth.map(|d| crate::teeth::end_share(k as usize, z, d)) {
                     None => (end.cz, ks),
                     Some(0.0) => continue,
