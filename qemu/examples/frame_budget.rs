@@ -7,9 +7,9 @@
 //! It builds nothing: build the firmware first, then pass the ELF:
 //!
 //! ```text
-//! cargo build -p millac-hal --release --target thumbv7m-none-eabi
+//! cargo fw
 //! cargo run -p millac-qemu --release --example frame_budget -- \
-//!     target/thumbv7m-none-eabi/release/millac-lm3s6965
+//!     target/thumbv7m-none-eabi/firmware/millac-lm3s6965
 //! ```
 //!
 //! (with `CARGO_TARGET_DIR` set, the ELF is under that directory). Each program's row is followed
@@ -49,7 +49,7 @@ fn run(elf: &Path, dir: &Path, program: &str, handlers: &[HandlerSpec]) -> Resul
 
 fn main() -> Result<()> {
     let Some(elf) = std::env::args_os().nth(1).map(PathBuf::from) else {
-        bail!("usage: frame_budget FIRMWARE_ELF (build it with `cargo build -p millac-hal --release --target thumbv7m-none-eabi`)");
+        bail!("usage: frame_budget FIRMWARE_ELF (build it with `cargo fw`)");
     };
     let handlers = vec![
         HandlerSpec::from_elf(&elf, "TIMER_0A")?,

@@ -24,6 +24,14 @@ pub struct Board {
     pub bin: &'static str,
     /// Cargo features of the package (e.g. `qemu`).
     pub features: &'static [&'static str],
+    /// The cargo profile it is built with (its ELF is under `target/<target>/<profile>/`):
+    /// `firmware` (opt-level "s", .cargo/config.toml) for the LM3S6965's 256 KiB of flash,
+    /// `release` for the boards with room.
+    pub profile: &'static str,
+    /// The board's memory map (`FLASH`'s `LENGTH` is the flash the program gets) and its size
+    /// budgets (`flash_bytes`, `ram_bytes`), from the workspace root.
+    pub memory_x: &'static str,
+    pub budget: &'static str,
 }
 
 /// The QEMU board.
@@ -33,6 +41,9 @@ pub const LM3S6965: Board = Board {
     target: TARGET,
     bin: BIN,
     features: &[],
+    profile: "firmware",
+    memory_x: "memory.x",
+    budget: "hal/lm3s6965/budget.txt",
 };
 
 /// The Nucleo-F446RE (links with flip-link, see .cargo/config.toml).
@@ -42,6 +53,9 @@ pub const NUCLEO_F446RE: Board = Board {
     target: "thumbv7em-none-eabihf",
     bin: "millac-nucleo-f446re",
     features: &[],
+    profile: "release",
+    memory_x: "hal/nucleo-f446re/memory.x",
+    budget: "hal/nucleo-f446re/budget.txt",
 };
 
 /// The Nucleo-F446RE firmware built to run under QEMU's netduinoplus2 machine (its `qemu`
@@ -59,13 +73,13 @@ pub fn workspace() -> PathBuf {
         .unwrap_or_default()
 }
 
-/// Builds the QEMU firmware in release mode and returns the ELF path. Installs the target with
+/// Builds the QEMU firmware (its profile, see [`Board::profile`]) and returns the ELF path. Installs the target with
 /// rustup first when the toolchain lacks it.
 pub fn build() -> Result<PathBuf> {
     build_board(&LM3S6965)
 }
 
-/// Builds a board's firmware in release mode and returns the ELF path (one target directory per
+/// Builds a board's firmware with its profile and returns the ELF path (one target directory per
 /// board, so two tests building two boards do not wait on each other's lock). Installs first what
 /// the toolchain lacks: the Rust target (rustup) and the target's linker wrapper (flip-link for
 /// the real boards, see [`linker_of`]).
@@ -108,6 +122,8 @@ pub fn build_board_in(board: &Board, target_dir: &Path, linker: Option<&Path>) -
         target: tgt,
         bin,
         features,
+        profile,
+        ..
     } = *board;
     let ws = workspace();
     crate::tools::ensure_rust_target(tgt, &ws)?;
@@ -122,7 +138,7 @@ pub fn build_board_in(board: &Board, target_dir: &Path, linker: Option<&Path>) -
     }
     let out = command
         .current_dir(&ws)
-        .args(["build", "--quiet", "--release", "--manifest-path"])
+        .args(["build", "--quiet", "--profile", profile, "--manifest-path"])
         .arg(ws.join(manifest))
         .args(["-p", package, "--target", tgt, "--bin", bin])
         .args(if features.is_empty() {
@@ -147,16 +163,80 @@ pub fn build_board_in(board: &Board, target_dir: &Path, linker: Option<&Path>) -
         };
         bail!("building the firmware failed:\n{err}{hint}");
     }
-    let elf = target_dir.join(tgt).join("release").join(bin);
+    let elf = target_dir.join(tgt).join(profile).join(bin);
     if !elf.exists() {
         bail!("firmware ELF missing after build: {}", elf.display());
     }
     Ok(elf)
 }
 
+impl Board {
+    /// A `key = value` line of the board's budget file (comments start with `#`).
+    pub fn budget(&self, key: &str) -> Result<u64> {
+        let path = workspace().join(self.budget);
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("reading {}", path.display()))?;
+        let value = text
+            .lines()
+            .filter(|l| !l.trim_start().starts_with('#'))
+            .filter_map(|l| l.split_once('='))
+            .find(|(k, _)| k.trim() == key)
+            .with_context(|| format!("{key} missing in {}", path.display()))?
+            .1;
+        value
+            .trim()
+            .parse()
+            .with_context(|| format!("{key} in {}: {value:?}", path.display()))
+    }
+
+    /// The flash the program gets: `LENGTH` of the `FLASH` region of the board's memory.x (a
+    /// number of bytes, or of KiB with `K`, MiB with `M`).
+    pub fn flash_capacity(&self) -> Result<u64> {
+        let path = workspace().join(self.memory_x);
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("reading {}", path.display()))?;
+        let line = text
+            .lines()
+            .find(|l| l.trim_start().starts_with("FLASH"))
+            .with_context(|| format!("no FLASH region in {}", path.display()))?;
+        let length = line
+            .split_once("LENGTH")
+            .and_then(|(_, r)| r.split_once('='))
+            .map(|(_, v)| v.trim().trim_end_matches(',').trim())
+            .with_context(|| format!("no LENGTH in {line:?}"))?;
+        let (digits, scale) = match length.as_bytes().last() {
+            Some(b'K') => (&length[..length.len() - 1], 1024),
+            Some(b'M') => (&length[..length.len() - 1], 1024 * 1024),
+            _ => (length, 1),
+        };
+        let n: u64 = digits
+            .trim()
+            .parse()
+            .with_context(|| format!("LENGTH {length:?} in {}", path.display()))?;
+        Ok(n * scale)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every board's flash budget leaves at least a quarter of its flash free (room for what the
+    /// next features add), and its RAM budget is set.
+    #[test]
+    fn every_flash_budget_leaves_a_quarter_of_the_flash_free() {
+        for board in [LM3S6965, NUCLEO_F446RE] {
+            let capacity = board.flash_capacity().unwrap();
+            let budget = board.budget("flash_bytes").unwrap();
+            assert!(capacity >= 64 * 1024, "{}: {capacity}", board.bin);
+            assert!(
+                budget * 4 <= capacity * 3,
+                "{}: flash budget {budget} of {capacity} bytes leaves less than 25 % free",
+                board.bin
+            );
+            assert!(board.budget("ram_bytes").unwrap() > 0);
+        }
+    }
 
     /// `linker_of` names the linker .cargo/config.toml sets for each board's target (none: rustc's
     /// own), so that what `build_board` installs is what the build runs.

@@ -18,16 +18,9 @@ use std::time::{Duration, Instant};
 #[path = "../examples/common/programs.rs"]
 mod programs;
 
-/// `key = value` lines of the budget file (comments start with `#`).
+/// A size budget of the F446 (hal/nucleo-f446re/budget.txt).
 fn budget(key: &str) -> u64 {
-    let path = workspace().join("hal/nucleo-f446re/budget.txt");
-    let text = std::fs::read_to_string(&path).unwrap();
-    text.lines()
-        .filter(|l| !l.trim_start().starts_with('#'))
-        .filter_map(|l| l.split_once('='))
-        .find(|(k, _)| k.trim() == key)
-        .map(|(_, v)| v.trim().parse().unwrap())
-        .unwrap_or_else(|| panic!("{key} missing in {}", path.display()))
+    NUCLEO_F446RE.budget(key).unwrap()
 }
 
 /// The layout of an F446 image: linked with the board's own memory map and by flip-link.

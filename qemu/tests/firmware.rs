@@ -310,6 +310,28 @@ fn interrupts_have_no_calls_and_no_panic_path() {
     assert!(!reset.calls_and_traps.is_empty());
 }
 
+/// The QEMU board's firmware fits its flash and RAM budgets (hal/lm3s6965/budget.txt, a quarter
+/// of the LM3S6965's flash free).
+#[test]
+fn fits_its_flash_and_ram_budgets() {
+    use millac_qemu::firmware::LM3S6965;
+    let elf = millac_qemu::firmware::build().unwrap();
+    let m = millac_qemu::elf::memory_use_in(&std::fs::read(&elf).unwrap(), 0x2000_0000).unwrap();
+    let flash = LM3S6965.budget("flash_bytes").unwrap();
+    let ram = LM3S6965.budget("ram_bytes").unwrap();
+    println!(
+        "flash {} of {flash} bytes, RAM {} of {ram} bytes",
+        m.flash, m.ram
+    );
+    assert!(
+        m.flash > 16 * 1024,
+        "flash {} is implausibly small",
+        m.flash
+    );
+    assert!(m.flash <= flash, "flash {} > budget {flash}", m.flash);
+    assert!(m.ram <= ram, "RAM {} > budget {ram}", m.ram);
+}
+
 /// Program mode with a refused settings record (one flipped byte): the firmware says why and
 /// exits with failure before anything moves (there is no `$X` to acknowledge the defaults); with
 /// the same record intact it runs the program on the record's settings (step pulse 7 us).

@@ -205,7 +205,7 @@ impl Frame {
     ///
     /// Bounded work per frame: a frame that loads registers (a new block, or the next arc
     /// segment) runs no DDA cycle and emits no pulse; only the loaded block's sign lines change.
-    #[inline]
+    #[inline(always)]
     pub fn tick(&mut self, src: &mut impl BlockSource, feed_cap: impl FeedCap) -> Pulses {
         let op = feed_cap.operator();
         if op & operator::ABORT != 0 {
@@ -337,7 +337,7 @@ impl Frame {
     }
 
     /// Timer rate the next frame needs.
-    #[inline]
+    #[inline(always)]
     pub fn rate(&self) -> Rate {
         if self.mode == Mode::Rapid {
             Rate::Rapid
@@ -347,45 +347,45 @@ impl Frame {
     }
 
     /// Absolute position in BLU, updated per pulse.
-    #[inline]
+    #[inline(always)]
     pub fn position(&self) -> [i32; 3] {
         self.position
     }
 
     /// True when no block is loaded.
-    #[inline]
+    #[inline(always)]
     pub fn idle(&self) -> bool {
         self.mode == Mode::Idle
     }
 
     /// The feed velocity as a feed number in Q8: 0 in rapids and dwells, and when a feed hold has
     /// stopped a feed block; after a feed block, its last velocity until the next block starts.
-    #[inline]
+    #[inline(always)]
     pub fn velocity_q8(&self) -> u32 {
         self.v
     }
 
     /// The rapid's hold ladder: 0 when no rapid runs or a hold has stopped it.
-    #[inline]
+    #[inline(always)]
     pub fn ladder(&self) -> u32 {
         self.ptp_m
     }
 
     /// True when nothing moves: idle, dwelling, a feed block at velocity 0 or a rapid stopped by
     /// the hold ladder (a feed hold is complete: grbl's `Hold:0`). See [`stopped`].
-    #[inline]
+    #[inline(always)]
     pub fn stopped(&self) -> bool {
         stopped(self.idle(), self.v, self.ptp_m)
     }
 
     /// Blocks completed since power-up.
-    #[inline]
+    #[inline(always)]
     pub fn blocks_done(&self) -> u32 {
         self.blocks_done
     }
 
     /// The Initiator: load a validated block into the registers (read in place, not copied).
-    #[inline]
+    #[inline(always)]
     fn initiate(&mut self, block: &Block) {
         match &block.motion {
             Motion::Rapid(r) => {
@@ -448,13 +448,14 @@ impl Frame {
         self.mode = Mode::Linear;
         // q >= 1 (parser); the other registers stay in the block (read in place).
         let q = l.q;
-        self.acc = [q / 2; 3];
+        let half = q / 2;
+        self.acc = [half, half, half];
         self.remaining = q;
         self.signs = l.signs;
     }
 
     /// The block is done and leaves the source; the Initiator runs next frame.
-    #[inline]
+    #[inline(always)]
     fn done(&mut self, src: &mut impl BlockSource) {
         self.mode = Mode::Idle;
         self.blocks_done = self.blocks_done.wrapping_add(1);
@@ -462,7 +463,7 @@ impl Frame {
     }
 
     /// Loads segment `self.seg` of the running arc (the source's front block).
-    #[inline]
+    #[inline(always)]
     fn load_segment(&mut self, src: &mut impl BlockSource) {
         match src.front() {
             Some(Block {
@@ -495,7 +496,7 @@ impl Frame {
         // at one half, which rounds each axis to the nearest BLU (measured: smaller deviation than
         // carrying the remainders over the crossing).
         let half = self.regs.q / 2;
-        self.acc = [half; 3];
+        self.acc = [half, half, half];
         // Only the axes that move in this segment change their sign line.
         let (bit_a, bit_b) = (self.bit_a, self.bit_b);
         let mut mask = 0u8;
@@ -524,7 +525,7 @@ impl Frame {
     /// the paper's exponential approach (it is not ramped: it is the rule for those blocks).
     /// `planned` is the block's feed f times the AC's plan ratio k ([`FeedCap::planned`]: f
     /// but under the plan).
-    #[inline]
+    #[inline(always)]
     fn feed(
         &mut self,
         feed_cap: u32,
@@ -580,23 +581,15 @@ impl Frame {
     /// pulses: never more than |d_k| before the q-th command and exactly |d_k| after it, so the
     /// block ends after q commands and needs no per-axis counters.
     #[inline(always)]
-    #[allow(clippy::needless_range_loop)] // one index for acc and d: the measured codegen
     fn linear(&mut self, d: &[u32; 3], q: u32) -> u8 {
-        let mut steps = 0u8;
-        for k in 0..3 {
-            let r = self.acc[k].wrapping_add(d[k]);
-            if r >= q {
-                self.acc[k] = r - q;
-                steps |= 1 << k;
-            } else {
-                self.acc[k] = r;
-            }
-        }
-        steps
+        // Written out per axis, not as a loop: the firmware's code outside the frame is built for
+        // size, and a loop is not unrolled there.
+        let [a0, a1, a2] = &mut self.acc;
+        dda_axis(a0, d[0], q) | dda_axis(a1, d[1], q) << 1 | dda_axis(a2, d[2], q) << 2
     }
 
     /// Circular DDA cycle in the plane (a, b); i, j follow every pulse.
-    #[inline]
+    #[inline(always)]
     fn circular(&mut self) -> u8 {
         let (ca, cb) = (self.ca, self.cb);
         let (step_a, step_b);
@@ -637,7 +630,7 @@ impl Frame {
     /// PTP: independent axes at the rapid rate, three steps of deceleration (and acceleration).
     /// The operator's hold walks the same ladder down in time (`ptp_m`), the rapid override
     /// skips frames (its mask bits).
-    #[inline]
+    #[inline(always)]
     fn ptp(&mut self, op: u32) -> u8 {
         let ticks = self.ticks.wrapping_add(1);
         self.ticks = ticks;
@@ -684,21 +677,41 @@ impl Frame {
         steps
     }
 
-    /// Position: absolute counters follow every pulse with its sign.
-    #[inline]
-    #[allow(clippy::needless_range_loop)] // one index for the bit, position and dir
+    /// Position: absolute counters follow every pulse with its sign (per axis, not a loop: see
+    /// `linear`).
+    #[inline(always)]
     fn position_update(&mut self, steps: u8, dir: &[i32; 3]) {
-        for k in 0..3 {
-            if steps & (1 << k) != 0 {
-                self.position[k] = self.position[k].wrapping_sub(dir[k]);
-            }
-        }
+        let [p0, p1, p2] = &mut self.position;
+        position_axis(p0, steps & 1, dir[0]);
+        position_axis(p1, steps & 2, dir[1]);
+        position_axis(p2, steps & 4, dir[2]);
+    }
+}
+
+/// One axis of the linear DDA cycle: r += |d|; an overflow past q is a pulse (1).
+#[inline(always)]
+fn dda_axis(acc: &mut u32, d: u32, q: u32) -> u8 {
+    let r = acc.wrapping_add(d);
+    if r >= q {
+        *acc = r - q;
+        1
+    } else {
+        *acc = r;
+        0
+    }
+}
+
+/// One axis's position counter: follows a pulse (`bit` set) with its sign.
+#[inline(always)]
+fn position_axis(position: &mut i32, bit: u8, dir: i32) {
+    if bit != 0 {
+        *position = position.wrapping_sub(dir);
     }
 }
 
 /// Whether the machine stands still, from what the frame publishes: idle, or neither a feed velocity
 /// nor a rapid's hold ladder (each is 0 while the other kind of block runs, and in dwells).
-#[inline]
+#[inline(always)]
 pub const fn stopped(idle: bool, velocity_q8: u32, ladder: u32) -> bool {
     idle || velocity_q8 | ladder == 0
 }

@@ -164,14 +164,22 @@ impl<const PLAN: bool> FrameTask<PLAN> {
 pub fn pulse_end(port: &mut impl StepPort, pulse: &mut impl PulseTimer, status: &Status) {
     pulse.ack();
     let pins = port.read_pins();
-    for (k, e) in status.encoder.iter().enumerate() {
-        if pins & (1 << k) != 0 {
-            let d = if pins & (8 << k) != 0 { 1 } else { -1 };
-            e.store(e.load(Relaxed).wrapping_add(d), Relaxed);
-        }
-    }
+    // Per axis, not a loop (the firmware outside the ISRs is built for size: no unrolling).
+    let [e0, e1, e2] = &status.encoder;
+    count_pulse(e0, pins);
+    count_pulse(e1, pins >> 1);
+    count_pulse(e2, pins >> 2);
     port.write_steps(0);
     port.write_signs(status.next_signs.load(Relaxed));
+}
+
+/// One axis's encoder count: bit 0 of `pins` its PULSE line, bit 3 its SIGN line.
+#[inline(always)]
+fn count_pulse(e: &core::sync::atomic::AtomicI32, pins: u8) {
+    if pins & 1 != 0 {
+        let d = if pins & 8 != 0 { 1 } else { -1 };
+        e.store(e.load(Relaxed).wrapping_add(d), Relaxed);
+    }
 }
 
 #[cfg(test)]
