@@ -25,23 +25,32 @@
 //! - An AC hold: an overload is a feed hold (`Hold`, `[MSG:...]` with F, T and the limits; `~`
 //!   resumes the AC from f_min); a sensor fault is an alarm (`ALARM:10x`, `$X` resumes).
 //!
+//! The loader is a state machine: [`Loader`] keeps what it must remember between turns (the tape,
+//! the operator's hold, a line waiting for the machine, the spindle as applied, ...); each turn
+//! ([`Loader::turn`]) gathers the news in a fixed order (the frame's overruns, a tool breakage,
+//! the AC's holds, the re-planner's events, the operator's buttons, the machine standing, then the
+//! line source: a G-code line, a jog, a realtime request, a reset or a trip, `$X`) and hands each
+//! to [`Loader::step`] as a [`Step`]: one match arm per event.
+//!
 //! The loader never blocks: while the block queue has no room for a line's blocks it polls the
 //! realtime requests only (`Protocol::poll_realtime`), so `?`, `!`, `~` and a reset are served at
 //! once whatever the queue holds, and a hold with a full queue cannot stall it.
 use core::sync::atomic::Ordering::Relaxed;
 
+use crate::ac::AcSettings;
 use crate::ac::{Alarm, FeedCeiling};
 use crate::gcode::tape::{finish_block, Tape};
 use crate::nc::{operator, Block, FrameConfig, Motion};
 use crate::ports::SettingsStorage;
 use crate::protocol::codes::{ac_alarm, alarm, GrblError};
 use crate::protocol::report::{feed_blu_per_min, AcReport, AcState, State, StatusData};
-use crate::protocol::rx::Overrides;
+use crate::protocol::rx::{Overrides, Pending};
 use crate::protocol::settings::Persistent;
 use crate::protocol::{Context, Event, Protocol, SettingsTable};
 use crate::rt::ac::AC_RUN;
 use crate::rt::replan::{self, Replan};
 use crate::rt::Status;
+use crate::settings::Settings;
 use heapless::spsc::{Consumer, Producer};
 
 use crate::gcode::{Parsed, Spindle};
@@ -175,15 +184,135 @@ struct Deferred {
     end: bool,
 }
 
+/// What the loader works with, from the board's init: the block queue's producer, the re-plan's
+/// record, the settings table (loaded, and started the frame with) and its storage, an enabled
+/// AC's feed ceiling (None: no AC, or a measure-only one), the protocol and the transmit queue,
+/// the AC task's holds, the status words.
+pub struct Parts<
+    'r,
+    const Q: usize,
+    const T: usize,
+    const A: usize,
+    const R: usize,
+    S: SettingsStorage,
+> {
+    pub blocks: &'r mut Producer<'static, Block, Q>,
+    pub replan: &'r mut Replan<R>,
+    pub table: &'r mut Persistent<S>,
+    pub ceiling: Option<FeedCeiling>,
+    pub proto: &'r mut Protocol<'static>,
+    pub tx: &'r mut Producer<'static, u8, T>,
+    pub ac_alarms: &'r mut Consumer<'static, Alarm, A>,
+    pub status: &'r Status,
+}
+
+/// What happens to the loader: each turn of its loop gathers the news (the frame's, the AC's, the
+/// re-planner's, the inputs', the line source's) and [`Loader::step`]s through them in this
+/// order. Adding an event is adding a variant and its arm.
+pub enum Step<'l> {
+    /// A frame took longer than the board allows (`Some((cycles, limit))`) or found the last
+    /// pulse still on the pins (None; `overruns` so far): hold, `ALARM:111`.
+    FrameLate {
+        long: Option<(u32, u32)>,
+        overruns: u32,
+    },
+    /// The AC task asked for the spindle to stop: a tool breakage.
+    Breakage,
+    /// An AC verdict (a hold; told, and an alarm unless it is re-planned).
+    AcAlarm(Alarm),
+    /// The re-planner's news: a re-plan, a spindle speed, a refusal.
+    Replan(replan::Event),
+    /// The operator's buttons (a trip comes as [`Step::Reset`]).
+    Buttons { feed_hold: bool, cycle_start: bool },
+    /// A cancelled jog has stopped: drop it.
+    JogStopped,
+    /// The machine is idle: a line that waits for it (a spindle change, the program's end) runs.
+    MachineIdle { idle: bool },
+    /// A G-code line from the line source (`check`: `$C`, parse only).
+    Line { line: &'l str, check: bool },
+    /// A `$J=` jog.
+    Jog(JogRequest),
+    /// Realtime requests (`?` `!` `~`, jog cancel, overrides).
+    Realtime(Pending),
+    /// A soft reset, or an input trip (`trip`): stop at once, drop everything queued.
+    Reset { trip: Option<Trip> },
+    /// `$X`.
+    Unlock,
+    /// The receive ring lost bytes.
+    RxOverflow { lost: u32 },
+    /// Nothing came from the line source (`room`: it may have taken a line, and `idle`: the
+    /// machine stands): the look-ahead's held block runs.
+    NoLine { room: bool, idle: bool },
+}
+
+/// The loader in serial mode: the state it keeps between turns, and the parts it works on. Loader
+/// task (the idle loop); [`run`] turns it while the board runs.
+pub struct Loader<
+    'r,
+    const Q: usize,
+    const T: usize,
+    const A: usize,
+    const R: usize,
+    S: SettingsStorage,
+    B: LoaderBoard,
+> {
+    blocks: &'r mut Producer<'static, Block, Q>,
+    replan: &'r mut Replan<R>,
+    table: &'r mut Persistent<S>,
+    proto: &'r mut Protocol<'static>,
+    out: Tx<'r, T, B>,
+    ac_alarms: &'r mut Consumer<'static, Alarm, A>,
+    status: &'r Status,
+    board: &'r mut B,
+    /// The frame's configuration and the parser's, fixed at init: a `$N=value` the table stores
+    /// (and `$$` lists) at once takes effect for the NC settings at the next start.
+    settings: Settings,
+    cfg: FrameConfig,
+    mm_per_blu: f32,
+    /// The AC's limits F0, T0 for the `AC:` field, as the AC task started with them.
+    ac_settings: AcSettings,
+    /// The AC caps the feed (the boards give the ceiling only then): the status report's `AC:`
+    /// field is about that, so a measure-only AC has none.
+    ac_enabled: bool,
+    tape: Tape,
+    line_no: u32,
+    /// The programmed feed of the block the loader queued last (the AC field's feed share).
+    last_feed: u32,
+    /// A jog is queued and has not finished yet (the state is Jog until the machine is idle).
+    jogging: bool,
+    /// The operator's feed hold, and a jog cancel waiting for the jog to stop.
+    hold: bool,
+    cancel_jog: bool,
+    overrides: Overrides,
+    /// The spindle output as last applied, and a line waiting to change it.
+    spindle: (Spindle, u32),
+    deferred: Option<Deferred>,
+    /// A tool breakage stopped the job: until a reset, `$X` is refused and the spindle stays off.
+    broken: bool,
+    /// The longest frame already reported over the board's limit (said again only when a longer
+    /// one comes).
+    overrun: u32,
+    /// Frames that overran their period (pulses held back), as last reported.
+    overruns: u32,
+    /// The AC's hold as last published into the operator's word.
+    ac_hold_published: bool,
+    /// This turn's view of the machine, taken before the line source is polled.
+    now: Now,
+}
+
+/// The machine as a turn of the loader sees it.
+#[derive(Clone, Copy)]
+struct Now {
+    /// Nothing queued, nothing held for a re-plan, the frame idle.
+    idle: bool,
+    /// The state for the protocol and the status report.
+    state: State,
+    /// An enabled AC holds the machine (a measure-only AC's verdict holds nothing).
+    ac_held: bool,
+}
+
 /// Loader task: runs while [`LoaderBoard::running`] (on a board: for ever; the operator ends the
-/// session by resetting the machine). `table`: the settings init loaded (and started the frame
-/// with) and their storage.
-#[allow(clippy::too_many_arguments)]
-// Called once per board (its idle loop). Inlined there it takes about a third of the code it
-// takes as a function of its own (measured on the QEMU firmware: 37 KiB inside idle, 109 KiB
-// alone; LLVM stopped inlining it when it grew by a few lines in issue 10, and the firmware
-// overflowed its 256 KiB of flash by 27 KiB; the F446 build shrank by 14 KiB with it).
-#[inline(always)]
+/// session by resetting the machine).
 pub fn run<
     const Q: usize,
     const T: usize,
@@ -192,156 +321,354 @@ pub fn run<
     S: SettingsStorage,
     B: LoaderBoard,
 >(
-    blocks: &mut Producer<'static, Block, Q>,
-    replan: &mut Replan<R>,
-    table: &mut Persistent<S>,
-    ceiling: Option<FeedCeiling>,
-    proto: &mut Protocol<'static>,
-    tx: &mut Producer<'static, u8, T>,
-    ac_alarms: &mut Consumer<'static, Alarm, A>,
-    status: &Status,
+    parts: Parts<'_, Q, T, A, R, S>,
     board: &mut B,
 ) {
-    board.start();
-    let mut out = Tx::<T, B>::new(tx);
-    proto.start(&mut out);
-    // The frame's configuration and the parser's, fixed at init: a `$N=value` the table stores
-    // (and `$$` lists) at once takes effect for the NC settings at the next start.
-    let settings = table.settings.nc;
-    // The AC's limits F0, T0 for the `AC:` field, as the AC task started with them.
-    let ac_settings = table.settings.ac;
-    // The AC caps the feed (the boards give the ceiling only then): the status report's `AC:`
-    // field is about that, so a measure-only AC has none.
-    let ac_enabled = ceiling.is_some();
-    if !ac_enabled {
-        replan.without_reactions();
+    let mut loader = Loader::new(parts, board);
+    while loader.board.running() {
+        loader.turn();
     }
-    let mut tape = match ceiling {
-        Some(c) => Tape::with_ac_ceiling(settings, c),
-        None => Tape::new(settings),
-    };
-    let mut line_no = 0u32;
-    // The programmed feed of the block the loader queued last (the AC field's feed share).
-    let mut last_feed = 0u32;
-    let cfg = FrameConfig::from_settings(&settings);
-    let mm_per_blu = {
-        let (num, den) = settings.blu.per_mm();
-        den as f32 / num as f32
-    };
-    // A jog is queued and has not finished yet (the state is Jog until the machine is idle).
-    let mut jogging = false;
-    // The operator's feed hold, and a jog cancel waiting for the jog to stop.
-    let mut hold = false;
-    let mut cancel_jog = false;
-    let mut overrides = proto.overrides();
-    // The operator's word, held also while the AC holds (a cap of 0 stops only the feed: with
-    // the hold a rapid walks its ladder down and no block starts, see `operator::with_ac_hold`).
-    let publish = |hold: bool, ov: Overrides| {
+}
+
+impl<'r, const Q: usize, const T: usize, const A: usize, const R: usize, S, B>
+    Loader<'r, Q, T, A, R, S, B>
+where
+    S: SettingsStorage,
+    B: LoaderBoard,
+{
+    /// Starts the serial line and says the banner.
+    pub fn new(parts: Parts<'r, Q, T, A, R, S>, board: &'r mut B) -> Self {
+        let Parts {
+            blocks,
+            replan,
+            table,
+            ceiling,
+            proto,
+            tx,
+            ac_alarms,
+            status,
+        } = parts;
+        board.start();
+        let mut out = Tx::<T, B>::new(tx);
+        proto.start(&mut out);
+        let settings = table.settings.nc;
+        let ac_enabled = ceiling.is_some();
+        if !ac_enabled {
+            replan.without_reactions();
+        }
+        let tape = match ceiling {
+            Some(c) => Tape::with_ac_ceiling(settings, c),
+            None => Tape::new(settings),
+        };
+        let mm_per_blu = {
+            let (num, den) = settings.blu.per_mm();
+            den as f32 / num as f32
+        };
+        let overrides = proto.overrides();
+        let loader = Loader {
+            blocks,
+            replan,
+            ac_settings: table.settings.ac,
+            table,
+            proto,
+            out,
+            ac_alarms,
+            status,
+            board,
+            settings,
+            cfg: FrameConfig::from_settings(&settings),
+            mm_per_blu,
+            ac_enabled,
+            tape,
+            line_no: 0,
+            last_feed: 0,
+            jogging: false,
+            hold: false,
+            cancel_jog: false,
+            overrides,
+            spindle: (Spindle::Off, 0),
+            deferred: None,
+            broken: false,
+            overrun: 0,
+            overruns: status.frame_overruns.load(Relaxed),
+            ac_hold_published: status.feed_cap.load(Relaxed) == 0,
+            now: Now {
+                idle: true,
+                state: State::Idle,
+                ac_held: false,
+            },
+        };
+        loader.publish();
+        loader
+    }
+
+    /// The operator's word, held also while the AC holds (a cap of 0 stops only the feed: with
+    /// the hold a rapid walks its ladder down and no block starts, see `operator::with_ac_hold`).
+    fn publish(&self) {
+        let (ov, status) = (self.overrides, self.status);
         status.operator.store(
             operator::with_ac_hold(
-                operator::word(ov.feed, ov.rapid, hold, false),
+                operator::word(ov.feed, ov.rapid, self.hold, false),
                 status.feed_cap.load(Relaxed),
             ),
             Relaxed,
         );
-    };
-    publish(hold, overrides);
-    // The spindle output as last applied, and a line waiting to change it.
-    let mut spindle = (Spindle::Off, 0u32);
-    let mut deferred: Option<Deferred> = None;
-    // A tool breakage stopped the job: until a reset, `$X` is refused and the spindle stays off.
-    let mut broken = false;
-    // The longest frame already reported over the board's limit (said again only when a longer
-    // one comes).
-    let mut overrun = 0u32;
-    // Frames that overran their period (pulses held back), as last reported.
-    let mut overruns = status.frame_overruns.load(Relaxed);
-    // The AC's hold as last published into the operator's word.
-    let mut ac_held = status.feed_cap.load(Relaxed) == 0;
-    while board.running() {
-        if (status.feed_cap.load(Relaxed) == 0) != ac_held {
-            ac_held = !ac_held;
-            publish(hold, overrides);
+    }
+
+    /// One turn of the loader's loop: the news in order, each a [`Step`].
+    pub fn turn(&mut self) {
+        let status = self.status;
+        if (status.feed_cap.load(Relaxed) == 0) != self.ac_hold_published {
+            self.ac_hold_published = !self.ac_hold_published;
+            self.publish();
         }
         // A frame too long for the running settings (a board that measures its frame: said
         // again only when a longer one comes), or a frame that found the last pulse still on the
         // pins (the interrupts take longer than the period: no pulse was lost, the frame held
         // them back, but the motion no longer keeps its timing; said once per hold, overruns
-        // while already held are not news): hold with ALARM:111.
+        // while already held are not news).
         let n = status.frame_overruns.load(Relaxed);
-        let late = core::mem::replace(&mut overruns, n) != n && !hold;
-        let long = match (board.frame_limit_cycles(), status.frame_cycles()) {
-            (Some(limit), Some((_, max))) if max > limit && max > overrun => {
-                overrun = max;
+        let late = core::mem::replace(&mut self.overruns, n) != n && !self.hold;
+        let long = match (self.board.frame_limit_cycles(), status.frame_cycles()) {
+            (Some(limit), Some((_, max))) if max > limit && max > self.overrun => {
+                self.overrun = max;
                 Some((max, limit))
             }
             _ => None,
         };
         if late || long.is_some() {
-            hold = true;
-            publish(hold, overrides);
-            proto.alarm(alarm::FRAME_OVERRUN, &mut out);
-            match long {
-                Some((max, limit)) => proto.message(
-                    &mut out,
-                    format_args!(
-                        "Frame ISR took {max} cycles, the board allows {limit}: lower $201 or $110"
-                    ),
-                ),
-                None => proto.message(
-                    &mut out,
-                    format_args!(
-                        "Frame overran its period ({n} frames so far, no pulse lost): lower $201 or $110"
-                    ),
-                ),
-            }
+            self.step(Step::FrameLate { long, overruns: n });
         }
-        // A tool breakage (the AC task's request): the spindle stops at once and stays off; the
-        // job ends: only a reset (which drops the queue) leads on, then `$X` (see `interlock`), as
-        // grbl's hard limit. No waiting spindle line is applied meanwhile.
         if status.spindle_stop.swap(false, Relaxed) {
-            broken = true;
-            if spindle.0 != Spindle::Off {
-                spindle = (Spindle::Off, 0);
-                board.spindle(Spindle::Off, 0, table.settings.spindle_max_rpm);
-                proto.message(&mut out, format_args!("Spindle stopped"));
-            }
+            self.step(Step::Breakage);
         }
-        // AC holds: said once each, as they come. A chatter hold with a depth step or a spindle
-        // speed reaction set is answered (below), not an alarm, unless the reaction is refused.
-        while let Some(a) = ac_alarms.dequeue() {
-            if !ac_enabled {
-                // A measure-only AC holds nothing: what it would have held for is told, and the
-                // machine goes on unlocked (an alarm would refuse the sender's next line). The
-                // AC's controller entered its hold with the verdict: it resumes at once, so the
-                // next verdict is told too.
-                proto.message(
-                    &mut out,
-                    format_args!("AC (measure only) would hold: {}", a),
-                );
-                status.ac_resume.store(true, Relaxed);
-                continue;
-            }
-            proto.message(&mut out, format_args!("AC hold: {}", a));
-            let replanned = matches!(a, Alarm::Chatter { .. }) && replan.reacts();
-            if !matches!(a, Alarm::Overload { .. }) && !replanned {
-                proto.alarm(ac_alarm(&a), &mut out);
-            }
+        while let Some(a) = self.ac_alarms.dequeue() {
+            self.step(Step::AcAlarm(a));
         }
         // Chatter suppression: a chatter hold that has stopped the machine is re-planned (the
-        // frame drops the queue, waited for here; the detour and the copies are queued; the AC
-        // resumes).
-        let mut event = replan.poll(blocks, status);
-        while replan.aborting() {
-            board.wait();
-            event = replan.poll(blocks, status);
+        // frame drops the queue, waited for here).
+        let mut event = self.replan.poll(self.blocks, status);
+        while self.replan.aborting() {
+            self.board.wait();
+            event = self.replan.poll(self.blocks, status);
         }
+        self.step(Step::Replan(event));
+        // Operator inputs: the buttons as `!` and `~`; an e-stop or a limit switch stops at
+        // once like a soft reset (below) and raises its alarm.
+        let inputs = self.board.inputs();
+        let tripped = inputs.tripped.then(|| {
+            self.board.latched().unwrap_or(Trip {
+                estop: true,
+                limits: 0,
+            })
+        });
+        self.step(Step::Buttons {
+            feed_hold: inputs.feed_hold,
+            cycle_start: inputs.cycle_start,
+        });
+        let idle = self.blocks.len() == 0 && status.idle.load(Relaxed) && !self.replan.pending();
+        self.now.idle = idle;
+        if idle {
+            self.jogging = false;
+        }
+        if self.cancel_jog && status.stopped() {
+            self.step(Step::JogStopped);
+        }
+        // A line that changes the spindle runs once everything before it has run (not in the
+        // turn of a trip: the trip drops it below).
+        if self.deferred.is_some() && tripped.is_none() && !self.broken {
+            self.step(Step::MachineIdle { idle });
+        }
+        if let Some(trip) = tripped {
+            self.step(Step::Reset { trip: Some(trip) });
+            return;
+        }
+        // A measure-only AC's verdict holds nothing (its state is only logged).
+        let ac_held = self.ac_enabled && status.ac_state.load(Relaxed) > AC_RUN;
+        let state = if self.hold || ac_held {
+            State::Hold {
+                complete: status.stopped(),
+            }
+        } else {
+            match (idle, self.jogging) {
+                (true, _) => State::Idle,
+                (false, true) => State::Jog,
+                (false, false) => State::Run,
+            }
+        };
+        self.now = Now {
+            idle,
+            state,
+            ac_held,
+        };
+        let room = Q - 1 - self.blocks.len() >= ROOM_PER_LINE
+            && self.deferred.is_none()
+            && !self.replan.pending();
+        // The line source's news. A G-code line is copied out of the protocol's buffer (the
+        // protocol answers it after the step).
+        let mut line = heapless::String::<LINE_MAX>::new();
+        let polled = {
+            let mut cx = Context {
+                table: &mut *self.table,
+                modes: self.tape.parser().modes(),
+                machine: &self.settings,
+                state,
+                frame_cycles: status.frame_cycles(),
+                // After a tool breakage the tool is still in the cut and broken: `$X` alone would
+                // resume the feed there. A reset first (the queue dropped, the spindle off); then
+                // `$X`, jog clear, change the tool and restart the program.
+                interlock: if self.broken {
+                    Some(alarm::AC_BREAKAGE)
+                } else if self.board.latch_active() {
+                    self.board.latched().map(|t| trip_alarm(&t))
+                } else {
+                    None
+                },
+            };
+            let event = if room {
+                self.proto.poll(&mut self.out, &mut cx)
+            } else {
+                self.proto.poll_realtime(&mut self.out)
+            };
+            match event {
+                Event::None => Some(Step::NoLine { room, idle }),
+                Event::Gcode { line: l, check } => {
+                    // At most LINE_MAX bytes: the protocol refuses longer lines.
+                    let _ = line.push_str(l);
+                    return self.step(Step::Line {
+                        line: line.as_str(),
+                        check,
+                    });
+                }
+                Event::Jog(jog) => Some(Step::Jog(jog)),
+                Event::Realtime(p) => Some(Step::Realtime(p)),
+                Event::Reset => Some(Step::Reset { trip: None }),
+                Event::Unlock => Some(Step::Unlock),
+                Event::RxOverflow { lost } => Some(Step::RxOverflow { lost }),
+                Event::Replied | Event::CheckMode(_) => None,
+            }
+        };
+        if let Some(step) = polled {
+            self.step(step);
+        }
+    }
+
+    /// What the loader does with each piece of news.
+    pub fn step(&mut self, step: Step<'_>) {
+        match step {
+            Step::FrameLate { long, overruns } => self.frame_late(long, overruns),
+            Step::Breakage => self.breakage(),
+            Step::AcAlarm(a) => self.ac_alarm(a),
+            Step::Replan(e) => self.replanned(e),
+            Step::Buttons {
+                feed_hold,
+                cycle_start,
+            } => {
+                if feed_hold {
+                    self.hold = true;
+                    self.publish();
+                }
+                // An alarm (a frame overrun, a trip) keeps the hold until `$X`.
+                if cycle_start && self.hold && self.proto.alarm_code().is_none() {
+                    self.hold = false;
+                    self.publish();
+                }
+            }
+            Step::JogStopped => {
+                // The jog has stopped: drop it and any jog queued behind it. The parser keeps its
+                // modes (a jog changes none) and stands where the machine stopped.
+                let (at, signs) = abort(self.blocks, self.status, self.board);
+                self.replan.restart(at);
+                self.tape.jogged_to(at, signs);
+                self.cancel_jog = false;
+                self.jogging = false;
+                self.hold = false;
+                self.publish();
+            }
+            Step::MachineIdle { idle } => self.run_deferred(idle),
+            Step::NoLine { room, idle } => {
+                // Nothing more has come: let the held block run once the machine would stop.
+                if room && idle {
+                    self.run_held();
+                }
+            }
+            Step::Line { line, check } => self.line(line, check),
+            Step::Jog(jog) => self.jog(jog),
+            Step::Realtime(p) => self.realtime(p),
+            Step::Reset { trip } => self.reset(trip),
+            Step::Unlock => self.unlock(),
+            Step::RxOverflow { lost } => self.proto.rx_overflow(lost, &mut self.out),
+        }
+    }
+
+    /// Hold with `ALARM:111`.
+    fn frame_late(&mut self, long: Option<(u32, u32)>, n: u32) {
+        self.hold = true;
+        self.publish();
+        let (proto, out) = (&mut *self.proto, &mut self.out);
+        proto.alarm(alarm::FRAME_OVERRUN, out);
+        match long {
+            Some((max, limit)) => proto.message(
+                out,
+                format_args!(
+                    "Frame ISR took {max} cycles, the board allows {limit}: lower $201 or $110"
+                ),
+            ),
+            None => proto.message(
+                out,
+                format_args!(
+                    "Frame overran its period ({n} frames so far, no pulse lost): lower $201 or $110"
+                ),
+            ),
+        }
+    }
+
+    /// A tool breakage (the AC task's request): the spindle stops at once and stays off; the
+    /// job ends: only a reset (which drops the queue) leads on, then `$X` (see `interlock`), as
+    /// grbl's hard limit. No waiting spindle line is applied meanwhile.
+    fn breakage(&mut self) {
+        self.broken = true;
+        if self.spindle.0 != Spindle::Off {
+            self.spindle = (Spindle::Off, 0);
+            self.board
+                .spindle(Spindle::Off, 0, self.table.settings.spindle_max_rpm);
+            self.proto
+                .message(&mut self.out, format_args!("Spindle stopped"));
+        }
+    }
+
+    /// An AC hold: said once, as it comes. A chatter hold with a depth step or a spindle speed
+    /// reaction set is answered (by the re-planner), not an alarm, unless the reaction is
+    /// refused.
+    fn ac_alarm(&mut self, a: Alarm) {
+        let (proto, out) = (&mut *self.proto, &mut self.out);
+        if !self.ac_enabled {
+            // A measure-only AC holds nothing: what it would have held for is told, and the
+            // machine goes on unlocked (an alarm would refuse the sender's next line). The AC's
+            // controller entered its hold with the verdict: it resumes at once, so the next
+            // verdict is told too.
+            proto.message(out, format_args!("AC (measure only) would hold: {}", a));
+            self.status.ac_resume.store(true, Relaxed);
+            return;
+        }
+        proto.message(out, format_args!("AC hold: {}", a));
+        let replanned = matches!(a, Alarm::Chatter { .. }) && self.replan.reacts();
+        if !matches!(a, Alarm::Overload { .. }) && !replanned {
+            proto.alarm(ac_alarm(&a), out);
+        }
+    }
+
+    /// Chatter suppression's news: the detour and the copies are queued, or the spindle turns at
+    /// the lobe's speed, or the reaction is refused (`ALARM:109`).
+    fn replanned(&mut self, event: replan::Event) {
+        let mm_per_blu = self.mm_per_blu;
+        let (proto, out) = (&mut *self.proto, &mut self.out);
         match event {
             replan::Event::None => {}
             replan::Event::Replanned(r) => {
                 let mm = |blu: i32| blu as f32 * mm_per_blu;
                 proto.message(
-                    &mut out,
+                    out,
                     format_args!(
                         "Chatter: depth reduced by {:.3} mm from X{:.3} Y{:.3} Z{:.3}, the rest \
                          of line {} in two passes to X{:.3} Y{:.3} (re-plan {})",
@@ -360,11 +687,12 @@ pub fn run<
                 // The spindle turns at the lobe's speed until the program commands another (in
                 // its state: a stopped spindle stays stopped; a simulated one turns anyway); the
                 // AC resumes once it is applied.
-                spindle.1 = s.to;
-                board.spindle(spindle.0, s.to, table.settings.spindle_max_rpm);
-                replan.speed_applied(status, s.to);
+                self.spindle.1 = s.to;
+                self.board
+                    .spindle(self.spindle.0, s.to, self.table.settings.spindle_max_rpm);
+                self.replan.speed_applied(self.status, s.to);
                 proto.message(
-                    &mut out,
+                    out,
                     format_args!(
                         "Chatter: spindle speed S{} to S{} (chatter {} Hz, {} tooth periods per \
                          chatter period) at line {} (change {})",
@@ -373,304 +701,276 @@ pub fn run<
                 );
             }
             replan::Event::Refused { why, .. } => {
-                proto.alarm(alarm::AC_CHATTER, &mut out);
+                proto.alarm(alarm::AC_CHATTER, out);
                 proto.message(
-                    &mut out,
+                    out,
                     format_args!("Chatter: not re-planned: {}", why.message()),
                 );
             }
         }
-        // Operator inputs: the buttons as `!` and `~`; an e-stop or a limit switch stops at
-        // once like a soft reset (below: queue and held block dropped, the parser at the
-        // machine's position in power-up modes, the spindle off) and raises its alarm.
-        let inputs = board.inputs();
-        let tripped = inputs.tripped.then(|| {
-            board.latched().unwrap_or(Trip {
-                estop: true,
-                limits: 0,
-            })
-        });
-        if inputs.feed_hold {
-            hold = true;
-            publish(hold, overrides);
+    }
+
+    /// The waiting line (a spindle change, the program's end) runs once the machine is idle and
+    /// the look-ahead holds nothing; while the look-ahead holds a block, that runs first.
+    fn run_deferred(&mut self, idle: bool) {
+        if !idle {
+            return;
         }
-        // An alarm (a frame overrun, a trip) keeps the hold until `$X`.
-        if inputs.cycle_start && hold && proto.alarm_code().is_none() {
-            hold = false;
-            publish(hold, overrides);
+        if self.tape.holds_a_block() {
+            self.run_held();
+            return;
         }
-        let idle = blocks.len() == 0 && status.idle.load(Relaxed) && !replan.pending();
-        if idle {
-            jogging = false;
-        }
-        // A measure-only AC's verdict holds nothing (its state is only logged).
-        let ac_held = ac_enabled && status.ac_state.load(Relaxed) > AC_RUN;
-        if cancel_jog && status.stopped() {
-            // The jog has stopped: drop it and any jog queued behind it. The parser keeps its
-            // modes (a jog changes none) and stands where the machine stopped.
-            let (at, signs) = abort(blocks, status, board);
-            replan.restart(at);
-            tape.jogged_to(at, signs);
-            cancel_jog = false;
-            jogging = false;
-            hold = false;
-            publish(hold, overrides);
-        }
-        // A line that changes the spindle runs once everything before it has run (not in the
-        // turn of a trip: the trip drops it below).
-        if let (Some(d), None, false) = (deferred.as_ref(), tripped, broken) {
-            if idle && !tape.holds_a_block() {
-                if B::SPINDLE && (d.spindle, d.rpm) != spindle {
-                    board.spindle(d.spindle, d.rpm, table.settings.spindle_max_rpm);
-                    spindle = (d.spindle, d.rpm);
-                    if d.rpm != 0 {
-                        status.spindle_rpm.store(d.rpm, Relaxed);
-                    }
-                }
-                let result = tape
-                    .line(d.no, &d.line, |b| {
-                        enqueue(blocks, replan, status, b, &mut last_feed)
-                    })
-                    .map(|()| board.log_gcode(&d.line))
-                    .map_err(GrblError::from);
-                if d.end && result.is_ok() {
-                    status.ac_new_job.store(true, Relaxed);
-                }
-                proto.reply(result, &mut out);
-                deferred = None;
-            } else if idle {
-                run_held(&mut tape, board, blocks, replan, status, &mut last_feed);
-            }
-        }
-        let state = if hold || ac_held {
-            State::Hold {
-                complete: status.stopped(),
-            }
-        } else {
-            match (idle, jogging) {
-                (true, _) => State::Idle,
-                (false, true) => State::Jog,
-                (false, false) => State::Run,
-            }
+        let Some(d) = self.deferred.take() else {
+            return;
         };
-        let room = Q - 1 - blocks.len() >= ROOM_PER_LINE && deferred.is_none() && !replan.pending();
-        let mut cx = Context {
-            table: &mut *table,
-            modes: tape.parser().modes(),
-            machine: &settings,
-            state,
-            frame_cycles: status.frame_cycles(),
-            // After a tool breakage the tool is still in the cut and broken: `$X` alone would
-            // resume the feed there. A reset first (the queue dropped, the spindle off); then
-            // `$X`, jog clear, change the tool and restart the program.
-            interlock: if broken {
-                Some(alarm::AC_BREAKAGE)
-            } else if board.latch_active() {
-                board.latched().map(|t| trip_alarm(&t))
-            } else {
-                None
-            },
-        };
-        let event = if tripped.is_some() {
-            Event::Reset
-        } else if room {
-            proto.poll(&mut out, &mut cx)
-        } else {
-            proto.poll_realtime(&mut out)
-        };
-        match event {
-            Event::None => {
-                // Nothing more has come: let the held block run once the machine would stop.
-                if room && idle {
-                    run_held(&mut tape, board, blocks, replan, status, &mut last_feed);
-                }
+        if B::SPINDLE && (d.spindle, d.rpm) != self.spindle {
+            self.board
+                .spindle(d.spindle, d.rpm, self.table.settings.spindle_max_rpm);
+            self.spindle = (d.spindle, d.rpm);
+            if d.rpm != 0 {
+                self.status.spindle_rpm.store(d.rpm, Relaxed);
             }
-            Event::Gcode { line, check } => {
-                line_no = line_no.wrapping_add(1);
-                if check {
-                    // `$C`: parse and validate on a copy; nothing is queued.
-                    let mut probe = tape.parser().clone();
-                    let result = probe
-                        .line(line_no, line)
-                        .map(|_| ())
-                        .map_err(GrblError::from);
-                    proto.reply(result, &mut out);
-                } else if let Some((state, rpm, end)) =
-                    sync_line::<B>(&tape, line_no, line, spindle)
-                {
-                    // Wait for the machine (the `ok` comes when the line has run).
-                    let mut text = heapless::String::new();
-                    if text.push_str(line).is_ok() {
-                        run_held(&mut tape, board, blocks, replan, status, &mut last_feed);
-                        deferred = Some(Deferred {
-                            line: text,
-                            no: line_no,
-                            spindle: state,
-                            rpm,
-                            end,
-                        });
-                    } else {
-                        proto.reply(Err(GrblError::OVERFLOW), &mut out);
-                    }
-                } else {
-                    let result = tape
-                        .line(line_no, line, |b| {
-                            enqueue(blocks, replan, status, b, &mut last_feed)
-                        })
-                        .map(|()| board.log_gcode(line))
-                        .map_err(GrblError::from);
-                    proto.reply(result, &mut out);
-                }
-            }
-            Event::Jog(jog) => {
-                // The look-ahead's held block goes first (the parser already stands at its end,
-                // where the jog is planned from).
-                run_held(&mut tape, board, blocks, replan, status, &mut last_feed);
-                // Planned on a copy of the parser (validated like any block, soft limits
-                // included); queued as it is (no AC ceiling: a jog is the operator's feed); the
-                // parser then stands at its end, its modes unchanged.
-                let result = jog.plan(tape.parser()).map(|plan| {
-                    if let Some(b) = plan.block {
-                        let signs = match b.motion {
-                            Motion::Linear(l) => l.signs,
-                            _ => tape.parser().signs(),
-                        };
-                        let b = finish_block(b, None, &cfg, settings.q0);
-                        board.log_jog(&jog);
-                        enqueue(blocks, replan, status, b, &mut last_feed);
-                        tape.jogged_to(plan.end, signs);
-                        jogging = true;
-                    }
+        }
+        let result = self.queue_line(d.no, &d.line);
+        if d.end && result.is_ok() {
+            self.status.ac_new_job.store(true, Relaxed);
+        }
+        self.proto.reply(result, &mut self.out);
+    }
+
+    /// Parses a line through the tape and queues its blocks (logged when accepted).
+    fn queue_line(&mut self, no: u32, line: &str) -> Result<(), GrblError> {
+        let (blocks, replan, status, last_feed) = (
+            &mut *self.blocks,
+            &mut *self.replan,
+            self.status,
+            &mut self.last_feed,
+        );
+        let result = self
+            .tape
+            .line(no, line, |b| enqueue(blocks, replan, status, b, last_feed))
+            .map_err(GrblError::from);
+        if result.is_ok() {
+            self.board.log_gcode(line);
+        }
+        result
+    }
+
+    /// A G-code line: checked only (`$C`), deferred until the machine stands (a spindle change,
+    /// the program's end), or parsed and queued at once.
+    fn line(&mut self, line: &str, check: bool) {
+        self.line_no = self.line_no.wrapping_add(1);
+        let line_no = self.line_no;
+        if check {
+            // `$C`: parse and validate on a copy; nothing is queued.
+            let mut probe = self.tape.parser().clone();
+            let result = probe
+                .line(line_no, line)
+                .map(|_| ())
+                .map_err(GrblError::from);
+            self.proto.reply(result, &mut self.out);
+        } else if let Some((state, rpm, end)) =
+            sync_line::<B>(&self.tape, line_no, line, self.spindle)
+        {
+            // Wait for the machine (the `ok` comes when the line has run).
+            let mut text = heapless::String::new();
+            if text.push_str(line).is_ok() {
+                self.run_held();
+                self.deferred = Some(Deferred {
+                    line: text,
+                    no: line_no,
+                    spindle: state,
+                    rpm,
+                    end,
                 });
-                proto.reply(result, &mut out);
+            } else {
+                self.proto.reply(Err(GrblError::OVERFLOW), &mut self.out);
             }
-            Event::Realtime(p) => {
-                if p.hold() || p.door() {
-                    hold = true;
+        } else {
+            let result = self.queue_line(line_no, line);
+            self.proto.reply(result, &mut self.out);
+        }
+    }
+
+    /// A `$J=` jog: the look-ahead's held block goes first (the parser already stands at its
+    /// end, where the jog is planned from). Planned on a copy of the parser (validated like any
+    /// block, soft limits included); queued as it is (no AC ceiling: a jog is the operator's
+    /// feed); the parser then stands at its end, its modes unchanged.
+    fn jog(&mut self, jog: JogRequest) {
+        self.run_held();
+        let result = jog.plan(self.tape.parser()).map(|plan| {
+            if let Some(b) = plan.block {
+                let signs = match b.motion {
+                    Motion::Linear(l) => l.signs,
+                    _ => self.tape.parser().signs(),
+                };
+                let b = finish_block(b, None, &self.cfg, self.settings.q0);
+                self.board.log_jog(&jog);
+                enqueue(
+                    self.blocks,
+                    self.replan,
+                    self.status,
+                    b,
+                    &mut self.last_feed,
+                );
+                self.tape.jogged_to(plan.end, signs);
+                self.jogging = true;
+            }
+        });
+        self.proto.reply(result, &mut self.out);
+    }
+
+    /// Realtime requests: hold, resume, jog cancel, overrides, the status report.
+    fn realtime(&mut self, p: Pending) {
+        let ac_held = self.now.ac_held;
+        if p.hold() || p.door() {
+            self.hold = true;
+        }
+        if p.resume() && self.proto.alarm_code().is_none() {
+            self.hold = false;
+            if ac_held {
+                self.status.ac_resume.store(true, Relaxed);
+            }
+        }
+        if p.jog_cancel() && self.jogging {
+            self.hold = true;
+            self.cancel_jog = true;
+        }
+        if p.overrides() {
+            self.overrides = self.proto.overrides();
+        }
+        self.publish();
+        if p.status() {
+            self.status_report();
+        }
+    }
+
+    /// `?`: the status report.
+    fn status_report(&mut self) {
+        let status = self.status;
+        let Now { idle, state, .. } = self.now;
+        let options = self.table.report_options();
+        let v = status.velocity_q8.load(Relaxed);
+        let ac = match status.ac_state.load(Relaxed) {
+            _ if !self.ac_enabled => None,
+            0 => None,
+            n => {
+                let (f, t) = status.ac_measured();
+                Some(AcReport {
+                    feed_share_pct: AcReport::feed_share(
+                        status.feed_cap.load(Relaxed),
+                        self.last_feed,
+                    ),
+                    f_ratio_milli: AcReport::ratio_milli(f, self.ac_settings.f0_n()),
+                    t_ratio_milli: AcReport::ratio_milli(t, self.ac_settings.t0_nm()),
+                    state: if n > AC_RUN {
+                        AcState::Hold(n)
+                    } else {
+                        AcState::Run
+                    },
+                })
+            }
+        };
+        let data = StatusData {
+            // A block the look-ahead holds is a move about to start (queued at the loader's next
+            // turn when no next line comes): the report says `Run`, so a sender that polls after
+            // its last `ok` does not take the job for done. (The protocol still takes a jog
+            // behind it as in Idle.)
+            state: match state {
+                State::Idle if self.tape.holds_a_block() => State::Run,
+                s => s,
+            },
+            position: status.encoder(),
+            feed_blu_per_min: if idle {
+                0
+            } else {
+                feed_blu_per_min(&self.settings, v >> 8)
+            },
+            spindle_rpm: self.tape.parser().spindle_rpm(),
+            blocks_free: (Q - 1 - self.blocks.len()) as u16,
+            ac,
+            frame_cycles: status.frame_cycles(),
+        };
+        self.proto
+            .status_report(&data, options, self.settings.blu, &mut self.out);
+    }
+
+    /// A soft reset (the protocol has answered it) or an input trip: stop at once, drop the
+    /// queue and the held block; the parser stands where the machine stopped. A reset during
+    /// motion is an alarm, as in grbl (the position is exact here, and reported); a trip is
+    /// always one.
+    fn reset(&mut self, trip: Option<Trip>) {
+        let status = self.status;
+        let moving = !self.now.idle && !status.stopped();
+        // The spindle first (the parser goes back to power-up modes, M5), then the queue.
+        self.spindle = (Spindle::Off, 0);
+        self.broken = false;
+        self.board
+            .spindle(Spindle::Off, 0, self.table.settings.spindle_max_rpm);
+        self.board.log_reset();
+        // A soft reset ends the job: the AC starts the next one afresh.
+        status.ac_new_job.store(true, Relaxed);
+        let (at, signs) = abort(self.blocks, status, self.board);
+        self.replan.restart(at);
+        self.tape.abort(at, signs);
+        // A line waiting for the spindle: a soft reset discards it with the stream (the protocol
+        // has done so); after a trip it is answered, refused.
+        let waiting = self.deferred.take().is_some();
+        self.hold = false;
+        self.cancel_jog = false;
+        self.jogging = false;
+        self.overrides = self.proto.overrides();
+        self.publish();
+        let (proto, out) = (&mut *self.proto, &mut self.out);
+        match trip {
+            Some(t) => {
+                proto.alarm(trip_alarm(&t), out);
+                if t.estop {
+                    proto.message(out, format_args!("E-stop"));
+                } else {
+                    proto.message(out, format_args!("Limit switch {:03b} (ZYX)", t.limits));
                 }
-                if p.resume() && proto.alarm_code().is_none() {
-                    hold = false;
-                    if ac_held && proto.alarm_code().is_none() {
-                        status.ac_resume.store(true, Relaxed);
-                    }
-                }
-                if p.jog_cancel() && jogging {
-                    hold = true;
-                    cancel_jog = true;
-                }
-                if p.overrides() {
-                    overrides = proto.overrides();
-                }
-                publish(hold, overrides);
-                if p.status() {
-                    let options = table.report_options();
-                    let v = status.velocity_q8.load(Relaxed);
-                    let ac = match status.ac_state.load(Relaxed) {
-                        _ if !ac_enabled => None,
-                        0 => None,
-                        n => {
-                            let (f, t) = status.ac_measured();
-                            Some(AcReport {
-                                feed_share_pct: AcReport::feed_share(
-                                    status.feed_cap.load(Relaxed),
-                                    last_feed,
-                                ),
-                                f_ratio_milli: AcReport::ratio_milli(f, ac_settings.f0_n()),
-                                t_ratio_milli: AcReport::ratio_milli(t, ac_settings.t0_nm()),
-                                state: if n > AC_RUN {
-                                    AcState::Hold(n)
-                                } else {
-                                    AcState::Run
-                                },
-                            })
-                        }
-                    };
-                    let data = StatusData {
-                        // A block the look-ahead holds is a move about to start (queued at the
-                        // loader's next turn when no next line comes): the report says `Run`,
-                        // so a sender that polls after its last `ok` does not take the job for
-                        // done. (The protocol still takes a jog behind it as in Idle.)
-                        state: match state {
-                            State::Idle if tape.holds_a_block() => State::Run,
-                            s => s,
-                        },
-                        position: status.encoder(),
-                        feed_blu_per_min: if idle {
-                            0
-                        } else {
-                            feed_blu_per_min(&settings, v >> 8)
-                        },
-                        spindle_rpm: tape.parser().spindle_rpm(),
-                        blocks_free: (Q - 1 - blocks.len()) as u16,
-                        ac,
-                        frame_cycles: status.frame_cycles(),
-                    };
-                    proto.status_report(&data, options, settings.blu, &mut out);
+                if waiting {
+                    proto.reply(Err(GrblError::GCODE_LOCK), out);
                 }
             }
-            Event::Reset => {
-                // A soft reset (the protocol has answered it) or an input trip: stop at once,
-                // drop the queue and the held block; the parser stands where the machine
-                // stopped. A reset during motion is an alarm, as in grbl (the position is exact
-                // here, and reported); a trip is always one.
-                let moving = !idle && !status.stopped();
-                // The spindle first (the parser goes back to power-up modes, M5), then the
-                // queue.
-                spindle = (Spindle::Off, 0);
-                broken = false;
-                board.spindle(Spindle::Off, 0, table.settings.spindle_max_rpm);
-                board.log_reset();
-                // A soft reset ends the job: the AC starts the next one afresh.
-                status.ac_new_job.store(true, Relaxed);
-                let (at, signs) = abort(blocks, status, board);
-                replan.restart(at);
-                tape.abort(at, signs);
-                // A line waiting for the spindle: a soft reset discards it with the stream (the
-                // protocol has done so); after a trip it is answered, refused.
-                let waiting = deferred.take().is_some();
-                hold = false;
-                cancel_jog = false;
-                jogging = false;
-                overrides = proto.overrides();
-                publish(hold, overrides);
-                match tripped {
-                    Some(t) => {
-                        proto.alarm(trip_alarm(&t), &mut out);
-                        if t.estop {
-                            proto.message(&mut out, format_args!("E-stop"));
-                        } else {
-                            proto.message(
-                                &mut out,
-                                format_args!("Limit switch {:03b} (ZYX)", t.limits),
-                            );
-                        }
-                        if waiting {
-                            proto.reply(Err(GrblError::GCODE_LOCK), &mut out);
-                        }
-                    }
-                    None if moving => proto.alarm(alarm::ABORT_CYCLE, &mut out),
-                    None => {}
-                }
+            None if moving => proto.alarm(alarm::ABORT_CYCLE, out),
+            None => {}
+        }
+    }
+
+    /// `$X` (the protocol has cleared its alarm): refused while an e-stop or a limit switch is
+    /// still active; also clears an AC sensor hold (the AC resumes from f_min).
+    fn unlock(&mut self) {
+        if let Some(t) = self.board.latched() {
+            if !self.board.acknowledge() {
+                // The e-stop or a limit switch is still active: the alarm stays.
+                self.proto.alarm(trip_alarm(&t), &mut self.out);
+                self.proto.message(
+                    &mut self.out,
+                    format_args!("E-stop or limit switch still active"),
+                );
+                return;
             }
-            Event::Unlock => {
-                if let Some(t) = board.latched() {
-                    if !board.acknowledge() {
-                        // The e-stop or a limit switch is still active: the alarm stays.
-                        proto.alarm(trip_alarm(&t), &mut out);
-                        proto.message(
-                            &mut out,
-                            format_args!("E-stop or limit switch still active"),
-                        );
-                        continue;
-                    }
-                }
-                // `$X` also clears an AC sensor hold: the AC resumes from f_min.
-                if ac_held {
-                    status.ac_resume.store(true, Relaxed);
-                }
-            }
-            Event::RxOverflow { lost } => proto.rx_overflow(lost, &mut out),
-            Event::Replied | Event::CheckMode(_) => {}
+        }
+        if self.now.ac_held {
+            self.status.ac_resume.store(true, Relaxed);
+        }
+    }
+
+    /// Queues the look-ahead's held block, if there is one, before the next line has come (logged
+    /// as such, so the host's replay flushes it at the same place).
+    fn run_held(&mut self) {
+        if self.tape.holds_a_block() {
+            self.board.log_flush();
+            let (blocks, replan, status, last_feed) = (
+                &mut *self.blocks,
+                &mut *self.replan,
+                self.status,
+                &mut self.last_feed,
+            );
+            self.tape
+                .flush(|b| enqueue(blocks, replan, status, b, last_feed));
         }
     }
 }
@@ -699,22 +999,6 @@ fn sync_line<B: LoaderBoard>(
         Err(_) => return None,
     };
     (end || (B::SPINDLE && out != applied)).then_some((out.0, out.1, end))
-}
-
-/// Queues the look-ahead's held block, if there is one, before the next line has come (logged
-/// as such, so the host's replay flushes it at the same place). Loader task.
-fn run_held<const Q: usize, const R: usize>(
-    tape: &mut Tape,
-    log: &mut impl LoaderBoard,
-    blocks: &mut Producer<'static, Block, Q>,
-    replan: &mut Replan<R>,
-    status: &Status,
-    last_feed: &mut u32,
-) {
-    if tape.holds_a_block() {
-        log.log_flush();
-        tape.flush(|b| enqueue(blocks, replan, status, b, last_feed));
-    }
 }
 
 /// Soft reset or jog cancel: the frame stops at once and drops every queued block (the abort

@@ -16,7 +16,7 @@ use core::sync::atomic::Ordering::Relaxed;
 
 use heapless::spsc::{Consumer, Producer, Queue};
 
-use super::loader::{run, LoaderBoard};
+use super::loader::{run, LoaderBoard, Parts};
 use super::{FrameTask, Reloads, Status};
 use crate::ac::Alarm;
 use crate::gcode::Spindle;
@@ -450,14 +450,16 @@ fn session_on<const S: bool>(
         { crate::rt::replan::record_len(Q) },
     >::new(settings, &table.settings.ac, [0; 3]));
     run(
-        &mut blocks_tx,
-        &mut replan,
-        &mut table,
-        ceiling,
-        &mut proto,
-        &mut tx_p,
-        &mut alarms,
-        status,
+        Parts {
+            blocks: &mut blocks_tx,
+            replan: &mut replan,
+            table: &mut table,
+            ceiling,
+            proto: &mut proto,
+            tx: &mut tx_p,
+            ac_alarms: &mut alarms,
+            status,
+        },
         &mut bench,
     );
     bench

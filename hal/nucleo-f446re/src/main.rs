@@ -420,14 +420,16 @@ mod app {
             .replan
             .insert(Replan::new(settings.nc, &settings.ac, [0; 3]));
         millac::rt::loader::run(
-            cx.local.producer,
-            replan,
-            cx.local.table,
-            ceiling,
-            cx.local.proto,
-            cx.local.tx,
-            cx.local.ac_alarms,
-            &STATUS,
+            millac::rt::loader::Parts {
+                blocks: cx.local.producer,
+                replan,
+                table: cx.local.table,
+                ceiling,
+                proto: cx.local.proto,
+                tx: cx.local.tx,
+                ac_alarms: cx.local.ac_alarms,
+                status: &STATUS,
+            },
             &mut board,
         );
         // Never reached: the board's loader runs for ever.

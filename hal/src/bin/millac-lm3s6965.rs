@@ -508,14 +508,16 @@ mod app {
             Loaded::NoFile => {
                 SERIAL.store(true, Relaxed);
                 millac::rt::loader::run(
-                    producer,
-                    replan,
-                    cx.local.table,
-                    ceiling,
-                    cx.local.proto,
-                    cx.local.tx,
-                    cx.local.ac_alarms,
-                    &STATUS,
+                    millac::rt::loader::Parts {
+                        blocks: producer,
+                        replan,
+                        table: cx.local.table,
+                        ceiling,
+                        proto: cx.local.proto,
+                        tx: cx.local.tx,
+                        ac_alarms: cx.local.ac_alarms,
+                        status: &STATUS,
+                    },
                     &mut millac_hal::uart::QemuLoader {
                         clock_hz: B::TIMER_HZ,
                         log: millac_hal::session::SessionLog::create(),
