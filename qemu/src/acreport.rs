@@ -290,6 +290,11 @@ pub fn print_table(
     row("oracle (bound)", c.oracle_time_s, None, None);
 }
 
+/// Room for the x axis's tick labels and its description under them, and for the y axis's tick
+/// labels and its (turned) description left of them (pixels).
+const LABELS_X: u32 = 40;
+const LABELS_Y: u32 = 64;
+
 /// Writes the plot (SVG): feed, F/F0 and T/T0 against time with the limits, and the tool path in XY
 /// coloured by feed.
 pub fn plot(
@@ -312,10 +317,13 @@ pub fn plot(
     let mut c = ChartBuilder::on(&feed_area)
         .caption("feed (ipm)", ("sans-serif", 18))
         .margin(8)
-        .x_label_area_size(24)
-        .y_label_area_size(48)
+        .x_label_area_size(LABELS_X)
+        .y_label_area_size(LABELS_Y)
         .build_cartesian_2d(0.0..t_end, 0.0..feed_max * 1.1)?;
-    c.configure_mesh().x_desc("t (s)").draw()?;
+    c.configure_mesh()
+        .x_desc("t (s)")
+        .y_desc("feed (ipm)")
+        .draw()?;
     c.draw_series(LineSeries::new(
         rows.iter().map(|r| (r.t_ms as f64 / 1000.0, r.feed_ipm)),
         &BLUE,
@@ -326,10 +334,13 @@ pub fn plot(
             ("sans-serif", 18),
         )
         .margin(8)
-        .x_label_area_size(24)
-        .y_label_area_size(48)
+        .x_label_area_size(LABELS_X)
+        .y_label_area_size(LABELS_Y)
         .build_cartesian_2d(0.0..t_end, 0.0..1.4)?;
-    c.configure_mesh().x_desc("t (s)").draw()?;
+    c.configure_mesh()
+        .x_desc("t (s)")
+        .y_desc("ratio to F0, T0")
+        .draw()?;
     // The envelope a person reads: each row's peak is over its 10 ms period, shorter than a tooth
     // period at 600 rpm, so the plot takes the peak over three periods (ac.csv keeps the raw rows).
     let envelope = |v: fn(&AcRow) -> f64, scale: f64| {
@@ -368,10 +379,13 @@ pub fn plot(
             ("sans-serif", 18),
         )
         .margin(8)
-        .x_label_area_size(24)
-        .y_label_area_size(48)
+        .x_label_area_size(LABELS_X)
+        .y_label_area_size(LABELS_Y)
         .build_cartesian_2d((x0 - 0.2)..(x1 + 0.2), (y0 - 0.2)..(y1 + 0.2))?;
-    c.configure_mesh().draw()?;
+    c.configure_mesh()
+        .x_desc("X (in)")
+        .y_desc("Y (in)")
+        .draw()?;
     c.draw_series(rows.windows(2).map(|w| {
         let v = (w[1].feed_ipm / feed_max).clamp(0.0, 1.0);
         let colour = RGBColor((255.0 * v) as u8, 40, (255.0 * (1.0 - v)) as u8);
@@ -406,5 +420,34 @@ mod tests {
         let svg = dir.join("ac.svg");
         super::plot(&svg, &[], 3600.0, 72.0, 1.111, 30.0).unwrap();
         assert!(std::fs::metadata(&svg).unwrap().len() > 0);
+    }
+
+    /// No text of the plot overlaps another (the axis descriptions sat on the tick labels).
+    #[test]
+    fn the_plots_labels_are_clear_of_each_other() {
+        let dir = std::env::temp_dir().join(format!("millac-plot-labels-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let svg = dir.join("ac.svg");
+        let rows: Vec<_> = (0..6000u64)
+            .map(|i| crate::acsim::AcRow {
+                t_ms: i * 10,
+                pos_blu: [(i as i64 * 7) % 40_000, (i as i64 * 3) % 20_000, 0],
+                feed_ipm: 10.0 + (i % 20) as f64,
+                f_meas_n: 0.0,
+                t_meas_nm: 0.0,
+                f_true_n: 3000.0,
+                t_true_nm: 30.0,
+                e: 0.0,
+                state: "run".into(),
+                feed_cap: u32::MAX,
+                estimates: None,
+            })
+            .collect();
+        super::plot(&svg, &rows, 3600.0, 72.0, 1.111, 30.0).unwrap();
+        let text = std::fs::read_to_string(&svg).unwrap();
+        let boxes = crate::plot::text_boxes(&text);
+        assert!(boxes.iter().any(|b| b.text == "t (s)"), "{boxes:?}");
+        let clashes = crate::plot::overlapping_texts(&text);
+        assert!(clashes.is_empty(), "{clashes:?}");
     }
 }
