@@ -205,7 +205,7 @@ impl Frame {
     ///
     /// Bounded work per frame: a frame that loads registers (a new block, or the next arc
     /// segment) runs no DDA cycle and emits no pulse; only the loaded block's sign lines change.
-    #[inline(always)]
+    #[inline]
     pub fn tick(&mut self, src: &mut impl BlockSource, feed_cap: impl FeedCap) -> Pulses {
         let op = feed_cap.operator();
         if op & operator::ABORT != 0 {
@@ -337,7 +337,7 @@ impl Frame {
     }
 
     /// Timer rate the next frame needs.
-    #[inline(always)]
+    #[inline]
     pub fn rate(&self) -> Rate {
         if self.mode == Mode::Rapid {
             Rate::Rapid
@@ -347,45 +347,45 @@ impl Frame {
     }
 
     /// Absolute position in BLU, updated per pulse.
-    #[inline(always)]
+    #[inline]
     pub fn position(&self) -> [i32; 3] {
         self.position
     }
 
     /// True when no block is loaded.
-    #[inline(always)]
+    #[inline]
     pub fn idle(&self) -> bool {
         self.mode == Mode::Idle
     }
 
     /// The feed velocity as a feed number in Q8: 0 in rapids and dwells, and when a feed hold has
     /// stopped a feed block; after a feed block, its last velocity until the next block starts.
-    #[inline(always)]
+    #[inline]
     pub fn velocity_q8(&self) -> u32 {
         self.v
     }
 
     /// The rapid's hold ladder: 0 when no rapid runs or a hold has stopped it.
-    #[inline(always)]
+    #[inline]
     pub fn ladder(&self) -> u32 {
         self.ptp_m
     }
 
     /// True when nothing moves: idle, dwelling, a feed block at velocity 0 or a rapid stopped by
     /// the hold ladder (a feed hold is complete: grbl's `Hold:0`). See [`stopped`].
-    #[inline(always)]
+    #[inline]
     pub fn stopped(&self) -> bool {
         stopped(self.idle(), self.v, self.ptp_m)
     }
 
     /// Blocks completed since power-up.
-    #[inline(always)]
+    #[inline]
     pub fn blocks_done(&self) -> u32 {
         self.blocks_done
     }
 
     /// The Initiator: load a validated block into the registers (read in place, not copied).
-    #[inline(always)]
+    #[inline]
     fn initiate(&mut self, block: &Block) {
         match &block.motion {
             Motion::Rapid(r) => {
@@ -455,7 +455,7 @@ impl Frame {
     }
 
     /// The block is done and leaves the source; the Initiator runs next frame.
-    #[inline(always)]
+    #[inline]
     fn done(&mut self, src: &mut impl BlockSource) {
         self.mode = Mode::Idle;
         self.blocks_done = self.blocks_done.wrapping_add(1);
@@ -584,8 +584,11 @@ impl Frame {
     fn linear(&mut self, d: &[u32; 3], q: u32) -> u8 {
         // Written out per axis, not as a loop: the firmware's code outside the frame is built for
         // size, and a loop is not unrolled there.
-        let [a0, a1, a2] = &mut self.acc;
-        dda_axis(a0, d[0], q) | dda_axis(a1, d[1], q) << 1 | dda_axis(a2, d[2], q) << 2
+        let mut steps = 0u8;
+        dda_axis(&mut self.acc[0], d[0], q, 1, &mut steps);
+        dda_axis(&mut self.acc[1], d[1], q, 2, &mut steps);
+        dda_axis(&mut self.acc[2], d[2], q, 4, &mut steps);
+        steps
     }
 
     /// Circular DDA cycle in the plane (a, b); i, j follow every pulse.
@@ -688,16 +691,15 @@ impl Frame {
     }
 }
 
-/// One axis of the linear DDA cycle: r += |d|; an overflow past q is a pulse (1).
+/// One axis of the linear DDA cycle: r += |d|; an overflow past q is a pulse (`bit` in `steps`).
 #[inline(always)]
-fn dda_axis(acc: &mut u32, d: u32, q: u32) -> u8 {
+fn dda_axis(acc: &mut u32, d: u32, q: u32, bit: u8, steps: &mut u8) {
     let r = acc.wrapping_add(d);
     if r >= q {
         *acc = r - q;
-        1
+        *steps |= bit;
     } else {
         *acc = r;
-        0
     }
 }
 
