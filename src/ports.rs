@@ -15,7 +15,7 @@
 //! - step/sign output: [`PinStepPort`] implements [`StepPort`] over six embedded-hal output pins
 //!   (any board, tested with embedded-hal-mock). A board whose pins share a GPIO port should write
 //!   them with one store instead (the LM3S6965 board does: a masked store sets all three PULSE
-//!   lines at once, the timing rule of the README needs that);
+//!   lines at once, the timing rule (docs/dev/nc-frame.md, "Timing rules") needs that);
 //! - operator inputs: [`PinInputs`] implements [`OperatorInputs`] over embedded-hal input pins;
 //! - frame timer, pulse timer, sample clock, force/torque ADC, serial, settings storage: millac's
 //!   own traits below.

@@ -65,7 +65,7 @@ pub struct Settings {
     /// `$120`..`$122`, listed in mm/s^2). Default 250 000 BLU/s^2 = 25 in/s^2 = 635 mm/s^2
     /// (0.065 g, a servo-driven knee mill's feed drive): at 10 in/s^2 the ramps' lag made the
     /// paper's FRC (with the firmware's 3-window held peak) cycle at the Fig. 1 cavity's first
-    /// full-slot entry (README, "Acceleration and the AC").
+    /// full-slot entry (docs/user/adaptive-control.md, "Choosing F0, T0 and the feed law").
     pub accel_blu_s2: [u32; 3],
 }
 

@@ -2,7 +2,7 @@
 //! strategy on the depth-step slot (Ulsoy, Koren and Lauderbaugh's Figs. 2-3), the thesis' test
 //! TIIM and pocket (Munasinghe's Figs. 5.9-5.11) and an entry from air and exit, with the
 //! scenarios and figures of merit of `millac_qemu::repro` (the `repro` tests use the same
-//! functions). Writes the SVGs under `out/repro/` and prints the README's tables (markdown).
+//! functions). Writes the SVGs under `out/repro/` and prints the tables of docs/dev/results-ac.md (markdown).
 //!
 //! ```text
 //! cargo run -p millac-qemu --release --example ac_repro

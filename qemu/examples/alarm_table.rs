@@ -1,7 +1,7 @@
 //! The AC's false alarms and fault detections over the alarm corpus (host example,
 //! `millac_qemu::alarmlab`): every ordinary cut with the alarm it got (none expected), then each
 //! sensor fault injected at three steady-cutting times into a selection of them, with the alarm,
-//! the time from the fault to the hold and its bound. The README's table.
+//! the time from the fault to the hold and its bound. The table of docs/dev/results-ac.md.
 //!
 //! ```text
 //! cargo run -p millac-qemu --release --example alarm_table

@@ -2,7 +2,7 @@
 //! at 15 .. 90 % of the machining time of the Fig. 1 cavity and the pocket (24 runs of the host
 //! simulation, stepper drive, steel), each with the alarm its hold got: 108 (tool breakage, told
 //! at the sampler's trip or by the monitor) or 100 (an overload: the doubled chip crossed the
-//! overload level before the broken tooth's loss showed in the samples). The README's count.
+//! overload level before the broken tooth's loss showed in the samples). The count in docs/dev/results-ac.md ("Hold latency").
 //!
 //! ```text
 //! cargo run -p millac-qemu --release --example breaks_under_ac

@@ -2,7 +2,7 @@
 //! prints min / median / max instructions (entry to return, inclusive) of the frame ISR (TIMER_0A)
 //! and of the pulse-end ISR (TIMER_1A). Budget: the frame ISR takes fewer than 200 instructions
 //! (150 before chained lines, 179 before the acceleration ramps and the operator's word: the frame
-//! that ends a line and starts the next one is the worst case, see the README's budget table).
+//! that ends a line and starts the next one is the worst case, see docs/dev/results-nc.md).
 //!
 //! It builds nothing: build the firmware first, then pass the ELF:
 //!

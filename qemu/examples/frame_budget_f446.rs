@@ -94,7 +94,7 @@ fn main() -> Result<()> {
     anyhow::ensure!(
         fworst <= u64::from(bounds.frame_instructions)
             && pworst <= u64::from(bounds.pulse_end_instructions),
-        "an ISR count exceeds its bound: raise F446_ISR_BOUNDS (and the README's figures)"
+        "an ISR count exceeds its bound: raise F446_ISR_BOUNDS (and the figures of docs/dev/results-nc.md)"
     );
     Ok(())
 }

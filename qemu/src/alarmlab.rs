@@ -2,7 +2,7 @@
 //! the sensor faults of [`crate::fault`] injected into some of them, each of which must hold the
 //! machine with a sensor alarm within its bound. Both sides are measured on the host simulation
 //! (the firmware's own AC task and sampler, [`crate::acsim`]) with the default AC settings and the
-//! breakage monitor on. The `alarm_table` example prints the README's table; `qemu/tests/alarms.rs`
+//! breakage monitor on. The `alarm_table` example prints the table of docs/dev/results-ac.md; `qemu/tests/alarms.rs`
 //! asserts it.
 //!
 //! The corpus: every program in `qemu/programs` (on its `.stock`; `hidden-boss` on the stock as

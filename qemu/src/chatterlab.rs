@@ -50,7 +50,7 @@ pub fn through_slot(depth_in: f64) -> (String, crate::acsim::Cut) {
 /// reaction by spindle speed, `$277`): the through slot of [`through_slot`] at `depth_in`, the
 /// program's `S{rpm}` and F30 (0.027 mm per tooth at 14 000 rpm). In this plant the preset's
 /// tool at 4 mm chatters at 14 000 rpm and is stable between about 11 750 and 12 750 rpm and
-/// between 15 000 and 17 500 (the time-domain model's lobes; README).
+/// between 15 000 and 17 500 (the time-domain model's lobes; docs/dev/monitors.md).
 pub fn high_speed_slot(depth_in: f64, rpm: u32) -> (String, crate::acsim::Cut) {
     let (_, cut) = through_slot(depth_in);
     let text =

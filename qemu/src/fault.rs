@@ -20,7 +20,7 @@
 //!
 //! Time from the fault to the hold (the deadline of the first AC period in hold in ac.csv),
 //! measured under QEMU by `qemu/tests/faults.rs` (a full-depth slot in the plain blank at F22,
-//! fault at 1.5 s; `millac run slot.nc --stock stock.txt --fault KIND@1.5`, see the README), with
+//! fault at 1.5 s; `millac run slot.nc --stock stock.txt --fault KIND@1.5`, see docs/user/adaptive-control.md), with
 //! the bound the test asserts: rail 0 ms and spike 0 ms (bound 2 periods, 20 ms: the jump is judged
 //! at the next sample), dropout 10 ms (20 ms: the period the fault starts in still has fresh
 //! samples), frozen 50 ms (`frozen_samples` + 2 periods, 70 ms), gain 50 ms (`ft_periods` + 2

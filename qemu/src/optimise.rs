@@ -11,7 +11,7 @@
 //! arc keeps its one block at the slowest feed along it. The result is written as G-code the
 //! firmware's parser (and grbl) accepts, checked by parsing it back.
 //!
-//! Choices (the paper is a survey and leaves them open; documented in the README):
+//! Choices (the paper is a survey and leaves them open; documented in docs/user/optimisation.md):
 //! - The feed of a piece is the smallest of the oracle's schedule over the piece's points (its
 //!   start and end included): the frame reaches a lower feed after a piece boundary at its
 //!   acceleration, and the schedule already slows before a binding point, so the step down is

@@ -1,7 +1,7 @@
 //! Reproductions of the papers' feed-law experiments on the simulated cut (host; issue 9): the
 //! programs and stocks, the runs per strategy, the figures of merit (band, peak-to-peak,
 //! overshoot, settling, feed recovery) and the SVG figures. Called by the `ac_repro` example
-//! (figures and README tables) and the `repro` tests (the same functions, so the tests assert
+//! (figures and the tables of docs/dev/results-ac.md) and the `repro` tests (the same functions, so the tests assert
 //! what the figures show).
 //!
 //! - [`depth_step`]: Ulsoy, Koren and Lauderbaugh's Figs. 2-3 (a slot whose depth steps

@@ -439,7 +439,7 @@ pub struct AcInput<'a> {
     pub truth: &'a [(f64, f64)],
 }
 
-/// Analyses the capture of `prog` and builds summary.json (the stable keys, README), and with
+/// Analyses the capture of `prog` and builds summary.json (the stable keys, docs/user/getting-started.md), and with
 /// `ac` writes `out/ac.csv` and `out/ac.svg` from `out/ac.log` and prints the comparison table.
 /// `run` and `serve` (a session replayed from its log) both report through it, so their keys
 /// are the same. Returns the summary, the report and the AC log's records.

@@ -1,6 +1,6 @@
 //! The AC's alarm corpus on the host simulation (`millac_qemu::alarmlab`, host tests): no alarm
 //! on any ordinary cut (an overload hold only where the true load crossed the overload level),
-//! and every injected sensor fault held with its own alarm within its bound. The README's table
+//! and every injected sensor fault held with its own alarm within its bound. The table of docs/dev/results-ac.md
 //! is the `alarm_table` example's print of the same runs.
 use millac_qemu::alarmlab::{self, Program};
 use std::path::Path;

@@ -350,7 +350,7 @@ fn a_sender_streams_lines_over_tcp_and_the_capture_ends_where_they_programmed() 
     assert!(log.contains("(millac:jog G91 G21 X2.54 F500)\n"), "{log}");
 }
 
-/// The socat pty bridge that serial-only senders use (README, "Connecting senders"): the pty,
+/// The socat pty bridge that serial-only senders use (docs/user/senders.md): the pty,
 /// opened as a plain file, gets the banner after 0x18, a status report for `?` and the build info
 /// for `$I`.
 #[test]

@@ -114,7 +114,7 @@ pub struct AcSettings {
     /// the plan: the programmed feeds times the controller's correction k <= 1.
     pub ceiling: FeedCeiling,
     /// The feed law (`$251`, see `super::law`): GPC by default, the fastest law of the AC
-    /// benchmark that finished every program without a hold with both feed drives (README, "AC
+    /// benchmark that finished every program without a hold with both feed drives (docs/dev/results-ac.md, "AC
     /// benchmark"); the paper's FRC is `$251=0`.
     pub strategy: super::law::Strategy,
     /// The nominal feed of the integral and MRAC laws (`$264`), feed number: the feed at which

@@ -34,7 +34,7 @@
 //!   runs at its programmed feed (a load frame per block made 10-BLU blocks 10 % slow and 1-BLU
 //!   blocks 50 %). For that a line's DDA registers |d_k|, q and the position steps `dir` are read in
 //!   place from the front block of the queue in every command frame (never copied: a copy made
-//!   the chaining frame 191 instructions, reading in place 176; the README's budget table has the
+//!   the chaining frame 191 instructions, reading in place 176; docs/dev/results-nc.md's budget table has the
 //!   figures);
 //!   starting it only sets the remainders, the command count and the feed registers. Arcs, rapids
 //!   and dwells still load in a frame of their own.

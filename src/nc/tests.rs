@@ -205,7 +205,7 @@ proptest! {
     }
 }
 
-/// The figures quoted in the README: largest deviation over 2000 seeded random lines and arcs.
+/// The figures quoted in docs/dev/nc-frame.md: largest deviation over 2000 seeded random lines and arcs.
 /// `cargo test -p millac --lib deviation_figures -- --nocapture` prints them.
 #[test]
 fn deviation_figures() {

@@ -25,7 +25,7 @@
 //! of every pass is the programmed one (no plunge into material, no change from climb to
 //! conventional milling).
 //!
-//! # Choices (documented in the README)
+//! # Choices (documented in docs/user/monitoring.md, "Chatter suppression")
 //!
 //! - Only a straight feed move without Z motion is re-planned (a slot or a pocket's pass). An arc
 //!   or a ramp held for chatter stays held with `ALARM:107` as without suppression (the operator
@@ -48,7 +48,7 @@
 //! arc or a ramp). The thesis does not do this (its survey cites it, Smith and Delio); the issue
 //! asks for it as a choice. [`SPEED_TRIES`] changes in one held block that do not quiet the cut,
 //! or no such speed within `$277`, and the depth steps of `$276` take over (where the lobes are
-//! narrow, as for the thesis' cutter at 1500 rpm, no speed helps: README); the passes of a
+//! narrow, as for the thesis' cutter at 1500 rpm, no speed helps: docs/dev/monitors.md); the passes of a
 //! detour then go straight to further depth steps (the speeds failed in that cut). The new speed stays
 //! until the program commands another. [`Event::Speed`] tells the loader, which applies it to
 //! the spindle and then calls [`Replan::speed_applied`] (the AC resumes only then).
@@ -68,7 +68,7 @@ pub const DETOUR: usize = 5;
 
 /// Detours inside detours a record of [`record_len`] holds: every re-plan while the blocks of the
 /// last one are still queued adds `DETOUR - 1` blocks (the thesis' pocket needed three steps;
-/// the table 3.2 cut here takes up to eight of 1 mm, see the README).
+/// the table 3.2 cut here takes up to eight of 1 mm, see docs/dev/monitors.md, "Chatter suppression by depth steps").
 pub const NESTED: usize = 8;
 
 /// The record a loader needs for a queue of `queue` slots: the queue, and [`NESTED`] detours.

@@ -33,8 +33,8 @@ use millac::ports::{
 pub struct F446;
 
 /// What the board sustains, for the settings validation (`Settings::validate_for`): the core's
-/// `BoardLimits::NUCLEO_F446RE` (its ISR times from `millac::settings::F446_ISR_BOUNDS`; README
-/// "Speed on the Nucleo-F446RE").
+/// `BoardLimits::NUCLEO_F446RE` (its ISR times from `millac::settings::F446_ISR_BOUNDS`;
+/// docs/dev/results-nc.md, "Speed on the Nucleo-F446RE").
 pub const LIMITS: millac::settings::BoardLimits = millac::settings::BoardLimits::NUCLEO_F446RE;
 
 /// Core clock (SYSCLK = HCLK) in Hz.
