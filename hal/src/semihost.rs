@@ -37,3 +37,24 @@ pub fn write_all(fd: usize, bytes: &[u8]) -> bool {
     // SAFETY: SYS_WRITE from a buffer we own, its length; returns the bytes NOT written.
     unsafe { syscall!(WRITE, fd, bytes.as_ptr(), bytes.len()) == 0 }
 }
+
+/// A file in QEMU's working directory written through semihosting (the AC log). Opened in init,
+/// written by the AC task. Write errors are ignored: the log never stops the machine.
+pub struct LogFile(usize);
+
+impl LogFile {
+    /// Creates (truncates) `name` (NUL-terminated).
+    pub fn create(name: &[u8]) -> Option<LogFile> {
+        open(name, cortex_m_semihosting::nr::open::W_TRUNC).map(LogFile)
+    }
+
+    pub fn write(&mut self, bytes: &[u8]) {
+        let _ = write_all(self.0, bytes);
+    }
+}
+
+impl crate::actask::LogSink for LogFile {
+    fn write(&mut self, bytes: &[u8]) {
+        LogFile::write(self, bytes);
+    }
+}

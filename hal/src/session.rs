@@ -9,7 +9,7 @@
 use millac::protocol::jog::JogRequest;
 use millac::wire::{SessionLine, SERVE_LOG_FILE};
 
-use crate::simadc::LogFile;
+use crate::semihost::LogFile;
 
 /// The open log (None: the host refused the file; then nothing is logged).
 pub struct SessionLog(Option<LogFile>);

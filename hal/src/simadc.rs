@@ -1,7 +1,7 @@
 //! The lockstep simulated ADC of the QEMU board: the host (millac-qemu's `cosim` bridge) answers
 //! every sample request with three 12-bit codes computed from the encoder counts, through two
 //! FIFOs in QEMU's working directory, reached through semihosting. Opened in init; `exchange` is
-//! called by the sampler task; [`LogFile`] (the AC log) by the AC task.
+//! called by the sampler task; [`crate::semihost::LogFile`] (the AC log) by the AC task.
 //!
 //! The protocol (header, request, response) is `millac::wire`, the one definition the host shares.
 //! init opens `adc.req` (mode "r+", i.e. O_RDWR: never creates the file and never blocks; if it
@@ -86,26 +86,5 @@ impl ForceTorqueAdc for SimAdc {
     /// The sound codes of the last response (None: the plant has no microphone). Sampler task.
     fn sound(&mut self) -> Option<[u16; wire::SOUND_PER_SAMPLE]> {
         self.sound.take()
-    }
-}
-
-/// A file in QEMU's working directory written through semihosting (the AC log). Opened in init,
-/// written by the AC task. Write errors are ignored: the log never stops the machine.
-pub struct LogFile(usize);
-
-impl LogFile {
-    /// Creates (truncates) `name` (NUL-terminated).
-    pub fn create(name: &[u8]) -> Option<LogFile> {
-        open(name, nr::open::W_TRUNC).map(LogFile)
-    }
-
-    pub fn write(&mut self, bytes: &[u8]) {
-        let _ = write_all(self.0, bytes);
-    }
-}
-
-impl crate::actask::LogSink for LogFile {
-    fn write(&mut self, bytes: &[u8]) {
-        LogFile::write(self, bytes);
     }
 }

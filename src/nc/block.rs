@@ -189,7 +189,7 @@ impl Block {
         match &mut self.motion {
             Motion::Linear(l) => {
                 (l.f_floor, l.decel_below) = regs(l.f, l.decel);
-                l.dir = super::frame::dirs(l.signs);
+                l.dir = dirs(l.signs);
                 let mut ramp = u64::MAX;
                 for (ak, &dk) in a.iter().zip(l.steps.iter()) {
                     if dk != 0 {
@@ -208,4 +208,17 @@ impl Block {
             Motion::Rapid(_) | Motion::Dwell(_) => {}
         }
     }
+}
+
+/// Position step per pulse of each axis for the sign bits `signs`, negated: -1 (bit set, the
+/// axis moves positive) or +1; the position counter subtracts it. (Sign-extending bit k gives 0 or
+/// -1, and `| 1` makes that +1 or -1: two instructions per axis.)
+#[inline(always)]
+pub(crate) const fn dirs(signs: u8) -> [i32; 3] {
+    let s = signs as i32;
+    [
+        (s << 31 >> 31) | 1,
+        (s << 30 >> 31) | 1,
+        (s << 29 >> 31) | 1,
+    ]
 }

@@ -38,7 +38,7 @@
 //!   figures);
 //!   starting it only sets the remainders, the command count and the feed registers. Arcs, rapids
 //!   and dwells still load in a frame of their own.
-use super::block::{Block, Linear, Motion};
+use super::block::{dirs, Block, Linear, Motion};
 use super::operator;
 use crate::ports::{BlockSource, FeedCap};
 use crate::settings::Settings;
@@ -716,17 +716,4 @@ fn position_axis(position: &mut i32, bit: u8, dir: i32) {
 #[inline(always)]
 pub const fn stopped(idle: bool, velocity_q8: u32, ladder: u32) -> bool {
     idle || velocity_q8 | ladder == 0
-}
-
-/// Position step per pulse of each axis for the sign bits `signs`, negated: -1 (bit set, the
-/// axis moves positive) or +1; the position counter subtracts it. (Sign-extending bit k gives 0 or
-/// -1, and `| 1` makes that +1 or -1: two instructions per axis.)
-#[inline(always)]
-pub(crate) const fn dirs(signs: u8) -> [i32; 3] {
-    let s = signs as i32;
-    [
-        (s << 31 >> 31) | 1,
-        (s << 30 >> 31) | 1,
-        (s << 29 >> 31) | 1,
-    ]
 }

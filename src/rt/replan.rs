@@ -177,7 +177,7 @@ pub fn step(layer: u32, lift: u32) -> Option<u32> {
 pub fn displacement(b: &Block) -> [i32; 3] {
     // `dirs` is the frame's negated step per pulse.
     let signed = |steps: [u32; 3], signs: u8| {
-        let dir = crate::nc::frame::dirs(signs);
+        let dir = crate::nc::block::dirs(signs);
         [X, Y, Z].map(|k| -(steps[k] as i32) * dir[k])
     };
     match &b.motion {

@@ -159,7 +159,8 @@ mod app {
     };
     use millac_hal::lm3s6965 as board;
     use millac_hal::semihost;
-    use millac_hal::simadc::{LogFile, SimAdc};
+    use millac_hal::semihost::LogFile;
+    use millac_hal::simadc::SimAdc;
     use millac_hal::storage::FileStorage;
     use millac_hal::uart::TX_QUEUE;
 

@@ -344,7 +344,7 @@ pub struct Listener {
     mic: Microphone,
     period_s: f64,
     next_s: f64,
-    rng: crate::process::SplitMix64,
+    rng: crate::rng::SplitMix64,
 }
 
 impl Listener {
@@ -353,7 +353,7 @@ impl Listener {
             mic,
             period_s: 1.0 / sound_hz,
             next_s: 0.0,
-            rng: crate::process::SplitMix64::new(seed),
+            rng: crate::rng::SplitMix64::new(seed),
         }
     }
 

@@ -34,6 +34,7 @@ pub mod drive;
 pub mod lobes;
 pub mod oracle;
 pub mod process;
+mod rng;
 pub mod stock;
 pub mod teeth;
 #[cfg(test)]
