@@ -1,4 +1,4 @@
-//! AC benchmark (host): every feed law on every benchmark program (`millac_qemu::bench::CASES`),
+//! AC benchmark (host): every feed law on every benchmark program (`millac_qemu::evaluation::bench::CASES`),
 //! with the stepper and the servo drive, against the constant feeds and the bound: machining time
 //! relative to the bound, peak force relative to the permissible limit, time above F0 and above
 //! the limit, overshoot and holds, as one markdown table; then the best clean law per program
@@ -22,7 +22,7 @@ use anyhow::Result;
 use millac::ac::law::Strategy;
 use millac::Settings;
 use millac_plant::DriveModel;
-use millac_qemu::bench::{self, Row};
+use millac_qemu::evaluation::bench::{self, Row};
 
 fn main() -> Result<()> {
     let mut settings = Settings::default();

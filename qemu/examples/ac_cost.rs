@@ -21,8 +21,8 @@ use millac::ac::law::Strategy;
 use millac::ac::AcSettings;
 use millac::Settings;
 use millac_plant::Stock;
-use millac_qemu::acsim::Cut;
-use millac_qemu::runner;
+use millac_qemu::emulator::runner;
+use millac_qemu::host::acsim::Cut;
 use std::path::PathBuf;
 
 /// Cycles of one 10 ms AC period at the LM3S6965's 50 MHz.
@@ -113,7 +113,7 @@ fn spread(v: &[u64]) -> (u64, u64, u64) {
 /// The process monitors' cost under QEMU (see the module docs).
 fn monitors() -> Result<()> {
     use millac_plant::chatter::thesis_table_3_2 as t;
-    use millac_qemu::{analysis, breaklab, chatterlab};
+    use millac_qemu::{analysis, evaluation::breaklab, evaluation::chatterlab};
     let base = std::env::var_os("CARGO_TARGET_DIR")
         .map_or_else(|| PathBuf::from("target"), PathBuf::from)
         .join("ac-cost");

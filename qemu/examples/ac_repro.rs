@@ -1,14 +1,14 @@
 //! The papers' feed-law experiments reproduced on the simulated cut (host; issue 9): runs every
 //! strategy on the depth-step slot (Ulsoy, Koren and Lauderbaugh's Figs. 2-3), the thesis' test
 //! TIIM and pocket (Munasinghe's Figs. 5.9-5.11) and an entry from air and exit, with the
-//! scenarios and figures of merit of `millac_qemu::repro` (the `repro` tests use the same
+//! scenarios and figures of merit of `millac_qemu::evaluation::repro` (the `repro` tests use the same
 //! functions). Writes the SVGs under `out/repro/` and prints the tables of docs/dev/results-ac.md (markdown).
 //!
 //! ```text
 //! cargo run -p millac-qemu --release --example ac_repro
 //! ```
 use anyhow::Result;
-use millac_qemu::repro::{self, Trace};
+use millac_qemu::evaluation::repro::{self, Trace};
 use std::path::Path;
 
 fn main() -> Result<()> {

@@ -1,5 +1,5 @@
 //! The AC's false alarms and fault detections over the alarm corpus (host example,
-//! `millac_qemu::alarmlab`): every ordinary cut with the alarm it got (none expected), then each
+//! `millac_qemu::evaluation::alarmlab`): every ordinary cut with the alarm it got (none expected), then each
 //! sensor fault injected at three steady-cutting times into a selection of them, with the alarm,
 //! the time from the fault to the hold and its bound. The table of docs/dev/results-ac.md.
 //!
@@ -11,8 +11,8 @@
 //! `--print NAME` writes one program of the corpus (to run it with `millac host ...
 //! --monitor-breakage --fault KIND@SECONDS` and look at its ac.csv and ac.svg).
 use anyhow::Result;
-use millac_qemu::alarmlab;
-use millac_qemu::fault::FaultKind;
+use millac_qemu::evaluation::alarmlab;
+use millac_qemu::host::fault::FaultKind;
 use std::path::Path;
 
 fn main() -> Result<()> {

@@ -20,8 +20,8 @@ use millac::ac::AcSettings;
 use millac::monitor::BreakageSettings;
 use millac::Settings;
 use millac_plant::DriveModel;
-use millac_qemu::breaklab::{self, PeriodRow};
-use millac_qemu::{acsim, analysis, bench};
+use millac_qemu::evaluation::breaklab::{self, PeriodRow};
+use millac_qemu::{analysis, evaluation::bench, host::acsim};
 
 const BREAK_S: f64 = 6.0;
 

@@ -11,8 +11,8 @@ use millac::ac::AcSettings;
 use millac::Settings;
 use millac_plant::teeth::{Damage, ToothEvent};
 use millac_plant::DriveModel;
-use millac_qemu::acsim::{self, Cut};
-use millac_qemu::{alarmlab, bench};
+use millac_qemu::host::acsim::{self, Cut};
+use millac_qemu::{evaluation::alarmlab, evaluation::bench};
 fn main() -> anyhow::Result<()> {
     let s = Settings::default();
     let acs = AcSettings {

@@ -11,7 +11,7 @@ use anyhow::Result;
 use millac::ac::AcSettings;
 use millac::Settings;
 use millac_plant::chatter::thesis_table_3_2 as t;
-use millac_qemu::{acsim, analysis, chatterlab};
+use millac_qemu::{analysis, evaluation::chatterlab, host::acsim};
 
 fn main() -> Result<()> {
     let s = Settings::default();

@@ -8,7 +8,7 @@
 //! ```
 use anyhow::Result;
 use millac_plant::chatter::thesis_table_3_2 as t;
-use millac_qemu::chatterlab;
+use millac_qemu::evaluation::chatterlab;
 
 fn main() -> Result<()> {
     let records = 40;

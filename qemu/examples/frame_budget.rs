@@ -19,7 +19,7 @@
 //! (`addr2line -e ELF` names them); `FRAME_BUDGET_ONLY=NAME` runs the programs whose name
 //! contains NAME. Exits with status 1 when a program fails or the frame ISR exceeds the budget.
 use anyhow::{bail, ensure, Context, Result};
-use millac_qemu::capture::{run_capture, Capture, CaptureSpec, HandlerSpec};
+use millac_qemu::emulator::capture::{run_capture, Capture, CaptureSpec, HandlerSpec};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 

@@ -1,5 +1,5 @@
 //! Frame ISR budget of the Nucleo-F446RE firmware, measured under QEMU (host): builds its `qemu`
-//! feature (netduinoplus2, see `millac_qemu::f446`), streams each program of `frame_budget` over
+//! feature (netduinoplus2, see `millac_qemu::emulator::f446`), streams each program of `frame_budget` over
 //! USART2 (queued under a hold before it runs, `StreamOptions::queue_first`: the blocks meet as
 //! in the QEMU board's file, whatever the host's load) and prints min / median / max instructions (entry to return, inclusive) of the frame ISR
 //! (TIM2, with the DWT reads and the frame counter around the core's body) and of the pulse-end
@@ -21,8 +21,8 @@
 //! firmware's validation) and with the measured counts at the same cycles per instruction. Fails
 //! when a program fails or a count exceeds its bound.
 use anyhow::{Context, Result};
-use millac_qemu::f446;
-use millac_qemu::firmware::{build_board, NUCLEO_F446RE_QEMU};
+use millac_qemu::emulator::f446;
+use millac_qemu::emulator::firmware::{build_board, NUCLEO_F446RE_QEMU};
 use std::time::Duration;
 
 #[path = "common/programs.rs"]

@@ -15,9 +15,9 @@ use millac::ac::AcSettings;
 use millac::Settings;
 use millac_plant::teeth::{Damage, ToothEvent};
 use millac_plant::DriveModel;
-use millac_qemu::acsim::{self, Cut, HostRun};
-use millac_qemu::bench;
-use millac_qemu::fault::{Fault, FaultKind};
+use millac_qemu::evaluation::bench;
+use millac_qemu::host::acsim::{self, Cut, HostRun};
+use millac_qemu::host::fault::{Fault, FaultKind};
 
 fn main() -> Result<()> {
     let s = Settings::default();

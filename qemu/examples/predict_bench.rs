@@ -27,10 +27,10 @@ use anyhow::Result;
 use millac::ac::{AcSettings, FeedCeiling};
 use millac::Settings;
 use millac_plant::{DriveModel, Material, Stock};
-use millac_qemu::acsim::{self, Cut, HostRun};
 use millac_qemu::analysis::{self, ProgBlock};
-use millac_qemu::optimise::{self, Options};
-use millac_qemu::{acreport, bench, model};
+use millac_qemu::evaluation::optimise::{self, Options};
+use millac_qemu::host::acsim::{self, Cut, HostRun};
+use millac_qemu::{evaluation::acreport, evaluation::bench, evaluation::model};
 
 /// The harder material of the model-error table: Ks this much above the plan's.
 const HARDER: f64 = 1.15;
@@ -238,7 +238,7 @@ fn plot_sweep(path: &std::path::Path, name: &str, curves: &[Vec<(f64, f64)>; 2])
         ))?
         .label("the issue's goal, 1.02")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
-    millac_qemu::plot::legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+    millac_qemu::evaluation::plot::legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     root.present()?;
     Ok(())
 }

@@ -4,7 +4,7 @@
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use millac::Settings;
-use millac_qemu::{analysis, runner, vcd};
+use millac_qemu::{analysis, analysis::vcd, emulator::runner};
 use std::path::{Path, PathBuf};
 
 /// The shipped demo program.
@@ -133,7 +133,7 @@ enum Cmd {
     Serve {
         /// Address of the serial port (a grbl sender connects here; `socat` gives serial-only
         /// senders a pty in front of it).
-        #[arg(long, default_value = millac_qemu::serve::DEFAULT_TCP)]
+        #[arg(long, default_value = millac_qemu::emulator::serve::DEFAULT_TCP)]
         tcp: String,
         #[arg(long, default_value = "out/serve")]
         out: PathBuf,
@@ -167,9 +167,9 @@ struct CutArgs {
     stock: Option<PathBuf>,
     /// Inject a sensor fault into the simulated ADC from KIND@SECONDS of virtual time on (rail,
     /// frozen, dropout, spike, gain; repeatable), e.g. --fault gain@2.5. The same transformation
-    /// under QEMU (run, demo) and on the host (host); millac_qemu::fault lists each alarm.
+    /// under QEMU (run, demo) and on the host (host); millac_qemu::host::fault lists each alarm.
     #[arg(long = "fault", value_name = "KIND@SECONDS")]
-    faults: Vec<millac_qemu::fault::Fault>,
+    faults: Vec<millac_qemu::host::fault::Fault>,
     /// The AC's feed law ($251) [default: gpc]: the same settings reach the firmware (a
     /// settings record in the run directory) and the host's simulation, replay and report. In
     /// `serve` it is stored in the session's record OUT/settings.bin (not with --settings).
@@ -194,17 +194,17 @@ struct CutArgs {
     /// Tooth N (counted from 0 in cutting order: tooth 0 on +X at t = 0, tooth 1 the next to cut)
     /// breaks at SECONDS of virtual time: it cuts nothing from then on and the next tooth takes
     /// its chip (repeatable), e.g. --break-tooth 1@2.5. millac_plant::teeth has the model.
-    #[arg(long = "break-tooth", value_name = "N@SECONDS", value_parser = millac_qemu::acsim::parse_break_tooth)]
+    #[arg(long = "break-tooth", value_name = "N@SECONDS", value_parser = millac_qemu::host::acsim::parse_break_tooth)]
     break_tooth: Vec<millac_plant::ToothEvent>,
     /// Tooth N's edge chips at SECONDS: it loses DEPTH_MM of radius (default 0.05 mm), the next
     /// tooth takes it (repeatable; a tooth's deepest chip so far counts), e.g.
     /// --chip-tooth 0@3:0.1.
-    #[arg(long = "chip-tooth", value_name = "N@SECONDS[:DEPTH_MM]", value_parser = millac_qemu::acsim::parse_chip_tooth)]
+    #[arg(long = "chip-tooth", value_name = "N@SECONDS[:DEPTH_MM]", value_parser = millac_qemu::host::acsim::parse_chip_tooth)]
     chip_tooth: Vec<millac_plant::ToothEvent>,
     /// Radial run-out of the teeth in micrometres, one value per tooth from tooth 0 (signed, +
     /// cuts deeper; |value| <= 1000), e.g. --runout 10,0,0,0.
     #[arg(long, value_name = "UM,UM,...")]
-    runout: Option<millac_qemu::acsim::RunoutUm>,
+    runout: Option<millac_qemu::host::acsim::RunoutUm>,
     /// Tool breakage detection in the AC task ($268=1): a declared breakage holds the feed
     /// (ALARM:108) and stops the spindle; the tool's flutes and the program's S set its tooth
     /// period. `run`, `demo`, `host` (in `serve`, set $268 in the session).
@@ -331,7 +331,7 @@ impl CutArgs {
     /// default feed law, `$251`'s default).
     /// With a process monitor on (`--monitor-breakage`, `--chatter-threshold`), `$267` is the
     /// cut's tool's flutes and `$269` its spindle speed.
-    fn ac_settings(&self, cut: &millac_qemu::acsim::Cut) -> millac::ac::AcSettings {
+    fn ac_settings(&self, cut: &millac_qemu::host::acsim::Cut) -> millac::ac::AcSettings {
         let d = millac::ac::AcSettings::default();
         let monitors = self.monitor_breakage || self.chatter_threshold.is_some();
         millac::ac::AcSettings {
@@ -407,7 +407,7 @@ fn main() {
             guard,
         }) => (|| {
             let model = match model {
-                Some(p) => Some(millac_qemu::model::Quadratic::from_json(
+                Some(p) => Some(millac_qemu::evaluation::model::Quadratic::from_json(
                     &std::fs::read_to_string(&p)
                         .with_context(|| format!("reading {}", p.display()))?,
                 )?),
@@ -419,7 +419,7 @@ fn main() {
                 stock.as_deref(),
                 tool,
                 material.into(),
-                &millac_qemu::optimise::Options {
+                &millac_qemu::evaluation::optimise::Options {
                     fraction,
                     air_feed_ipm: air_feed.unwrap_or(f64::INFINITY),
                     split,
@@ -456,9 +456,10 @@ fn main() {
                     "--strategy stores $251 only in the session's own record (OUT/settings.bin): \
                      with --settings FILE set $251 in the session instead"
                 );
-                millac_qemu::serve::store_strategy(&out, s.into())?;
+                millac_qemu::emulator::serve::store_strategy(&out, s.into())?;
             }
-            let settings = settings.unwrap_or_else(|| millac_qemu::serve::default_settings(&out));
+            let settings =
+                settings.unwrap_or_else(|| millac_qemu::emulator::serve::default_settings(&out));
             serve(&tcp, &out, &settings, shift, (!nc_only).then_some(&cut))
         })(),
         Some(Cmd::Host { program, out, cut }) => match program {
@@ -632,7 +633,10 @@ fn serve(
                     "serve: set the process monitors in the session ($268=1 breakage, $266=CODES \
                      chatter threshold, $267 flutes)"
                 );
-                c.ac_settings(&millac_qemu::acsim::Cut::steel(Default::default(), c.seed))
+                c.ac_settings(&millac_qemu::host::acsim::Cut::steel(
+                    Default::default(),
+                    c.seed,
+                ))
             },
         }),
         None => None,
@@ -650,7 +654,7 @@ fn serve(
     let served = reported(
         out,
         true,
-        millac_qemu::serve::serve(out, settings, tcp, shift, ac.as_ref(), stop),
+        millac_qemu::emulator::serve::serve(out, settings, tcp, shift, ac.as_ref(), stop),
     )?;
     println!(
         "{}",
@@ -659,13 +663,13 @@ fn serve(
     Ok(true)
 }
 
-fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
+fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::host::acsim::Cut> {
     use millac_plant::{Material, Stock};
     let stock = match &args.stock {
-        Some(p) => millac_qemu::acsim::load_stock(p)?,
+        Some(p) => millac_qemu::host::acsim::load_stock(p)?,
         None => Stock::default(),
     };
-    let cut = millac_qemu::acsim::Cut {
+    let cut = millac_qemu::host::acsim::Cut {
         drive: args.drive.into(),
         material: Material {
             ks_exponent: args.ks_exponent,
@@ -678,13 +682,13 @@ fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
             .chain(&args.break_tooth)
             .copied()
             .collect(),
-        ..millac_qemu::acsim::Cut::steel(stock, args.seed)
+        ..millac_qemu::host::acsim::Cut::steel(stock, args.seed)
     };
     let cut = match args.preset {
         None => cut.at_program_rpm(text, &Settings::default()),
         Some(PresetArg::ThesisTable32) => {
             use millac_plant::chatter::thesis_table_3_2 as t;
-            let preset = millac_qemu::acsim::Cut {
+            let preset = millac_qemu::host::acsim::Cut {
                 tool: millac_plant::Tool {
                     diameter_mm: t::DIAMETER_MM,
                     flutes: t::FLUTES,
@@ -701,7 +705,7 @@ fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
             // The program's S, when it has one, sets the speed as in any run.
             match analysis::spindle_rpm(text, &Settings::default()) {
                 0 => preset,
-                rpm => millac_qemu::acsim::Cut {
+                rpm => millac_qemu::host::acsim::Cut {
                     spindle_rpm: f64::from(rpm),
                     ..preset
                 },
@@ -715,7 +719,7 @@ fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::acsim::Cut> {
 }
 
 fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
-    use millac_qemu::{acreport, acsim};
+    use millac_qemu::{evaluation::acreport, host::acsim};
     let settings = Settings::default();
     let prog = match analysis::load_program(text, &settings) {
         Ok(p) => p,
@@ -848,7 +852,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
     )
 }
 
-/// `optimise`: the offline feed optimisation (`millac_qemu::optimise`), its files and a summary
+/// `optimise`: the offline feed optimisation (`millac_qemu::evaluation::optimise`), its files and a summary
 /// of both programs on the simulated cut (no AC).
 fn optimise(
     program: &Path,
@@ -856,9 +860,9 @@ fn optimise(
     stock: Option<&Path>,
     tool: Option<millac_plant::Tool>,
     material: millac_plant::Material,
-    opts: &millac_qemu::optimise::Options,
+    opts: &millac_qemu::evaluation::optimise::Options,
 ) -> Result<bool> {
-    use millac_qemu::{acsim, optimise};
+    use millac_qemu::{evaluation::optimise, host::acsim};
     let bytes = std::fs::read(program).with_context(|| format!("reading {}", program.display()))?;
     let text = std::str::from_utf8(&bytes)
         .map_err(|e| anyhow::anyhow!("{} is not UTF-8: {e}", program.display()))?;
@@ -936,7 +940,7 @@ fn write_test_cuts(dir: &Path, depths: &[f64], feeds: &[f64]) -> Result<bool> {
     for &a in depths {
         for &f in feeds {
             let p = dir.join(format!("cut-{a}-{f}.nc"));
-            std::fs::write(&p, millac_qemu::model::test_cut(a, f))
+            std::fs::write(&p, millac_qemu::evaluation::model::test_cut(a, f))
                 .with_context(|| format!("writing {}", p.display()))?;
         }
     }
@@ -944,7 +948,7 @@ fn write_test_cuts(dir: &Path, depths: &[f64], feeds: &[f64]) -> Result<bool> {
         "millac calibrate: {} test cuts in {} (stock: {})",
         depths.len() * feeds.len(),
         dir.display(),
-        millac_qemu::model::TEST_STOCK.trim()
+        millac_qemu::evaluation::model::TEST_STOCK.trim()
     );
     Ok(true)
 }
@@ -960,7 +964,7 @@ fn calibrate(
     feeds: &[f64],
     logs: &[(f64, f64, PathBuf)],
 ) -> Result<bool> {
-    use millac_qemu::{acsim, model};
+    use millac_qemu::{evaluation::model, host::acsim};
     let (m, cuts) = if logs.is_empty() {
         let cut = acsim::Cut {
             tool: tool.unwrap_or_default(),

@@ -7,8 +7,8 @@ use millac::ac::AcSettings;
 use millac::Settings;
 use millac_plant::oracle::OracleLimits;
 use millac_plant::{Material, Stock, Tool, Transducer};
-use millac_qemu::acsim::{self, Cut};
 use millac_qemu::analysis;
+use millac_qemu::host::acsim::{self, Cut};
 
 fn cut(stock: &str, material: Material) -> Cut {
     Cut {
@@ -178,7 +178,7 @@ fn full_depth_entry_at_f30_holds_on_overload_not_on_a_sensor_jump() {
 #[test]
 fn injected_sensor_faults_hold_with_their_own_alarm() {
     use millac::ac::{Alarm, SensorFault};
-    use millac_qemu::fault::{Fault, FaultKind};
+    use millac_qemu::host::fault::{Fault, FaultKind};
     let c = cut("blank X0 Y0 W5 H3 Z0\n", Material::STEEL);
     let settings = Settings::default();
     let prog = analysis::load_program(

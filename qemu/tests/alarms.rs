@@ -1,8 +1,8 @@
-//! The AC's alarm corpus on the host simulation (`millac_qemu::alarmlab`, host tests): no alarm
+//! The AC's alarm corpus on the host simulation (`millac_qemu::evaluation::alarmlab`, host tests): no alarm
 //! on any ordinary cut (an overload hold only where the true load crossed the overload level),
 //! and every injected sensor fault held with its own alarm within its bound. The table of docs/dev/results-ac.md
 //! is the `alarm_table` example's print of the same runs.
-use millac_qemu::alarmlab::{self, Program};
+use millac_qemu::evaluation::alarmlab::{self, Program};
 use std::path::Path;
 
 fn corpus() -> Vec<Program> {

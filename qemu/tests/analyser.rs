@@ -2,8 +2,8 @@
 //! hand-assembled Cortex-M3 image under QEMU, ELF symbol lookup, and sigrok's stepper_motor decode.
 //! They need qemu-system-arm and sigrok-cli: installed as root, else the tests fail saying what to
 //! install (never skipped).
-use millac_qemu::capture::{run_capture, CaptureSpec, HandlerSpec};
-use millac_qemu::{elf, plugin, sigrok, vcd};
+use millac_qemu::emulator::capture::{run_capture, CaptureSpec, HandlerSpec};
+use millac_qemu::{analysis::sigrok, analysis::vcd, emulator::elf, emulator::plugin};
 use object::{Object, ObjectSymbol};
 use std::path::PathBuf;
 
@@ -206,7 +206,7 @@ fn sigrok_decodes_known_positions() {
 /// largest distance of a frame's end position from its block's ideal line (lines only).
 fn host_frames(program: &str, skew_ns: u64) -> (Vec<(u64, u8)>, f64) {
     use millac::nc::{sim::Sim, Frame, FrameConfig};
-    use millac_qemu::{acsim, analysis};
+    use millac_qemu::{analysis, host::acsim};
     let settings = millac::Settings::default();
     let prog = analysis::load_program(program, &settings).unwrap();
     let mut frame = Frame::new(FrameConfig::from_settings(&settings));
@@ -269,7 +269,7 @@ fn deviation_is_scored_per_frame_not_per_edge() {
 /// position, exact end points, same per-frame path and deviation, pulses equal to the host core's.
 #[test]
 fn sigrok_exported_capture_analyses_like_the_original() {
-    use millac_qemu::{analysis, runner, tools};
+    use millac_qemu::{analysis, emulator::runner, emulator::tools};
     let program = "G1 X0.05 F10\nG1 X0 Y0.03\n";
     let dir = scratch("sigrok-export");
     let o = runner::run(program, &dir, 4).expect("run");

@@ -6,10 +6,10 @@
 //! the host core's pulses; the frame's worst case (a line that decelerates into the next one) runs
 //! within the board's stated instruction bound.
 use millac::protocol::settings::MachineSettings;
-use millac_qemu::firmware::{
+use millac_qemu::emulator::firmware::{
     build_board, build_board_in, linker_of, workspace, NUCLEO_F446RE, NUCLEO_F446RE_QEMU,
 };
-use millac_qemu::{analysis, elf, f446, tools, vcd};
+use millac_qemu::{analysis, analysis::vcd, emulator::elf, emulator::f446, emulator::tools};
 use std::path::Path;
 use std::time::{Duration, Instant};
 

@@ -6,10 +6,10 @@ use millac::ac::law::Strategy;
 use millac::ac::{AcSettings, FeedCeiling};
 use millac::Settings;
 use millac_plant::{DriveModel, Material};
-use millac_qemu::acreport::{self, Comparison};
-use millac_qemu::acsim::{self, Cut, HostRun};
 use millac_qemu::analysis::ProgBlock;
-use millac_qemu::bench;
+use millac_qemu::evaluation::acreport::{self, Comparison};
+use millac_qemu::evaluation::bench;
+use millac_qemu::host::acsim::{self, Cut, HostRun};
 
 /// One benchmark run of the comparison (constant feeds and bound) per program and ceiling setting.
 struct Run {

@@ -9,8 +9,8 @@ use millac::monitor::BreakageSettings;
 use millac::Settings;
 use millac_plant::teeth::{Damage, ToothEvent};
 use millac_plant::DriveModel;
-use millac_qemu::acsim::Cut;
-use millac_qemu::{bench, breaklab};
+use millac_qemu::host::acsim::Cut;
+use millac_qemu::{evaluation::bench, evaluation::breaklab};
 
 /// 5, 0, -3, 0 um: the run-out of a 4-flute end mill in a good collet.
 const RUNOUT_MM: [f64; 4] = [0.005, 0.0, -0.003, 0.0];
@@ -91,7 +91,7 @@ fn no_false_alarm_with_the_servo_drives_after_a_corner() {
         let cut = case
             .cut(&s, DriveModel::THESIS, millac_plant::Material::STEEL)
             .unwrap();
-        let r = millac_qemu::acsim::run(&prog, &s, &cut, Some(acs)).unwrap();
+        let r = millac_qemu::host::acsim::run(&prog, &s, &cut, Some(acs)).unwrap();
         assert!(r.alarm.is_none(), "{}: {:?}", case.name, r.alarm);
         // The replay the figures use tells the detector the same.
         let replay = breaklab::run(
@@ -198,7 +198,7 @@ fn the_residual_trace_is_the_detectors() {
     let s = Settings::default();
     let cut = breaklab::slot_cut(Some(6.0));
     let prog = millac_qemu::analysis::load_program(breaklab::SLOT, &s).unwrap();
-    let run = millac_qemu::acsim::run(&prog, &s, &cut, None).unwrap();
+    let run = millac_qemu::host::acsim::run(&prog, &s, &cut, None).unwrap();
     let bs = BreakageSettings::default();
     let (rows, det) = breaklab::trace(&run, &cut, bs).unwrap();
     let (t, b) = det.expect("declared");
@@ -250,7 +250,7 @@ fn a_broken_tooth_under_the_ac_holds_as_a_breakage_not_an_overload() {
             t_s,
             damage: Damage::Broken,
         }];
-        let r = millac_qemu::acsim::run(&prog, &s, &cut(case, events), Some(acs)).unwrap();
+        let r = millac_qemu::host::acsim::run(&prog, &s, &cut(case, events), Some(acs)).unwrap();
         assert!(
             matches!(r.alarm, Some(millac::ac::Alarm::ToolBreakage(_))),
             "tooth {tooth} at {t_s} s: {:?}",
@@ -259,8 +259,9 @@ fn a_broken_tooth_under_the_ac_holds_as_a_breakage_not_an_overload() {
     }
     // The TIIM depth step: an overload, with the breakage monitor on.
     let tiim = &bench::CASES[3];
-    let r = millac_qemu::acsim::run(&tiim.load(&s).unwrap(), &s, &cut(tiim, vec![]), Some(acs))
-        .unwrap();
+    let r =
+        millac_qemu::host::acsim::run(&tiim.load(&s).unwrap(), &s, &cut(tiim, vec![]), Some(acs))
+            .unwrap();
     assert!(
         matches!(r.alarm, Some(millac::ac::Alarm::Overload { .. })),
         "TIIM: {:?}",

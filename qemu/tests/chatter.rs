@@ -2,7 +2,7 @@
 //! 3.2 preset, heard by its microphone, judged by the core's detector (the firmware's code), the
 //! threshold by the thesis' rule (twice the largest amplitude of a chatter-free cut).
 use millac_plant::chatter::thesis_table_3_2 as t;
-use millac_qemu::chatterlab;
+use millac_qemu::evaluation::chatterlab;
 
 /// The 8.89 mm cut is detected no later than the detection cycle after the one in which the
 /// plant's regenerative vibration first exceeds 5 um RMS (chatter marks), at a frequency near the
@@ -40,10 +40,14 @@ fn table_3_2_chatter_is_detected_within_two_cycles_and_the_stable_cut_never() {
 /// A slot with the table 3.2 preset in an aluminium blank at `depth_in` (F6: the preset's
 /// 0.0508 mm per tooth at 1500 rpm), run on the host with the AC (default settings) and the chatter
 /// monitor at `threshold` (None: no monitor); `modes` false: a rigid tool.
-fn preset_run(depth_in: f64, threshold: Option<f32>, modes: bool) -> millac_qemu::acsim::HostRun {
-    use millac_qemu::{acsim, analysis};
+fn preset_run(
+    depth_in: f64,
+    threshold: Option<f32>,
+    modes: bool,
+) -> millac_qemu::host::acsim::HostRun {
+    use millac_qemu::{analysis, host::acsim};
     let s = millac::Settings::default();
-    let (text, cut) = millac_qemu::chatterlab::preset_slot(depth_in, 2.0);
+    let (text, cut) = millac_qemu::evaluation::chatterlab::preset_slot(depth_in, 2.0);
     let prog = analysis::load_program(&text, &s).unwrap();
     // modes false: the same cut with a rigid tool.
     let cut = acsim::Cut {

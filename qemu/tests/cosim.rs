@@ -5,8 +5,8 @@
 use millac::ac::AcSettings;
 use millac::Settings;
 use millac_qemu::analysis;
-use millac_qemu::cosim::{self, AcRecord, Exchange, Plant};
-use millac_qemu::runner;
+use millac_qemu::emulator::cosim::{self, AcRecord, Exchange, Plant};
+use millac_qemu::emulator::runner;
 use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -82,7 +82,7 @@ const PROGRAM: &str = "G20 G91\nG1 X0.7 F30\nM2\n";
 const END_X: i64 = 7000;
 
 struct Run {
-    cap: millac_qemu::capture::Capture,
+    cap: millac_qemu::emulator::capture::Capture,
     exchanges: Vec<Exchange>,
     log: String,
     records: Vec<AcRecord>,
@@ -152,9 +152,13 @@ fn check_host_replay(r: &Run) {
     let s = AcSettings::default();
     let n = (s.sample_hz * s.period_ms / 1000) as usize;
     assert!(!r.records.is_empty());
-    let host =
-        millac_qemu::cosim::replay(&r.records, &r.exchanges, &millac::Settings::default(), s)
-            .unwrap();
+    let host = millac_qemu::emulator::cosim::replay(
+        &r.records,
+        &r.exchanges,
+        &millac::Settings::default(),
+        s,
+    )
+    .unwrap();
     for (k, (rec, o)) in r.records.iter().zip(&host).enumerate() {
         assert_eq!(rec.t_ms, (k as u64 + 1) * u64::from(s.period_ms));
         for x in &r.exchanges[k * n..(k + 1) * n] {

@@ -6,7 +6,7 @@
 //! must stay below the permissible limit, and the run must leave all its report files and exit
 //! with status 1. The host simulation with the same `--fault` must hold with the same alarm.
 use millac::ac::AcSettings;
-use millac_qemu::fault::FaultKind;
+use millac_qemu::host::fault::FaultKind;
 use serde_json::Value;
 use std::path::PathBuf;
 use std::process::Command;
@@ -182,11 +182,12 @@ fn check_qemu(kind: FaultKind) -> u64 {
     );
     // The hold's position is exact: the capture, the firmware and ac.csv end there.
     let pos = xyz(&s["hold"]["position_blu"]);
-    let trace =
-        millac_qemu::vcd::read_vcd(&std::fs::read_to_string(r.out.join("capture.vcd")).unwrap())
-            .unwrap();
+    let trace = millac_qemu::analysis::vcd::read_vcd(
+        &std::fs::read_to_string(r.out.join("capture.vcd")).unwrap(),
+    )
+    .unwrap();
     assert_eq!(
-        millac_qemu::vcd::positions(trace.initial, &trace.events),
+        millac_qemu::analysis::vcd::positions(trace.initial, &trace.events),
         pos,
         "{name}"
     );

@@ -3,7 +3,7 @@
 //! stepper_motor decoder must read the same final positions, pulse timing must hold the settings,
 //! runs must be byte-identical, and bad programs must stop safely with exact positions.
 use millac::Settings;
-use millac_qemu::{analysis, runner, sigrok};
+use millac_qemu::{analysis, analysis::sigrok, emulator::runner};
 use std::path::PathBuf;
 
 fn out_dir(name: &str) -> PathBuf {
@@ -216,7 +216,7 @@ fn ac_against_the_cutting_process_and_host_replay() {
     );
     assert_eq!(csv.lines().count(), o.ac_log.len() + 1);
     // Replay: the same samples, ten per period, through the host's controller.
-    let host = millac_qemu::cosim::replay(
+    let host = millac_qemu::emulator::cosim::replay(
         &o.ac_log,
         &o.exchanges,
         &Settings::default(),
@@ -255,9 +255,13 @@ fn the_strategy_reaches_the_firmware_and_the_replay() {
         assert!(o.ok, "{:#}", o.summary);
         assert_eq!(o.summary["ac"]["strategy"], strategy.name());
         assert!(!out.join(millac::wire::SETTINGS_NAME).exists());
-        let host =
-            millac_qemu::cosim::replay(&o.ac_log, &o.exchanges, &Settings::default(), settings)
-                .unwrap();
+        let host = millac_qemu::emulator::cosim::replay(
+            &o.ac_log,
+            &o.exchanges,
+            &Settings::default(),
+            settings,
+        )
+        .unwrap();
         assert_eq!(host.len(), o.ac_log.len());
         for (k, (d, r)) in host.iter().zip(&o.ac_log).enumerate() {
             assert_eq!(
@@ -269,8 +273,9 @@ fn the_strategy_reaches_the_firmware_and_the_replay() {
         }
         logs.push((o.ac_log, o.exchanges));
     }
-    let caps =
-        |l: &[millac_qemu::cosim::AcRecord]| -> Vec<u32> { l.iter().map(|r| r.feed_cap).collect() };
+    let caps = |l: &[millac_qemu::emulator::cosim::AcRecord]| -> Vec<u32> {
+        l.iter().map(|r| r.feed_cap).collect()
+    };
     let (mrac_log, mrac_exchanges) = &logs[1];
     assert_ne!(
         caps(&logs[0].0),
@@ -278,7 +283,7 @@ fn the_strategy_reaches_the_firmware_and_the_replay() {
         "MRAC ran the paper's feeds"
     );
     // The check has teeth: the paper's controller does not replay the MRAC run.
-    let paper = millac_qemu::cosim::replay(
+    let paper = millac_qemu::emulator::cosim::replay(
         mrac_log,
         mrac_exchanges,
         &Settings::default(),
@@ -295,9 +300,9 @@ fn the_strategy_reaches_the_firmware_and_the_replay() {
 /// no BKPT/SVC anywhere in their code (everything is inlined; a panic would be a call or a trap).
 #[test]
 fn interrupts_have_no_calls_and_no_panic_path() {
-    let elf = millac_qemu::firmware::build().unwrap();
+    let elf = millac_qemu::emulator::firmware::build().unwrap();
     for name in ["TIMER_0A", "TIMER_1A"] {
-        let f = millac_qemu::elf::find_function(&elf, name).unwrap();
+        let f = millac_qemu::emulator::elf::find_function(&elf, name).unwrap();
         assert!(f.size > 40, "{name}: {} bytes", f.size);
         assert!(
             f.calls_and_traps.is_empty(),
@@ -306,7 +311,7 @@ fn interrupts_have_no_calls_and_no_panic_path() {
         );
     }
     // The scan does see calls in real code: the reset handler calls main.
-    let reset = millac_qemu::elf::find_function(&elf, "Reset").unwrap();
+    let reset = millac_qemu::emulator::elf::find_function(&elf, "Reset").unwrap();
     assert!(!reset.calls_and_traps.is_empty());
 }
 
@@ -314,9 +319,10 @@ fn interrupts_have_no_calls_and_no_panic_path() {
 /// of the LM3S6965's flash free).
 #[test]
 fn fits_its_flash_and_ram_budgets() {
-    use millac_qemu::firmware::LM3S6965;
-    let elf = millac_qemu::firmware::build().unwrap();
-    let m = millac_qemu::elf::memory_use_in(&std::fs::read(&elf).unwrap(), 0x2000_0000).unwrap();
+    use millac_qemu::emulator::firmware::LM3S6965;
+    let elf = millac_qemu::emulator::firmware::build().unwrap();
+    let m = millac_qemu::emulator::elf::memory_use_in(&std::fs::read(&elf).unwrap(), 0x2000_0000)
+        .unwrap();
     let flash = LM3S6965.budget("flash_bytes").unwrap();
     let ram = LM3S6965.budget("ram_bytes").unwrap();
     println!(
@@ -338,7 +344,7 @@ fn fits_its_flash_and_ram_budgets() {
 #[test]
 fn program_mode_refuses_a_corrupt_settings_record_and_runs_on_a_valid_one() {
     use millac::protocol::settings::{record, MachineSettings};
-    use millac_qemu::capture::{run_capture, CaptureSpec};
+    use millac_qemu::emulator::capture::{run_capture, CaptureSpec};
     let out = out_dir("settings-record");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("program.nc"), "G91 G1 F30 X0.01\nM2\n").unwrap();
@@ -347,7 +353,7 @@ fn program_mode_refuses_a_corrupt_settings_record_and_runs_on_a_valid_one() {
     let good = record::encode(&m);
     let mut bad = good;
     bad[30] ^= 0x04;
-    let spec = CaptureSpec::new(millac_qemu::firmware::build().unwrap(), &out);
+    let spec = CaptureSpec::new(millac_qemu::emulator::firmware::build().unwrap(), &out);
     let file = out.join(millac::wire::SETTINGS_NAME);
     std::fs::write(&file, bad).unwrap();
     let cap = run_capture(&spec).unwrap();
@@ -383,7 +389,7 @@ fn the_log_is_a_defmt_stream_and_the_results_are_in_the_result_file() {
     let out = out_dir("defmt");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("program.nc"), "G91 G1 F30 X0.01 Y-0.02\nM2\n").unwrap();
-    let elf = millac_qemu::firmware::build().unwrap();
+    let elf = millac_qemu::emulator::firmware::build().unwrap();
     // QEMU alone, as `cargo fw-run` runs it: stdout is the raw defmt stream.
     let o = std::process::Command::new("qemu-system-arm")
         .current_dir(&out)
@@ -400,7 +406,7 @@ fn the_log_is_a_defmt_stream_and_the_results_are_in_the_result_file() {
         !raw.windows(7).any(|w| w == b"blocks="),
         "text in the defmt stream: {raw:?}"
     );
-    let log = millac_qemu::defmtlog::decode_file(&elf, raw).unwrap();
+    let log = millac_qemu::emulator::defmtlog::decode_file(&elf, raw).unwrap();
     assert_eq!(log, "info: done: blocks=1 position=100,-200,0\n");
     // The result, from the file: the line the tools parse is not in the log.
     let result = std::fs::read_to_string(out.join(millac::wire::RESULT_NAME)).unwrap();
@@ -420,9 +426,9 @@ fn the_log_is_a_defmt_stream_and_the_results_are_in_the_result_file() {
 }
 
 /// The AC tests' cut: a 5 x 3 in steel blank, a default tool at 600 rpm, transducer seed 3.
-fn slot_cut() -> millac_qemu::acsim::Cut {
+fn slot_cut() -> millac_qemu::host::acsim::Cut {
     let stock = millac_plant::Stock::parse("blank X0 Y0 W5 H3 Z0\n").unwrap();
-    millac_qemu::acsim::Cut::steel(stock, 3)
+    millac_qemu::host::acsim::Cut::steel(stock, 3)
 }
 
 /// The largest `--shift` the host tool allows keeps every step pulse of rapids in three axes;

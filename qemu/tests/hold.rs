@@ -104,11 +104,12 @@ fn a_held_qemu_run_writes_its_report_and_says_it_did_not_complete() {
     // Only the blocks that ran are checked: those that completed ended exactly.
     assert_eq!(s["end_points_exact"], true, "{s:#}");
     // The capture itself ends where the hold says.
-    let trace =
-        millac_qemu::vcd::read_vcd(&std::fs::read_to_string(out.join("capture.vcd")).unwrap())
-            .unwrap();
+    let trace = millac_qemu::analysis::vcd::read_vcd(
+        &std::fs::read_to_string(out.join("capture.vcd")).unwrap(),
+    )
+    .unwrap();
     assert_eq!(
-        millac_qemu::vcd::positions(trace.initial, &trace.events),
+        millac_qemu::analysis::vcd::positions(trace.initial, &trace.events),
         xyz(&s["hold"]["position_blu"])
     );
 }

@@ -10,10 +10,10 @@ use millac::ac::AcSettings;
 use millac::rt::replan::Replanned;
 use millac::Settings;
 use millac_plant::chatter::thesis_table_3_2 as t;
-use millac_qemu::acsim::{self, Cut};
-use millac_qemu::breaklab::{slot_cut, SLOT};
-use millac_qemu::chatterlab::{self, preset_slot as preset};
-use millac_qemu::{analysis, runner};
+use millac_qemu::evaluation::breaklab::{slot_cut, SLOT};
+use millac_qemu::evaluation::chatterlab::{self, preset_slot as preset};
+use millac_qemu::host::acsim::{self, Cut};
+use millac_qemu::{analysis, emulator::runner};
 use std::path::PathBuf;
 
 fn out_dir(name: &str) -> PathBuf {
@@ -178,7 +178,7 @@ const STIFF: millac_plant::lobes::Mode = millac_plant::lobes::Mode {
 /// period overrun, and the same machining time as the host simulation of the same code.
 #[test]
 fn ac_breakage_and_chatter_together_on_the_pocket() {
-    use millac_qemu::bench;
+    use millac_qemu::evaluation::bench;
     let s = Settings::default();
     let case = &bench::CASES[1];
     let prog = case.load(&s).unwrap();

@@ -6,8 +6,8 @@
 use millac::Settings;
 use millac_plant::{DriveModel, Material};
 use millac_qemu::analysis::{self, ProgBlock};
-use millac_qemu::optimise::{self, Options};
-use millac_qemu::{acsim, bench};
+use millac_qemu::evaluation::optimise::{self, Options};
+use millac_qemu::{evaluation::bench, host::acsim};
 use std::path::PathBuf;
 
 /// The output's blocks between the original end points: for each original block, the pulses per
@@ -73,7 +73,9 @@ fn the_optimised_programs_keep_the_geometry_and_the_cutter_within_its_limit() {
         // safe constant feed (the benchmark's reference).
         let run = acsim::run(&out, &s, &cut, None).unwrap();
         let l = acsim::load_figures(&run.samples, &cut.tool, fraction, 1000);
-        let cmp = millac_qemu::acreport::compare(&original, &s, &cut, &case.ac_settings()).unwrap();
+        let cmp =
+            millac_qemu::evaluation::acreport::compare(&original, &s, &cut, &case.ac_settings())
+                .unwrap();
         eprintln!(
             "{}: {} blocks -> {} pieces; optimised {:.2} s, peak F/F_max {:.3}, above F0 {:.3} s; programmed {:.2} s, safe constant {:.2} s, bound {:.2} s",
             case.name,
@@ -254,8 +256,12 @@ fn the_model_based_optimiser_uses_the_fitted_model_where_it_covers_the_depth() {
         .cut(&s, DriveModel::Stepper, Material::STEEL)
         .unwrap();
     let feeds = [2.0, 7.0, 12.0, 17.0, 22.0, 27.0];
-    let (m, cuts) =
-        millac_qemu::model::calibrate(&base, &[1.0, 4.0, 7.0, 10.0, 13.0, 16.0], &feeds).unwrap();
+    let (m, cuts) = millac_qemu::evaluation::model::calibrate(
+        &base,
+        &[1.0, 4.0, 7.0, 10.0, 13.0, 16.0],
+        &feeds,
+    )
+    .unwrap();
     assert_eq!(cuts.len(), 36);
     // The fit reproduces its test cuts within 1 % of the largest force.
     let y_max = cuts.iter().map(|c| c.2).fold(0.0, f64::max);
@@ -306,7 +312,8 @@ fn the_model_based_optimiser_uses_the_fitted_model_where_it_covers_the_depth() {
         assert_eq!(lm.time_above_limit_s, 0.0);
         assert!((tm / tf - 1.0).abs() < 0.1, "{tm} {tf}");
     }
-    let (shallow, _) = millac_qemu::model::calibrate(&base, &[1.0, 2.0, 3.0], &feeds).unwrap();
+    let (shallow, _) =
+        millac_qemu::evaluation::model::calibrate(&base, &[1.0, 2.0, 3.0], &feeds).unwrap();
     let case = &bench::CASES[1];
     let cut = case.cut(&s, DriveModel::Stepper, Material::STEEL).unwrap();
     let full = optimise::optimise(case.program, &s, &cut, &Options::default()).unwrap();
@@ -339,7 +346,7 @@ fn the_model_based_optimiser_uses_the_fitted_model_where_it_covers_the_depth() {
 /// The model file round-trips, and a broken one is refused with a message.
 #[test]
 fn the_model_file_round_trips() {
-    use millac_qemu::model::Quadratic;
+    use millac_qemu::evaluation::model::Quadratic;
     let m = Quadratic {
         b: [-34.1, 3.07, 5.13, 22.07, -0.01, -0.146],
         a_range: (1.0, 16.0),
@@ -519,7 +526,7 @@ fn the_combined_controller_keeps_the_limit_in_a_harder_material() {
 /// it.)
 #[test]
 fn the_model_is_fitted_from_the_test_cuts_logs_as_from_the_plant() {
-    use millac_qemu::model;
+    use millac_qemu::evaluation::model;
     let s = Settings::default();
     let cut = acsim::Cut::steel(millac_plant::Stock::default(), 1);
     let (depths, feeds) = ([2.0, 4.0, 6.0], [5.0, 12.0, 20.0]);
@@ -565,7 +572,7 @@ fn the_model_is_fitted_from_the_test_cuts_logs_as_from_the_plant() {
 /// test cut's y within 2 % and 25 N of the plant's force, as a real machine's log would.
 #[test]
 fn a_test_cut_logged_by_the_firmware_gives_its_y() {
-    use millac_qemu::{model, runner};
+    use millac_qemu::{emulator::runner, evaluation::model};
     let cut = acsim::Cut::steel(millac_plant::Stock::default(), 1);
     let (a, f) = (3.0, 25.0);
     let y_plant = model::test_cut_y(&cut, a, f).unwrap();

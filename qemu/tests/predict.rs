@@ -5,9 +5,9 @@
 //! host simulation of the same code, and no AC period overruns.
 use millac::ac::{AcSettings, FeedCeiling, PLAN_START};
 use millac::Settings;
-use millac_qemu::acsim::{self, Cut};
-use millac_qemu::optimise::{self, Options};
-use millac_qemu::{analysis, runner};
+use millac_qemu::evaluation::optimise::{self, Options};
+use millac_qemu::host::acsim::{self, Cut};
+use millac_qemu::{analysis, emulator::runner};
 use std::path::PathBuf;
 
 fn read(f: &str) -> String {

@@ -99,8 +99,8 @@ fn interrupted_run(tag: &str, signal: libc::c_int, name: &str) {
     assert_eq!(i["position_blu"], s["final_position_blu"], "{s:#}");
     assert_eq!(s["end_points_exact"], true, "{s:#}");
     let vcd = std::fs::read_to_string(out.join("capture.vcd")).unwrap();
-    let trace = millac_qemu::vcd::read_vcd(&vcd).unwrap();
-    let end = millac_qemu::vcd::positions(trace.initial, &trace.events);
+    let trace = millac_qemu::analysis::vcd::read_vcd(&vcd).unwrap();
+    let end = millac_qemu::analysis::vcd::positions(trace.initial, &trace.events);
     let p = &s["final_position_blu"];
     assert_eq!(end, ["x", "y", "z"].map(|k| p[k].as_i64().unwrap()));
     let err = String::from_utf8_lossy(&o.stderr);
@@ -163,7 +163,7 @@ fn sigterm_to_host_leaves_the_report_of_what_ran() {
 /// its own: `unshare -m` as root, else `unshare -rm`, an unprivileged user namespace); the last
 /// line of its stdout is `files left: NAME ...`, what the folder held after the run.
 fn in_tmpfs(dir: &Path, options: &str, args: &[&std::ffi::OsStr]) -> Output {
-    let root = millac_qemu::tools::is_root();
+    let root = millac_qemu::emulator::tools::is_root();
     let mut cmd = Command::new("unshare");
     cmd.arg(if root { "-m" } else { "-rm" })
         .args([

@@ -1,10 +1,10 @@
 //! The papers' feed-law experiments on the simulated cut (host, issue 9): each test runs a
-//! scenario of `millac_qemu::repro` for every strategy (the same runs as the `ac_repro`
+//! scenario of `millac_qemu::evaluation::repro` for every strategy (the same runs as the `ac_repro`
 //! example's figures and tables) and asserts the behaviour the figure shows. Thresholds: a law
 //! "oscillates" when F/F0 swings by more than 0.5 (half the reference) peak to peak over the last
 //! second of a section, and is "settled" below 0.1 (the +-5 % band).
 use millac::ac::law::Strategy;
-use millac_qemu::repro::{self, Trace};
+use millac_qemu::evaluation::repro::{self, Trace};
 
 fn by(traces: &[Trace], s: Strategy) -> &Trace {
     traces.iter().find(|t| t.strategy == s).unwrap()

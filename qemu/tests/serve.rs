@@ -2,7 +2,7 @@
 //! connects, reads the grbl banner, streams G-code lines and gets one answer per line, polls `?`
 //! until the machine is idle, and after the stop the capture ends where the lines programmed.
 //! Settings set over the line persist into the next session; a corrupt record starts locked.
-use millac_qemu::serve;
+use millac_qemu::emulator::serve;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -71,8 +71,8 @@ fn serve_steel_block(
     BufReader<TcpStream>,
 ) {
     use millac_plant::Stock;
-    use millac_qemu::acsim::Cut;
-    use millac_qemu::runner::AcRun;
+    use millac_qemu::emulator::runner::AcRun;
+    use millac_qemu::host::acsim::Cut;
     let settings_file = serve::default_settings(out);
     let addr = format!("127.0.0.1:{}", free_port());
     let stop = Arc::new(AtomicBool::new(false));
@@ -205,7 +205,7 @@ fn check_capture_against(
 /// session, the pty's path and the relay (kill it when done).
 fn start_with_pty(tag: &str) -> (Session, std::path::PathBuf, std::process::Child) {
     use std::process::{Command, Stdio};
-    let socat = millac_qemu::tools::ensure_tool("socat").expect("socat");
+    let socat = millac_qemu::emulator::tools::ensure_tool("socat").expect("socat");
     let session = start(tag);
     let (out, addr) = (&session.out, &session.addr);
     std::fs::create_dir_all(out).unwrap();
@@ -421,9 +421,9 @@ fn a_pty_from_socat_speaks_grbl() {
 #[test]
 fn pygrbl_streamer_streams_the_fig1_program() {
     use millac::Settings;
-    use millac_qemu::{analysis, tools};
+    use millac_qemu::{analysis, emulator::tools};
     use std::process::Command;
-    let ws = millac_qemu::firmware::workspace();
+    let ws = millac_qemu::emulator::firmware::workspace();
     let python = tools::ensure_python_sender(&ws.join("target").join("py-sender")).expect("sender");
     let (Session { stop, server, .. }, tty, mut relay) = start_with_pty("py");
     let program = ws.join("qemu").join("programs").join("fig1-cavity.nc");
@@ -557,9 +557,9 @@ print(json.dumps(obs))
 #[test]
 fn bcnc_streams_a_job_with_its_feed_override_to_the_end() {
     use millac::Settings;
-    use millac_qemu::{analysis, tools};
+    use millac_qemu::{analysis, emulator::tools};
     use std::process::Command;
-    let ws = millac_qemu::firmware::workspace();
+    let ws = millac_qemu::emulator::firmware::workspace();
     let python = tools::ensure_bcnc(&ws.join("target").join("bcnc")).expect("bCNC");
     let Session {
         out,
@@ -1090,7 +1090,7 @@ fn a_flood_is_refused_in_step_and_every_line_answered_ok_ran() {
         (Some(pulses.0), Some(pulses.1), Some(0)),
         "{s}"
     );
-    let [x, y, z] = millac_qemu::vcd::positions(0, &served.capture.pins);
+    let [x, y, z] = millac_qemu::analysis::vcd::positions(0, &served.capture.pins);
     assert_eq!((x, y, z), (end.0, end.1, 0));
     let p = &s["final_position_blu"];
     assert_eq!(
@@ -1104,7 +1104,7 @@ fn a_flood_is_refused_in_step_and_every_line_answered_ok_ran() {
     assert_eq!(s["pulses_match_host"], true, "{s}");
     // ... and `run` of that log: the same keys, blocks, pulses and position.
     let log = std::fs::read_to_string(out.join("serve.nc")).unwrap();
-    let run = millac_qemu::runner::run(&log, &out.join("run"), 4).expect("run serve.nc");
+    let run = millac_qemu::emulator::runner::run(&log, &out.join("run"), 4).expect("run serve.nc");
     let keys = |v: &serde_json::Value| {
         let mut k: Vec<String> = v.as_object().unwrap().keys().cloned().collect();
         k.retain(|k| k != "virtual_time_s");
@@ -1438,7 +1438,10 @@ fn a_second_client_is_refused_and_its_bytes_never_run() {
     BufReader::new(other)
         .read_to_string(&mut told)
         .expect("the refusal, then the end");
-    assert_eq!(told, format!("{}\r\n", millac_qemu::port::REFUSED));
+    assert_eq!(
+        told,
+        format!("{}\r\n", millac_qemu::emulator::port::REFUSED)
+    );
     let got = send(&mut w, &mut r, "G0 Y0.1");
     assert_eq!(got, ["ok"]);
     let idle = poll_idle(&mut w, &mut r);

@@ -7,8 +7,8 @@ use millac::ac::AcSettings;
 use millac::Settings;
 use millac_plant::chatter::thesis_table_3_2 as t;
 use millac_plant::Stock;
-use millac_qemu::acsim::{self, Cut, HostRun};
-use millac_qemu::{analysis, chatterlab};
+use millac_qemu::host::acsim::{self, Cut, HostRun};
+use millac_qemu::{analysis, evaluation::chatterlab};
 
 /// The chatter monitor as the thesis sets it (twice the largest amplitude of the 2.54 mm cut),
 /// with the depth step `step_mm`.

@@ -116,7 +116,7 @@ pub fn print_worst(
     frames: &[u64],
     starts: &[u64],
     pins: &[(u64, u8)],
-    traces: &[millac_qemu::capture::HandlerTrace],
+    traces: &[millac_qemu::emulator::capture::HandlerTrace],
 ) {
     let ms = |t: u64| format!("{}.{:03} ms", t / 1_000_000, t / 1_000 % 1_000);
     if let Some((i, n)) = frames

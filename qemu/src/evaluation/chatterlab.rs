@@ -13,12 +13,12 @@ use std::path::Path;
 /// `to_x` at F6 (the preset's 0.0508 mm per tooth at 1500 rpm) in an aluminium block, started in
 /// a drilled hole; the tool flexible with the preset's mode in X and Y, heard by the microphone.
 /// The program's text and the cut (for `acsim` and the QEMU runs alike).
-pub fn preset_slot(depth_in: f64, to_x: f64) -> (String, crate::acsim::Cut) {
+pub fn preset_slot(depth_in: f64, to_x: f64) -> (String, crate::host::acsim::Cut) {
     use millac_plant::{Material, Stock, Tool};
     let text = format!("G20 G90\nG0 X0.2 Y1\nG0 Z-{depth_in}\nG1 X{to_x} F6\nG0 Z0.1\nM2\n");
     let stock = Stock::parse("blank X0 Y0 W4 H2 Z0\nhole X0.2 Y1 D0.625 Z-0.4\n")
         .expect("the preset's stock parses");
-    let cut = crate::acsim::Cut {
+    let cut = crate::host::acsim::Cut {
         tool: Tool {
             diameter_mm: t::DIAMETER_MM,
             flutes: t::FLUTES,
@@ -27,7 +27,7 @@ pub fn preset_slot(depth_in: f64, to_x: f64) -> (String, crate::acsim::Cut) {
         material: Material::ALUMINIUM,
         spindle_rpm: t::RPM,
         modes: Some((vec![t::MODE], vec![t::MODE])),
-        ..crate::acsim::Cut::steel(stock, 1)
+        ..crate::host::acsim::Cut::steel(stock, 1)
     };
     (text, cut)
 }
@@ -38,12 +38,12 @@ pub fn preset_slot(depth_in: f64, to_x: f64) -> (String, crate::acsim::Cut) {
 /// probe reads up to about 2 mm ahead of the tool (see `millac_plant::process`): a re-plan's lower
 /// layer ending at a closed slot end, or a rapid back to a stop next to the wall of a hole of the
 /// tool's size, would read material the tool never reaches.
-pub fn through_slot(depth_in: f64) -> (String, crate::acsim::Cut) {
+pub fn through_slot(depth_in: f64) -> (String, crate::host::acsim::Cut) {
     let (_, cut) = preset_slot(depth_in, 1.6);
     let text = format!("G20 G90\nG0 X0.2 Y1\nG0 Z-{depth_in}\nG1 X1.6 F6\nG0 Z0.1\nM2\n");
     let stock = millac_plant::Stock::parse("blank X0 Y0 W1 H2 Z0\nhole X0.2 Y1 D0.8 Z-0.4\n")
         .expect("the slot's stock parses");
-    (text, crate::acsim::Cut { stock, ..cut })
+    (text, crate::host::acsim::Cut { stock, ..cut })
 }
 
 /// The table 3.2 tool in a high-speed cut, where its stability lobes are wide (for the chatter
@@ -51,13 +51,13 @@ pub fn through_slot(depth_in: f64) -> (String, crate::acsim::Cut) {
 /// program's `S{rpm}` and F30 (0.027 mm per tooth at 14 000 rpm). In this plant the preset's
 /// tool at 4 mm chatters at 14 000 rpm and is stable between about 11 750 and 12 750 rpm and
 /// between 15 000 and 17 500 (the time-domain model's lobes; docs/dev/monitors.md).
-pub fn high_speed_slot(depth_in: f64, rpm: u32) -> (String, crate::acsim::Cut) {
+pub fn high_speed_slot(depth_in: f64, rpm: u32) -> (String, crate::host::acsim::Cut) {
     let (_, cut) = through_slot(depth_in);
     let text =
         format!("G20 G90\nS{rpm} M3\nG0 X0.2 Y1\nG0 Z-{depth_in}\nG1 X1.6 F30\nG0 Z0.1\nM2\n");
     (
         text,
-        crate::acsim::Cut {
+        crate::host::acsim::Cut {
             spindle_rpm: f64::from(rpm),
             ..cut
         },
@@ -70,14 +70,14 @@ pub fn high_speed_slot(depth_in: f64, rpm: u32) -> (String, crate::acsim::Cut) {
 pub fn thesis_threshold(
     prog: &[crate::analysis::ProgBlock],
     settings: &millac::Settings,
-    cut: &crate::acsim::Cut,
+    cut: &crate::host::acsim::Cut,
     listen: millac::ac::AcSettings,
 ) -> Result<f32> {
     let listen = millac::ac::AcSettings {
         chatter_threshold: f32::MAX,
         ..listen
     };
-    let quiet = crate::acsim::run_with_faults(prog, settings, cut, Some(listen), true, &[])?
+    let quiet = crate::host::acsim::run_with_faults(prog, settings, cut, Some(listen), true, &[])?
         .spectra
         .iter()
         .map(|(_, sp)| sp.peak_amplitude)
@@ -217,7 +217,11 @@ pub fn plot(path: &Path, runs: &[ChatterRun], threshold: f32) -> Result<()> {
 /// Chatter suppression on the host (as the thesis' Fig. 5.15 with the passes): above, the largest
 /// sound amplitude of every detection cycle against time with the threshold and the re-plans;
 /// below, the tool's height and X position (mm) over the run, one AC period per point.
-pub fn plot_suppression(path: &Path, run: &crate::acsim::HostRun, threshold: f32) -> Result<()> {
+pub fn plot_suppression(
+    path: &Path,
+    run: &crate::host::acsim::HostRun,
+    threshold: f32,
+) -> Result<()> {
     let root = SVGBackend::new(path, (1000, 700)).into_drawing_area();
     root.fill(&WHITE)?;
     let (upper, lower) = root.split_vertically(340);
@@ -266,7 +270,7 @@ pub fn plot_suppression(path: &Path, run: &crate::acsim::HostRun, threshold: f32
         )?
         .label("re-plan: depth reduced by 1 mm")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-    crate::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+    crate::evaluation::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     // The runs' BLU (the default settings').
     let (num, den) = millac::Settings::default().blu.per_mm();
     let mm = |blu: i64| blu as f64 * den as f64 / num as f64;
@@ -315,7 +319,7 @@ pub fn plot_suppression(path: &Path, run: &crate::acsim::HostRun, threshold: f32
         ))?
         .label("X")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
+    crate::evaluation::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present()
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
@@ -327,15 +331,16 @@ pub fn plot_suppression(path: &Path, run: &crate::acsim::HostRun, threshold: f32
 /// run and the X position of both (the depth steps' extra passes).
 pub fn plot_speed(
     path: &Path,
-    speed: &crate::acsim::HostRun,
-    depth: &crate::acsim::HostRun,
+    speed: &crate::host::acsim::HostRun,
+    depth: &crate::host::acsim::HostRun,
     threshold: f32,
     rpm: u32,
 ) -> Result<()> {
     let root = SVGBackend::new(path, (1000, 700)).into_drawing_area();
     root.fill(&WHITE)?;
     let (upper, lower) = root.split_vertically(360);
-    let end = |r: &crate::acsim::HostRun| r.rows.last().map_or(1.0, |r| r.t_ms as f64 / 1000.0);
+    let end =
+        |r: &crate::host::acsim::HostRun| r.rows.last().map_or(1.0, |r| r.t_ms as f64 / 1000.0);
     let t_end = end(speed).max(end(depth));
     let top = speed
         .spectra
@@ -360,7 +365,7 @@ pub fn plot_speed(
         .x_desc("time, s")
         .y_desc("amplitude, codes (log)")
         .draw()?;
-    let amp = |r: &crate::acsim::HostRun| {
+    let amp = |r: &crate::host::acsim::HostRun| {
         r.spectra
             .iter()
             .map(|(t, s)| (*t, f64::from(s.peak_amplitude).max(0.1)))
@@ -399,7 +404,7 @@ pub fn plot_speed(
         )?
         .label("re-plan: depth reduced by 1 mm")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-    crate::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+    crate::evaluation::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     let (num, den) = millac::Settings::default().blu.per_mm();
     let mm = |blu: i64| blu as f64 * den as f64 / num as f64;
     let x_max = speed
@@ -436,7 +441,7 @@ pub fn plot_speed(
         .draw_series(LineSeries::new(steps, green.stroke_width(2)))?
         .label("spindle speed ($277 run)")
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], green));
-    let xs = |r: &crate::acsim::HostRun| {
+    let xs = |r: &crate::host::acsim::HostRun| {
         r.rows
             .iter()
             .map(|r| (r.t_ms as f64 / 1000.0, mm(r.pos_blu[0])))
@@ -450,7 +455,7 @@ pub fn plot_speed(
         .draw_secondary_series(LineSeries::new(xs(speed), BLUE.stroke_width(1)))?
         .label("X, spindle speed")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
+    crate::evaluation::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present()
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(())

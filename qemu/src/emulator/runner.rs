@@ -1,8 +1,8 @@
 //! Runs a program through the firmware under QEMU and analyses the capture (host): the machinery
 //! behind `millac run` and the QEMU tests.
 use crate::analysis::{self, ProgBlock, Report};
-use crate::capture::{run_capture, Capture, CaptureSpec, HandlerSpec};
-use crate::{cosim, firmware, vcd};
+use crate::emulator::capture::{run_capture, Capture, CaptureSpec, HandlerSpec};
+use crate::{analysis::vcd, emulator::cosim, emulator::firmware};
 use anyhow::{Context, Result};
 use millac::Settings;
 use serde_json::{json, Value};
@@ -220,15 +220,15 @@ pub fn run(text: &str, out: &Path, shift: u32) -> Result<Outcome> {
 
 /// A run against the simulated cutting process: the firmware's ADC reads come from `cut` in
 /// lockstep; `ac` applies the controller's feed cap (false: measure and log only, `--no-ac`);
-/// `faults` are injected into the codes the firmware reads (`--fault`, see [`crate::fault`]);
+/// `faults` are injected into the codes the firmware reads (`--fault`, see [`crate::host::fault`]);
 /// `settings` are the AC settings of the run (`--strategy`), the same for the firmware (a
 /// settings record in the run directory when they are not the defaults) and for the host's
 /// report and replay.
 #[derive(Clone, Debug)]
 pub struct AcRun {
-    pub cut: crate::acsim::Cut,
+    pub cut: crate::host::acsim::Cut,
     pub ac: bool,
-    pub faults: Vec<crate::fault::Fault>,
+    pub faults: Vec<crate::host::fault::Fault>,
     pub settings: millac::ac::AcSettings,
 }
 
@@ -273,7 +273,7 @@ pub fn plant_with_truth(
     };
     let acs = a.settings;
     let zero = acs.cal.map(|c| f64::from(c.offset));
-    Ok(Box::new(crate::fault::Faulty::new(
+    Ok(Box::new(crate::host::fault::Faulty::new(
         plant,
         &a.faults,
         zero,
@@ -491,31 +491,31 @@ pub fn summarise(
         let acs = a.run.settings;
         let rows = ac_rows(settings, &acs, &records, a.truth);
         let csv = out.join("ac.csv");
-        std::fs::write(&csv, crate::acsim::csv(&rows))
+        std::fs::write(&csv, crate::host::acsim::csv(&rows))
             .with_context(|| format!("writing {}", csv.display()))?;
-        crate::acreport::plot(
+        crate::evaluation::acreport::plot(
             &out.join("ac.svg"),
             &rows,
             acs.f0_n() as f64,
             acs.t0_nm() as f64,
             1.0 / acs.optimal_fraction as f64,
-            crate::acsim::feed_ipm(settings, settings.q0),
+            crate::host::acsim::feed_ipm(settings, settings.q0),
         )?;
-        let load = crate::acsim::load_figures(
+        let load = crate::host::acsim::load_figures(
             a.truth,
             &a.run.cut.tool,
             acs.optimal_fraction as f64,
             acs.sample_hz,
         );
-        let cmp = crate::acreport::compare(prog, settings, &a.run.cut, &acs)?;
-        summary["ac"] = crate::acreport::ac_json(report.machining_time_s, &load, &cmp);
+        let cmp = crate::evaluation::acreport::compare(prog, settings, &a.run.cut, &acs)?;
+        summary["ac"] = crate::evaluation::acreport::ac_json(report.machining_time_s, &load, &cmp);
         summary["ac"]["enabled"] = json!(a.run.ac);
         summary["ac"]["strategy"] = json!(acs.strategy.name());
         summary["ac"]["samples"] = json!(a.samples);
         summary["ac"]["holds"] = json!(records.iter().filter(|r| r.hold.is_some()).count());
         summary["ac"]["overruns"] = json!(records.last().map_or(0, |r| r.overruns));
         let why = hold.map(|h| held_at(prog, h));
-        crate::acreport::print_table(
+        crate::evaluation::acreport::print_table(
             report.machining_time_s,
             &load,
             &cmp,
@@ -533,7 +533,7 @@ pub fn ac_rows(
     acs: &millac::ac::AcSettings,
     records: &[cosim::AcRecord],
     truth: &[(f64, f64)],
-) -> Vec<crate::acsim::AcRow> {
+) -> Vec<crate::host::acsim::AcRow> {
     let per = acs.samples_per_period() as usize;
     let mut prev = [0i64; 3];
     records
@@ -545,10 +545,10 @@ pub fn ac_rows(
                 .unwrap_or(&[]);
             let d = [0, 1, 2].map(|i| r.pos_blu[i] - prev[i]);
             prev = r.pos_blu;
-            crate::acsim::AcRow {
+            crate::host::acsim::AcRow {
                 t_ms: r.t_ms,
                 pos_blu: r.pos_blu,
-                feed_ipm: crate::acsim::path_feed_ipm(settings, d, acs.period_ms),
+                feed_ipm: crate::host::acsim::path_feed_ipm(settings, d, acs.period_ms),
                 f_meas_n: r.f_n as f64,
                 t_meas_nm: r.t_nm as f64,
                 f_true_n: win.iter().map(|s| s.0).fold(0.0, f64::max),

@@ -6,7 +6,7 @@
 //! accepted line, jog, early run of a held block and soft reset; `millac::wire::SessionLine`),
 //! replayed here ([`replay`]) into exactly the blocks the firmware queued.
 //!
-//! The serial port is [`crate::port`]: QEMU's UART on a Unix socket of a small TCP front that
+//! The serial port is [`crate::emulator::port`]: QEMU's UART on a Unix socket of a small TCP front that
 //! takes one client at a time (others get a line saying the port is in use and are closed),
 //! greets each client with the grbl banner, and forwards a client's bytes line by line
 //! (realtime bytes at once), so a line left unfinished by a client that disconnects is dropped,
@@ -24,9 +24,9 @@
 //! the firmware opens `settings.bin` in its working directory (`out`), which [`link_settings`]
 //! makes that file, so the record the firmware stores after a `$N=value` lands there directly and
 //! the next session starts with it.
-use crate::capture::{run_capture, CaptureSpec, HandlerSpec};
-use crate::runner::{self, AcRun};
-use crate::{analysis, cosim, firmware, vcd};
+use crate::emulator::capture::{run_capture, CaptureSpec, HandlerSpec};
+use crate::emulator::runner::{self, AcRun};
+use crate::{analysis, analysis::vcd, emulator::cosim, emulator::firmware};
 use anyhow::{anyhow, Context, Result};
 use millac::gcode::tape::{finish_block, Tape};
 use millac::nc::{Block, FrameConfig, Motion};
@@ -44,7 +44,7 @@ pub const DEFAULT_TCP: &str = "127.0.0.1:7878";
 /// What a serve session produced.
 pub struct Served {
     pub summary: Value,
-    pub capture: crate::capture::Capture,
+    pub capture: crate::emulator::capture::Capture,
 }
 
 /// The settings file of a session in `out` when none is given: the firmware's own name there.
@@ -142,7 +142,7 @@ pub fn serve(
         .ok()
         .and_then(|b| millac::protocol::settings::record::decode(&b).ok())
         .unwrap_or_default();
-    let port = crate::port::Port::open(tcp)?;
+    let port = crate::emulator::port::Port::open(tcp)?;
     let mut spec = CaptureSpec::new(&elf, out);
     spec.icount_shift = shift;
     spec.extra_args = vec![
@@ -318,7 +318,7 @@ mod tests {
         assert!(e.to_string().contains("holds settings of its own"), "{e}");
         assert_eq!(std::fs::read(default_settings(&out)).unwrap(), b"own");
         // A batch run in that directory would check against the defaults: refused.
-        let e = crate::runner::execute("G0 X1\n", &out, 4).expect_err("refused");
+        let e = crate::emulator::runner::execute("G0 X1\n", &out, 4).expect_err("refused");
         assert!(e.to_string().contains("settings"), "{e}");
         assert!(!out.join("program.nc").exists());
     }

@@ -2,7 +2,10 @@
 //! from PulseView after a real logic-analyser capture) and checks them against the program: end point
 //! of every block, deviation from the ideal line or arc, feed per block against the programmed feed,
 //! minimum pulse width and sign setup time, and pulse-for-pulse equality with the host core.
-use crate::vcd::AXES;
+pub mod sigrok;
+pub mod vcd;
+
+use crate::analysis::vcd::AXES;
 use anyhow::Result;
 use millac::gcode::tape::{Tape, TapeError};
 use millac::nc::{sim::Sim, Block, Frame, FrameConfig, Motion};
@@ -101,7 +104,7 @@ pub struct Edges {
     pub min_sign_setup_ns: Option<u64>,
 }
 
-/// Extracts edges and timing from pin events (port B byte layout, see [`crate::vcd::WIRES`]).
+/// Extracts edges and timing from pin events (port B byte layout, see [`crate::analysis::vcd::WIRES`]).
 pub fn edges(initial: u8, events: &[(u64, u8)]) -> Edges {
     let mut prev = initial;
     let mut rise: [Option<u64>; 3] = [None; 3];

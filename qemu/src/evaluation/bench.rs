@@ -1,9 +1,9 @@
 //! The AC benchmark (host): every feed law on every benchmark program with the stepper and the
 //! servo drive against the constant feeds and the bound, as rows of one table. The `ac_bench`
 //! example prints it; the bound's tests (qemu/tests/bound.rs) run the same programs.
-use crate::acreport::{self, Comparison};
-use crate::acsim::{self, Cut, HostRun};
 use crate::analysis::{self, ProgBlock};
+use crate::evaluation::acreport::{self, Comparison};
+use crate::host::acsim::{self, Cut, HostRun};
 use anyhow::{anyhow, Result};
 use millac::ac::law::Strategy;
 use millac::ac::AcSettings;
@@ -41,35 +41,35 @@ pub fn overload_e_for(fraction: f32) -> f32 {
 pub const CASES: &[Case] = &[
     Case {
         name: "Fig. 1 cavity",
-        program: include_str!("../programs/fig1-cavity.nc"),
+        program: include_str!("../../programs/fig1-cavity.nc"),
         stock: None,
         force_limit_n: None,
         optimal_fraction: None,
     },
     Case {
         name: "pocket (Fig. 5.8)",
-        program: include_str!("../programs/pocket.nc"),
-        stock: Some(include_str!("../programs/pocket.stock")),
+        program: include_str!("../../programs/pocket.nc"),
+        stock: Some(include_str!("../../programs/pocket.stock")),
         force_limit_n: None,
         optimal_fraction: None,
     },
     // Ulsoy, Koren and Lauderbaugh's Figs. 2-3: depths 1, 2, 3 mm. The 0.5 in cutter at 4000 N
     // would reach F0 at none of them below FRM, so the cutter is taken as a weaker one, 500 N,
-    // as in the reproduction (`crate::repro::DEPTH_STEP_FORCE_LIMIT_N`). Steps of +100 % and
+    // as in the reproduction (`crate::evaluation::repro::DEPTH_STEP_FORCE_LIMIT_N`). Steps of +100 % and
     // +50 %: F0 = 0.45 of the limit.
     Case {
         name: "depth-step slot",
-        program: include_str!("../programs/depth-step.nc"),
-        stock: Some(include_str!("../programs/depth-step.stock")),
-        force_limit_n: Some(crate::repro::DEPTH_STEP_FORCE_LIMIT_N as f64),
+        program: include_str!("../../programs/depth-step.nc"),
+        stock: Some(include_str!("../../programs/depth-step.stock")),
+        force_limit_n: Some(crate::evaluation::repro::DEPTH_STEP_FORCE_LIMIT_N as f64),
         optimal_fraction: Some(0.45),
     },
     // The thesis' test TIIM: a full slot whose depth steps from 7.62 to 10.5 mm (+38 %): F0 =
     // 0.65 of the limit.
     Case {
         name: "TIIM step",
-        program: include_str!("../programs/tiim.nc"),
-        stock: Some(include_str!("../programs/tiim.stock")),
+        program: include_str!("../../programs/tiim.nc"),
+        stock: Some(include_str!("../../programs/tiim.stock")),
         force_limit_n: None,
         optimal_fraction: Some(0.65),
     },

@@ -12,7 +12,7 @@
 //! emulator until answered and under `-icount` virtual time stands still meanwhile, so runs are
 //! deterministic. The exchange ends when QEMU exits (EOF on `adc.req`); the firmware ends a run
 //! itself, also after a long hold (see `millac::rt::ac`). A plant that has no conversion for a
-//! sample (`None`: an ADC dropout, see [`crate::fault`]) is answered with the wire's reserved
+//! sample (`None`: an ADC dropout, see [`crate::host::fault`]) is answered with the wire's reserved
 //! `NO_CONVERSION` response: the firmware's sampler goes on, its AC period sees no fresh samples
 //! and holds (`Alarm::NoSamples`), and the run ends as a hold with its report. Should the host
 //! close the FIFOs instead, the firmware prints `error: simulated ADC lost` and exits with failure.

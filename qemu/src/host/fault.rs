@@ -2,7 +2,7 @@
 //! transducer from a given time on, as a failing transducer or ADC would, so runs can check that
 //! every fault has its alarm and reaction. One transformation, [`Injector::apply`], serves both
 //! runs: the host simulation's sample loop (`millac host --fault KIND@SECONDS`,
-//! [`crate::acsim::run_with_faults`]) calls it directly, and the QEMU co-simulation (`millac run
+//! [`crate::host::acsim::run_with_faults`]) calls it directly, and the QEMU co-simulation (`millac run
 //! --fault KIND@SECONDS`, `demo --fault ..`) wraps the cutting process in [`Faulty`], the
 //! [`Plant`] the cosim bridge thread asks for every sample the firmware requests.
 //!
@@ -26,7 +26,7 @@
 //! samples), frozen 50 ms (`frozen_samples` + 2 periods, 70 ms), gain 50 ms (`ft_periods` + 2
 //! periods, 70 ms). The host run holds at the same period with the same alarm.
 
-use crate::cosim::Plant;
+use crate::emulator::cosim::Plant;
 use std::str::FromStr;
 
 /// What fails.

@@ -73,9 +73,9 @@ pub struct HandlerSpec {
 }
 
 impl HandlerSpec {
-    /// Looks the function `name` up in the ELF (see [`crate::elf::find_function`]).
+    /// Looks the function `name` up in the ELF (see [`crate::emulator::elf::find_function`]).
     pub fn from_elf(elf: &Path, name: &str) -> Result<HandlerSpec> {
-        let f = crate::elf::find_function(elf, name)?;
+        let f = crate::emulator::elf::find_function(elf, name)?;
         ensure!(
             !f.returns.is_empty(),
             "no return instruction found in `{name}`"
@@ -165,7 +165,7 @@ pub struct Capture {
     /// Virtual time at exit, ns.
     pub end_ns: u64,
     /// The firmware's log: QEMU's stdout, its defmt frames decoded with the ELF's table, one
-    /// `<level>: <message>` line each ([`crate::defmtlog`]; as text for an ELF without a table).
+    /// `<level>: <message>` line each ([`crate::emulator::defmtlog`]; as text for an ELF without a table).
     /// For people: what the tools read is in [`Capture::result`].
     pub stdout: String,
     /// The firmware's result file ([`millac::wire::RESULT_NAME`] in the run directory, written
@@ -528,18 +528,18 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
             "traced handler {k}: no such handler"
         );
     }
-    crate::tools::ensure_tool("qemu-system-arm")?;
+    crate::emulator::tools::ensure_tool("qemu-system-arm")?;
     let elf = std::fs::canonicalize(&spec.elf)
         .with_context(|| format!("firmware ELF {}", spec.elf.display()))?;
     let run_dir = std::fs::canonicalize(&spec.run_dir)
         .with_context(|| format!("run directory {}", spec.run_dir.display()))?;
     let dir = run_dir.join(CAPTURE_DIR);
-    let plugin = crate::plugin::write_plugin(&dir)?;
+    let plugin = crate::emulator::plugin::write_plugin(&dir)?;
     let log = dir.join("plugin.log");
     let trace = dir.join("trace.log");
     // The firmware's log decoder (its ELF's defmt table), and no stale result file: a firmware that
     // ends before it writes one leaves none.
-    let fw_log = crate::defmtlog::Log::from_elf(
+    let fw_log = crate::emulator::defmtlog::Log::from_elf(
         &std::fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?,
     )?;
     let result = run_dir.join(millac::wire::RESULT_NAME);

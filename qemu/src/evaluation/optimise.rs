@@ -21,9 +21,9 @@
 //!   before it.
 //! - The machine's rapid rate FRM caps every feed; the air-cut feed caps the pieces that cut
 //!   nothing anywhere along them.
-use crate::acreport::{oracle_walk, WalkPoint};
-use crate::acsim::{self, Cut, HostRun};
 use crate::analysis::{self, ProgBlock};
+use crate::evaluation::acreport::{oracle_walk, WalkPoint};
+use crate::host::acsim::{self, Cut, HostRun};
 use anyhow::{anyhow, bail, Context, Result};
 use millac::nc::{Motion, Plane, X, Y, Z};
 use millac::Blu;
@@ -43,10 +43,10 @@ pub struct Options {
     pub split: f64,
     /// Shortest piece, mm.
     pub min_piece_mm: f64,
-    /// Georgiev and Chetrokov's fitted model in place of the full force model (`crate::model`):
+    /// Georgiev and Chetrokov's fitted model in place of the full force model (`crate::evaluation::model`):
     /// at every point that cuts, the feed that holds its y at F0 at the depth present; where the
     /// depth is outside the model's range, the full model's feed (the piece says so).
-    pub model: Option<crate::model::Quadratic>,
+    pub model: Option<crate::evaluation::model::Quadratic>,
     /// The guard against a wrong stock description, as a fraction of the permissible force
     /// and torque (0: trust the description). Where the described stock is air but material
     /// could stand ([`millac_plant::Stock::envelope`]: the blanks filled to the stock's top,
@@ -285,7 +285,7 @@ fn dist_mm(a: [i64; 3], b: [i64; 3]) -> f64 {
 /// ceilings. Returns the number of points lowered.
 #[allow(clippy::too_many_arguments)] // the walk's inputs, as `oracle_walk` takes them
 fn guard(
-    walk: &mut crate::acreport::OracleWalk,
+    walk: &mut crate::evaluation::acreport::OracleWalk,
     prog: &[analysis::ProgBlock],
     settings: &Settings,
     cut: &acsim::Cut,
@@ -822,7 +822,7 @@ pub fn plot(path: &std::path::Path, title: &str, o: &Optimised) -> Result<()> {
         ))?
         .label("optimised")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    crate::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+    crate::evaluation::plot::legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     let f_top = o
         .pieces
         .iter()
@@ -857,7 +857,7 @@ pub fn plot(path: &std::path::Path, title: &str, o: &Optimised) -> Result<()> {
         ))?
         .label("F0")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
-    crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
+    crate::evaluation::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present()
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
@@ -919,7 +919,7 @@ pub fn plot_combined(
             .label(name)
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
     }
-    crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
+    crate::evaluation::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     let mut chart = ChartBuilder::on(&lower)
         .caption("plan ratio k the AC sets ($263=2)", ("sans-serif", 15))
         .margin(10)
@@ -949,7 +949,7 @@ pub fn plot_combined(
             .label(*name)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c));
     }
-    crate::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
+    crate::evaluation::plot::legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present()
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(())

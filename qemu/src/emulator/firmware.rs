@@ -59,7 +59,7 @@ pub const NUCLEO_F446RE: Board = Board {
 };
 
 /// The Nucleo-F446RE firmware built to run under QEMU's netduinoplus2 machine (its `qemu`
-/// feature; see `millac_qemu::f446`).
+/// feature; see `millac_qemu::emulator::f446`).
 pub const NUCLEO_F446RE_QEMU: Board = Board {
     features: &["qemu"],
     ..NUCLEO_F446RE
@@ -86,7 +86,7 @@ pub fn build() -> Result<PathBuf> {
 pub fn build_board(board: &Board) -> Result<PathBuf> {
     let ws = workspace();
     let linker = linker_of(board.target)
-        .map(|tool| crate::tools::ensure_cargo_tool(tool, &ws))
+        .map(|tool| crate::emulator::tools::ensure_cargo_tool(tool, &ws))
         .transpose()?;
     let target_dir = if board.package == LM3S6965.package {
         ws.join("target").join("firmware")
@@ -105,9 +105,9 @@ pub fn build_board(board: &Board) -> Result<PathBuf> {
 /// The program .cargo/config.toml names as the linker of `target` where it is not rustc's own:
 /// flip-link for thumbv7em-none-eabihf (the real boards). [`build_board`] installs it when
 /// missing.
-pub fn linker_of(target: &str) -> Option<&'static crate::tools::CargoTool> {
+pub fn linker_of(target: &str) -> Option<&'static crate::emulator::tools::CargoTool> {
     match target {
-        "thumbv7em-none-eabihf" => Some(&crate::tools::FLIP_LINK),
+        "thumbv7em-none-eabihf" => Some(&crate::emulator::tools::FLIP_LINK),
         _ => None,
     }
 }
@@ -126,7 +126,7 @@ pub fn build_board_in(board: &Board, target_dir: &Path, linker: Option<&Path>) -
         ..
     } = *board;
     let ws = workspace();
-    crate::tools::ensure_rust_target(tgt, &ws)?;
+    crate::emulator::tools::ensure_rust_target(tgt, &ws)?;
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut command = Command::new(&cargo);
     if let Some(linker) = linker {

@@ -63,14 +63,14 @@ pub fn parse_positions(output: &str) -> Result<[i64; 3]> {
     Ok(pos)
 }
 
-/// Final position per axis (X, Y, Z) of the VCD at `vcd` (any VCD [`crate::vcd::read_vcd`]
+/// Final position per axis (X, Y, Z) of the VCD at `vcd` (any VCD [`crate::analysis::vcd::read_vcd`]
 /// accepts), decoded by sigrok-cli's `stepper_motor` decoder.
 pub fn decode_positions(vcd: &Path) -> Result<[i64; 3]> {
-    crate::tools::ensure_tool("sigrok-cli")?;
+    crate::emulator::tools::ensure_tool("sigrok-cli")?;
     let text =
         std::fs::read_to_string(vcd).with_context(|| format!("reading {}", vcd.display()))?;
-    let trace =
-        crate::vcd::read_vcd(&text).with_context(|| format!("parsing {}", vcd.display()))?;
+    let trace = crate::analysis::vcd::read_vcd(&text)
+        .with_context(|| format!("parsing {}", vcd.display()))?;
     // Sentinel: all STEP pins low, then high, after the end.
     const STEPS: u8 = 0b111;
     let mut events = trace.events.clone();
@@ -83,7 +83,7 @@ pub fn decode_positions(vcd: &Path) -> Result<[i64; 3]> {
         std::process::id(),
         std::thread::current().id()
     ));
-    crate::vcd::write_vcd(&tmp, trace.initial, &events, Some(t0 + 20))?;
+    crate::analysis::vcd::write_vcd(&tmp, trace.initial, &events, Some(t0 + 20))?;
     let out = sigrok_command(&tmp).output().context("running sigrok-cli");
     let _ = std::fs::remove_file(&tmp);
     let out = out?;

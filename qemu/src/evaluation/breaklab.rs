@@ -3,8 +3,8 @@
 //! (`millac_plant::teeth`), the measured force of every sample (the codes the controller got,
 //! calibrated as the DRR calibrates them) fed to the core's breakage detector
 //! (`millac::monitor::breakage`, the firmware's code) at the cut's spindle speed and flutes.
-use crate::acsim::{self, Cut, HostRun};
 use crate::analysis::ProgBlock;
+use crate::host::acsim::{self, Cut, HostRun};
 use anyhow::{anyhow, Context, Result};
 use millac::ac::AcSettings;
 use millac::monitor::{Breakage, BreakageDetector, BreakageSettings};
@@ -13,13 +13,13 @@ use millac::Settings;
 
 /// The breakage slot (`programs/breakage-slot.nc`): a full slot 0.3 in deep in steel at F8, so
 /// that a broken tooth (which doubles the next tooth's chip) stays below the AC's overload hold.
-pub const SLOT: &str = include_str!("../programs/breakage-slot.nc");
+pub const SLOT: &str = include_str!("../../programs/breakage-slot.nc");
 
 /// The slot's cut (stock `programs/entry-exit.stock`) with 5/0/-3/0 um of run-out; tooth 1
 /// breaks at `break_s` s of virtual time, or never.
 pub fn slot_cut(break_s: Option<f64>) -> Cut {
     use millac_plant::teeth::{Damage, ToothEvent};
-    let stock = millac_plant::Stock::parse(include_str!("../programs/entry-exit.stock"))
+    let stock = millac_plant::Stock::parse(include_str!("../../programs/entry-exit.stock"))
         .expect("entry-exit.stock parses");
     Cut {
         runout_mm: vec![0.005, 0.0, -0.003, 0.0],
@@ -194,7 +194,7 @@ pub fn plot_residuals(
         .label("Fa")
         .legend(|(x, y)| Circle::new((x + 10, y), 2, BLUE.filled()));
     marks(&mut chart, 0.0, f_max)?;
-    crate::plot::legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+    crate::evaluation::plot::legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     // The residuals against their thresholds.
     for (k, (panel, name)) in panels[1..]
         .iter()
@@ -255,7 +255,7 @@ pub fn plot_residuals(
             }
         }
         marks(&mut chart, -lim, lim)?;
-        crate::plot::legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+        crate::evaluation::plot::legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     }
     root.present()
         .with_context(|| format!("writing {}", path.display()))?;

@@ -312,12 +312,12 @@ pub fn programmed_ipm(settings: &Settings, b: &Block) -> f64 {
 }
 
 /// The simulated process as the firmware's ADC port (host): converts at the sample's time with
-/// the encoder counts, applies the injected faults (the same [`crate::fault::Injector`] the QEMU
+/// the encoder counts, applies the injected faults (the same [`crate::host::fault::Injector`] the QEMU
 /// co-simulation's `Faulty` plant applies), and keeps the true force and torque of every sample.
 /// A fault that delivers no conversion (dropout) is a missed conversion, as under QEMU.
 struct HostAdc {
     process: Process,
-    injector: crate::fault::Injector,
+    injector: crate::host::fault::Injector,
     sample_hz: u32,
     truth: Vec<(f64, f64)>,
     /// The codes the controller got at every sample (None: a missed conversion).
@@ -423,7 +423,7 @@ pub fn run_with(
 }
 
 /// As [`run_with`], with sensor faults injected into the codes the controller samples (see
-/// [`crate::fault`]; the zero-force codes are the AC calibration's offsets). The true force and
+/// [`crate::host::fault`]; the zero-force codes are the AC calibration's offsets). The true force and
 /// torque of `HostRun::samples` are the process's. The process monitors run as the AC settings
 /// say (`$266` chatter threshold, `$268` breakage, `$267` flutes;
 /// `millac::rt::ac::AcPeriod::with_monitors` and `millac::rt::monitor::ChatterTask`, the
@@ -435,7 +435,7 @@ pub fn run_with_faults(
     cut: &Cut,
     ac: Option<AcSettings>,
     anti_windup: bool,
-    faults: &[crate::fault::Fault],
+    faults: &[crate::host::fault::Fault],
 ) -> Result<HostRun> {
     let mut frame = Frame::new(FrameConfig::from_settings(settings));
     // An enabled AC's feed ceiling, as the firmware's tape applies it (the same function).
@@ -492,7 +492,7 @@ pub fn run_with_faults(
     let mut verdict = None;
     let mut adc = HostAdc {
         process: cut.process()?,
-        injector: crate::fault::Injector::new(faults, acs.cal.map(|c| f64::from(c.offset))),
+        injector: crate::host::fault::Injector::new(faults, acs.cal.map(|c| f64::from(c.offset))),
         sample_hz: acs.sample_hz,
         truth: Vec::new(),
         codes: Vec::new(),
@@ -739,7 +739,7 @@ pub fn ramp_ipm_s(settings: &Settings, b: &Block) -> f64 {
 
 /// The same program with every feed block at one constant feed number `f`, or at its own feed
 /// where that is lower (a feed block's feed is its ceiling: pass the blocks the AC runs,
-/// [`crate::acreport::ceiling_blocks`], to honour the AC's ceiling setting).
+/// [`crate::evaluation::acreport::ceiling_blocks`], to honour the AC's ceiling setting).
 pub fn with_constant_feed(prog: &[ProgBlock], f: u32, settings: &Settings) -> Vec<ProgBlock> {
     let cfg = FrameConfig::from_settings(settings);
     prog.iter()

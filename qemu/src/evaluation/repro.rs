@@ -14,8 +14,8 @@
 //! The load is the peak of the true force held over the DRR's 3 windows (30 ms, longer than the
 //! 25 ms tooth period at 600 rpm with 4 flutes), divided by F0: what the controller regulates,
 //! without the transducer's noise.
-use crate::acsim::{self, Cut, HostRun};
 use crate::analysis;
+use crate::host::acsim::{self, Cut, HostRun};
 use anyhow::{anyhow, Context, Result};
 use millac::ac::law::Strategy;
 use millac::ac::{AcSettings, FeedCeiling};
@@ -183,11 +183,11 @@ pub const DEFAULT_HOLD_LOAD: f64 = 1.1;
 /// The depth-step slot's stock: the top steps up 1 mm per section, so a tool at Z -3 mm cuts 1, 2
 /// and 3 mm deep over three equal sections; a start hole at X0 (tool centre). `qemu/programs/
 /// depth-step.stock`.
-pub const DEPTH_STEP_STOCK: &str = include_str!("../programs/depth-step.stock");
+pub const DEPTH_STEP_STOCK: &str = include_str!("../../programs/depth-step.stock");
 /// The depth-step slot's program (`qemu/programs/depth-step.nc`): into the start hole, a
 /// conservative entry at F8 to X [`DEPTH_STEP_ENTRY_X`], then one full-width line at F30 (= f_max,
 /// the AC sets the feed).
-pub const DEPTH_STEP_NC: &str = include_str!("../programs/depth-step.nc");
+pub const DEPTH_STEP_NC: &str = include_str!("../../programs/depth-step.nc");
 
 /// A section ends this far (in) before the tool's front edge reaches the next step: the stock's
 /// 0.25 mm cells put the step's first cells under the tool up to a cell early.
@@ -324,8 +324,8 @@ pub fn depth_figures(tr: &Trace) -> [DepthFigures; 3] {
 pub fn tiim() -> Scenario {
     Scenario {
         name: "TIIM 7.62 -> 10.5 mm",
-        program: include_str!("../programs/tiim.nc").to_string(),
-        stock: include_str!("../programs/tiim.stock").to_string(),
+        program: include_str!("../../programs/tiim.nc").to_string(),
+        stock: include_str!("../../programs/tiim.stock").to_string(),
         acs: AcSettings {
             overload_e: REPRO_OVERLOAD_E,
             ..AcSettings::default()
@@ -341,8 +341,8 @@ pub const TIIM_STEP_X: f64 = 2.25;
 pub fn pocket() -> Scenario {
     Scenario {
         name: "pocket (Fig. 5.8)",
-        program: include_str!("../programs/pocket.nc").to_string(),
-        stock: include_str!("../programs/pocket.stock").to_string(),
+        program: include_str!("../../programs/pocket.nc").to_string(),
+        stock: include_str!("../../programs/pocket.stock").to_string(),
         acs: AcSettings::default(),
     }
 }
@@ -352,8 +352,9 @@ pub fn pocket() -> Scenario {
 pub fn entry_exit(feed_ipm: f64) -> Scenario {
     Scenario {
         name: "entry from air and exit",
-        program: include_str!("../programs/entry-exit.nc").replace("F22", &format!("F{feed_ipm}")),
-        stock: include_str!("../programs/entry-exit.stock").to_string(),
+        program: include_str!("../../programs/entry-exit.nc")
+            .replace("F22", &format!("F{feed_ipm}")),
+        stock: include_str!("../../programs/entry-exit.stock").to_string(),
         acs: AcSettings::default(),
     }
 }

@@ -1,7 +1,7 @@
 //! The AC's alarm corpus (host): ordinary cuts that must run to their end with no alarm, and
-//! the sensor faults of [`crate::fault`] injected into some of them, each of which must hold the
+//! the sensor faults of [`crate::host::fault`] injected into some of them, each of which must hold the
 //! machine with a sensor alarm within its bound. Both sides are measured on the host simulation
-//! (the firmware's own AC task and sampler, [`crate::acsim`]) with the default AC settings and the
+//! (the firmware's own AC task and sampler, [`crate::host::acsim`]) with the default AC settings and the
 //! breakage monitor on. The `alarm_table` example prints the table of docs/dev/results-ac.md; `qemu/tests/alarms.rs`
 //! asserts it.
 //!
@@ -17,9 +17,9 @@
 //! not feeding down): a transducer reading half the force is a fault of side milling, which is
 //! what the band can judge (see `millac::ac::plaus`); at a plunge's end face force against
 //! torque says nothing, and below the band's floor (5 N*m) neither does a light cut.
-use crate::acsim::{self, Cut, HostRun};
 use crate::analysis;
-use crate::fault::{Fault, FaultKind};
+use crate::host::acsim::{self, Cut, HostRun};
+use crate::host::fault::{Fault, FaultKind};
 use anyhow::{Context, Result};
 use millac::ac::{AcSettings, Alarm};
 use millac::Settings;
@@ -375,7 +375,7 @@ pub fn fault_times(o: &Outcome, n: usize) -> Vec<f64> {
     (0..n)
         .map(|k| {
             let r = steady[(steady.len() * (2 * k + 1)) / (2 * n)];
-            // 3 ms into the period after the row's (a sample's nominal time, see `crate::fault`).
+            // 3 ms into the period after the row's (a sample's nominal time, see `crate::host::fault`).
             (rows[r].t_ms + 3) as f64 / 1000.0
         })
         .collect()

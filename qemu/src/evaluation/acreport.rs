@@ -2,8 +2,8 @@
 //! at the programmed constant feeds, at the largest constant feed safe for the whole program, and the
 //! oracle (the fastest schedule within F0, T0 and fdot_m, computed with full knowledge of the stock).
 //! Also the ac.csv text and the plot. Used by the `run`/demo commands and the benchmark.
-use crate::acsim::{self, AcRow, Cut, HostRun, LoadFigures};
 use crate::analysis::ProgBlock;
+use crate::host::acsim::{self, AcRow, Cut, HostRun, LoadFigures};
 use anyhow::{Context, Result};
 use millac::ac::AcSettings;
 use millac::gcode::tape::finish_block;
@@ -62,7 +62,7 @@ pub struct WalkPoint {
 /// programmed run `programmed`), each run of consecutive feed blocks scheduled by
 /// `millac_plant::oracle::oracle_time` on the stock as the blocks before it left it, with each
 /// block's ceiling `ceiling_ipm[i]` and acceleration; rapids and dwells take their programmed
-/// run's time. Host: the bound (`compare`) and the offline optimiser (`crate::optimise`).
+/// run's time. Host: the bound (`compare`) and the offline optimiser (`crate::evaluation::optimise`).
 #[derive(Clone, Debug)]
 pub struct OracleWalk {
     pub points: Vec<WalkPoint>,
@@ -429,7 +429,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let svg = dir.join("ac.svg");
         let rows: Vec<_> = (0..6000u64)
-            .map(|i| crate::acsim::AcRow {
+            .map(|i| crate::host::acsim::AcRow {
                 t_ms: i * 10,
                 pos_blu: [(i as i64 * 7) % 40_000, (i as i64 * 3) % 20_000, 0],
                 feed_ipm: 10.0 + (i % 20) as f64,
@@ -445,9 +445,9 @@ mod tests {
             .collect();
         super::plot(&svg, &rows, 3600.0, 72.0, 1.111, 30.0).unwrap();
         let text = std::fs::read_to_string(&svg).unwrap();
-        let boxes = crate::plot::text_boxes(&text);
+        let boxes = crate::evaluation::plot::text_boxes(&text);
         assert!(boxes.iter().any(|b| b.text == "t (s)"), "{boxes:?}");
-        let clashes = crate::plot::overlapping_texts(&text);
+        let clashes = crate::evaluation::plot::overlapping_texts(&text);
         assert!(clashes.is_empty(), "{clashes:?}");
     }
 }

@@ -3,7 +3,7 @@
 //! cutting force's effect y = b0 + b1 a + b2 f + b12 a f + b11 a^2 + b22 f^2 in the depth of cut
 //! a and the feed f, fitted by least squares from a few test cuts and kept with its validity
 //! range (a_min..a_max, f_min..f_max); solved for the feed that holds y at a chosen level at the
-//! depth present (their Eqs. 2-3). The offline optimiser (`crate::optimise`) can use it in
+//! depth present (their Eqs. 2-3). The offline optimiser (`crate::evaluation::optimise`) can use it in
 //! place of the full force model.
 //!
 //! Choices (the paper fits a lathe's strain; here the milling force):
@@ -212,7 +212,7 @@ pub fn calibrate_from_logs(cuts: &[(f64, f64, String)]) -> Result<(Quadratic, Ve
 /// as a real machine's ac.csv gives it ([`calibrate_from_logs`]). Returns the model and the test
 /// cuts (a mm, f ipm, y N).
 pub fn calibrate(
-    cut: &crate::acsim::Cut,
+    cut: &crate::host::acsim::Cut,
     depths_mm: &[f64],
     feeds_ipm: &[f64],
 ) -> Result<(Quadratic, Vec<TestCut>)> {
@@ -227,17 +227,17 @@ pub fn calibrate(
 
 /// One test cut ([`test_cut`]) on the simulated plant (the cut's tool, material and speed on the
 /// test block): y, the largest resultant force (N) of its steady part ([`STEADY_X_BLU`]).
-pub fn test_cut_y(cut: &crate::acsim::Cut, a: f64, f: f64) -> Result<f64> {
+pub fn test_cut_y(cut: &crate::host::acsim::Cut, a: f64, f: f64) -> Result<f64> {
     let settings = millac::Settings::default();
     let stock = millac_plant::Stock::parse(TEST_STOCK).map_err(|e| anyhow::anyhow!("{e}"))?;
     let text = test_cut(a, f);
     let prog = crate::analysis::load_program(&text, &settings)
         .map_err(|e| anyhow::anyhow!("test cut {a} mm F{f}: {e}"))?;
-    let c = crate::acsim::Cut {
+    let c = crate::host::acsim::Cut {
         stock,
         ..cut.clone()
     };
-    let run = crate::acsim::run(&prog, &settings, &c, None)?;
+    let run = crate::host::acsim::run(&prog, &settings, &c, None)?;
     Ok(run
         .rows
         .iter()

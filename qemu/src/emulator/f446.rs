@@ -1,9 +1,9 @@
 //! The Nucleo-F446RE firmware under QEMU (host): its `qemu` build
-//! ([`crate::firmware::NUCLEO_F446RE_QEMU`]) on the netduinoplus2 machine (STM32F405), with USART2
+//! ([`crate::emulator::firmware::NUCLEO_F446RE_QEMU`]) on the netduinoplus2 machine (STM32F405), with USART2
 //! (QEMU's second `-serial`) on a TCP port. [`stream`] sends a G-code program with the grbl
 //! protocol, as a simple sender does (soft reset until the banner, one line at a time, each
 //! answered `ok`, then `?` until `Idle`), stops QEMU and returns the capture: the PC4..PC9 levels
-//! from the GPIOC BSRR stores (see [`crate::capture::Machine::Netduinoplus2`]) and the
+//! from the GPIOC BSRR stores (see [`crate::emulator::capture::Machine::Netduinoplus2`]) and the
 //! instructions per call of the handlers asked for (the frame ISR `TIM2`, the pulse-end ISR
 //! `TIM5`).
 //!
@@ -19,7 +19,7 @@
 //! the USARTs are modelled; USART2 is the second `-serial`; the USART raises RXNE interrupts but
 //! no TXE interrupt; DWT CYCCNT is not modelled (reads 0, logged as a read of an unassigned PPB
 //! address). The firmware's `qemu` feature works around exactly these.
-use crate::capture::{run_capture, Capture, CaptureSpec, HandlerSpec};
+use crate::emulator::capture::{run_capture, Capture, CaptureSpec, HandlerSpec};
 use anyhow::{bail, Context, Result};
 use std::io::{BufRead, BufReader, Write};
 use std::net::{TcpListener, TcpStream};
@@ -182,7 +182,7 @@ pub struct StreamOptions {
     pub handlers: Vec<String>,
     /// Wall-clock limit of the session.
     pub timeout: Duration,
-    /// Trace the long calls of a handler ([`crate::capture::CaptureSpec::trace`]).
+    /// Trace the long calls of a handler ([`crate::emulator::capture::CaptureSpec::trace`]).
     pub trace: Option<(usize, u64)>,
     /// Hold the machine (`!`) before the first line and resume it (`~`) before the last: every
     /// line but the last is queued before anything moves, so the blocks meet in the queue as in
