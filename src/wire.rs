@@ -26,7 +26,7 @@
 //!
 //! # Session log (serial mode)
 //!
-//! [`SERVE_LOG_FILE`], written by the loader in serial mode (`millac_hal::session`), read by the
+//! [`SERVE_LOG_FILE`], written by the loader in serial mode (`hal/lm3s6965/src/session.rs`), read by the
 //! host after a `serve` session: one [`SessionLine`] per line, in the order the loader fed its
 //! tape. A G-code program (markers are comments), so `millac run serve.nc` accepts it; the host
 //! replays the markers too and gets exactly the blocks the firmware queued.
@@ -37,7 +37,7 @@
 //! happened: `error: <why>` (a refused line, settings, the simulated ADC lost; the run fails),
 //! `panic: <message>`, `alarm: <text>` (an AC hold), then at the end of a program run
 //! `millac: blocks=N position=x,y,z` or, after a long AC hold, `millac: hold blocks=N
-//! position=x,y,z`. The firmware creates it at start-up (`millac_hal::results`); the host reads it
+//! position=x,y,z`. The firmware creates it at start-up (`hal/lm3s6965/src/results.rs`); the host reads it
 //! after QEMU exits (`millac_qemu::capture::Capture::result`). The firmware's human log is a
 //! separate defmt stream on semihosting stdout, which carries no results.
 use core::fmt;

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 /// The crates' source roots, from the workspace root.
 const ROOTS: [&str; 5] = [
     "src",
-    "hal/src",
+    "hal/lm3s6965/src",
     "hal/nucleo-f446re/src",
     "qemu/src",
     "qemu/plant/src",

@@ -9,6 +9,7 @@
 //! functions init (they divide); [`status::Status`] any.
 
 pub mod ac;
+pub mod actask;
 pub mod isr;
 pub mod loader;
 pub mod monitor;

@@ -42,9 +42,9 @@ mod app {
     use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
     use millac::rt::ac::AcPeriod;
+    use millac::rt::actask::{AcTask, LogSink, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use millac::rt::replan::Replan;
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
-    use millac_hal::actask::{AcTask, LogSink, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use stm32f4xx_hal::prelude::*;
     #[cfg(not(feature = "qemu"))]
     use stm32f4xx_hal::rcc::Config;

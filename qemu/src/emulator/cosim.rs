@@ -1,5 +1,5 @@
 //! Co-simulation of the adaptive control (host): the lockstep simulated ADC the QEMU firmware
-//! samples (see `millac_hal::simadc` for the firmware side), a [`Plant`] that turns encoder
+//! samples (see `hal/lm3s6965/src/simadc.rs` for the firmware side), a [`Plant`] that turns encoder
 //! positions into ADC codes, and the parser of the firmware's `ac.log`.
 //!
 //! # Protocol

@@ -1,4 +1,4 @@
-//! Builds the firmware from the workspace (host): the QEMU board (millac-hal for
+//! Builds the firmware from the workspace (host): the QEMU board (millac-lm3s6965 for
 //! thumbv7m-none-eabi, [`build`]) and the real boards ([`build_board`], e.g. [`NUCLEO_F446RE`] for
 //! the CI checks of its size and its ISRs, and [`NUCLEO_F446RE_QEMU`] to run it under QEMU). A
 //! nested cargo with its own target directory, so it never waits on the lock of the cargo that
@@ -36,8 +36,8 @@ pub struct Board {
 
 /// The QEMU board.
 pub const LM3S6965: Board = Board {
-    package: "millac-hal",
-    manifest: "hal/Cargo.toml",
+    package: "millac-lm3s6965",
+    manifest: "hal/lm3s6965/Cargo.toml",
     target: TARGET,
     bin: BIN,
     features: &[],

@@ -9,7 +9,7 @@
 //! FBRD 0x028, LCRH 0x02C, CTL 0x030, IM 0x038, MIS 0x040, ICR 0x044; clock gate RCGC1 bit 0.
 use heapless::spsc::Consumer;
 
-use crate::lm3s6965::{read, write};
+use crate::board::{read, write};
 
 const SYSCTL_RCGC1: usize = 0x400F_E104;
 const RCGC1_UART0: u32 = 1;

@@ -53,7 +53,7 @@ impl LogFile {
     }
 }
 
-impl crate::actask::LogSink for LogFile {
+impl millac::rt::actask::LogSink for LogFile {
     fn write(&mut self, bytes: &[u8]) {
         LogFile::write(self, bytes);
     }

@@ -4,7 +4,7 @@
 //! reads `program.nc` through semihosting, parses it and queues the blocks, then reports the final
 //! position and exits QEMU (without `program.nc`: the serial loader, `millac::rt::loader`).
 //!
-//! # Adaptive control (only when the host serves the simulated ADC, see `millac_hal::simadc`)
+//! # Adaptive control (only when the host serves the simulated ADC, see `crate::simadc`)
 //!
 //! Priorities: frame and pulse-end 4; the sampler (TIMER_2A, `sample_hz`) and UART0 3; the AC
 //! period (software task, dispatcher SSI0, spawned by the sampler every `period_ms`) 2; the
@@ -14,7 +14,7 @@
 //! a `millac::rt::Status`); the sampler exchanges them for ADC codes with the host in lockstep and
 //! queues them; the AC task runs the `AcController` on them, writes the feed cap
 //! (`STATUS.feed_cap`, when enabled) and `ac.log`, reports `alarm: ..` on a hold and stops the run
-//! after a long hold with nothing moving (see `millac_hal::actask`). Without `adc.req` in the
+//! after a long hold with nothing moving (see `millac::rt::actask`). Without `adc.req` in the
 //! working directory none of this starts: no sample timer, no AC task, the feed cap stays
 //! `u32::MAX` and the firmware behaves as before.
 //!
@@ -35,13 +35,13 @@
 //!   this ELF's `.defmt` table (`millac_qemu::defmtlog`). The logger takes a critical section, so
 //!   the frame and pulse-end ISRs never log, and the others format their text first ([`text`]);
 //! - the results, for the tools: `result.txt` (`millac::wire::RESULT_FILE`, see "Result file"
-//!   there; [`millac_hal::results`]): errors, alarms, the hold and the final position.
+//!   there; [`crate::results`]): errors, alarms, the hold and the final position.
 //!
 //! The exit status (semihosting SYS_EXIT) is failure after an error, a hold or a panic.
 //!
 //! # Settings
 //!
-//! init loads the persistent record through `millac_hal::storage::FileStorage` (`settings.bin` in
+//! init loads the persistent record through `crate::storage::FileStorage` (`settings.bin` in
 //! QEMU's working directory): a valid record gives the frame and the parser its NC settings and
 //! the AC controller its AC settings (`$250=0` turns the AC's feed cap off even when the host
 //! enables it); no file gives the defaults, silently. A refused record (truncated, corrupt, of
@@ -61,7 +61,13 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use cortex_m_semihosting::debug;
 // The defmt global logger: frames to semihosting stdout (linked for it, nothing is called).
 use defmt_semihosting as _;
-use millac_hal::results;
+mod board;
+mod results;
+mod semihost;
+mod session;
+mod simadc;
+mod storage;
+mod uart;
 
 /// One human log message, formatted before the logger is taken: defmt's logger holds a critical
 /// section while it encodes and writes, so the text is ready and that section stays short.
@@ -135,6 +141,12 @@ fn panic(info: &PanicInfo) -> ! {
 mod app {
     use core::sync::atomic::Ordering::Relaxed;
 
+    use crate::board;
+    use crate::semihost;
+    use crate::semihost::LogFile;
+    use crate::simadc::SimAdc;
+    use crate::storage::FileStorage;
+    use crate::uart::TX_QUEUE;
     use cortex_m_semihosting::nr;
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::Alarm;
@@ -148,26 +160,20 @@ mod app {
     use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
     use millac::rt::ac::AcPeriod;
+    use millac::rt::actask::{
+        AcTask, MonitorTask, Sampled, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE,
+        VERDICT_QUEUE,
+    };
     use millac::rt::monitor::ChatterTask;
     use millac::rt::replan::{self, Replan};
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
     use millac::wire::FLAG_AC_ENABLED;
     use millac::Settings;
-    use millac_hal::actask::{
-        AcTask, MonitorTask, Sampled, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE,
-        VERDICT_QUEUE,
-    };
-    use millac_hal::lm3s6965 as board;
-    use millac_hal::semihost;
-    use millac_hal::semihost::LogFile;
-    use millac_hal::simadc::SimAdc;
-    use millac_hal::storage::FileStorage;
-    use millac_hal::uart::TX_QUEUE;
 
     use super::{error, exit, fail, log_error, report, results, text, Text};
 
     /// The board this binary drives (a unit struct: its ports are `&mut B`).
-    use millac_hal::lm3s6965::Lm3s6965 as B;
+    use crate::board::Lm3s6965 as B;
 
     /// The status words between the contexts (all zero at reset but `idle`).
     static STATUS: Status = Status::new();
@@ -352,7 +358,7 @@ mod app {
     fn uart0(cx: uart0::Context) {
         let rx = cx.local.uart_rx;
         // A byte the ring cannot take is counted there; the loader raises the overflow alarm.
-        millac_hal::uart::on_interrupt(cx.local.uart_tx, |b| {
+        crate::uart::on_interrupt(cx.local.uart_tx, |b| {
             let _ = rx.push_byte(b);
         });
     }
@@ -519,9 +525,9 @@ mod app {
                         ac_alarms: cx.local.ac_alarms,
                         status: &STATUS,
                     },
-                    &mut millac_hal::uart::QemuLoader {
+                    &mut crate::uart::QemuLoader {
                         clock_hz: B::TIMER_HZ,
-                        log: millac_hal::session::SessionLog::create(),
+                        log: crate::session::SessionLog::create(),
                     },
                 );
                 // The board's loader never ends (it runs while the board says so: always).
@@ -564,7 +570,7 @@ mod app {
         match replan.poll(producer, &STATUS) {
             replan::Event::None => {}
             replan::Event::Speed(s) => {
-                millac_hal::uart::set_spindle_rpm(s.to);
+                crate::uart::set_spindle_rpm(s.to);
                 replan.speed_applied(&STATUS, s.to);
                 results::line(format_args!("chatter: spindle {}", s));
                 defmt::warn!(
@@ -688,8 +694,8 @@ mod app {
                 STATUS.spindle_rpm.store(rpm, Relaxed);
                 // The simulated spindle turns at the program's S (the host starts it there);
                 // once the reaction has commanded it, it follows the program's changes too.
-                if millac_hal::uart::spindle_rpm() != 0 {
-                    millac_hal::uart::set_spindle_rpm(rpm);
+                if crate::uart::spindle_rpm() != 0 {
+                    crate::uart::set_spindle_rpm(rpm);
                 }
             }
             if tape.done() {

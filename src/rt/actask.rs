@@ -1,24 +1,24 @@
-//! The adaptive-control side of the QEMU app: the sampler (TIMER_2A hardware task, priority 3,
-//! below the frame), the AC period (software task, priority 2) and the chatter monitor (software
-//! task, priority 1, above the idle loader: the AC period preempts its record's FFT). The RTIC
-//! app in `bin/millac-lm3s6965.rs` binds them; the bodies are the core's (`millac::rt::ac`, the
-//! same code the host simulation runs); this module adds what is the QEMU board's own: the sample
-//! queue between the two tasks, the overrun count and `ac.log` (its line format is
-//! `millac::wire::AcLogLine`).
+//! The adaptive-control tasks as every board's RTIC app binds them: the sampler (a timer's
+//! hardware task, below the frame), the AC period (a software task) and the chatter monitor (a
+//! software task below it, above the idle loader: the AC period preempts its record's FFT). The
+//! bodies are `crate::rt::ac`'s (the same code the host simulation runs); this module adds the
+//! glue between them: the sample, sound and verdict queues, the overrun count and the AC log
+//! through the board's `LogSink` (its line format is `crate::wire::AcLogLine`). Sampler, AC and
+//! monitor task contexts.
 //!
 //! Overruns: a period whose work ends after the next deadline (the sample counter has passed
 //! `due + N`) counts one; a spawn the sampler could not make because the previous period was still
 //! pending or running (`Status::ac_missed`) counts one more.
 use core::sync::atomic::Ordering::Relaxed;
 
+use crate::ac::{AcState, Alarm};
+use crate::monitor::chatter::Spectrum;
+use crate::ports::{Codes, ForceTorqueAdc};
+use crate::rt::ac::{self as body, AcPeriod};
+use crate::rt::monitor::ChatterTask;
+use crate::rt::Status;
+use crate::wire::{AcLogLine, LogState, AC_LOG_HEADER, SOUND_PER_SAMPLE};
 use heapless::spsc::{Consumer, Producer};
-use millac::ac::{AcState, Alarm};
-use millac::monitor::chatter::Spectrum;
-use millac::ports::{Codes, ForceTorqueAdc};
-use millac::rt::ac::{self as body, AcPeriod};
-use millac::rt::monitor::ChatterTask;
-use millac::rt::Status;
-use millac::wire::{AcLogLine, LogState, AC_LOG_HEADER, SOUND_PER_SAMPLE};
 
 /// Sample queue slots (holds one less): three periods of samples at the defaults.
 pub const SAMPLE_QUEUE: usize = 32;
@@ -37,7 +37,7 @@ pub type Sound = [u16; SOUND_PER_SAMPLE];
 /// fit is still in ac.log and in the AC state word).
 pub const ALARM_QUEUE: usize = 4;
 
-/// Where the AC period writes its log lines (`millac::wire::AcLogLine`, one per period): the QEMU
+/// Where the AC period writes its log lines (`crate::wire::AcLogLine`, one per period): the QEMU
 /// board's `ac.log`, a real board's debug log, or nothing. AC task. Must not block for long.
 pub trait LogSink {
     fn write(&mut self, bytes: &[u8]);
@@ -56,8 +56,8 @@ pub struct Sampler<D: ForceTorqueAdc> {
     /// The chatter monitor's sound queue (None: no chatter monitor).
     sound: Option<Producer<'static, Sound, SOUND_QUEUE>>,
     per_period: u32,
-    /// The overload trip when the AC is applied (`millac::rt::ac::Trip`; None: measure only).
-    trip: Option<millac::rt::ac::Trip>,
+    /// The overload trip when the AC is applied (`crate::rt::ac::Trip`; None: measure only).
+    trip: Option<crate::rt::ac::Trip>,
 }
 
 /// What the app does after a sample: `due` = spawn the AC period with this deadline base (the
@@ -88,7 +88,7 @@ impl<D: ForceTorqueAdc> Sampler<D> {
 
     /// Holds the feed from the sampler on the first sample above the overload hold's level (the
     /// AC applied: its feed cap is the frame's). Init context.
-    pub fn with_trip(mut self, trip: millac::rt::ac::Trip) -> Self {
+    pub fn with_trip(mut self, trip: crate::rt::ac::Trip) -> Self {
         self.trip = Some(trip);
         self
     }
@@ -129,7 +129,7 @@ impl<D: ForceTorqueAdc> Sampler<D> {
 }
 
 /// The chatter monitor's task: the sound the sampler queued into the detector; each record's
-/// verdict to the AC task (`millac::rt::monitor`).
+/// verdict to the AC task (`crate::rt::monitor`).
 pub struct MonitorTask {
     status: &'static Status,
     chatter: ChatterTask,
