@@ -60,13 +60,14 @@ pub struct Sampler<D: ForceTorqueAdc> {
     trip: Option<crate::rt::ac::Trip>,
 }
 
-/// What the app does after a sample: `due` = spawn the AC period with this deadline base (the
-/// sample count).
-pub enum Sampled {
-    /// The host has just gone: report it once. The clock goes on and the AC periods see no samples
-    /// from now on, so the machine holds (NoSamples) and the run ends as after any hold.
-    Lost(Option<u32>),
-    Ok(Option<u32>),
+/// What the app does after a sample: spawn the AC period when `due` (its deadline base, the
+/// sample count); report it once when `lost` (the ADC has just gone: the clock goes on and the AC
+/// periods see no samples from now on, so the machine holds with NoSamples and the run ends as
+/// after any hold). (The core's [`body::Sampled`] is the sample itself.)
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SampleTick {
+    pub due: Option<u32>,
+    pub lost: bool,
 }
 
 impl<D: ForceTorqueAdc> Sampler<D> {
@@ -102,14 +103,14 @@ impl<D: ForceTorqueAdc> Sampler<D> {
     /// One sample (the core's body), codes into the AC task's queue and sound into the chatter
     /// monitor's (a full queue counts `samples_dropped`, or `sound_dropped`; a missed conversion
     /// queues no codes, so the period sees no fresh sample for it). Sampler task.
-    pub fn sample(&mut self) -> Sampled {
+    pub fn sample(&mut self) -> SampleTick {
         match body::sample(
             &mut self.adc,
             self.status,
             self.per_period,
             self.trip.as_ref(),
         ) {
-            body::Sampled::Lost { due } => Sampled::Lost(due),
+            body::Sampled::Lost { due } => SampleTick { due, lost: true },
             body::Sampled::Codes { codes, due, sound } => {
                 if let Some(c) = codes {
                     if self.queue.enqueue(c).is_err() {
@@ -122,7 +123,7 @@ impl<D: ForceTorqueAdc> Sampler<D> {
                         self.status.sound_dropped.fetch_add(1, Relaxed);
                     }
                 }
-                Sampled::Ok(due)
+                SampleTick { due, lost: false }
             }
         }
     }

@@ -161,8 +161,7 @@ mod app {
     use millac::protocol::Protocol;
     use millac::rt::ac::AcPeriod;
     use millac::rt::actask::{
-        AcTask, MonitorTask, Sampled, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE,
-        VERDICT_QUEUE,
+        AcTask, MonitorTask, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE, VERDICT_QUEUE,
     };
     use millac::rt::monitor::ChatterTask;
     use millac::rt::replan::{self, Replan};
@@ -379,15 +378,13 @@ mod app {
             SampleClock::stop(&mut B);
             return;
         };
-        let due = match s.sample() {
-            // The host has gone: without samples the AC cannot guard the cut. Said once; the
-            // periods go on, see no samples and hold, and the run ends as after any hold.
-            Sampled::Lost(due) => {
-                error(format_args!("simulated ADC lost"));
-                due
-            }
-            Sampled::Ok(due) => due,
-        };
+        let tick = s.sample();
+        // The host has gone: without samples the AC cannot guard the cut. Said once; the
+        // periods go on, see no samples and hold, and the run ends as after any hold.
+        if tick.lost {
+            error(format_args!("simulated ADC lost"));
+        }
+        let due = tick.due;
         if let Some(due) = due {
             if ac_period::spawn(due).is_err() {
                 STATUS.ac_missed.fetch_add(1, Relaxed);

@@ -42,7 +42,7 @@ mod app {
     use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
     use millac::rt::ac::AcPeriod;
-    use millac::rt::actask::{AcTask, LogSink, Sampled, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
+    use millac::rt::actask::{AcTask, LogSink, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use millac::rt::replan::Replan;
     use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
     use stm32f4xx_hal::prelude::*;
@@ -372,9 +372,7 @@ mod app {
         let Some(s) = cx.local.sampler.as_mut() else {
             return;
         };
-        let due = match s.sample() {
-            Sampled::Lost(due) | Sampled::Ok(due) => due,
-        };
+        let due = s.sample().due;
         if let Some(due) = due {
             if ac_period::spawn(due).is_err() {
                 STATUS.ac_missed.fetch_add(1, Relaxed);
