@@ -1,0 +1,161 @@
+//! `millac-qemu host [PROGRAM]`: a program with adaptive control natively on the host against the
+//! simulated cut, no QEMU (host: the CLI calls it from `main`).
+use super::args::{cut_setup, CutArgs};
+use super::{reported, with_program, DEMO};
+use anyhow::{Context, Result};
+use millac::Settings;
+use millac_qemu::{analysis, emulator::runner};
+use std::path::{Path, PathBuf};
+
+/// `host`'s options.
+#[derive(clap::Args)]
+pub(crate) struct HostArgs {
+    pub(crate) program: Option<PathBuf>,
+    #[arg(long, default_value = "out/host")]
+    pub(crate) out: PathBuf,
+    #[command(flatten)]
+    pub(crate) cut: CutArgs,
+}
+
+/// `host`: the program file, or the demo without one, through [`host`].
+pub(crate) fn command(args: HostArgs) -> Result<bool> {
+    let HostArgs { program, out, cut } = args;
+    match program {
+        Some(p) => with_program(&p, &out, |text| host(text, &out, &cut)),
+        None => host(DEMO, &out, &cut),
+    }
+}
+
+fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
+    use millac_qemu::{evaluation::acreport, host::acsim};
+    let settings = Settings::default();
+    let prog = match analysis::load_program(text, &settings) {
+        Ok(p) => p,
+        Err(e) => {
+            let r = runner::Rejected {
+                line: e.line(),
+                message: e.to_string(),
+            };
+            return runner::write_rejection(out, &r).map(|_| false);
+        }
+    };
+    let cut = cut_setup(text, args)?;
+    let acs = args.ac_settings(&cut);
+    // From here on the folder is written: a failure leaves its report there.
+    reported(
+        out,
+        false,
+        (|| -> Result<bool> {
+            std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+            let run = acsim::run_with_faults(
+                &prog,
+                &settings,
+                &cut,
+                (!args.no_ac).then_some(acs),
+                true,
+                &args.faults,
+            )?;
+            let csv = out.join("ac.csv");
+            std::fs::write(&csv, acsim::csv(&run.rows))
+                .with_context(|| format!("writing {}", csv.display()))?;
+            let f0 = acs.f0_n() as f64;
+            let t0 = acs.t0_nm() as f64;
+            acreport::plot(
+                &out.join("ac.svg"),
+                &run.rows,
+                f0,
+                t0,
+                1.0 / acs.optimal_fraction as f64,
+                acsim::feed_ipm(&settings, settings.q0),
+            )?;
+            let load = acsim::load_figures(
+                &run.samples,
+                &cut.tool,
+                acs.optimal_fraction as f64,
+                acs.sample_hz,
+            );
+            // The comparison's runs (constant feeds, the oracle) are left out once a signal has come:
+            // they would be cut short too.
+            let cmp = match millac_qemu::interrupt::received() {
+                None => Some(acreport::compare(&prog, &settings, &cut, &acs)?),
+                Some(_) => None,
+            };
+            let signal = millac_qemu::interrupt::received().map(millac_qemu::interrupt::name);
+            let cmp = cmp.filter(|_| signal.is_none());
+            println!(
+                "millac host run ({}): final position {:?}",
+                match (args.no_ac, args.strategy) {
+                    (true, _) => "no AC".to_string(),
+                    (false, None) => "AC".to_string(),
+                    (false, Some(_)) => format!("AC, strategy {}", acs.strategy.name()),
+                },
+                run.final_position
+            );
+            if let Some(a) = run.alarm {
+                println!("  alarm: {a}");
+            }
+            // The keys of `run`'s summary.json that apply to a host run.
+            let completed = run.blocks_done >= prog.len() && !run.interrupted;
+            let [x, y, z] = run.final_position;
+            let mut summary = serde_json::json!({
+                "blocks": prog.len(),
+                "machining_time_s": (run.machining_time_s * 1e6).round() / 1e6,
+                "final_position_blu": {"x": x, "y": y, "z": z},
+                "completed": completed,
+            });
+            summary["ac"] = match &cmp {
+                Some(cmp) => acreport::ac_json(run.machining_time_s, &load, cmp),
+                None => serde_json::json!({}),
+            };
+            summary["ac"]["enabled"] = serde_json::json!(!args.no_ac);
+            summary["ac"]["strategy"] = serde_json::json!(acs.strategy.name());
+            summary["ac"]["samples"] = serde_json::json!(run.samples.len());
+            summary["ac"]["holds"] = serde_json::json!(run
+                .rows
+                .iter()
+                .filter(|r| r.state.starts_with("hold"))
+                .count());
+            let hold = (!completed).then(|| runner::Hold {
+                alarm: run.alarm.map(|a| a.to_string()).unwrap_or_default(),
+                blocks_done: run.blocks_done,
+                position: run.final_position,
+                signal: signal.clone().filter(|_| run.interrupted),
+            });
+            if let Some(h) = &hold {
+                let key = if h.signal.is_some() {
+                    "interrupted"
+                } else {
+                    "hold"
+                };
+                summary[key] = runner::hold_json(&prog, h);
+            }
+            if let (Some(s), false) = (&signal, run.interrupted) {
+                // The run itself finished; only the comparison was left out.
+                summary["interrupted"] = serde_json::json!({"signal": s, "left_out": "comparison"});
+            }
+            let why = hold.as_ref().map(|h| runner::held_at(&prog, h));
+            match &cmp {
+                Some(cmp) => acreport::print_table(
+                    run.machining_time_s,
+                    &load,
+                    cmp,
+                    why.as_deref(),
+                    acs.strategy,
+                ),
+                None => println!(
+                "  interrupted: {}; the comparison with constant feeds and the oracle is left out",
+                why.as_deref().unwrap_or("the run had finished")
+            ),
+            }
+            runner::write_json(&out.join("summary.json"), &summary)?;
+            println!(
+                "  wrote {}/ac.csv, {}/ac.svg and {}/summary.json",
+                out.display(),
+                out.display(),
+                out.display()
+            );
+            let end = prog.last().map_or([0; 3], |b| b.end).map(i64::from);
+            Ok(completed && run.final_position == end)
+        })(),
+    )
+}
