@@ -18,11 +18,6 @@ use std::time::{Duration, Instant};
 #[path = "../examples/common/programs.rs"]
 mod programs;
 
-/// A size budget of the F446 (hal/nucleo-f446re/budget.txt).
-fn budget(key: &str) -> u64 {
-    NUCLEO_F446RE.budget(key).unwrap()
-}
-
 /// The layout of an F446 image: linked with the board's own memory map and by flip-link.
 fn assert_board_layout(elf: &Path) {
     // The board's own memory map (hal/nucleo-f446re/memory.x): the vector table at the start of
@@ -116,20 +111,8 @@ fn f446_interrupts_have_no_calls_and_no_panic_path() {
 #[test]
 fn f446_fits_its_flash_and_ram_budgets() {
     let elf = build_board(&NUCLEO_F446RE).unwrap();
-    let m = elf::memory_use_in(&std::fs::read(&elf).unwrap(), 0x2000_0000).unwrap();
-    let (flash, ram) = (budget("flash_bytes"), budget("ram_bytes"));
-    println!(
-        "flash {} of {flash} bytes, RAM {} of {ram} bytes",
-        m.flash, m.ram
-    );
-    assert!(
-        m.flash > 16 * 1024,
-        "flash {} is implausibly small",
-        m.flash
-    );
-    assert!(m.flash <= flash, "flash {} > budget {flash}", m.flash);
     assert_board_layout(&elf);
-    assert!(m.ram <= ram, "RAM {} > budget {ram}", m.ram);
+    NUCLEO_F446RE.check_budgets(&elf).unwrap();
 }
 
 #[test]

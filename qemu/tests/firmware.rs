@@ -321,21 +321,7 @@ fn interrupts_have_no_calls_and_no_panic_path() {
 fn fits_its_flash_and_ram_budgets() {
     use millac_qemu::emulator::firmware::LM3S6965;
     let elf = millac_qemu::emulator::firmware::build().unwrap();
-    let m = millac_qemu::emulator::elf::memory_use_in(&std::fs::read(&elf).unwrap(), 0x2000_0000)
-        .unwrap();
-    let flash = LM3S6965.budget("flash_bytes").unwrap();
-    let ram = LM3S6965.budget("ram_bytes").unwrap();
-    println!(
-        "flash {} of {flash} bytes, RAM {} of {ram} bytes",
-        m.flash, m.ram
-    );
-    assert!(
-        m.flash > 16 * 1024,
-        "flash {} is implausibly small",
-        m.flash
-    );
-    assert!(m.flash <= flash, "flash {} > budget {flash}", m.flash);
-    assert!(m.ram <= ram, "RAM {} > budget {ram}", m.ram);
+    LM3S6965.check_budgets(&elf).unwrap();
 }
 
 /// Program mode with a refused settings record (one flipped byte): the firmware says why and

@@ -244,10 +244,7 @@ mod app {
         }
         let (producer, consumer) = cx.local.queue.split();
 
-        let reloads = Reloads {
-            feed: B::reload(clocks_for_hz(B::TIMER_HZ, settings.frame_hz)),
-            rapid: B::reload(clocks_for_hz(B::TIMER_HZ, settings.rapid_hz)),
-        };
+        let reloads = Reloads::for_settings::<B>(&settings);
         let pulse = B::reload(clocks_for_ns(B::TIMER_HZ, settings.pulse_width_ns));
         // No cap unless the AC says otherwise, 100 % feed (before any interrupt is enabled).
         STATUS.start();

@@ -44,7 +44,7 @@ mod app {
     use millac::rt::ac::AcPeriod;
     use millac::rt::actask::{AcTask, LogSink, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use millac::rt::replan::Replan;
-    use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
+    use millac::rt::{self, clocks_for_ns, FrameTask, Reloads, Status};
     use stm32f4xx_hal::prelude::*;
     #[cfg(not(feature = "qemu"))]
     use stm32f4xx_hal::rcc::Config;
@@ -186,10 +186,7 @@ mod app {
             defmt::panic!("settings: {}", e.message());
         }
         let (producer, consumer) = cx.local.queue.split();
-        let reloads = Reloads {
-            feed: F446::reload(clocks_for_hz(F446::TIMER_HZ, settings.frame_hz)),
-            rapid: F446::reload(clocks_for_hz(F446::TIMER_HZ, settings.rapid_hz)),
-        };
+        let reloads = Reloads::for_settings::<F446>(&settings);
         let pulse = F446::reload(clocks_for_ns(F446::TIMER_HZ, settings.pulse_width_ns));
         STATUS.start();
         F446::init(reloads.feed, pulse);

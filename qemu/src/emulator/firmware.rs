@@ -215,6 +215,27 @@ impl Board {
             .with_context(|| format!("LENGTH {length:?} in {}", path.display()))?;
         Ok(n * scale)
     }
+
+    /// The flash and static RAM the built image `elf` uses, checked against the board's budgets
+    /// (and against an implausibly small image, which would say the measure is broken): the
+    /// figures, or what exceeds. Both boards' budget tests call it.
+    pub fn check_budgets(&self, elf: &Path) -> Result<crate::emulator::elf::MemoryUse> {
+        let bytes = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
+        let m = crate::emulator::elf::memory_use_in(&bytes, 0x2000_0000)?;
+        let (flash, ram) = (self.budget("flash_bytes")?, self.budget("ram_bytes")?);
+        println!(
+            "{}: flash {} of {flash} bytes, RAM {} of {ram} bytes",
+            self.bin, m.flash, m.ram
+        );
+        anyhow::ensure!(
+            m.flash > 16 * 1024,
+            "flash {} is implausibly small",
+            m.flash
+        );
+        anyhow::ensure!(m.flash <= flash, "flash {} > budget {flash}", m.flash);
+        anyhow::ensure!(m.ram <= ram, "RAM {} > budget {ram}", m.ram);
+        Ok(m)
+    }
 }
 
 #[cfg(test)]

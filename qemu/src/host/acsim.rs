@@ -1,15 +1,16 @@
-//! The adaptive loop natively on the host (host): the core's `Frame` (same code as the firmware's
-//! frame ISR), the firmware's sampler and AC-period bodies (`millac::rt::ac`, with the same
+//! The adaptive loop natively on the host (host): the firmware's frame and pulse-end ISR bodies on
+//! the host board ([`crate::host::board`]), the firmware's sampler and AC-period bodies (`millac::rt::ac`, with the same
 //! `AcController`) over a host ADC port, and the simulated cutting process (`millac-plant`), on one
 //! virtual clock with the firmware's timing (frames at W0 or the rapid rate in the QEMU board's
 //! timer clocks, ADC samples at `sample_hz` from the pulses emitted so far, an AC period every
 //! `sample_hz * period_ms / 1000` samples). For fast experiments and benchmarks; the QEMU run is
 //! the reference for the firmware itself.
 use crate::analysis::ProgBlock;
+use crate::host::board::HostFrames;
 use anyhow::{anyhow, Result};
 use millac::ac::{AcController, AcSettings, AcState};
 use millac::gcode::tape::finish_block;
-use millac::nc::{Block, Frame, FrameConfig, Motion, Rate};
+use millac::nc::{Block, FrameConfig, Motion, Rate};
 use millac::ports::{Conversion, ForceTorqueAdc};
 use millac::rt::ac::{self as rt_ac, AcPeriod};
 use millac::rt::replan::{Event as ReplanEvent, HostQueue, Replan, Replanned, SpeedChange};
@@ -373,17 +374,11 @@ impl ForceTorqueAdc for HostAdc {
     }
 }
 
-/// Frame period in ns for a rate: the reload the firmware computes for the QEMU board (the same
-/// functions and clock, `millac::rt`), in whole timer clocks (QEMU counts TAILR clocks).
+/// Frame period in ns for a rate: the reload the firmware computes for the QEMU board
+/// (`millac::rt::Reloads::for_settings`, the same clock), in whole timer clocks.
 pub fn period_ns(settings: &Settings, rate: Rate) -> u64 {
-    use millac::ports::TimerClock;
-    use millac::rt::{clocks_for_hz, QemuClock};
-    let hz = match rate {
-        Rate::Feed => settings.frame_hz,
-        Rate::Rapid => settings.rapid_hz,
-    };
-    let clocks = QemuClock::reload(clocks_for_hz(QemuClock::TIMER_HZ, hz)) as u64;
-    clocks * 1_000_000_000 / QemuClock::TIMER_HZ as u64
+    let reloads = millac::rt::Reloads::for_settings::<millac::rt::QemuClock>(settings);
+    crate::host::board::reload_ns(reloads.of(rate))
 }
 
 /// Path speed (ipm, or the program's unit per minute) of a position change `d` over one period:
@@ -437,7 +432,8 @@ pub fn run_with_faults(
     anti_windup: bool,
     faults: &[crate::host::fault::Fault],
 ) -> Result<HostRun> {
-    let mut frame = Frame::new(FrameConfig::from_settings(settings));
+    // The firmware's frame ISR and pulse end on the host board.
+    let mut frames = HostFrames::new(settings);
     // An enabled AC's feed ceiling, as the firmware's tape applies it (the same function).
     let cfg = FrameConfig::from_settings(settings);
     let ceiling = ac.map(|s| s.ceiling);
@@ -501,14 +497,17 @@ pub fn run_with_faults(
     let sample_ns = 1_000_000_000 / acs.sample_hz as u64;
     let mut out = HostRun::default();
     let (mut t, mut next_sample) = (0u64, sample_ns);
-    let mut feed_cap = u32::MAX;
-    let mut plan_ratio = millac::ports::PLAN_ONE;
+    // The operator's word as the loader keeps it (the host has no operator: run, 100 %).
+    let word = status.operator.load(Relaxed);
     // The controller's feed number, as the firmware logs it (under the plan k x f_max).
     let mut logged_cap = u32::MAX;
     let mut pos = [0i64; 3];
     let mut period_start = pos;
     let (mut first, mut last) = (None, 0u64);
     let mut block_feed = 0.0;
+    // The programmed feed and the block index of the pulses the last interrupt computed (they go
+    // out at the next one).
+    let mut computed = (0.0, 0usize);
     loop {
         while let Some(b) = program.pop_front() {
             if let Err(b) = replan.offer(&mut queue, b) {
@@ -516,22 +515,44 @@ pub fn run_with_faults(
                 break;
             }
         }
+        let frame = frames.frame();
         if frame.idle() {
             match queue.blocks.front() {
-                None if program.is_empty() && !replan.pending() && !replan.aborting() => break,
+                // The end of the job as the loader sees it: the frame published idle (its last
+                // pulses out) and nothing left to load.
+                None if status.idle.load(Relaxed)
+                    && program.is_empty()
+                    && !replan.pending()
+                    && !replan.aborting() =>
+                {
+                    break
+                }
                 None => {}
                 Some(b) => block_feed = programmed_ipm(settings, b),
             }
         }
-        let rate = frame.rate();
         let was_idle = frame.idle();
         let done_before = frame.blocks_done();
-        // The loader's word, held while the AC holds (as the firmware's loaders publish it).
-        let word = millac::nc::operator::with_ac_hold(status.operator.load(Relaxed), feed_cap);
-        let p = frame.tick(&mut queue, (feed_cap, word, plan_ratio));
-        status.publish_frame(&frame);
+        // The loader's word, held while the AC holds (as the firmware's loaders publish it); not
+        // while the frame drops the queue for a re-plan: that word carries the abort bit until
+        // `Replan::poll` has finished it.
+        if !replan.aborting() {
+            status.operator.store(
+                millac::nc::operator::with_ac_hold(word, status.feed_cap.load(Relaxed)),
+                Relaxed,
+            );
+        }
+        // The frame interrupt at t: the pulses the interrupt before computed go out now.
+        let irq = frames.interrupt(&mut queue, &status);
+        if irq.pulsed {
+            pos = status.encoder().map(i64::from);
+            first.get_or_insert(t);
+            last = t;
+            out.path.push((pos, computed.0, computed.1));
+        }
         let t0 = t;
-        t += period_ns(settings, rate);
+        t += irq.period_ns;
+        let frame = frames.frame();
         if was_idle && !frame.idle() {
             // A block loaded from idle: its span starts with this frame.
             out.spans.push((out.spans.len(), t0, t));
@@ -540,23 +561,10 @@ pub fn run_with_faults(
                 span.2 = t;
             }
         }
+        computed = (block_feed, out.spans.len().saturating_sub(1));
         // A line chained at the end of the line before (no idle frame between them): this frame's
         // pulses are the old block's last ones; the new block's span starts after it.
         let chained = !was_idle && !frame.idle() && frame.blocks_done() != done_before;
-        if p.steps != 0 {
-            for (k, v) in pos.iter_mut().enumerate() {
-                if p.steps & (1 << k) != 0 {
-                    *v += if p.signs & (1 << k) != 0 { 1 } else { -1 };
-                }
-            }
-            first.get_or_insert(t);
-            last = t;
-            out.path
-                .push((pos, block_feed, out.spans.len().saturating_sub(1)));
-            for (e, &v) in status.encoder.iter().zip(pos.iter()) {
-                e.store(v as i32, Relaxed);
-            }
-        }
         if chained {
             out.spans.push((out.spans.len(), t, t));
             block_feed = queue
@@ -565,19 +573,17 @@ pub fn run_with_faults(
                 .map_or(0.0, |b| programmed_ipm(settings, b));
         }
         let mut halt = false;
-        while t >= next_sample {
+        // The samples up to the next frame interrupt (one at the same instant runs after it).
+        while next_sample < t {
             next_sample += sample_ns;
             let (codes, due, sound) = sample(&mut adc, &status, per_period, trip.as_ref());
             if let (Some(ac), Some(codes)) = (period.as_mut(), codes) {
                 ac.sample(codes);
             }
-            // The sampler's trip writes the frame's cap between periods (as in the firmware,
-            // where the frame reads it every frame).
-            if period.is_some() {
-                feed_cap = status.feed_cap.load(Relaxed);
-                if feed_cap == 0 && out.hold_ns.is_none() {
-                    out.hold_ns = Some(next_sample - sample_ns);
-                }
+            // The sampler's trip writes the frame's cap between periods (the frame reads it every
+            // frame).
+            if status.feed_cap.load(Relaxed) == 0 && out.hold_ns.is_none() {
+                out.hold_ns = Some(next_sample - sample_ns);
             }
             // The chatter monitor's task (its own in the firmware, below the AC task): each
             // record's spectrum. The firmware's monitor runs after the AC period of the tick that
@@ -602,11 +608,9 @@ pub fn run_with_faults(
                     estimates = ac.ctl.law_estimates();
                     halt = r.halt;
                     let o = r.out;
-                    feed_cap = status.feed_cap.load(Relaxed);
-                    if feed_cap == 0 && out.hold_ns.is_none() {
+                    if status.feed_cap.load(Relaxed) == 0 && out.hold_ns.is_none() {
                         out.hold_ns = Some(next_sample - sample_ns);
                     }
-                    plan_ratio = status.plan_ratio.load(Relaxed);
                     logged_cap = o.feed_cap;
                     if out.alarm.is_none() {
                         out.alarm = o.alarm;
@@ -669,7 +673,7 @@ pub fn run_with_faults(
     out.machining_time_s = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);
     out.last_pulse_ns = last;
     out.final_position = pos;
-    out.blocks_done = frame.blocks_done() as usize;
+    out.blocks_done = frames.frame().blocks_done() as usize;
     Ok(out)
 }
 

@@ -2,4 +2,5 @@
 //! QEMU; and the sensor faults injected into the simulated transducer (here and in the emulator's
 //! ADC).
 pub mod acsim;
+pub mod board;
 pub mod fault;
