@@ -131,22 +131,6 @@ impl BoardLimits {
         plan_ratio: true,
     };
 
-    /// The Nucleo-F446RE (STM32F446RE at 180 MHz): ISR times from instruction bounds and a
-    /// cycles-per-instruction bound (see [`F446_ISR_BOUNDS`]). With them it sustains W0 = rapid
-    /// rate up to 192 kHz with 2 us pulses and 2 us sign setup (the two ISRs' share of the CPU
-    /// binds; [`BoardLimits::highest_rate_hz`]), 94 kHz with the default 5 us + 5 us (the sign
-    /// setup gap binds). Not 200 kHz: the frame's worst case (a line that decelerates into the
-    /// next one) is 215 instructions, and 200 kHz allows at most 207.
-    pub const NUCLEO_F446RE: BoardLimits = BoardLimits {
-        max_frame_hz: 250_000,
-        max_rapid_hz: 250_000,
-        frame_work_ns: F446_ISR_BOUNDS.ns(F446_ISR_BOUNDS.frame_instructions),
-        pulse_end_ns: F446_ISR_BOUNDS.ns(F446_ISR_BOUNDS.pulse_end_instructions),
-        // The plan ratio's load and multiply (and the layout they move) make its frame 220
-        // instructions (215 without): the whole bound below, no margin left.
-        plan_ratio: false,
-    };
-
     /// The most frame work (ns, entry and exit included) that settings `s` tolerate on this board:
     /// the largest `frame_work_ns` for which the timing rule and the ISR share of
     /// [`Settings::validate_for`] still hold (the pulse width's own part of the gap aside). A
@@ -236,15 +220,6 @@ impl IsrBounds {
         (tenths * 100_000_000).div_ceil(self.core_hz as u64) as u32
     }
 }
-
-/// The Nucleo-F446RE's ISR bounds (see [`IsrBounds`]).
-pub const F446_ISR_BOUNDS: IsrBounds = IsrBounds {
-    core_hz: 180_000_000,
-    frame_instructions: 220,
-    pulse_end_instructions: 60,
-    cpi_x10: 15,
-    entry_exit_cycles: 24,
-};
 
 /// Highest frame rate any board may state (keeps the frame's arithmetic far from overflow).
 pub const FRAME_HZ_CEILING: u32 = 1_000_000;
@@ -414,35 +389,11 @@ mod tests {
         }
     }
 
-    /// The F446's stated times follow from its bounds ((instructions x 1.5 + 24) cycles at
-    /// 180 MHz, rounded up to the ns), and its highest rate with 2 us pulses and 2 us sign setup
-    /// is where the two ISRs take half the CPU.
-    #[test]
-    fn the_f446_rates_follow_from_its_bounds() {
-        let b = BoardLimits::NUCLEO_F446RE;
-        let ns = |instructions: u32| {
-            ((instructions as u64 * 15 + 240) * 100_000_000).div_ceil(180_000_000) as u32
-        };
-        assert_eq!(b.frame_work_ns, ns(F446_ISR_BOUNDS.frame_instructions));
-        assert_eq!(b.pulse_end_ns, ns(F446_ISR_BOUNDS.pulse_end_instructions));
-        let r = b.highest_rate_hz(2_000, 2_000);
-        // The ISR share binds: (frame + pulse end) x r <= half a second, one Hz more is over.
-        let both = (b.frame_work_ns + b.pulse_end_ns) as u64;
-        assert!(both * r as u64 <= 500_000_000, "{r} Hz");
-        assert!(both * (r as u64 + 1) > 500_000_000, "{r} Hz");
-        // The default pulse times (5 + 5 us) bind by the gap instead.
-        let r5 = b.highest_rate_hz(5_000, 5_000);
-        assert_eq!(
-            r5 as u64,
-            1_000_000_000 / (5_000 + b.pulse_end_ns as u64 + 5_000)
-        );
-    }
-
     /// The frame work the running settings tolerate is the edge of validation too: a board whose
     /// frame took exactly that long would still validate them, one ns more would not.
     #[test]
     fn the_frame_work_allowed_is_the_edge_for_the_running_settings() {
-        let b = BoardLimits::NUCLEO_F446RE;
+        let b = F446;
         for s in [
             Settings::default(),
             Settings {

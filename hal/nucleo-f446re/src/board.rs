@@ -32,13 +32,12 @@ use millac::ports::{
 /// The board. Zero-sized: all state is in the peripherals.
 pub struct F446;
 
-/// What the board sustains, for the settings validation (`Settings::validate_for`): the core's
-/// `BoardLimits::NUCLEO_F446RE` (its ISR times from `millac::settings::F446_ISR_BOUNDS`;
-/// docs/dev/results-nc.md, "Speed on the Nucleo-F446RE").
-pub const LIMITS: millac::settings::BoardLimits = millac::settings::BoardLimits::NUCLEO_F446RE;
+/// What the board sustains, for the settings validation (`Settings::validate_for`): see
+/// [`crate::limits`] (docs/dev/results-nc.md, "Speed on the Nucleo-F446RE").
+pub const LIMITS: millac::settings::BoardLimits = crate::limits::LIMITS;
 
 /// Core clock (SYSCLK = HCLK) in Hz.
-pub const CORE_HZ: u32 = millac::settings::F446_ISR_BOUNDS.core_hz;
+pub const CORE_HZ: u32 = crate::limits::ISR_BOUNDS.core_hz;
 /// PCLK1 (USART2) in Hz.
 pub const PCLK1_HZ: u32 = 45_000_000;
 /// APB1 timer clock (TIM2, TIM3, TIM5) in Hz.

@@ -26,6 +26,7 @@ use panic_probe as _;
 
 mod board;
 mod flash;
+mod limits;
 
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1])]
 mod app {
@@ -88,7 +89,7 @@ mod app {
     struct Local {
         // With the plan ratio only where the board's limits say so (`BoardLimits::plan_ratio`,
         // which also decides whether `$263=2` is accepted): the F446's frame is past its
-        // instruction bound with it (`BoardLimits::NUCLEO_F446RE`).
+        // instruction bound with it (`limits::LIMITS`).
         frame: FrameTask<{ board::LIMITS.plan_ratio }>,
         consumer: Consumer<'static, Block, QUEUE>,
         producer: Producer<'static, Block, QUEUE>,
@@ -449,7 +450,7 @@ mod app {
     fn frame_limit_cycles(nc: &millac::Settings) -> u32 {
         let ns = board::LIMITS.frame_work_allowed_ns(nc);
         let cycles = ns * u64::from(board::CORE_HZ) / 1_000_000_000;
-        let entry_exit = millac::settings::F446_ISR_BOUNDS.entry_exit_cycles;
+        let entry_exit = crate::limits::ISR_BOUNDS.entry_exit_cycles;
         u32::try_from(cycles)
             .unwrap_or(u32::MAX)
             .saturating_sub(entry_exit)

@@ -132,7 +132,14 @@ fn ac_settings_take_their_units_and_signs() {
     let mut f = MachineSettings::default();
     let (n, v) = parse_assignment("$263=2").unwrap();
     let e = f
-        .set_for(n, v, &crate::settings::BoardLimits::NUCLEO_F446RE)
+        .set_for(
+            n,
+            v,
+            &crate::settings::BoardLimits {
+                plan_ratio: false,
+                ..crate::settings::BoardLimits::GENERIC
+            },
+        )
         .unwrap_err();
     assert_eq!(e, SetError::Invalid(Invalid::PlanNotOnThisBoard));
     assert_eq!(e.code(), 52);
