@@ -6,7 +6,7 @@
 //!
 //! # Lockstep ADC (all integers little endian)
 //!
-//! Two FIFOs in QEMU's working directory: [`REQ_FILE`] (firmware -> host) and [`RESP_FILE`] (host ->
+//! Two FIFOs in QEMU's working directory: `REQ_FILE` (hal/lm3s6965/src/files.rs) (firmware -> host) and `RESP_FILE` (hal/lm3s6965/src/files.rs) (host ->
 //! firmware). The host writes a [`Header`] (8 bytes: `b"MAC1"`, u32 flags), then per sample the
 //! firmware writes a [`Request`] (20 bytes: u32 sample index, i32 encoder X, Y, Z in BLU, u32 the
 //! spindle speed the program has commanded, rpm, 0 before any S; the plant turns at it) and reads
@@ -26,14 +26,14 @@
 //!
 //! # Session log (serial mode)
 //!
-//! [`SERVE_LOG_FILE`], written by the loader in serial mode (`hal/lm3s6965/src/session.rs`), read by the
+//! `SERVE_LOG_FILE` (hal/lm3s6965/src/files.rs), written by the loader in serial mode (`hal/lm3s6965/src/session.rs`), read by the
 //! host after a `serve` session: one [`SessionLine`] per line, in the order the loader fed its
 //! tape. A G-code program (markers are comments), so `millac run serve.nc` accepts it; the host
 //! replays the markers too and gets exactly the blocks the firmware queued.
 //!
 //! # Result file
 //!
-//! [`RESULT_FILE`]: what the QEMU firmware reports to the tools, one line each, in the order it
+//! `RESULT_FILE` (hal/lm3s6965/src/files.rs): what the QEMU firmware reports to the tools, one line each, in the order it
 //! happened: `error: <why>` (a refused line, settings, the simulated ADC lost; the run fails),
 //! `panic: <message>`, `alarm: <text>` (an AC hold), then at the end of a program run
 //! `millac: blocks=N position=x,y,z` or, after a long AC hold, `millac: hold blocks=N
@@ -41,40 +41,6 @@
 //! after QEMU exits (`millac_qemu::capture::Capture::result`). The firmware's human log is a
 //! separate defmt stream on semihosting stdout, which carries no results.
 use core::fmt;
-
-/// Request FIFO (firmware -> host). The names are NUL-terminated for the firmware's semihosting
-/// open; the host takes them without the NUL (`*_NAME`).
-pub const REQ_FILE: &str = "adc.req\0";
-/// Response FIFO (host -> firmware).
-pub const RESP_FILE: &str = "adc.resp\0";
-/// The AC log the firmware writes in the run directory.
-pub const AC_LOG_FILE: &str = "ac.log\0";
-/// The persistent settings record (`millac::protocol::settings::record`) in QEMU's working
-/// directory: init loads it, the serial loader stores it after every accepted `$N=value`. The host
-/// (`serve --settings FILE`) links it to the operator's file.
-pub const SETTINGS_FILE: &str = "settings.bin\0";
-/// The session log of the serial mode ([`SessionLine`]s).
-pub const SERVE_LOG_FILE: &str = "serve.nc\0";
-/// The firmware's results for the host tools (see "Result file").
-pub const RESULT_FILE: &str = "result.txt\0";
-/// The names without their NUL.
-pub const REQ_NAME: &str = strip_nul(REQ_FILE);
-pub const RESP_NAME: &str = strip_nul(RESP_FILE);
-pub const AC_LOG_NAME: &str = strip_nul(AC_LOG_FILE);
-pub const SETTINGS_NAME: &str = strip_nul(SETTINGS_FILE);
-pub const SERVE_LOG_NAME: &str = strip_nul(SERVE_LOG_FILE);
-pub const RESULT_NAME: &str = strip_nul(RESULT_FILE);
-
-/// `s` without a trailing NUL.
-const fn strip_nul(s: &str) -> &str {
-    match s.as_bytes().split_last() {
-        Some((0, rest)) => match core::str::from_utf8(rest) {
-            Ok(t) => t,
-            Err(_) => s,
-        },
-        _ => s,
-    }
-}
 
 /// Header magic.
 pub const MAGIC: [u8; 4] = *b"MAC1";
@@ -405,10 +371,6 @@ mod tests {
         assert_eq!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0,7"), None);
         assert!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0").is_some());
         assert_eq!(AC_LOG_HEADER.trim_end().split(',').count(), 10);
-        assert_eq!(REQ_NAME, "adc.req");
-        assert_eq!(RESP_NAME, "adc.resp");
-        assert_eq!(AC_LOG_NAME, "ac.log");
-        assert_eq!(RESULT_NAME, "result.txt");
     }
 
     proptest! {

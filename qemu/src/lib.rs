@@ -36,3 +36,11 @@ pub mod evaluation;
 pub mod f446_limits;
 pub mod host;
 pub mod interrupt;
+/// The LM3S6965's timer clock under QEMU: the board's own file, for the host simulation's frame
+/// timer (one definition, in the board's folder).
+#[path = "../../hal/lm3s6965/src/clock.rs"]
+pub mod lm3s_clock;
+/// The files the LM3S6965 firmware shares with the host through semihosting: the board's own
+/// file (one definition, in the board's folder).
+#[path = "../../hal/lm3s6965/src/files.rs"]
+pub mod lm3s_files;

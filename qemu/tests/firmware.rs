@@ -254,7 +254,7 @@ fn the_strategy_reaches_the_firmware_and_the_replay() {
         let o = runner::run_with(program, &out, 4, Some(&ac)).unwrap();
         assert!(o.ok, "{:#}", o.summary);
         assert_eq!(o.summary["ac"]["strategy"], strategy.name());
-        assert!(!out.join(millac::wire::SETTINGS_NAME).exists());
+        assert!(!out.join(millac_qemu::lm3s_files::SETTINGS_NAME).exists());
         let host = millac_qemu::emulator::cosim::replay(
             &o.ac_log,
             &o.exchanges,
@@ -340,7 +340,7 @@ fn program_mode_refuses_a_corrupt_settings_record_and_runs_on_a_valid_one() {
     let mut bad = good;
     bad[30] ^= 0x04;
     let spec = CaptureSpec::new(millac_qemu::emulator::firmware::build().unwrap(), &out);
-    let file = out.join(millac::wire::SETTINGS_NAME);
+    let file = out.join(millac_qemu::lm3s_files::SETTINGS_NAME);
     std::fs::write(&file, bad).unwrap();
     let cap = run_capture(&spec).unwrap();
     assert_eq!(cap.status, Some(1), "{}", cap.stdout);
@@ -395,7 +395,7 @@ fn the_log_is_a_defmt_stream_and_the_results_are_in_the_result_file() {
     let log = millac_qemu::emulator::defmtlog::decode_file(&elf, raw).unwrap();
     assert_eq!(log, "info: done: blocks=1 position=100,-200,0\n");
     // The result, from the file: the line the tools parse is not in the log.
-    let result = std::fs::read_to_string(out.join(millac::wire::RESULT_NAME)).unwrap();
+    let result = std::fs::read_to_string(out.join(millac_qemu::lm3s_files::RESULT_NAME)).unwrap();
     assert_eq!(result, "millac: blocks=1 position=100,-200,0\n");
     assert_eq!(runner::firmware_position(&result), Some([100, -200, 0]));
     assert_eq!(runner::firmware_position(&log), None);

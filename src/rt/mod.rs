@@ -1,8 +1,8 @@
 //! Run-time bodies of the firmware, written once over the [`crate::ports`] and called by a thin
 //! RTIC app per board (hal/) and by the host simulation: the frame ISR and the pulse-end ISR
-//! ([`isr`]), the sampler and the AC period ([`ac`]), the serial loader ([`loader`]), the status words between the contexts
-//! ([`status`]), and the timer arithmetic of
-//! init ([`clocks_for_hz`], [`clocks_for_ns`]) with the QEMU board's clock ([`QemuClock`]).
+//! ([`isr`]), the sampler and the AC period ([`ac`]), the serial loader ([`loader`]), the status
+//! words between the contexts ([`status`]), and the timer arithmetic of init ([`clocks_for_hz`],
+//! [`clocks_for_ns`]) for a board's clock (`ports::TimerClock`).
 //!
 //! Contexts: [`isr::FrameTask::run`] frame ISR; [`isr::pulse_end`] pulse-end ISR; [`ac::sample`]
 //! sampler; [`ac::AcPeriod::run`] AC task; the clock
@@ -20,21 +20,6 @@ mod tests_loader;
 
 pub use isr::{pulse_end, FrameTask, Reloads};
 pub use status::Status;
-
-use crate::ports::TimerClock;
-
-/// The clock of the LM3S6965 timers as QEMU's lm3s6965evb runs them (12.5 MHz after reset; a period
-/// of TAILR clocks, where silicon counts TAILR + 1). The firmware's board and the host simulation
-/// of it both use this one definition.
-pub struct QemuClock;
-
-impl TimerClock for QemuClock {
-    const TIMER_HZ: u32 = 12_500_000;
-
-    fn reload(clocks: u32) -> u32 {
-        clocks.max(1)
-    }
-}
 
 /// Timer clocks in `ns` nanoseconds, rounded UP (a pulse is never shorter than asked), at least 1.
 /// Init context (divides).

@@ -10,8 +10,8 @@
 //! Registers (LM3S6965 datasheet): SYSCTL RCGC1/RCGC2 clock gates; GPIO DIR, DEN and the masked
 //! data window (address bits [9:2] select the pins a store changes); GPTM CFG, TAMR, CTL, IMR, ICR,
 //! TAILR.
+use crate::clock::QemuClock;
 use millac::ports::{FrameTimer, PulseTimer, SampleClock, StepPort, TimerClock};
-use millac::rt::QemuClock;
 
 /// The board. Zero-sized: all state is in the peripherals.
 pub struct Lm3s6965;

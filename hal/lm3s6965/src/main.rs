@@ -34,7 +34,7 @@
 //!   `defmt-semihosting`'s global logger on semihosting stdout; the host decodes the frames with
 //!   this ELF's `.defmt` table (`millac_qemu::defmtlog`). The logger takes a critical section, so
 //!   the frame and pulse-end ISRs never log, and the others format their text first ([`text`]);
-//! - the results, for the tools: `result.txt` (`millac::wire::RESULT_FILE`, see "Result file"
+//! - the results, for the tools: `result.txt` (`crate::files::RESULT_FILE`, see "Result file"
 //!   there; [`crate::results`]): errors, alarms, the hold and the final position.
 //!
 //! The exit status (semihosting SYS_EXIT) is failure after an error, a hold or a panic.
@@ -62,6 +62,8 @@ use cortex_m_semihosting::debug;
 // The defmt global logger: frames to semihosting stdout (linked for it, nothing is called).
 use defmt_semihosting as _;
 mod board;
+mod clock;
+mod files;
 mod results;
 mod semihost;
 mod session;
@@ -259,7 +261,7 @@ mod app {
                 Ok(c) => c,
                 Err(e) => fail(format_args!("AC settings: {}", e.message())),
             };
-            let Some(log) = LogFile::create(millac::wire::AC_LOG_FILE.as_bytes()) else {
+            let Some(log) = LogFile::create(crate::files::AC_LOG_FILE.as_bytes()) else {
                 fail(format_args!("cannot create ac.log"));
             };
             let (tx, rx) = cx.local.samples.split();
@@ -642,7 +644,7 @@ mod app {
             refuse(format_args!(
                 "settings: {}; nothing runs (fix or remove {})",
                 e.message(),
-                millac::wire::SETTINGS_NAME
+                crate::files::SETTINGS_NAME
             ));
             semihost::close(fd);
             return Loaded::Error;

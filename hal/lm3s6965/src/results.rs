@@ -1,4 +1,4 @@
-//! The QEMU board's result file: what the host tools read ([`wire::RESULT_FILE`] in QEMU's working
+//! The QEMU board's result file: what the host tools read ([`crate::files::RESULT_FILE`] in QEMU's working
 //! directory, reached through semihosting; the line formats are in `millac::wire`, "Result file").
 //! The human log is defmt on semihosting stdout (the app's global logger): results never go into
 //! that stream, so the host can decode the one and parse the other.
@@ -10,7 +10,6 @@ use core::fmt::{self, Write as _};
 use core::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 
 use cortex_m_semihosting::nr;
-use millac::wire;
 
 use crate::semihost::{open, write_all};
 
@@ -25,7 +24,7 @@ type Line = heapless::String<256>;
 /// Creates (truncates) the result file. Init, first thing (a line written before it creates the
 /// file then). False if the host refused it: the results are then lost, the run goes on.
 pub fn create() -> bool {
-    let fd = open(wire::RESULT_FILE.as_bytes(), nr::open::W_TRUNC).unwrap_or(REFUSED);
+    let fd = open(crate::files::RESULT_FILE.as_bytes(), nr::open::W_TRUNC).unwrap_or(REFUSED);
     FD.store(fd, Relaxed);
     fd != REFUSED
 }

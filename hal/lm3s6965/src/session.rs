@@ -6,8 +6,9 @@
 //! the emulator while it runs, so under `-icount` it costs no virtual time. Semihosting, like
 //! `program.nc` and `ac.log`: the QEMU board's; if the host refuses the file nothing is written.
 
+use crate::files::SERVE_LOG_FILE;
 use millac::protocol::jog::JogRequest;
-use millac::wire::{SessionLine, SERVE_LOG_FILE};
+use millac::wire::SessionLine;
 
 use crate::semihost::LogFile;
 

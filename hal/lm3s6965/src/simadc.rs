@@ -35,8 +35,8 @@ impl SimAdc {
     /// Opens the FIFOs and reads the header: `(adc, flags)`, or None when the host serves no ADC
     /// (no `adc.req`) or the handshake fails. Init context (blocks until the host is ready).
     pub fn open() -> Option<(SimAdc, u32)> {
-        let req = open(wire::REQ_FILE.as_bytes(), nr::open::RW)?;
-        let resp = open(wire::RESP_FILE.as_bytes(), nr::open::R)?;
+        let req = open(crate::files::REQ_FILE.as_bytes(), nr::open::RW)?;
+        let resp = open(crate::files::RESP_FILE.as_bytes(), nr::open::R)?;
         let mut h = [0u8; Header::LEN];
         if !read_exact(resp, &mut h) {
             return None;

@@ -1,5 +1,5 @@
 //! The QEMU board's settings storage: the persistent settings record
-//! (`millac::protocol::settings::record`) in a host file, [`wire::SETTINGS_FILE`] in QEMU's working
+//! (`millac::protocol::settings::record`) in a host file, [`crate::files::SETTINGS_FILE`] in QEMU's working
 //! directory, reached through semihosting. Init loads it; the loader task (serial mode) stores it
 //! after every accepted `$N=value` (through `millac::protocol::settings::Persistent`).
 //!
@@ -12,14 +12,13 @@ use cortex_m_semihosting::nr;
 
 use crate::semihost::{close, read, write_all};
 use millac::ports::SettingsStorage;
-use millac::wire;
 
-/// The settings file (a unit struct: the name is [`wire::SETTINGS_FILE`]).
+/// The settings file (a unit struct: the name is [`crate::files::SETTINGS_FILE`]).
 pub struct FileStorage;
 
 /// Opens the settings file with a semihosting open mode; None if the host refuses.
 fn open(mode: usize) -> Option<usize> {
-    crate::semihost::open(wire::SETTINGS_FILE.as_bytes(), mode)
+    crate::semihost::open(crate::files::SETTINGS_FILE.as_bytes(), mode)
 }
 
 impl SettingsStorage for FileStorage {

@@ -64,7 +64,8 @@ pub(crate) enum Cmd {
 pub(crate) fn reported<T>(out: &Path, serve: bool, r: Result<T>) -> Result<T> {
     let Err(e) = r else { return r };
     let path = out.join("summary.json");
-    if !serve && std::fs::symlink_metadata(out.join(millac::wire::SETTINGS_NAME)).is_ok() {
+    if !serve && std::fs::symlink_metadata(out.join(millac_qemu::lm3s_files::SETTINGS_NAME)).is_ok()
+    {
         return Err(e);
     }
     let summary = serde_json::json!({

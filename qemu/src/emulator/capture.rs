@@ -168,7 +168,7 @@ pub struct Capture {
     /// `<level>: <message>` line each ([`crate::emulator::defmtlog`]; as text for an ELF without a table).
     /// For people: what the tools read is in [`Capture::result`].
     pub stdout: String,
-    /// The firmware's result file ([`millac::wire::RESULT_NAME`] in the run directory, written
+    /// The firmware's result file ([`crate::lm3s_files::RESULT_NAME`] in the run directory, written
     /// through semihosting): errors, alarms and the final position, the lines the tools parse
     /// (see `millac::wire`, "Result file"); empty when the firmware wrote none.
     pub result: String,
@@ -542,7 +542,7 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
     let fw_log = crate::emulator::defmtlog::Log::from_elf(
         &std::fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?,
     )?;
-    let result = run_dir.join(millac::wire::RESULT_NAME);
+    let result = run_dir.join(crate::lm3s_files::RESULT_NAME);
     for f in [&log, &trace, &result] {
         if f.exists() {
             std::fs::remove_file(f).with_context(|| format!("removing {}", f.display()))?;

@@ -37,11 +37,11 @@ use std::time::{Duration, Instant};
 use millac::wire::{self, AcLogLine, Header, LogState, Request};
 
 /// Request FIFO (firmware -> host).
-pub const REQ: &str = wire::REQ_NAME;
+pub const REQ: &str = crate::lm3s_files::REQ_NAME;
 /// Response FIFO (host -> firmware).
-pub const RESP: &str = wire::RESP_NAME;
+pub const RESP: &str = crate::lm3s_files::RESP_NAME;
 /// The AC log the firmware writes in the run directory.
-pub const AC_LOG: &str = wire::AC_LOG_NAME;
+pub const AC_LOG: &str = crate::lm3s_files::AC_LOG_NAME;
 
 /// The simulated machine and cutting process behind the ADC: one conversion per request.
 pub trait Plant {

@@ -2,7 +2,7 @@
 //! stdout is a stream of defmt frames; this module decodes them with the `.defmt` table of the
 //! firmware's ELF (as knurling's qemu-run does) into readable lines, `<level>: <message>` (a frame
 //! without a level is its message alone). What the tools read is not in this stream: it is the
-//! firmware's result file (`millac::wire::RESULT_FILE`, [`crate::emulator::capture::Capture::result`]).
+//! firmware's result file (`crate::lm3s_files::RESULT_FILE`, [`crate::emulator::capture::Capture::result`]).
 //!
 //! An image without a `.defmt` section (a hand-assembled test image, a firmware that prints text)
 //! gives its stdout as text.

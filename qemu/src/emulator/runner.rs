@@ -88,7 +88,7 @@ fn execute_until(text: &str, out: &Path, shift: u32, stop: Option<Stop>) -> Resu
 fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
     // The firmware would run the program on a stored record (see `serve`), while the checks here
     // assume the defaults: refuse rather than report false mismatches, and delete nothing.
-    let stored = out.join(millac::wire::SETTINGS_NAME);
+    let stored = out.join(crate::lm3s_files::SETTINGS_NAME);
     if std::fs::symlink_metadata(&stored).is_ok() {
         anyhow::bail!(
             "{} holds serve's settings; runs check against the default settings: use another --out",
@@ -113,7 +113,7 @@ fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
 }
 
 /// The settings record of a run whose AC settings are not the defaults (another `--strategy`):
-/// `out/settings.bin` ([`millac::wire::SETTINGS_NAME`], the file the firmware loads at start-up),
+/// `out/settings.bin` ([`crate::lm3s_files::SETTINGS_NAME`], the file the firmware loads at start-up),
 /// written before QEMU starts and removed when the run ends (dropped), so the next run in `out`
 /// passes [`prepare`]'s check and a default run writes no file (its runs stay byte-identical).
 /// The NC settings stay the defaults the checks assume.
@@ -127,7 +127,7 @@ impl RunSettings {
         acs.validate()
             .map_err(|e| anyhow::anyhow!("AC settings: {}", e.message()))?;
         let record = millac::protocol::settings::record::encode(&run_record(acs));
-        let path = out.join(millac::wire::SETTINGS_NAME);
+        let path = out.join(crate::lm3s_files::SETTINGS_NAME);
         std::fs::write(&path, record).with_context(|| format!("writing {}", path.display()))?;
         Ok(RunSettings(Some(path)))
     }

@@ -31,7 +31,7 @@ use anyhow::{anyhow, Context, Result};
 use millac::gcode::tape::{finish_block, Tape};
 use millac::nc::{Block, FrameConfig, Motion};
 use millac::protocol::jog::JogRequest;
-use millac::wire::{self, SessionLine};
+use millac::wire::SessionLine;
 use millac::Settings;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -49,7 +49,7 @@ pub struct Served {
 
 /// The settings file of a session in `out` when none is given: the firmware's own name there.
 pub fn default_settings(out: &Path) -> PathBuf {
-    out.join(millac::wire::SETTINGS_NAME)
+    out.join(crate::lm3s_files::SETTINGS_NAME)
 }
 
 /// Makes `out/settings.bin`, the file the firmware opens, the operator's settings file
@@ -57,7 +57,7 @@ pub fn default_settings(out: &Path) -> PathBuf {
 /// when it is that file, otherwise a symbolic link to it (an earlier link is replaced). A file of
 /// its own there is refused, never deleted.
 pub fn link_settings(out: &Path, settings: &Path) -> Result<()> {
-    let name = out.join(millac::wire::SETTINGS_NAME);
+    let name = out.join(crate::lm3s_files::SETTINGS_NAME);
     let target = std::path::absolute(settings)
         .with_context(|| format!("settings file {}", settings.display()))?;
     if let Some(dir) = target.parent() {
@@ -132,7 +132,12 @@ pub fn serve(
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     // No program file: the firmware's loader takes the serial line.
     let _ = std::fs::remove_file(out.join("program.nc"));
-    for f in [cosim::REQ, cosim::RESP, cosim::AC_LOG, wire::SERVE_LOG_NAME] {
+    for f in [
+        cosim::REQ,
+        cosim::RESP,
+        cosim::AC_LOG,
+        crate::lm3s_files::SERVE_LOG_NAME,
+    ] {
         let _ = std::fs::remove_file(out.join(f));
     }
     link_settings(out, settings)?;
@@ -202,7 +207,7 @@ pub fn serve(
     // The session as a program: the blocks the firmware queued, from its log, with the settings
     // the firmware started with.
     let settings: Settings = stored.nc;
-    let log_path = out.join(wire::SERVE_LOG_NAME);
+    let log_path = out.join(crate::lm3s_files::SERVE_LOG_NAME);
     let log = std::fs::read_to_string(&log_path).unwrap_or_default();
     let prog = analysis::program_of_blocks(
         replay(&log, &settings).with_context(|| format!("replaying {}", log_path.display()))?,

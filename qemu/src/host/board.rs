@@ -8,9 +8,10 @@
 //! pulse ends before anything of lower priority runs (the pulse width is shorter than the frame
 //! ISR's work plus the sampler's start). A sample at the same instant as a frame interrupt runs
 //! after it (the frame ISR has the highest priority).
+use crate::lm3s_clock::QemuClock;
 use millac::nc::Frame;
 use millac::ports::{BlockSource, FrameTimer, PulseTimer, StepPort, TimerClock};
-use millac::rt::{isr, FrameTask, QemuClock, Reloads, Status};
+use millac::rt::{isr, FrameTask, Reloads, Status};
 use millac::Settings;
 
 /// The PULSE (bits 0-2) and SIGN (bits 3-5) lines.
