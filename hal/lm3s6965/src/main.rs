@@ -54,72 +54,37 @@
 #![no_std]
 #![no_main]
 
-use core::fmt::{self, Write as _};
 use core::panic::PanicInfo;
 use core::sync::atomic::{AtomicBool, Ordering};
 
-use cortex_m_semihosting::debug;
 // The defmt global logger: frames to semihosting stdout (linked for it, nothing is called).
 use defmt_semihosting as _;
 mod board;
 mod clock;
 mod files;
+mod program;
 mod results;
 mod semihost;
 mod session;
 mod simadc;
 mod storage;
 mod uart;
+mod voice;
 
-/// One human log message, formatted before the logger is taken: defmt's logger holds a critical
-/// section while it encodes and writes, so the text is ready and that section stays short.
-type Text = heapless::String<200>;
+use millac::rt::Status;
+use voice::{exit, text};
 
-fn text(args: fmt::Arguments) -> Text {
-    let mut t = Text::new();
-    // A message too long for the buffer keeps what fitted.
-    let _ = t.write_fmt(args);
-    t
-}
+/// The status words between the contexts (all zero at reset but `idle`).
+static STATUS: Status = Status::new();
 
-/// An error: `error: <what>` in the result file (the run fails) and in the log. Init and tasks,
-/// never the frame or pulse-end ISR.
-fn error(what: fmt::Arguments) {
-    log_error(&report(what));
-}
+/// The loader runs in serial mode: an operator can resume an AC hold, so a long hold does not end
+/// the session. Written once by the loader.
+static SERIAL: AtomicBool = AtomicBool::new(false);
 
-/// `error: <what>` in the result file, at once (one semihosting write, no critical section);
-/// returns the text for the log.
-fn report(what: fmt::Arguments) -> Text {
-    let t = text(what);
-    results::line(format_args!("error: {}", t));
-    t
-}
-
-/// An error in the log. The logger's critical section lasts about 30 instructions per byte (1 197
-/// for a 38-character line, measured at shift 4): 19 us in which no frame can start.
-fn log_error(t: &Text) {
-    defmt::error!("{=str}", t.as_str());
-}
-
-/// Reports an error ([`error`]) and leaves QEMU with a failure status. Init and idle.
-fn fail(what: fmt::Arguments) -> ! {
-    error(what);
-    exit(false)
-}
-
-/// Leaves QEMU through semihosting (success or failure status). Never returns on QEMU; on a
-/// debugger that continues, parks the core.
-fn exit(ok: bool) -> ! {
-    debug::exit(if ok {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
-    loop {
-        cortex_m::asm::nop();
-    }
-}
+/// Queue slots (a heapless spsc queue holds one less: 15 blocks).
+const QUEUE: usize = 16;
+/// The loader's record of queued blocks: the queue and room for nested chatter detours.
+const RECORD: usize = millac::rt::replan::record_len(QUEUE);
 
 /// Set by the first panic: a panic inside the panic handler (the logger taken where the first
 /// panic struck) only exits.
@@ -144,16 +109,13 @@ mod app {
     use core::sync::atomic::Ordering::Relaxed;
 
     use crate::board;
-    use crate::semihost;
     use crate::semihost::LogFile;
     use crate::simadc::SimAdc;
     use crate::storage::FileStorage;
     use crate::uart::TX_QUEUE;
-    use cortex_m_semihosting::nr;
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::Alarm;
     use millac::ac::{AcController, FeedCeiling};
-    use millac::gcode::tape::Tape;
     use millac::monitor::chatter::Spectrum;
     use millac::nc::{Block, Frame, FrameConfig};
     use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
@@ -166,29 +128,18 @@ mod app {
         AcTask, MonitorTask, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE, VERDICT_QUEUE,
     };
     use millac::rt::monitor::ChatterTask;
-    use millac::rt::replan::{self, Replan};
-    use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads, Status};
+    use millac::rt::replan::Replan;
+    use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads};
     use millac::wire::FLAG_AC_ENABLED;
     use millac::Settings;
 
-    use super::{error, exit, fail, log_error, report, results, text, Text};
+    use super::{QUEUE, RECORD, SERIAL, STATUS};
+    use crate::program::held_exit;
+    use crate::results;
+    use crate::voice::{error, fail, text};
 
     /// The board this binary drives (a unit struct: its ports are `&mut B`).
     use crate::board::Lm3s6965 as B;
-
-    /// The status words between the contexts (all zero at reset but `idle`).
-    static STATUS: Status = Status::new();
-
-    /// The loader runs in serial mode: an operator can resume an AC hold, so a long hold does not
-    /// end the session. Written once by the loader.
-    static SERIAL: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
-
-    /// Queue slots (a heapless spsc queue holds one less: 15 blocks).
-    const QUEUE: usize = 16;
-    /// The loader's record of queued blocks: the queue and room for nested chatter detours.
-    const RECORD: usize = millac::rt::replan::record_len(QUEUE);
-    /// Semihosting read size.
-    const CHUNK: usize = 256;
 
     /// Nothing shared through RTIC: the frame and pulse-end ISRs share the next signs through
     /// the atomic `NEXT_SIGNS` (same priority, so no lock and no resource proxy is needed).
@@ -420,67 +371,6 @@ mod app {
         }
     }
 
-    /// Program mode: the run ends on a hold with the machine standing: `millac: hold blocks=N
-    /// position=x,y,z` (the exact position), exit with failure.
-    fn held_exit() -> ! {
-        report_position(true);
-        exit(false);
-    }
-
-    /// The run's last line, `millac: [hold ]blocks=N position=x,y,z` (the exact position as the
-    /// frame last published it), into the result file and the log.
-    fn report_position(held: bool) {
-        let [x, y, z] = STATUS.position();
-        let blocks = STATUS.blocks_done.load(Relaxed);
-        results::line(format_args!(
-            "millac: {}blocks={} position={},{},{}",
-            if held { "hold " } else { "" },
-            blocks,
-            x,
-            y,
-            z
-        ));
-        if held {
-            defmt::warn!(
-                "held: blocks={=u32} position={=i32},{=i32},{=i32}",
-                blocks,
-                x,
-                y,
-                z
-            );
-        } else {
-            defmt::info!(
-                "done: blocks={=u32} position={=i32},{=i32},{=i32}",
-                blocks,
-                x,
-                y,
-                z
-            );
-        }
-    }
-
-    /// Program mode: a frame that overran its period (the interrupts took longer than it; the
-    /// frame held its pulses back, so none is lost) holds the machine as in serial mode
-    /// (`ALARM:111`) and, once it stands, ends the run with the hold's report. Idle loader.
-    fn overrun_check() {
-        let n = STATUS.frame_overruns.load(Relaxed);
-        if n == 0 {
-            return;
-        }
-        STATUS
-            .operator
-            .store(millac::nc::operator::word(100, 100, true, false), Relaxed);
-        let t = text(format_args!(
-            "frame overrun: the interrupts took longer than the frame period ({} frames, no pulse \
-             lost): the CPU is too slow for these settings",
-            n
-        ));
-        results::line(format_args!("alarm: {}", t));
-        defmt::warn!("alarm: {=str}", t.as_str());
-        while !STATUS.stopped() {}
-        held_exit();
-    }
-
     /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
     #[idle(local = [
         producer, settings, table, refused, ceiling, proto, tx, ac_alarms,
@@ -495,214 +385,27 @@ mod app {
             cx.local
                 .replan
                 .insert(Replan::new(*settings, &cx.local.table.settings.ac, [0; 3]));
-        // The loader's errors, logged once the machine is idle (see `load`).
-        let mut errors = Errors::new();
-        let ok = match load(
-            producer,
-            replan,
-            settings,
-            ceiling,
-            *cx.local.refused,
-            &mut errors,
-        ) {
-            Loaded::All => true,
-            Loaded::Error => false,
-            // No program file: the operator streams G-code over the serial line.
-            Loaded::NoFile => {
-                SERIAL.store(true, Relaxed);
-                millac::rt::loader::run(
-                    millac::rt::loader::Parts {
-                        blocks: producer,
-                        replan,
-                        table: cx.local.table,
-                        ceiling,
-                        proto: cx.local.proto,
-                        tx: cx.local.tx,
-                        ac_alarms: cx.local.ac_alarms,
-                        status: &STATUS,
-                    },
-                    &mut crate::uart::QemuLoader {
-                        clock_hz: B::TIMER_HZ,
-                        log: crate::session::SessionLog::create(),
-                    },
-                );
-                // The board's loader never ends (it runs while the board says so: always).
-                true
-            }
-        };
-
-        // Every accepted block runs to completion, also after an error (and every detour of a
-        // chatter re-plan).
-        while producer.len() != 0
-            || !STATUS.idle.load(Relaxed)
-            || replan.pending()
-            || replan.aborting()
-        {
-            react(replan, producer);
-        }
-        for t in &errors {
-            log_error(t);
-        }
-        report_position(false);
-        exit(ok)
-    }
-
-    /// The chatter reaction's turn (tape mode): a re-plan, a spindle speed (applied to the
-    /// simulated spindle, then the AC resumes) or a refusal, into the result file and the log.
-    fn react(replan: &mut Replan<RECORD>, producer: &mut Producer<'static, Block, QUEUE>) {
-        overrun_check();
-        // An AC hold holds rapids too (`millac::nc::operator::with_ac_hold`); not while the
-        // frame drops the queue for a re-plan: that word carries the abort bit until
-        // `Replan::poll` has finished it.
-        if !replan.aborting() {
-            STATUS.operator.store(
-                millac::nc::operator::with_ac_hold(
-                    millac::nc::operator::RUN,
-                    STATUS.feed_cap.load(Relaxed),
-                ),
-                Relaxed,
-            );
-        }
-        match replan.poll(producer, &STATUS) {
-            replan::Event::None => {}
-            replan::Event::Speed(s) => {
-                crate::uart::set_spindle_rpm(s.to);
-                replan.speed_applied(&STATUS, s.to);
-                results::line(format_args!("chatter: spindle {}", s));
-                defmt::warn!(
-                    "chatter: spindle S{=u32} -> S{=u32} ({=u32} Hz)",
-                    s.from,
-                    s.to,
-                    s.chatter_hz
-                );
-            }
-            replan::Event::Replanned(r) => {
-                results::line(format_args!("chatter: re-planned {}", r));
-                defmt::warn!(
-                    "chatter: re-plan {=u32}: lift {=u32} BLU from {=i32},{=i32},{=i32}",
-                    r.count,
-                    r.lift,
-                    r.at[0],
-                    r.at[1],
-                    r.at[2]
-                );
-            }
-            replan::Event::Refused { at, why } => {
-                results::line(format_args!(
-                    "chatter: not re-planned at {},{},{}: {}",
-                    at[0],
-                    at[1],
-                    at[2],
-                    why.message()
-                ));
-                defmt::warn!("chatter: not re-planned: {=str}", why.message());
-            }
-        }
-    }
-
-    /// The loader's error messages for the log (more are in the result file only).
-    type Errors = heapless::Vec<Text, 2>;
-
-    /// How loading ended.
-    enum Loaded {
-        /// Program end (M2/M30) or end of file.
-        All,
-        /// A line was refused or the file could not be read (printed); the blocks before it run.
-        Error,
-        /// No `program.nc`: serial mode.
-        NoFile,
-    }
-
-    /// Reads, parses and queues the program. With a refused settings record nothing runs (see
-    /// "Settings" in the crate docs). Errors go to the result file at once and into `errors` for
-    /// the log, which the loader writes once the accepted blocks have run: the blocks before an
-    /// error still run, and the logger's critical section (tens of microseconds for a long line)
-    /// must not hold back a frame, at a rapid period of 38 us.
-    fn load(
-        producer: &mut Producer<'static, Block, QUEUE>,
-        replan: &mut Replan<RECORD>,
-        settings: &Settings,
-        ceiling: Option<FeedCeiling>,
-        refused: Option<RecordError>,
-        errors: &mut Errors,
-    ) -> Loaded {
-        let mut refuse = |what: core::fmt::Arguments| {
-            let _ = errors.push(report(what));
-        };
-        // Through the loader's record; while it is full, the re-plan's turn (a chatter hold).
-        let mut enqueue = |b: Block| {
-            let mut b = b;
-            while let Err(back) = replan.offer(producer, b) {
-                b = back;
-                react(replan, producer);
-            }
-        };
-        let Some(fd) = semihost::open(b"program.nc\0", nr::open::R) else {
-            return Loaded::NoFile;
-        };
-        if let Some(e) = refused {
-            refuse(format_args!(
-                "settings: {}; nothing runs (fix or remove {})",
-                e.message(),
-                crate::files::SETTINGS_NAME
-            ));
-            semihost::close(fd);
-            return Loaded::Error;
-        }
-
-        // The tape finishes every block, with an enabled AC's feed ceiling.
-        let mut tape = match ceiling {
-            Some(c) => Tape::with_ac_ceiling(*settings, c),
-            None => Tape::new(*settings),
-        };
-        let mut chunk = [0u8; CHUNK];
-        let mut ok = true;
-        // The program's S as last published (0: none yet).
-        let mut program_rpm = 0u32;
-        loop {
-            let Some(n) = semihost::read(fd, &mut chunk) else {
-                refuse(format_args!("cannot read program.nc"));
-                ok = false;
-                // What was accepted still runs.
-                let _ = tape.finish(&mut enqueue);
-                break;
-            };
-            let bytes = chunk.get(..n).unwrap_or(&[]);
-            let result = if bytes.is_empty() {
-                tape.finish(&mut enqueue)
-            } else {
-                tape.feed(bytes, &mut enqueue)
-            };
-            if let Err(e) = result {
-                refuse(format_args!("{}", e));
-                ok = false;
-            }
-            // The program's spindle speed (its last S word read so far) for the process
-            // monitors: a tape has no spindle output to sync with the motion, so the speed
-            // reaches them once per 256-byte chunk, after the chunk's blocks are queued: up to
-            // a queue of blocks early or late. A program should set S before its first cut (the
-            // host simulation cuts the whole program at its S); the serial loader publishes it
-            // with the motion. Only a change of the program's S is published: a speed the chatter
-            // reaction chose (`$277`) stays until the program commands another.
-            let rpm = tape.parser().spindle_rpm();
-            if rpm != 0 && rpm != program_rpm {
-                program_rpm = rpm;
-                STATUS.spindle_rpm.store(rpm, Relaxed);
-                // The simulated spindle turns at the program's S (the host starts it there);
-                // once the reaction has commanded it, it follows the program's changes too.
-                if crate::uart::spindle_rpm() != 0 {
-                    crate::uart::set_spindle_rpm(rpm);
-                }
-            }
-            if tape.done() {
-                break;
-            }
-        }
-        semihost::close(fd);
-        if ok {
-            Loaded::All
-        } else {
-            Loaded::Error
-        }
+        // Program mode runs `program.nc` and exits; without it, serial mode.
+        crate::program::run(producer, replan, settings, ceiling, *cx.local.refused);
+        // No program file: the operator streams G-code over the serial line.
+        SERIAL.store(true, Relaxed);
+        millac::rt::loader::run(
+            millac::rt::loader::Parts {
+                blocks: producer,
+                replan,
+                table: cx.local.table,
+                ceiling,
+                proto: cx.local.proto,
+                tx: cx.local.tx,
+                ac_alarms: cx.local.ac_alarms,
+                status: &STATUS,
+            },
+            &mut crate::uart::QemuLoader {
+                clock_hz: B::TIMER_HZ,
+                log: crate::session::SessionLog::create(),
+            },
+        );
+        // The board's loader never ends (it runs while the board says so: always).
+        crate::voice::exit(true)
     }
 }

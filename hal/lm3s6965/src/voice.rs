@@ -1,0 +1,58 @@
+//! The QEMU board's voice (init, the loader and the tasks, the panic handler; never the frame or
+//! pulse-end ISR): a human log message formatted before defmt's logger takes its critical section,
+//! errors into the result file and the log, and the exit through semihosting.
+use core::fmt::{self, Write as _};
+
+use cortex_m_semihosting::debug;
+
+use crate::results;
+
+/// One human log message, formatted before the logger is taken: defmt's logger holds a critical
+/// section while it encodes and writes, so the text is ready and that section stays short.
+pub type Text = heapless::String<200>;
+
+pub fn text(args: fmt::Arguments) -> Text {
+    let mut t = Text::new();
+    // A message too long for the buffer keeps what fitted.
+    let _ = t.write_fmt(args);
+    t
+}
+
+/// An error: `error: <what>` in the result file (the run fails) and in the log. Init and tasks,
+/// never the frame or pulse-end ISR.
+pub fn error(what: fmt::Arguments) {
+    log_error(&report(what));
+}
+
+/// `error: <what>` in the result file, at once (one semihosting write, no critical section);
+/// returns the text for the log.
+pub fn report(what: fmt::Arguments) -> Text {
+    let t = text(what);
+    results::line(format_args!("error: {}", t));
+    t
+}
+
+/// An error in the log. The logger's critical section lasts about 30 instructions per byte (1 197
+/// for a 38-character line, measured at shift 4): 19 us in which no frame can start.
+pub fn log_error(t: &Text) {
+    defmt::error!("{=str}", t.as_str());
+}
+
+/// Reports an error ([`error`]) and leaves QEMU with a failure status. Init and idle.
+pub fn fail(what: fmt::Arguments) -> ! {
+    error(what);
+    exit(false)
+}
+
+/// Leaves QEMU through semihosting (success or failure status). Never returns on QEMU; on a
+/// debugger that continues, parks the core.
+pub fn exit(ok: bool) -> ! {
+    debug::exit(if ok {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
+    loop {
+        cortex_m::asm::nop();
+    }
+}
