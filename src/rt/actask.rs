@@ -165,6 +165,50 @@ impl MonitorTask {
     }
 }
 
+/// Why the AC tasks did not start: which settings were refused, and why (init context; a board
+/// says it as `<what>: <why>` and stops, or runs without the AC).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StartError {
+    pub what: &'static str,
+    pub why: &'static str,
+}
+
+/// The AC tasks every board starts from its settings: the controller, the AC period with the
+/// process monitors the settings turn on, the AC task over the sample queue, and its sampler
+/// (with the overload trip when the AC is `enabled`, i.e. applied to the feed). Init context.
+#[allow(clippy::too_many_arguments)]
+pub fn start<D: ForceTorqueAdc, W: LogSink>(
+    status: &'static Status,
+    settings: crate::Settings,
+    ac: &crate::ac::AcSettings,
+    enabled: bool,
+    adc: D,
+    log: W,
+    samples: (
+        Producer<'static, Codes, SAMPLE_QUEUE>,
+        Consumer<'static, Codes, SAMPLE_QUEUE>,
+    ),
+    alarms: Producer<'static, Alarm, ALARM_QUEUE>,
+) -> Result<(Sampler<D>, AcTask<W>), StartError> {
+    let ctl = crate::ac::AcController::new(*ac).map_err(|e| StartError {
+        what: "AC settings",
+        why: e.message(),
+    })?;
+    let period = AcPeriod::new(ctl, settings, enabled, status)
+        .with_monitors(ac)
+        .map_err(|e| StartError {
+            what: "monitor settings",
+            why: e.message(),
+        })?;
+    let (tx, rx) = samples;
+    let task = AcTask::new(status, period, rx, alarms, log);
+    let mut sampler = Sampler::new(status, adc, tx, task.per_period());
+    if enabled {
+        sampler = sampler.with_trip(body::Trip::new(ac));
+    }
+    Ok((sampler, task))
+}
+
 /// The AC period's state.
 pub struct AcTask<W: LogSink> {
     status: &'static Status,
@@ -261,5 +305,66 @@ impl<W: LogSink> AcTask<W> {
             alarm: p.out.alarm,
             halt: p.halt,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::ac::AcSettings;
+    use crate::ports::Conversion;
+    use heapless::spsc::Queue;
+    use std::boxed::Box;
+
+    /// Mid-scale codes every sample.
+    struct Quiet;
+
+    impl ForceTorqueAdc for Quiet {
+        fn sample(&mut self, _index: u32, _encoder: [i32; 3]) -> Conversion {
+            Conversion::Fresh([2048; 3])
+        }
+    }
+
+    type Started = Result<(Sampler<Quiet>, AcTask<()>), StartError>;
+
+    fn started(ac: AcSettings, enabled: bool) -> Started {
+        let status: &'static Status = Box::leak(Box::new(Status::new()));
+        let samples: &'static mut Queue<Codes, SAMPLE_QUEUE> = Box::leak(Box::new(Queue::new()));
+        let alarms: &'static mut Queue<Alarm, ALARM_QUEUE> = Box::leak(Box::new(Queue::new()));
+        let (alarm_tx, _) = alarms.split();
+        start(
+            status,
+            crate::Settings::default(),
+            &ac,
+            enabled,
+            Quiet,
+            (),
+            samples.split(),
+            alarm_tx,
+        )
+    }
+
+    /// The boards' start of the AC tasks: valid settings start them (the sampler with the
+    /// overload trip only when the AC is applied); refused AC settings say so.
+    #[test]
+    fn the_ac_tasks_start_from_valid_settings_and_refuse_invalid_ones() {
+        let (s, t) = started(AcSettings::default(), true).unwrap();
+        assert!(s.trip.is_some());
+        assert_eq!(t.per_period(), AcSettings::default().samples_per_period());
+        let (s, _) = started(AcSettings::default(), false).unwrap();
+        assert!(s.trip.is_none());
+        let bad_ac = AcSettings {
+            period_ms: 0,
+            ..AcSettings::default()
+        };
+        assert_eq!(started(bad_ac, true).err().unwrap().what, "AC settings");
+        // The AC settings' validation covers what the monitors take from them: with the
+        // breakage monitor on, valid settings start too.
+        let monitored = AcSettings {
+            breakage: true,
+            ..AcSettings::default()
+        };
+        assert!(started(monitored, true).is_ok());
     }
 }

@@ -115,7 +115,7 @@ mod app {
     use crate::uart::TX_QUEUE;
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::Alarm;
-    use millac::ac::{AcController, FeedCeiling};
+    use millac::ac::FeedCeiling;
     use millac::monitor::chatter::Spectrum;
     use millac::nc::{Block, Frame, FrameConfig};
     use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
@@ -123,9 +123,9 @@ mod app {
     use millac::protocol::settings::record::{LoadStatus, RecordError};
     use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
-    use millac::rt::ac::AcPeriod;
     use millac::rt::actask::{
-        AcTask, MonitorTask, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE, VERDICT_QUEUE,
+        self, AcTask, MonitorTask, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE,
+        VERDICT_QUEUE,
     };
     use millac::rt::monitor::ChatterTask;
     use millac::rt::replan::Replan;
@@ -208,30 +208,29 @@ mod app {
         let (alarm_tx, ac_alarms) = cx.local.alarms.split();
         if let Some((adc, flags)) = SimAdc::open() {
             let ac_settings = table.settings.ac;
-            let ctl = match AcController::new(ac_settings) {
-                Ok(c) => c,
-                Err(e) => fail(format_args!("AC settings: {}", e.message())),
-            };
             let Some(log) = LogFile::create(crate::files::AC_LOG_FILE.as_bytes()) else {
                 fail(format_args!("cannot create ac.log"));
             };
-            let (tx, rx) = cx.local.samples.split();
             let enabled = flags & FLAG_AC_ENABLED != 0 && table.settings.ac_enabled;
             if enabled {
                 ceiling = Some(ac_settings.ceiling);
             }
-            // The breakage monitor the settings turn on ($268), in the AC period. Invalid monitor
-            // settings stop the firmware here, as invalid AC settings do.
-            let period =
-                match AcPeriod::new(ctl, settings, enabled, &STATUS).with_monitors(&ac_settings) {
-                    Ok(p) => p,
-                    Err(e) => fail(format_args!("breakage settings: {}", e.message())),
-                };
-            let mut task = AcTask::new(&STATUS, period, rx, alarm_tx, log);
-            let mut s = Sampler::new(&STATUS, adc, tx, task.per_period());
-            if enabled {
-                s = s.with_trip(millac::rt::ac::Trip::new(&ac_settings));
-            }
+            // The AC task and its sampler, with the breakage monitor the settings turn on ($268):
+            // invalid AC or monitor settings stop the firmware here.
+            let samples = cx.local.samples.split();
+            let (mut s, mut task) = match actask::start(
+                &STATUS,
+                settings,
+                &ac_settings,
+                enabled,
+                adc,
+                log,
+                samples,
+                alarm_tx,
+            ) {
+                Ok(t) => t,
+                Err(e) => fail(format_args!("{}: {}", e.what, e.why)),
+            };
             // The chatter monitor ($266), its own task.
             match ChatterTask::from_settings(&ac_settings) {
                 Ok(Some(c)) => {

@@ -35,15 +35,14 @@ mod app {
 
     use cortex_m::peripheral::DWT;
     use heapless::spsc::{Consumer, Producer, Queue};
-    use millac::ac::{AcController, Alarm};
+    use millac::ac::Alarm;
     use millac::nc::{Block, Frame, FrameConfig};
     use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
     use millac::protocol::rx::{RxIsr, RxShared};
     use millac::protocol::settings::record::LoadStatus;
     use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
-    use millac::rt::ac::AcPeriod;
-    use millac::rt::actask::{AcTask, LogSink, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
+    use millac::rt::actask::{self, AcTask, LogSink, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use millac::rt::replan::Replan;
     use millac::rt::{self, clocks_for_ns, FrameTask, Reloads, Status};
     use stm32f4xx_hal::prelude::*;
@@ -196,38 +195,33 @@ mod app {
         // watchdog).
         let ac_settings = table.settings.ac;
         let (alarm_tx, ac_alarms) = cx.local.alarms.split();
-        let (sample_tx, sample_rx) = cx.local.samples.split();
-        let period_samples = ac_settings.samples_per_period();
         if ac_settings.chatter_threshold > 0.0 {
             defmt::warn!("$266: this board has no sound channel; chatter detection is off");
         }
-        let ac = if table.settings.ac_enabled {
-            match AcController::new(ac_settings) {
-                // The breakage monitor when the settings turn it on ($268), on the force
-                // channels; chatter ($266) needs a sound channel this board does not have: a
-                // threshold set here is ignored (said once at start). Invalid monitor settings
-                // turn the AC off with a warning, as invalid AC settings do on this board.
-                Ok(ctl) => match AcPeriod::new(ctl, settings, true, &STATUS)
-                    .with_monitors(&ac_settings)
-                {
-                    Ok(period) => Some(AcTask::new(&STATUS, period, sample_rx, alarm_tx, DefmtLog)),
-                    Err(e) => {
-                        defmt::warn!("monitor settings: {}; the AC is off", e.message());
-                        None
-                    }
-                },
+        // The breakage monitor when the settings turn it on ($268), on the force channels;
+        // chatter ($266) needs a sound channel this board does not have: a threshold set here is
+        // ignored (said once at start). Invalid AC or monitor settings turn the AC off with a
+        // warning.
+        let (sampler, ac) = if table.settings.ac_enabled {
+            match actask::start(
+                &STATUS,
+                settings,
+                &ac_settings,
+                true,
+                TripleAdc::new(),
+                DefmtLog,
+                cx.local.samples.split(),
+                alarm_tx,
+            ) {
+                Ok((s, t)) => (Some(s), Some(t)),
                 Err(e) => {
-                    defmt::warn!("AC settings: {}; the AC is off", e.message());
-                    None
+                    defmt::warn!("{}: {}; the AC is off", e.what, e.why);
+                    (None, None)
                 }
             }
         } else {
-            None
+            (None, None)
         };
-        let sampler = ac.as_ref().map(|_| {
-            Sampler::new(&STATUS, TripleAdc::new(), sample_tx, period_samples)
-                .with_trip(millac::rt::ac::Trip::new(&ac_settings))
-        });
         board::sample_start(board::sample_reload(ac_settings.sample_hz));
 
         let (uart_rx, rx) = cx.local.serial_rx.split();
