@@ -1,6 +1,6 @@
 //! Machine settings (units, frame rate, feed DDA, rapid, pulse timing, soft limits, acceleration)
-//! and their validation, generic ([`Settings::validate`]) or for a board's limits and measured ISR
-//! times ([`Settings::validate_for`], [`BoardLimits`]). Read by the host tool, the G-code parser
+//! and their validation for a board's limits and measured ISR times ([`Settings::validate`] with a
+//! [`BoardLimits`]; [`BoardLimits::GENERIC`] for the QEMU board and the host tools). Read by the host tool, the G-code parser
 //! (task) and, once validated, by the frame (ISR) through [`crate::nc::FrameConfig`]; listed and
 //! set through [`crate::protocol::settings`].
 
@@ -90,7 +90,7 @@ impl Default for Settings {
     }
 }
 
-/// What a board can do, for [`Settings::validate_for`]: its rate caps and the worst-case times of
+/// What a board can do, for [`Settings::validate`]: its rate caps and the worst-case times of
 /// its frame and pulse-end ISRs (measured on the board, e.g. with the cycle counter, and stated as
 /// constants in its firmware). Init context (a `const` per board).
 ///
@@ -121,7 +121,7 @@ pub struct BoardLimits {
 }
 
 impl BoardLimits {
-    /// The limits [`Settings::validate`] applies: the QEMU board and the host tools (W0 up to
+    /// The limits of the QEMU board and the host tools (W0 up to
     /// 100 kHz, rapid up to 200 kHz, ISR times not measured: the 75 % rule).
     pub const GENERIC: BoardLimits = BoardLimits {
         max_frame_hz: 100_000,
@@ -133,7 +133,7 @@ impl BoardLimits {
 
     /// The most frame work (ns, entry and exit included) that settings `s` tolerate on this board:
     /// the largest `frame_work_ns` for which the timing rule and the ISR share of
-    /// [`Settings::validate_for`] still hold (the pulse width's own part of the gap aside). A
+    /// [`Settings::validate`] still hold (the pulse width's own part of the gap aside). A
     /// board that measures its frame holds the feed when a frame takes longer (ALARM:111).
     pub fn frame_work_allowed_ns(&self, s: &Settings) -> u64 {
         let rapid = s.rapid_hz.max(1) as u64;
@@ -151,7 +151,7 @@ impl BoardLimits {
 
     /// The highest frame rate this board sustains with a pulse width and a sign setup time: the
     /// largest rate r (Hz) for which the default settings with W0 = rapid rate = r and these pulse
-    /// times pass [`Settings::validate_for`]; 0 if none does. Host and init (a search of ~20
+    /// times pass [`Settings::validate`]; 0 if none does. Host and init (a search of ~20
     /// validations).
     pub fn highest_rate_hz(&self, pulse_width_ns: u32, sign_setup_ns: u32) -> u32 {
         let ok = |r: u32| {
@@ -162,7 +162,7 @@ impl BoardLimits {
                 sign_setup_ns,
                 ..Settings::default()
             }
-            .validate_for(self)
+            .validate(self)
             .is_ok()
         };
         // Every check is monotonic in the rate: a rate that fails fails above it too.
@@ -276,17 +276,11 @@ impl SettingsError {
 }
 
 impl Settings {
-    /// Checks every setting against the generic limits ([`BoardLimits::GENERIC`]: the QEMU
-    /// board, the host tools); the frame relies on these bounds and does no checks of its own.
-    pub fn validate(&self) -> Result<(), SettingsError> {
-        self.validate_for(&BoardLimits::GENERIC)
-    }
-
     /// Checks every setting for `board`: the generic ranges, with the frame and rapid rate caps
     /// taken from the board (up to [`FRAME_HZ_CEILING`] / [`RAPID_HZ_CEILING`]), and the timing
     /// rule of [`crate::rt::isr`] with the board's measured ISR times (see [`BoardLimits`]).
     /// Init (before the frame timer starts), loader (`$n=`), host.
-    pub fn validate_for(&self, board: &BoardLimits) -> Result<(), SettingsError> {
+    pub fn validate(&self, board: &BoardLimits) -> Result<(), SettingsError> {
         let max_frame_hz = board.max_frame_hz.min(FRAME_HZ_CEILING);
         if !(100..=max_frame_hz).contains(&self.frame_hz) {
             return Err(SettingsError::FrameRate);
@@ -411,16 +405,16 @@ mod tests {
                 ..Settings::default()
             },
         ] {
-            assert_eq!(s.validate_for(&b), Ok(()), "{s:?}");
+            assert_eq!(s.validate(&b), Ok(()), "{s:?}");
             let allowed = b.frame_work_allowed_ns(&s);
             assert!(allowed >= b.frame_work_ns as u64, "{allowed}");
             let at = |ns: u64| BoardLimits {
                 frame_work_ns: ns as u32,
                 ..b
             };
-            assert_eq!(s.validate_for(&at(allowed)), Ok(()), "{s:?} at {allowed}");
+            assert_eq!(s.validate(&at(allowed)), Ok(()), "{s:?} at {allowed}");
             assert!(
-                s.validate_for(&at(allowed + 1)).is_err(),
+                s.validate(&at(allowed + 1)).is_err(),
                 "{s:?} at {allowed} + 1"
             );
         }
@@ -439,7 +433,7 @@ mod tests {
                 sign_setup_ns: s,
                 ..Settings::default()
             }
-            .validate_for(b)
+            .validate(b)
             .is_ok()
         };
         for (b, w, s) in [
@@ -469,16 +463,19 @@ mod tests {
     #[test]
     fn a_fast_board_runs_200_khz_with_its_measured_isr_times() {
         // Gap 5000 - max(2000, 1500) - 400 = 2600 >= 2000; load (1500 + 400) * 200k = 38 %.
-        assert_eq!(fast().validate_for(&F446), Ok(()));
+        assert_eq!(fast().validate(&F446), Ok(()));
         // The generic limits refuse it (W0 above 100 kHz), and so would the 75 % rule.
-        assert_eq!(fast().validate(), Err(SettingsError::FrameRate));
+        assert_eq!(
+            fast().validate(&crate::settings::BoardLimits::GENERIC),
+            Err(SettingsError::FrameRate)
+        );
         let unmeasured = BoardLimits {
             frame_work_ns: 0,
             pulse_end_ns: 0,
             ..F446
         };
         assert_eq!(
-            fast().validate_for(&unmeasured),
+            fast().validate(&unmeasured),
             Err(SettingsError::PulseTiming)
         );
     }
@@ -492,7 +489,7 @@ mod tests {
         };
         // The brief's board with more frame work: 5000 - 2700 - 400 = 1900 < 2000.
         assert_eq!(
-            fast().validate_for(&with(2700, 400)),
+            fast().validate(&with(2700, 400)),
             Err(SettingsError::SignSetup)
         );
         // Frame work above the pulse width sets the falling edge (a 3 us sign setup keeps the
@@ -502,16 +499,16 @@ mod tests {
             sign_setup_ns: 3000,
             ..fast()
         };
-        assert_eq!(long_setup.validate_for(&with(1600, 400)), Ok(()));
+        assert_eq!(long_setup.validate(&with(1600, 400)), Ok(()));
         assert_eq!(
-            long_setup.validate_for(&with(1601, 400)),
+            long_setup.validate(&with(1601, 400)),
             Err(SettingsError::SignSetup)
         );
         // Below the pulse width it does not matter for the gap.
-        assert_eq!(long_setup.validate_for(&with(900, 400)), Ok(()));
+        assert_eq!(long_setup.validate(&with(900, 400)), Ok(()));
         // A longer pulse-end ISR eats the gap too: 5000 - 2000 - 1001 < 2000.
         assert_eq!(
-            fast().validate_for(&with(1500, 1001)),
+            fast().validate(&with(1500, 1001)),
             Err(SettingsError::SignSetup)
         );
         // A pulse longer than the frame work sets the falling edge: 5000 - 2500 - 400 = 2100.
@@ -520,10 +517,10 @@ mod tests {
             sign_setup_ns: 2100,
             ..fast()
         };
-        assert_eq!(wide.validate_for(&with(100, 400)), Ok(()));
-        assert_eq!(wide.validate_for(&with(2000, 400)), Ok(()));
+        assert_eq!(wide.validate(&with(100, 400)), Ok(()));
+        assert_eq!(wide.validate(&with(2000, 400)), Ok(()));
         assert_eq!(
-            wide.validate_for(&with(100, 401)),
+            wide.validate(&with(100, 401)),
             Err(SettingsError::SignSetup)
         );
     }
@@ -541,19 +538,16 @@ mod tests {
             ..F446
         };
         // (1900 + 600) ns * 200 kHz = 0.5 s per second: exactly half.
-        assert_eq!(s.validate_for(&with(1900, 600)), Ok(()));
+        assert_eq!(s.validate(&with(1900, 600)), Ok(()));
         // 2600 ns: 52 %, although the gap (5000 - 2000 - 600 = 2400) is fine.
-        assert_eq!(
-            s.validate_for(&with(2000, 600)),
-            Err(SettingsError::IsrLoad)
-        );
+        assert_eq!(s.validate(&with(2000, 600)), Err(SettingsError::IsrLoad));
         // The same board at a lower rapid rate is fine.
         let slower = Settings {
             frame_hz: 150_000,
             rapid_hz: 150_000,
             ..s
         };
-        assert_eq!(slower.validate_for(&with(2000, 600)), Ok(()));
+        assert_eq!(slower.validate(&with(2000, 600)), Ok(()));
     }
 
     #[test]
@@ -570,17 +564,17 @@ mod tests {
             pulse_end_ns: 100,
             ..F446
         };
-        assert_eq!(at(250_000, 250_000).validate_for(&roomy), Ok(()));
+        assert_eq!(at(250_000, 250_000).validate(&roomy), Ok(()));
         assert_eq!(
-            at(250_001, 250_001).validate_for(&roomy),
+            at(250_001, 250_001).validate(&roomy),
             Err(SettingsError::FrameRate)
         );
         assert_eq!(
-            at(200_000, 250_001).validate_for(&roomy),
+            at(200_000, 250_001).validate(&roomy),
             Err(SettingsError::RapidRate)
         );
         assert_eq!(
-            fast().validate_for(&BoardLimits {
+            fast().validate(&BoardLimits {
                 max_frame_hz: 199_999,
                 ..F446
             }),
@@ -599,16 +593,13 @@ mod tests {
             sign_setup_ns: 100,
             ..at(FRAME_HZ_CEILING, RAPID_HZ_CEILING)
         };
-        assert_eq!(ceiling.validate_for(&unlimited), Ok(()));
+        assert_eq!(ceiling.validate(&unlimited), Ok(()));
         let above = Settings {
             frame_hz: FRAME_HZ_CEILING + 1,
             rapid_hz: FRAME_HZ_CEILING + 1,
             ..ceiling
         };
-        assert_eq!(
-            above.validate_for(&unlimited),
-            Err(SettingsError::FrameRate)
-        );
+        assert_eq!(above.validate(&unlimited), Err(SettingsError::FrameRate));
     }
 
     /// `Settings::validate` as it was before boards had limits of their own.
@@ -677,8 +668,8 @@ mod tests {
                 accel_blu_s2: [accel, 250_000, 250_000],
                 ..Settings::default()
             };
-            prop_assert_eq!(s.validate(), validate_before_boards(&s));
-            prop_assert_eq!(s.validate_for(&BoardLimits::GENERIC), validate_before_boards(&s));
+            prop_assert_eq!(s.validate(&crate::settings::BoardLimits::GENERIC), validate_before_boards(&s));
+            prop_assert_eq!(s.validate(&BoardLimits::GENERIC), validate_before_boards(&s));
         }
     }
 }

@@ -40,7 +40,7 @@ fn main() -> Result<()> {
         let blu = (a * 10_000.0).round() as u32;
         settings.accel_blu_s2 = [blu; 3];
         settings
-            .validate()
+            .validate(&millac::settings::BoardLimits::GENERIC)
             .map_err(|e| anyhow::anyhow!("--accel {a}: {}", e.message()))?;
     }
     let strategies: Vec<Strategy> = match value("--strategy") {

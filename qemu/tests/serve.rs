@@ -675,7 +675,10 @@ fn a_setting_persists_into_the_next_session() {
         server.join().unwrap().expect("serve");
     }
     let bytes = std::fs::read(&settings).expect("the settings file");
-    assert_eq!(record::decode(&bytes), Ok(want));
+    assert_eq!(
+        record::decode(&bytes, &millac::settings::BoardLimits::GENERIC),
+        Ok(want)
+    );
     let Session {
         addr, stop, server, ..
     } = start_in(fresh("persist2"), settings.clone());

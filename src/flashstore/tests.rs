@@ -432,7 +432,10 @@ fn a_refusing_flash_keeps_the_previous_image() {
 #[test]
 fn a_settings_change_loads_back_from_flash() {
     let mut ram = Ram::<SECTOR7>::erased();
-    let (mut t, status) = Persistent::load(FlashStore::new(&mut ram));
+    let (mut t, status) = Persistent::load(
+        FlashStore::new(&mut ram),
+        crate::settings::BoardLimits::GENERIC,
+    );
     assert_eq!(
         (t.settings, status),
         (MachineSettings::default(), LoadStatus::Missing)
@@ -440,20 +443,29 @@ fn a_settings_change_loads_back_from_flash() {
     let (n, v) = parse_assignment("$0=7").unwrap();
     assert_eq!(t.set(n, v), Ok(()));
     let changed = t.settings;
-    let (back, status) = Persistent::load(FlashStore::new(&mut ram));
+    let (back, status) = Persistent::load(
+        FlashStore::new(&mut ram),
+        crate::settings::BoardLimits::GENERIC,
+    );
     assert_eq!(status, LoadStatus::Loaded);
     assert_eq!(back.settings, changed);
     assert_eq!(back.settings.nc.pulse_width_ns, 7000);
     assert_ne!(back.settings, MachineSettings::default());
 
     let mut ram = Ram::<SMALL>::erased();
-    let (mut t, _) = Persistent::load(FlashStore::new(&mut ram));
+    let (mut t, _) = Persistent::load(
+        FlashStore::new(&mut ram),
+        crate::settings::BoardLimits::GENERIC,
+    );
     let values = [3, 4, 7, 8, 3, 4, 7, 8, 3, 4];
     for us in values {
         let (n, v) = parse_assignment(&std::format!("$0={us}")).unwrap();
         assert_eq!(t.set(n, v), Ok(()));
     }
-    let (back, status) = Persistent::load(FlashStore::new(&mut ram));
+    let (back, status) = Persistent::load(
+        FlashStore::new(&mut ram),
+        crate::settings::BoardLimits::GENERIC,
+    );
     assert_eq!(status, LoadStatus::Loaded);
     assert_eq!(back.settings.nc.pulse_width_ns, 4000);
     let slots = FlashStore::<Ram<SMALL>>::SLOTS;

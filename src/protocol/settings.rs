@@ -241,17 +241,12 @@ pub fn parse_assignment(stmt: &str) -> Result<(u16, Decimal), SetError> {
 }
 
 impl MachineSettings {
-    /// The validation the firmware runs at start-up and every set runs, for the generic board
-    /// (the QEMU board, the host tools): [`MachineSettings::validate_for`] with
-    /// [`BoardLimits::GENERIC`].
-    pub fn validate(&self) -> Result<(), Invalid> {
-        self.validate_for(&BoardLimits::GENERIC)
-    }
-
-    /// [`Settings::validate_for`] the board's limits, [`AcSettings::validate`], the report mask,
-    /// and every f32 of the table listable exactly.
-    pub fn validate_for(&self, board: &BoardLimits) -> Result<(), Invalid> {
-        self.nc.validate_for(board).map_err(Invalid::Nc)?;
+    /// The validation the firmware runs at start-up and every set runs, for `board` (the QEMU
+    /// board and the host tools pass [`BoardLimits::GENERIC`]): [`Settings::validate`] with the
+    /// board's limits, [`AcSettings::validate`], the report mask, and every f32 of the table
+    /// listable exactly.
+    pub fn validate(&self, board: &BoardLimits) -> Result<(), Invalid> {
+        self.nc.validate(board).map_err(Invalid::Nc)?;
         self.ac.validate().map_err(Invalid::Ac)?;
         if self.ac.ceiling == crate::ac::FeedCeiling::Plan && !board.plan_ratio {
             return Err(Invalid::PlanNotOnThisBoard);
@@ -269,15 +264,10 @@ impl MachineSettings {
         Ok(())
     }
 
-    /// `$N=value`: sets one setting on a copy, validates the copy, and only then takes it.
-    /// Lengths and rates round to the nearest BLU, ns or us; `$200` (BLU) converts the settings
-    /// listed in mm so that they keep their mm values (soft limits rounded inward).
-    pub fn set(&mut self, number: u16, value: Decimal) -> Result<(), SetError> {
-        self.set_for(number, value, &BoardLimits::GENERIC)
-    }
-
-    /// [`MachineSettings::set`], validated for a board's limits.
-    pub fn set_for(
+    /// `$N=value`: sets one setting on a copy, validates the copy for `board`, and only then
+    /// takes it. Lengths and rates round to the nearest BLU, ns or us; `$200` (BLU) converts the
+    /// settings listed in mm so that they keep their mm values (soft limits rounded inward).
+    pub fn set(
         &mut self,
         number: u16,
         value: Decimal,
@@ -286,7 +276,7 @@ impl MachineSettings {
         let e = entry(number).ok_or(SetError::Unsupported)?;
         let mut new = *self;
         new.assign(e, value)?;
-        new.validate_for(board).map_err(SetError::Invalid)?;
+        new.validate(board).map_err(SetError::Invalid)?;
         *self = new;
         Ok(())
     }
@@ -294,7 +284,7 @@ impl MachineSettings {
     /// [`parse_assignment`] then [`MachineSettings::set`].
     pub fn set_line(&mut self, stmt: &str) -> Result<(), SetError> {
         let (n, v) = parse_assignment(stmt)?;
-        self.set(n, v)
+        self.set(n, v, &crate::settings::BoardLimits::GENERIC)
     }
 
     fn assign(&mut self, e: &Entry, value: Decimal) -> Result<(), SetError> {
@@ -405,7 +395,8 @@ impl super::SettingsTable for MachineSettings {
     }
 
     fn set(&mut self, n: u16, value: Decimal) -> Result<(), u8> {
-        MachineSettings::set(self, n, value).map_err(|e| e.code())
+        MachineSettings::set(self, n, value, &crate::settings::BoardLimits::GENERIC)
+            .map_err(|e| e.code())
     }
 
     fn get(&self, n: u16, out: &mut dyn Write) -> Result<(), u8> {

@@ -16,9 +16,9 @@
 //! line is low, and the next rising edge comes one frame period after this frame's rising edge.
 //! The SIGN-to-rising-edge gap is therefore at least the period minus max(pulse width, frame work)
 //! minus the pulse-end ISR's own time. A board that states its measured ISR times
-//! (`settings::BoardLimits`) has exactly that checked by `Settings::validate_for` at the shortest
+//! (`settings::BoardLimits`) has exactly that checked by `Settings::validate` at the shortest
 //! (rapid) period, together with a cap on the two ISRs' share of the CPU; without them
-//! (`Settings::validate`, the QEMU board) the check is pulse width + sign setup <= 75 % of the
+//! (`BoardLimits::GENERIC`, the QEMU board) the check is pulse width + sign setup <= 75 % of the
 //! rapid period, which leaves the sign setup time as long as the frame's work stays within the
 //! remaining 25 %.
 //! Rising edges keep the timer's period exactly: the pulse store is the frame's first work after

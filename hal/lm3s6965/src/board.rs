@@ -81,6 +81,10 @@ fn set_bits(addr: usize, bits: u32) {
     write(addr, read(addr) | bits);
 }
 
+/// What the board sustains, for the settings validation (`Settings::validate`): QEMU states no
+/// measured ISR times, so the generic limits and their 75 % rule (`BoardLimits::GENERIC`).
+pub const LIMITS: millac::settings::BoardLimits = millac::settings::BoardLimits::GENERIC;
+
 /// QEMU's lm3s6965evb timers: 12.5 MHz, a period of TAILR clocks (see [`QemuClock`]; the one
 /// definition the host simulation shares).
 impl TimerClock for Lm3s6965 {

@@ -186,13 +186,13 @@ mod app {
         // The result file first: everything after may report into it.
         results::create();
         // The stored record (validated as a whole), or the defaults.
-        let (table, status) = Persistent::load(FileStorage);
+        let (table, status) = Persistent::load(FileStorage, board::LIMITS);
         let refused = match status {
             LoadStatus::Refused(e) => Some(e),
             LoadStatus::Loaded | LoadStatus::Missing => None,
         };
         let settings = table.settings.nc;
-        if let Err(e) = settings.validate() {
+        if let Err(e) = settings.validate(&board::LIMITS) {
             fail(format_args!("settings: {}", e.message()));
         }
         let (producer, consumer) = cx.local.queue.split();

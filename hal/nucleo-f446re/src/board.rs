@@ -32,7 +32,7 @@ use millac::ports::{
 /// The board. Zero-sized: all state is in the peripherals.
 pub struct F446;
 
-/// What the board sustains, for the settings validation (`Settings::validate_for`): see
+/// What the board sustains, for the settings validation (`Settings::validate`): see
 /// [`crate::limits`] (docs/dev/results-nc.md, "Speed on the Nucleo-F446RE").
 pub const LIMITS: millac::settings::BoardLimits = crate::limits::LIMITS;
 

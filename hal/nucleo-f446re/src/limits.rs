@@ -65,7 +65,7 @@ mod tests {
         let mut f = MachineSettings::default();
         let before = f.ac.ceiling;
         let (n, v) = parse_assignment("$263=2").unwrap();
-        let e = f.set_for(n, v, &LIMITS).unwrap_err();
+        let e = f.set(n, v, &LIMITS).unwrap_err();
         assert_eq!(e, SetError::Invalid(Invalid::PlanNotOnThisBoard));
         assert_eq!(e.code(), 52);
         assert_eq!(f.ac.ceiling, before);

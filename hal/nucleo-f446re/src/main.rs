@@ -166,7 +166,7 @@ mod app {
         core.DWT.enable_cycle_counter();
         let watchdog_reset = F446::watchdog_reset();
 
-        let (table, status) = Persistent::load_for(FlashStore::new(flash::sector()), board::LIMITS);
+        let (table, status) = Persistent::load(FlashStore::new(flash::sector()), board::LIMITS);
         // Under QEMU: no DMA model, so no ADC samples: the AC is off ($250=0).
         #[cfg(feature = "qemu")]
         let table = {
@@ -182,7 +182,7 @@ mod app {
             LoadStatus::Loaded | LoadStatus::Missing => None,
         };
         let settings = table.settings.nc;
-        if let Err(e) = settings.validate_for(&board::LIMITS) {
+        if let Err(e) = settings.validate(&board::LIMITS) {
             defmt::panic!("settings: {}", e.message());
         }
         let (producer, consumer) = cx.local.queue.split();

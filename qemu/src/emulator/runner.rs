@@ -348,7 +348,7 @@ pub fn run_until(
 ) -> Result<Outcome> {
     let settings = Settings::default();
     settings
-        .validate()
+        .validate(&millac::settings::BoardLimits::GENERIC)
         .map_err(|e| anyhow::anyhow!("settings: {}", e.message()))?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let prog = match analysis::load_program(text, &settings) {

@@ -100,7 +100,7 @@ pub fn store_strategy(out: &Path, strategy: millac::ac::law::Strategy) -> Result
         Ok(_) => {
             let bytes =
                 std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
-            record::decode(&bytes).map_err(|e| {
+            record::decode(&bytes, &millac::settings::BoardLimits::GENERIC).map_err(|e| {
                 anyhow!(
                     "{}: {}; --strategy does not overwrite a refused record",
                     path.display(),
@@ -145,7 +145,10 @@ pub fn serve(
     // defaults there too): the simulated ADC's clock and whether the AC caps the feed.
     let stored = std::fs::read(settings)
         .ok()
-        .and_then(|b| millac::protocol::settings::record::decode(&b).ok())
+        .and_then(|b| {
+            millac::protocol::settings::record::decode(&b, &millac::settings::BoardLimits::GENERIC)
+                .ok()
+        })
         .unwrap_or_default();
     let port = crate::emulator::port::Port::open(tcp)?;
     let mut spec = CaptureSpec::new(&elf, out);
@@ -338,13 +341,21 @@ mod tests {
         let out = dir("strategy");
         let path = default_settings(&out);
         store_strategy(&out, Strategy::Mrac).unwrap();
-        let s = record::decode(&std::fs::read(&path).unwrap()).unwrap();
+        let s = record::decode(
+            &std::fs::read(&path).unwrap(),
+            &millac::settings::BoardLimits::GENERIC,
+        )
+        .unwrap();
         assert_eq!(s.ac.strategy, Strategy::Mrac);
         let mut mine = MachineSettings::default();
         mine.nc.pulse_width_ns = 7_000;
         std::fs::write(&path, record::encode(&mine)).unwrap();
         store_strategy(&out, Strategy::Integral).unwrap();
-        let s = record::decode(&std::fs::read(&path).unwrap()).unwrap();
+        let s = record::decode(
+            &std::fs::read(&path).unwrap(),
+            &millac::settings::BoardLimits::GENERIC,
+        )
+        .unwrap();
         assert_eq!(s.ac.strategy, Strategy::Integral);
         assert_eq!(s.nc.pulse_width_ns, 7_000);
         let mut bad = std::fs::read(&path).unwrap();

@@ -26,16 +26,12 @@ pub struct Persistent<S> {
 }
 
 impl<S: SettingsStorage> Persistent<S> {
-    /// Loads the record from `storage` ([`record::load`]): the table, and how the load went (a
-    /// [`record::LoadStatus::Refused`] is the caller's alarm).
-    pub fn load(storage: S) -> (Self, record::LoadStatus) {
-        Self::load_for(storage, BoardLimits::GENERIC)
-    }
-
-    /// [`Persistent::load`] for a board with its own limits: the record and every later set are
-    /// validated for them.
-    pub fn load_for(mut storage: S, board: BoardLimits) -> (Self, record::LoadStatus) {
-        let loaded = record::load_for(&mut storage, &board);
+    /// Loads the record from `storage` ([`record::load`]) for `board` (the QEMU board and the
+    /// host tools: `BoardLimits::GENERIC`): the table, and how the load went (a
+    /// [`record::LoadStatus::Refused`] is the caller's alarm); every later set is validated for
+    /// the same limits.
+    pub fn load(mut storage: S, board: BoardLimits) -> (Self, record::LoadStatus) {
+        let loaded = record::load(&mut storage, &board);
         (
             Persistent {
                 settings: loaded.settings,
@@ -55,7 +51,7 @@ impl<S: SettingsStorage> SettingsTable for Persistent<S> {
     /// Validated, stored, and only then taken: a refused value (its grbl error) or a refused store
     /// (`error:7`) changes neither the table nor the record.
     fn set(&mut self, n: u16, value: Decimal) -> Result<(), u8> {
-        record::set_persistent_for(&mut self.settings, &mut self.storage, n, value, &self.board)
+        record::set_persistent(&mut self.settings, &mut self.storage, n, value, &self.board)
             .map_err(|e| e.code())
     }
 
@@ -70,8 +66,7 @@ impl<S: SettingsStorage> SettingsTable for Persistent<S> {
         match what {
             b'$' | b'*' => {
                 let defaults = MachineSettings::default();
-                record::store_for(&mut self.storage, &defaults, &self.board)
-                    .map_err(|e| e.code())?;
+                record::store(&mut self.storage, &defaults, &self.board).map_err(|e| e.code())?;
                 self.settings = defaults;
                 Ok(())
             }

@@ -262,13 +262,9 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     img
 }
 
-/// The settings of a record image, checked (length, magic, CRC, version, values, validation).
-pub fn decode(bytes: &[u8]) -> Result<MachineSettings, RecordError> {
-    decode_for(bytes, &BoardLimits::GENERIC)
-}
-
-/// [`decode`], validating the settings for a board's limits.
-pub fn decode_for(bytes: &[u8], board: &BoardLimits) -> Result<MachineSettings, RecordError> {
+/// The settings of a record image, checked (length, magic, CRC, version, values, validation for
+/// `board`).
+pub fn decode(bytes: &[u8], board: &BoardLimits) -> Result<MachineSettings, RecordError> {
     let mut t = Take { b: bytes, pos: 0 };
     let magic: [u8; 4] = t.bytes().ok_or(RecordError::Truncated)?;
     let version = t.u16().ok_or(RecordError::Truncated)?;
@@ -299,7 +295,7 @@ pub fn decode_for(bytes: &[u8], board: &BoardLimits) -> Result<MachineSettings, 
     }
     let s = payload(&mut t).ok_or(RecordError::Truncated)?;
     let s = s.ok_or(RecordError::Value)?;
-    s.validate_for(board).map_err(RecordError::Invalid)?;
+    s.validate(board).map_err(RecordError::Invalid)?;
     Ok(s)
 }
 
@@ -422,24 +418,19 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     Some(build())
 }
 
-/// Reads the record at start-up: a valid record gives its settings (validated again); nothing
-/// stored or erased storage gives the defaults; anything else (truncated, corrupt, another
-/// version, invalid values) gives the defaults and [`LoadStatus::Refused`], which the caller
-/// reports as an alarm. Never writes: the next store replaces a refused record.
-pub fn load<S: SettingsStorage>(storage: &mut S) -> Loaded {
-    load_for(storage, &BoardLimits::GENERIC)
-}
-
-/// [`load`], validating the record's settings for a board's limits (a record another board
-/// accepted but this one cannot run is refused).
-pub fn load_for<S: SettingsStorage>(storage: &mut S, board: &BoardLimits) -> Loaded {
+/// Reads the record at start-up: a valid record gives its settings (validated again, for
+/// `board`: a record another board accepted but this one cannot run is refused); nothing stored
+/// or erased storage gives the defaults; anything else (truncated, corrupt, another version,
+/// invalid values) gives the defaults and [`LoadStatus::Refused`], which the caller reports as
+/// an alarm. Never writes: the next store replaces a refused record.
+pub fn load<S: SettingsStorage>(storage: &mut S, board: &BoardLimits) -> Loaded {
     let mut buf = [0u8; RECORD_LEN + 64];
     let status = match storage.load(&mut buf) {
         None => LoadStatus::Missing,
         Some(n) => match buf.get(..n) {
             None => LoadStatus::Refused(RecordError::Length),
             Some(img) if !img.is_empty() && img.iter().all(|&b| b == 0xFF) => LoadStatus::Missing,
-            Some(img) => match decode_for(img, board) {
+            Some(img) => match decode(img, board) {
                 Ok(settings) => {
                     return Loaded {
                         settings,
@@ -456,19 +447,14 @@ pub fn load_for<S: SettingsStorage>(storage: &mut S, board: &BoardLimits) -> Loa
     }
 }
 
-/// Validates and stores `s`: [`SetError::Invalid`] (nothing written) or [`SetError::Storage`]
-/// when the storage refused.
-pub fn store<S: SettingsStorage>(storage: &mut S, s: &MachineSettings) -> Result<(), SetError> {
-    store_for(storage, s, &BoardLimits::GENERIC)
-}
-
-/// [`store`], validating for a board's limits.
-pub fn store_for<S: SettingsStorage>(
+/// Validates `s` for `board` and stores it: [`SetError::Invalid`] (nothing written) or
+/// [`SetError::Storage`] when the storage refused.
+pub fn store<S: SettingsStorage>(
     storage: &mut S,
     s: &MachineSettings,
     board: &BoardLimits,
 ) -> Result<(), SetError> {
-    s.validate_for(board).map_err(SetError::Invalid)?;
+    s.validate(board).map_err(SetError::Invalid)?;
     if storage.store(&encode(s)) {
         Ok(())
     } else {
@@ -476,19 +462,10 @@ pub fn store_for<S: SettingsStorage>(
     }
 }
 
-/// `$N=value` made persistent: set on a copy, store the copy, and only then take it, so a refused
-/// value or a refused store (grbl error 7) changes neither the settings nor the record.
+/// `$N=value` made persistent, validated for `board`: set on a copy, store the copy, and only
+/// then take it, so a refused value or a refused store (grbl error 7) changes neither the
+/// settings nor the record.
 pub fn set_persistent<S: SettingsStorage>(
-    settings: &mut MachineSettings,
-    storage: &mut S,
-    number: u16,
-    value: Decimal,
-) -> Result<(), SetError> {
-    set_persistent_for(settings, storage, number, value, &BoardLimits::GENERIC)
-}
-
-/// [`set_persistent`], validated for a board's limits.
-pub fn set_persistent_for<S: SettingsStorage>(
     settings: &mut MachineSettings,
     storage: &mut S,
     number: u16,
@@ -496,8 +473,8 @@ pub fn set_persistent_for<S: SettingsStorage>(
     board: &BoardLimits,
 ) -> Result<(), SetError> {
     let mut new = *settings;
-    new.set_for(number, value, board)?;
-    store_for(storage, &new, board)?;
+    new.set(number, value, board)?;
+    store(storage, &new, board)?;
     *settings = new;
     Ok(())
 }

@@ -45,7 +45,7 @@ fn set(m: &mut MachineSettings, stmt: &str) -> Result<(), SetError> {
 #[test]
 fn defaults_list_in_grbl_units_and_line_by_line() {
     let m = MachineSettings::default();
-    assert_eq!(m.validate(), Ok(()));
+    assert_eq!(m.validate(&crate::settings::BoardLimits::GENERIC), Ok(()));
     assert_eq!(listing(&m), DEFAULT_LIST);
     let lines: Vec<String> = (0..TABLE.len())
         .map(|i| String::from(m.line(i).unwrap().as_str()))
@@ -132,7 +132,7 @@ fn ac_settings_take_their_units_and_signs() {
     let mut f = MachineSettings::default();
     let (n, v) = parse_assignment("$263=2").unwrap();
     let e = f
-        .set_for(
+        .set(
             n,
             v,
             &crate::settings::BoardLimits {
@@ -287,7 +287,7 @@ fn blu_change_keeps_the_mm_values() {
 #[test]
 fn acceleration_is_validated() {
     let mut s = Settings::default();
-    assert_eq!(s.validate(), Ok(()));
+    assert_eq!(s.validate(&crate::settings::BoardLimits::GENERIC), Ok(()));
     for (a, ok) in [
         (99, false),
         (100, true),
@@ -296,7 +296,11 @@ fn acceleration_is_validated() {
         (0, false),
     ] {
         s.accel_blu_s2 = [100_000, a, 100_000];
-        assert_eq!(s.validate().is_ok(), ok, "{a}");
+        assert_eq!(
+            s.validate(&crate::settings::BoardLimits::GENERIC).is_ok(),
+            ok,
+            "{a}"
+        );
         assert_eq!(ACCEL_RANGE.contains(&a), ok);
     }
 }
@@ -420,7 +424,7 @@ proptest! {
     /// Every `$$` line set back gives exactly the same settings (and is accepted).
     #[test]
     fn listing_sets_back_to_the_same_settings(s in arb_settings()) {
-        prop_assume!(s.validate().is_ok());
+        prop_assume!(s.validate(&crate::settings::BoardLimits::GENERIC).is_ok());
         let mut m = s;
         for l in lines(&s) {
             prop_assert_eq!(m.set_line(&l), Ok(()), "{}", l);
@@ -434,7 +438,7 @@ proptest! {
     /// pass, and the BLU converts the mm settings set before it, set again in the second pass.
     #[test]
     fn listing_restores_onto_the_defaults(s in arb_settings()) {
-        prop_assume!(s.validate().is_ok());
+        prop_assume!(s.validate(&crate::settings::BoardLimits::GENERIC).is_ok());
         let mut m = MachineSettings::default();
         for _ in 0..3 {
             for l in lines(&s) {
@@ -448,12 +452,12 @@ proptest! {
     /// The record round-trips, and a random bit flip in it is refused.
     #[test]
     fn record_round_trips_and_flips_are_refused(s in arb_settings(), bit in 0usize..RECORD_LEN * 8) {
-        prop_assume!(s.validate().is_ok());
+        prop_assume!(s.validate(&crate::settings::BoardLimits::GENERIC).is_ok());
         let img = record::encode(&s);
-        prop_assert_eq!(record::decode(&img), Ok(s));
+        prop_assert_eq!(record::decode(&img, &crate::settings::BoardLimits::GENERIC), Ok(s));
         let mut bad = img;
         bad[bit / 8] ^= 1 << (bit % 8);
-        prop_assert!(record::decode(&bad).is_err());
+        prop_assert!(record::decode(&bad, &crate::settings::BoardLimits::GENERIC).is_err());
     }
 }
 
@@ -472,7 +476,10 @@ fn record_of_the_defaults_is_stable() {
     let img = record::encode(&MachineSettings::default());
     assert_eq!(img.len(), RECORD_LEN);
     assert_eq!(hex(&img), DEFAULT_IMAGE);
-    assert_eq!(record::decode(&img), Ok(MachineSettings::default()));
+    assert_eq!(
+        record::decode(&img, &crate::settings::BoardLimits::GENERIC),
+        Ok(MachineSettings::default())
+    );
 }
 
 #[test]
@@ -481,7 +488,7 @@ fn every_single_bit_flip_is_refused() {
     for bit in 0..RECORD_LEN * 8 {
         let mut bad = img;
         bad[bit / 8] ^= 1 << (bit % 8);
-        let e = record::decode(&bad).unwrap_err();
+        let e = record::decode(&bad, &crate::settings::BoardLimits::GENERIC).unwrap_err();
         let want: &[RecordError] = match bit / 8 {
             0..4 => &[RecordError::Magic],
             4..6 => &[RecordError::Checksum],
@@ -497,14 +504,17 @@ fn every_truncation_and_extension_is_refused() {
     let img = record::encode(&MachineSettings::default());
     for n in 0..RECORD_LEN {
         assert_eq!(
-            record::decode(&img[..n]),
+            record::decode(&img[..n], &crate::settings::BoardLimits::GENERIC),
             Err(RecordError::Truncated),
             "{n} bytes"
         );
     }
     let mut long = img.to_vec();
     long.push(0);
-    assert_eq!(record::decode(&long), Err(RecordError::Length));
+    assert_eq!(
+        record::decode(&long, &crate::settings::BoardLimits::GENERIC),
+        Err(RecordError::Length)
+    );
 }
 
 /// Re-seals an image after an edit (a record with a valid CRC).
@@ -525,7 +535,7 @@ fn a_sealed_record_with_bad_values_is_refused() {
     };
     let img = record::encode(&bad);
     assert_eq!(
-        record::decode(&img),
+        record::decode(&img, &crate::settings::BoardLimits::GENERIC),
         Err(RecordError::Invalid(Invalid::Nc(
             crate::settings::SettingsError::FrameRate
         )))
@@ -538,17 +548,26 @@ fn a_sealed_record_with_bad_values_is_refused() {
         ..MachineSettings::default()
     };
     assert!(matches!(
-        record::decode(&record::encode(&nan)),
+        record::decode(
+            &record::encode(&nan),
+            &crate::settings::BoardLimits::GENERIC
+        ),
         Err(RecordError::Invalid(_))
     ));
     let mut img = record::encode(&MachineSettings::default());
     img[8] = 7; // BLU code
     reseal(&mut img);
-    assert_eq!(record::decode(&img), Err(RecordError::Value));
+    assert_eq!(
+        record::decode(&img, &crate::settings::BoardLimits::GENERIC),
+        Err(RecordError::Value)
+    );
     let mut img = record::encode(&MachineSettings::default());
     img[4] = 3; // version 3
     reseal(&mut img);
-    assert_eq!(record::decode(&img), Err(RecordError::Version(3)));
+    assert_eq!(
+        record::decode(&img, &crate::settings::BoardLimits::GENERIC),
+        Err(RecordError::Version(3))
+    );
 }
 
 /// A settings storage in memory (the host's test double of flash or EEPROM).
@@ -581,12 +600,12 @@ impl SettingsStorage for MemStorage {
 fn load_gives_defaults_with_or_without_an_alarm() {
     let d = MachineSettings::default();
     let mut st = MemStorage::default();
-    let l = record::load(&mut st);
+    let l = record::load(&mut st, &crate::settings::BoardLimits::GENERIC);
     assert_eq!((l.settings, l.status), (d, LoadStatus::Missing));
     assert!(!l.status.alarm());
     st.image = Some(std::vec![0xFF; RECORD_LEN]);
     assert_eq!(
-        record::load(&mut st).status,
+        record::load(&mut st, &crate::settings::BoardLimits::GENERIC).status,
         LoadStatus::Missing,
         "erased flash"
     );
@@ -602,7 +621,7 @@ fn load_gives_defaults_with_or_without_an_alarm() {
     ];
     for (image, e) in refused {
         st.image = Some(image);
-        let l = record::load(&mut st);
+        let l = record::load(&mut st, &crate::settings::BoardLimits::GENERIC);
         assert_eq!((l.settings, l.status), (d, LoadStatus::Refused(e)));
         assert!(l.status.alarm());
     }
@@ -615,20 +634,41 @@ fn persistent_sets_store_and_reload() {
     let mut m = MachineSettings::default();
     for stmt in ["$0=4", "$200=0.001", "$254=3500", "$13=1"] {
         let (n, v) = parse_assignment(stmt).unwrap();
-        record::set_persistent(&mut m, &mut st, n, v).unwrap();
+        record::set_persistent(
+            &mut m,
+            &mut st,
+            n,
+            v,
+            &crate::settings::BoardLimits::GENERIC,
+        )
+        .unwrap();
     }
     assert_eq!(st.stores, 4);
-    let l = record::load(&mut st);
+    let l = record::load(&mut st, &crate::settings::BoardLimits::GENERIC);
     assert_eq!((l.settings, l.status), (m, LoadStatus::Loaded));
     assert_eq!(listing(&l.settings), listing(&m));
     // A refused value stores nothing; a refused store changes nothing.
     let (n, v) = parse_assignment("$201=1").unwrap();
-    assert!(record::set_persistent(&mut m, &mut st, n, v).is_err());
+    assert!(record::set_persistent(
+        &mut m,
+        &mut st,
+        n,
+        v,
+        &crate::settings::BoardLimits::GENERIC
+    )
+    .is_err());
     assert_eq!(st.stores, 4);
     st.refuse = true;
     let before = (m, st.image.clone());
     let (n, v) = parse_assignment("$0=3").unwrap();
-    let e = record::set_persistent(&mut m, &mut st, n, v).unwrap_err();
+    let e = record::set_persistent(
+        &mut m,
+        &mut st,
+        n,
+        v,
+        &crate::settings::BoardLimits::GENERIC,
+    )
+    .unwrap_err();
     assert_eq!((e, e.code()), (SetError::Storage, 7));
     assert_eq!((m, st.image.clone()), before);
     // Invalid settings are never stored.
@@ -641,7 +681,7 @@ fn persistent_sets_store_and_reload() {
         ..m
     };
     assert_eq!(
-        record::store(&mut st, &bad),
+        record::store(&mut st, &bad, &crate::settings::BoardLimits::GENERIC),
         Err(SetError::Invalid(Invalid::Range))
     );
     assert_eq!(st.stores, 4);
@@ -676,17 +716,21 @@ fn over_the_protocol(table: &mut Persistent<MemStorage>, line: &str) -> String {
 /// with the refusal for the alarm.
 #[test]
 fn the_persistent_table_stores_each_set_before_its_ok() {
-    let (mut t, status) = Persistent::load(MemStorage::default());
+    let (mut t, status) =
+        Persistent::load(MemStorage::default(), crate::settings::BoardLimits::GENERIC);
     assert_eq!(
         (t.settings, status),
         (MachineSettings::default(), LoadStatus::Missing)
     );
     assert_eq!(over_the_protocol(&mut t, "$0=7"), "ok\r\n");
     assert_eq!(t.storage.stores, 1);
-    let (back, status) = Persistent::load(MemStorage {
-        image: t.storage.image.clone(),
-        ..MemStorage::default()
-    });
+    let (back, status) = Persistent::load(
+        MemStorage {
+            image: t.storage.image.clone(),
+            ..MemStorage::default()
+        },
+        crate::settings::BoardLimits::GENERIC,
+    );
     assert_eq!(status, LoadStatus::Loaded);
     assert_eq!(back.settings.nc.pulse_width_ns, 7000);
     assert_eq!(back.settings, t.settings);
@@ -702,14 +746,20 @@ fn the_persistent_table_stores_each_set_before_its_ok() {
     assert_eq!(over_the_protocol(&mut t, "$RST=$"), "ok\r\n");
     assert_eq!(t.settings, MachineSettings::default());
     let stored = t.storage.image.clone().unwrap();
-    assert_eq!(record::decode(&stored), Ok(MachineSettings::default()));
+    assert_eq!(
+        record::decode(&stored, &crate::settings::BoardLimits::GENERIC),
+        Ok(MachineSettings::default())
+    );
     // One flipped byte: the defaults, refused for its checksum.
     let mut bad = stored;
     bad[20] ^= 0x01;
-    let (t, status) = Persistent::load(MemStorage {
-        image: Some(bad),
-        ..MemStorage::default()
-    });
+    let (t, status) = Persistent::load(
+        MemStorage {
+            image: Some(bad),
+            ..MemStorage::default()
+        },
+        crate::settings::BoardLimits::GENERIC,
+    );
     assert_eq!(status, LoadStatus::Refused(RecordError::Checksum));
     assert_eq!(t.settings, MachineSettings::default());
 }
@@ -729,7 +779,7 @@ fn a_board_table_validates_sets_and_loads_for_its_limits() {
         pulse_end_ns: 400,
         plan_ratio: true,
     };
-    let (mut t, status) = Persistent::load_for(MemStorage::default(), fast);
+    let (mut t, status) = Persistent::load(MemStorage::default(), fast);
     assert_eq!(status, LoadStatus::Missing);
     // 2 us pulse, 2 us sign setup, rapid and W0 at 200 kHz (the rapid rate first: W0 <= rapid).
     for stmt in ["$0=2", "$207=2", "$110=30480", "$201=200000"] {
@@ -746,16 +796,16 @@ fn a_board_table_validates_sets_and_loads_for_its_limits() {
     assert!(generic.set_line("$201=200000").is_err());
     let mut st = t.storage;
     assert_eq!(
-        record::load_for(&mut st, &fast).status,
+        record::load(&mut st, &fast).status,
         LoadStatus::Loaded,
         "the board loads its record"
     );
     assert!(matches!(
-        record::load(&mut st).status,
+        record::load(&mut st, &crate::settings::BoardLimits::GENERIC).status,
         LoadStatus::Refused(RecordError::Invalid(_))
     ));
     // Above the board's own maximum: refused, nothing stored.
-    let (mut t, _) = Persistent::load_for(st, fast);
+    let (mut t, _) = Persistent::load(st, fast);
     let stores = t.storage.stores;
     let (n, v) = parse_assignment("$201=260000").unwrap();
     assert!(t.set(n, v).is_err());
