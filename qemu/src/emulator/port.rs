@@ -11,7 +11,9 @@
 //! - greets a client with the grbl banner (`millac::protocol::report::write_banner`, the text the
 //!   firmware sends after a reset), at the start of a line of the firmware's output: senders that
 //!   do not reset on open (bCNC, CNCjs) see a grbl, and the machine is not reset by a connection;
-//! - forwards the client's bytes line by line ([`LineGate`]): realtime bytes
+//! - forwards the client's bytes once the firmware has said its banner (its UART set up; a
+//!   sender that writes at once on connect, while QEMU still boots, loses nothing) and line by
+//!   line ([`LineGate`]): realtime bytes
 //!   (`millac::protocol::rx::byte::is_realtime`) at once, the bytes of a line when its line end
 //!   (CR or LF) comes. A line the client has not finished when it disconnects is dropped with it
 //!   and never reaches the firmware, as if the port had been reopened: the next client's first
@@ -132,6 +134,11 @@ struct State {
     report: Option<String>,
     /// QEMU's end of the UART closed (or never connected).
     uart_closed: bool,
+    /// The firmware has said its banner: its UART is set up and takes bytes. Until then a
+    /// client's bytes wait (a byte QEMU's UART took before the firmware enabled its FIFO was
+    /// lost with the FIFO's reset: the first byte of a sender's first line, when QEMU booted
+    /// slowly).
+    ready: bool,
     clients: u64,
     refused: u64,
 }
@@ -382,6 +389,8 @@ fn note(st: &mut State, line: &str) {
         st.alarm = Some(format!("AC hold: {m}"));
     } else if line == "[MSG:Caution: Unlocked]" {
         st.alarm = None;
+    } else if line.starts_with("Grbl ") {
+        st.ready = true;
     }
 }
 
@@ -486,9 +495,11 @@ fn refuse(mut stream: TcpStream) {
 fn to_uart(s: &Shared, bytes: &[u8]) -> bool {
     let mut st = lock(&s.state);
     loop {
-        if let Some(u) = lock(&s.uart_tx).as_mut() {
-            drop(st);
-            return u.write_all(bytes).is_ok();
+        if st.ready {
+            if let Some(u) = lock(&s.uart_tx).as_mut() {
+                drop(st);
+                return u.write_all(bytes).is_ok();
+            }
         }
         if st.uart_closed || s.closing.load(Ordering::SeqCst) {
             return false;
@@ -536,6 +547,38 @@ fn client_loop(s: &Shared, id: u64, mut stream: TcpStream) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A client's bytes wait until the firmware has said its banner, then reach the UART whole
+    /// (before, a sender that wrote while QEMU booted lost its first byte).
+    #[test]
+    fn a_clients_bytes_wait_for_the_firmwares_banner() {
+        let (ours, mut theirs) = UnixStream::pair().unwrap();
+        let s = Arc::new(Shared {
+            state: Mutex::new(State::default()),
+            changed: Condvar::new(),
+            uart_tx: Mutex::new(Some(ours)),
+            closing: AtomicBool::new(false),
+        });
+        let writer = {
+            let s = s.clone();
+            std::thread::spawn(move || to_uart(&s, b"G20 G91\n"))
+        };
+        theirs.set_nonblocking(true).unwrap();
+        std::thread::sleep(Duration::from_millis(300));
+        let mut buf = [0u8; 64];
+        assert!(
+            theirs.read(&mut buf).is_err(),
+            "bytes reached the UART before the banner"
+        );
+        let mut banner = String::new();
+        millac::protocol::report::write_banner(&mut banner).unwrap();
+        output(&mut lock(&s.state), banner.as_bytes());
+        s.changed.notify_all();
+        assert!(writer.join().unwrap());
+        theirs.set_nonblocking(false).unwrap();
+        let n = theirs.read(&mut buf).unwrap();
+        assert_eq!(&buf[..n], b"G20 G91\n");
+    }
 
     fn through(chunks: &[&[u8]]) -> (Vec<u8>, Vec<u8>) {
         let mut g = LineGate::default();
