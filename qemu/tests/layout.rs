@@ -75,6 +75,10 @@ fn sibling_uses(module: &str, text: &str, modules: &BTreeSet<String>) -> BTreeSe
     };
     for (i, _) in text.match_indices("super::") {
         let name = ident(&text[i + 7..]);
+        // `super::{a, b}`: the list is read below.
+        if name.is_empty() {
+            continue;
+        }
         let m = if parent.is_empty() {
             name
         } else {
@@ -89,6 +93,10 @@ fn sibling_uses(module: &str, text: &str, modules: &BTreeSet<String>) -> BTreeSe
     };
     for (i, _) in text.match_indices(&prefix) {
         let name = ident(&text[i + prefix.len()..]);
+        // `crate::{a, b}`: the list is read below (not a use of the crate root).
+        if name.is_empty() {
+            continue;
+        }
         let m = if parent.is_empty() {
             name
         } else {
@@ -196,4 +204,8 @@ fn circles_are_found() {
         &modules,
     );
     assert_eq!(uses, set(&["nc::block", "nc::operator"]));
+    // A crate root's module naming its siblings in braces uses them, not the root.
+    let root = set(&["", "program", "results", "semihost"]);
+    let uses = sibling_uses("program", "use crate::{results, semihost};", &root);
+    assert_eq!(uses, set(&["results", "semihost"]));
 }

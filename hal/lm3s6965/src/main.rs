@@ -66,25 +66,13 @@ mod program;
 mod results;
 mod semihost;
 mod session;
+mod shared;
 mod simadc;
 mod storage;
 mod uart;
 mod voice;
 
-use millac::rt::Status;
 use voice::{exit, text};
-
-/// The status words between the contexts (all zero at reset but `idle`).
-static STATUS: Status = Status::new();
-
-/// The loader runs in serial mode: an operator can resume an AC hold, so a long hold does not end
-/// the session. Written once by the loader.
-static SERIAL: AtomicBool = AtomicBool::new(false);
-
-/// Queue slots (a heapless spsc queue holds one less: 15 blocks).
-const QUEUE: usize = 16;
-/// The loader's record of queued blocks: the queue and room for nested chatter detours.
-const RECORD: usize = millac::rt::replan::record_len(QUEUE);
 
 /// Set by the first panic: a panic inside the panic handler (the logger taken where the first
 /// panic struck) only exits.
@@ -133,9 +121,9 @@ mod app {
     use millac::wire::FLAG_AC_ENABLED;
     use millac::Settings;
 
-    use super::{QUEUE, RECORD, SERIAL, STATUS};
     use crate::program::held_exit;
     use crate::results;
+    use crate::shared::{QUEUE, RECORD, SERIAL, STATUS};
     use crate::voice::{error, fail, text};
 
     /// The board this binary drives (a unit struct: its ports are `&mut B`).

@@ -14,8 +14,9 @@ use millac::protocol::settings::record::RecordError;
 use millac::rt::replan::{self, Replan};
 use millac::Settings;
 
+use crate::shared::{QUEUE, RECORD, STATUS};
 use crate::voice::{exit, log_error, report, text, Text};
-use crate::{results, semihost, QUEUE, RECORD, STATUS};
+use crate::{results, semihost};
 
 /// Semihosting read size.
 const CHUNK: usize = 256;
