@@ -121,13 +121,7 @@ impl Lm3s6965 {
 
         // Frame timer: 32-bit periodic, interrupt on time-out, started (the interrupt is taken
         // once init returns and RTIC unmasks it).
-        write(TIMER0 + GPTM_CTL, 0);
-        write(TIMER0 + GPTM_CFG, CFG_32BIT);
-        write(TIMER0 + GPTM_TAMR, TAMR_PERIODIC);
-        write(TIMER0 + GPTM_TAILR, frame_reload);
-        write(TIMER0 + GPTM_ICR, TATO);
-        write(TIMER0 + GPTM_IMR, TATO);
-        write(TIMER0 + GPTM_CTL, CTL_TAEN);
+        start_periodic(TIMER0, frame_reload);
     }
 }
 
@@ -189,13 +183,19 @@ impl StepPort for Lm3s6965 {
 pub fn sample_timer_start(reload: u32) {
     set_bits(SYSCTL_RCGC1, RCGC1_TIMER2);
     let _ = read(SYSCTL_RCGC1);
-    write(TIMER2 + GPTM_CTL, 0);
-    write(TIMER2 + GPTM_CFG, CFG_32BIT);
-    write(TIMER2 + GPTM_TAMR, TAMR_PERIODIC);
-    write(TIMER2 + GPTM_TAILR, reload);
-    write(TIMER2 + GPTM_ICR, TATO);
-    write(TIMER2 + GPTM_IMR, TATO);
-    write(TIMER2 + GPTM_CTL, CTL_TAEN);
+    start_periodic(TIMER2, reload);
+}
+
+/// Starts the timer at `base` as a 32-bit periodic timer of `reload` clocks with its time-out
+/// interrupt on (the frame timer and the sample clock). Init context.
+fn start_periodic(base: usize, reload: u32) {
+    write(base + GPTM_CTL, 0);
+    write(base + GPTM_CFG, CFG_32BIT);
+    write(base + GPTM_TAMR, TAMR_PERIODIC);
+    write(base + GPTM_TAILR, reload);
+    write(base + GPTM_ICR, TATO);
+    write(base + GPTM_IMR, TATO);
+    write(base + GPTM_CTL, CTL_TAEN);
 }
 
 /// Timer 2, the sample clock of the simulated ADC. Sampler task.
