@@ -34,6 +34,8 @@ pub struct Lines {
     skipping: bool,
     /// The last byte was a `\r`: a `\n` right after it belongs to the same line end (CRLF).
     after_cr: bool,
+    /// The length of the last line ended (its text stays in `buf` until the next byte).
+    last: usize,
 }
 
 impl Default for Lines {
@@ -50,6 +52,7 @@ impl Lines {
             line_no: 0,
             skipping: false,
             after_cr: false,
+            last: 0,
         }
     }
 
@@ -65,28 +68,8 @@ impl Lines {
         mut sink: impl FnMut(u32, Result<&str, LineError>) -> bool,
     ) -> bool {
         for &b in bytes {
-            let crlf = self.after_cr && b == b'\n';
-            self.after_cr = b == b'\r';
-            if crlf {
-                // The `\n` of a CRLF: the `\r` already ended the line.
-            } else if b == b'\n' || b == b'\r' {
-                if self.skipping {
-                    self.skipping = false;
-                    self.len = 0;
-                } else if !self.emit(&mut sink) {
-                    return false;
-                }
-            } else if self.skipping {
-                // Rest of an over-long line: already reported.
-            } else if let Some(slot) = self.buf.get_mut(self.len) {
-                *slot = b;
-                self.len += 1;
-            } else {
-                // Report at once: no need to read the rest of a runaway line first.
-                self.skipping = true;
-                self.len = 0;
-                self.line_no = self.line_no.saturating_add(1);
-                if !sink(self.line_no, Err(LineError::TooLong)) {
+            if let Some(ended) = self.push(b) {
+                if !sink(ended.no, ended.error.map_or_else(|| Ok(self.text()), Err)) {
                     return false;
                 }
             }
@@ -96,22 +79,91 @@ impl Lines {
 
     /// End of the tape: hands over a last line that had no newline.
     pub fn finish(&mut self, mut sink: impl FnMut(u32, Result<&str, LineError>) -> bool) -> bool {
-        if self.len == 0 || self.skipping {
-            return true;
+        match self.end() {
+            Some(ended) => sink(ended.no, ended.error.map_or_else(|| Ok(self.text()), Err)),
+            None => true,
         }
-        self.emit(&mut sink)
     }
 
-    fn emit(&mut self, sink: &mut impl FnMut(u32, Result<&str, LineError>) -> bool) -> bool {
-        self.line_no = self.line_no.saturating_add(1);
-        let n = self.len;
-        self.len = 0;
-        let text = match self.buf.get(..n) {
-            Some(t) => core::str::from_utf8(t).map_err(|_| LineError::NotUtf8),
-            None => Err(LineError::TooLong),
-        };
-        sink(self.line_no, text)
+    /// Takes one byte of the tape; returns the line it ended, if it ended one (its text is then
+    /// [`Lines::text`] until the next byte). A line too long is refused at once, at its 257th
+    /// byte; the rest of it is skipped.
+    pub fn push(&mut self, b: u8) -> Option<Ended> {
+        let crlf = self.after_cr && b == b'\n';
+        self.after_cr = b == b'\r';
+        if crlf {
+            // The `\n` of a CRLF: the `\r` already ended the line.
+            None
+        } else if b == b'\n' || b == b'\r' {
+            if self.skipping {
+                self.skipping = false;
+                self.len = 0;
+                None
+            } else {
+                Some(self.take())
+            }
+        } else if self.skipping {
+            // Rest of an over-long line: already reported.
+            None
+        } else if let Some(slot) = self.buf.get_mut(self.len) {
+            *slot = b;
+            self.len += 1;
+            self.last = 0;
+            None
+        } else {
+            // Report at once: no need to read the rest of a runaway line first.
+            self.skipping = true;
+            self.len = 0;
+            self.last = 0;
+            self.line_no = self.line_no.saturating_add(1);
+            Some(Ended {
+                no: self.line_no,
+                error: Some(LineError::TooLong),
+            })
+        }
     }
+
+    /// End of the tape: the last line, if it had no newline.
+    pub fn end(&mut self) -> Option<Ended> {
+        if self.len == 0 || self.skipping {
+            return None;
+        }
+        Some(self.take())
+    }
+
+    /// The text of the line [`Lines::push`] or [`Lines::end`] returned last (empty after a
+    /// refused one).
+    pub fn text(&self) -> &str {
+        self.buf
+            .get(..self.last)
+            .and_then(|t| core::str::from_utf8(t).ok())
+            .unwrap_or("")
+    }
+
+    fn take(&mut self) -> Ended {
+        self.line_no = self.line_no.saturating_add(1);
+        self.last = self.len;
+        self.len = 0;
+        let utf8 = self
+            .buf
+            .get(..self.last)
+            .is_some_and(|t| core::str::from_utf8(t).is_ok());
+        if !utf8 {
+            self.last = 0;
+        }
+        Ended {
+            no: self.line_no,
+            error: (!utf8).then_some(LineError::NotUtf8),
+        }
+    }
+}
+
+/// A line [`Lines::push`] ended: its number, and why it was refused (None: its text is
+/// [`Lines::text`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Ended {
+    pub no: u32,
+    pub error: Option<LineError>,
 }
 
 // Host tests run with `cargo test -p millac`.

@@ -148,6 +148,9 @@ pub enum Event<'a> {
     /// Also right after an [`Event::Reset`] whose marker did not fit, for the bytes refused after
     /// the reset (the new session's first line lost its start).
     RxOverflow { lost: u32 },
+    /// The line source has no more lines. Never from the protocol (a serial line does not end):
+    /// a program file's console says it (`crate::rt::program`).
+    End,
 }
 
 /// The loader's side of the protocol.

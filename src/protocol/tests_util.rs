@@ -121,6 +121,7 @@ impl Rig {
             Event::Unlock => Ev::Unlock,
             Event::CheckMode(c) => Ev::CheckMode(c),
             Event::RxOverflow { lost } => Ev::Overflow(lost),
+            Event::End => unreachable!("the protocol's lines do not end"),
         };
         match &ev {
             Ev::Gcode(line, _) => {

@@ -33,7 +33,7 @@ pub const VERDICT_QUEUE: usize = 4;
 /// One sample's sound codes (the microphone's, since the previous sample).
 pub type Sound = [u16; SOUND_PER_SAMPLE];
 
-/// Alarm queue slots from the AC task to the serial loader (holds one less; an alarm that does not
+/// Alarm queue slots from the AC task to the loader (holds one less; an alarm that does not
 /// fit is still in ac.log and in the AC state word).
 pub const ALARM_QUEUE: usize = 4;
 
@@ -298,7 +298,7 @@ impl<W: LogSink> AcTask<W> {
         let _ = line.emit(&mut text);
         self.log.write(text.as_bytes());
         if let Some(a) = p.out.alarm {
-            // For the serial loader's `[MSG:...]`; nobody reads it in batch mode.
+            // For the loader: a serial line's `[MSG:...]` (a program run's `alarm:` line is the app's AC task's).
             let _ = self.alarms.enqueue(a);
         }
         Period {

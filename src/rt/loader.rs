@@ -1,15 +1,17 @@
-//! The loader in serial mode (idle task of every board; host tests): G-code streamed by a sender
-//! over the board's serial line (the QEMU board's UART0 instead of its semihosting program file,
-//! the Nucleo's USART2), through the grbl 1.1 protocol core (`crate::protocol`), over a board's
-//! [`LoaderBoard`]: the banner,
-//! one `ok` or `error:N` per line (grbl's numbers), `$` commands and settings (`$$`; `$N=value`
-//! stored at once through the settings storage, effective at the next start for the NC and AC
-//! settings), `?` status reports, `$C` check mode, `$X`. Each G-code line runs
-//! through the tape (`Tape::line`: an error refuses that line only) into the block queue; the
-//! look-ahead's held block runs as soon as no next line has come and the machine would otherwise
-//! stop. The RX interrupt (the app's serial task) pushes every byte into the protocol's ring
-//! (`RxIsr::push_byte`), which takes the realtime bytes out at once.
-//!
+//! The loader (idle task of every board; host tests): the one state machine between a line
+//! source and the block queue, in both modes. Its [`Console`] (`crate::rt::console`) gives the
+//! lines and words the answers: [`crate::rt::console::Serial`], G-code streamed by a sender over
+//! the board's serial line (the QEMU board's UART0, the Nucleo's USART2) through the grbl 1.1
+//! protocol core (`crate::protocol`): the banner, one `ok` or `error:N` per line (grbl's numbers),
+//! `$` commands and settings (`$$`; `$N=value` stored at once through the settings storage,
+//! effective at the next start for the NC and AC settings), `?` status reports, `$C` check mode,
+//! `$X`; or [`crate::rt::program::Program`], a program file run unattended (the QEMU board's
+//! `program.nc`: its first refused line ends the reading, its end ends the run once everything
+//! has run, see [`Finished`]). Each G-code line runs through the tape (`Tape::line`: an error
+//! refuses that line only) into the block queue; the look-ahead's held block runs as soon as no
+//! next line has come and the machine would otherwise stop. The RX interrupt (the app's serial
+//! task) pushes every byte into the protocol's ring (`RxIsr::push_byte`), which takes the
+//! realtime bytes out at once.//!
 //! `$J=` jogs run as their own block (no look-ahead, no AC ceiling); the parser then stands at the
 //! jog's end with its modes unchanged; the state is `Jog` until the machine is idle.
 //!
@@ -33,21 +35,22 @@
 //! to [`Loader::step`] as a [`Step`]: one match arm per event.
 //!
 //! The loader never blocks: while the block queue has no room for a line's blocks it polls the
-//! realtime requests only (`Protocol::poll_realtime`), so `?`, `!`, `~` and a reset are served at
+//! realtime requests only (`Console::poll` without room: `Protocol::poll_realtime`), so `?`, `!`, `~` and a reset are served at
 //! once whatever the queue holds, and a hold with a full queue cannot stall it.
 use core::sync::atomic::Ordering::Relaxed;
 
 use crate::ac::AcSettings;
 use crate::ac::{Alarm, FeedCeiling};
-use crate::gcode::tape::{finish_block, Tape};
+use crate::gcode::tape::{finish_block, Tape, TapeError};
 use crate::nc::{operator, Block, FrameConfig, Motion};
 use crate::ports::SettingsStorage;
 use crate::protocol::codes::{ac_alarm, alarm, GrblError};
 use crate::protocol::report::{feed_blu_per_min, AcReport, AcState, State, StatusData};
 use crate::protocol::rx::{Overrides, Pending};
 use crate::protocol::settings::Persistent;
-use crate::protocol::{Context, Event, Protocol, SettingsTable};
+use crate::protocol::{Context, Event, SettingsTable};
 use crate::rt::ac::AC_RUN;
+use crate::rt::console::{trip_alarm, Console, News, Refused};
 use crate::rt::replan::{self, Replan};
 use crate::rt::Status;
 use crate::settings::Settings;
@@ -62,14 +65,11 @@ use crate::protocol::LINE_MAX;
 /// line's own (a line emits at most two blocks).
 const ROOM_PER_LINE: usize = 2;
 
-/// What the loader needs of a board: its serial line, and optionally a session log, a spindle
-/// output and operator inputs (the defaults: none). Loader task.
+/// What the loader needs of a board: its serial line (in serial mode), and optionally a session
+/// log, a spindle output and operator inputs (the defaults: none). Loader task.
 pub trait LoaderBoard {
     /// Sets up the serial line (115200 8N1, receive interrupts on) before the banner.
     fn start(&mut self);
-    /// Pends the serial interrupt so that it moves queued bytes out (the writer calls it after
-    /// queueing, and while the transmit queue is full). Must not block.
-    fn kick();
 
     /// The session log (the QEMU board writes `serve.nc`, see `session`): every accepted G-code
     /// line, in the order the loader fed its tape.
@@ -128,50 +128,6 @@ pub trait LoaderBoard {
     }
 }
 
-/// The writer's end of the transmit queue. Loader task.
-pub struct Tx<'a, const N: usize, B: LoaderBoard> {
-    queue: &'a mut Producer<'static, u8, N>,
-    board: core::marker::PhantomData<B>,
-}
-
-impl<'a, const N: usize, B: LoaderBoard> Tx<'a, N, B> {
-    pub fn new(queue: &'a mut Producer<'static, u8, N>) -> Self {
-        Tx {
-            queue,
-            board: core::marker::PhantomData,
-        }
-    }
-
-    /// Queues `bytes`, waiting while the queue is full (the serial interrupt drains it), and kicks
-    /// the serial interrupt so that it starts sending. Loader task.
-    pub fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            while self.queue.enqueue(b).is_err() {
-                B::kick();
-                core::hint::spin_loop();
-            }
-        }
-        B::kick();
-    }
-}
-
-impl<const N: usize, B: LoaderBoard> core::fmt::Write for Tx<'_, N, B> {
-    /// Queues the text (for `write!`).
-    fn write_str(&mut self, s: &str) -> core::fmt::Result {
-        self.write(s.as_bytes());
-        Ok(())
-    }
-}
-
-/// The alarm an input trip raises: the e-stop grblHAL's 10, a limit switch grbl's 1 (hard limit).
-fn trip_alarm(t: &Trip) -> u8 {
-    if t.estop {
-        alarm::ESTOP
-    } else {
-        alarm::HARD_LIMIT
-    }
-}
-
 /// A line that waits for the machine to stop: one that changes the spindle (see
 /// [`LoaderBoard::SPINDLE`]) or ends the program (M2/M30, as grbl syncs its buffer there).
 struct Deferred {
@@ -188,20 +144,12 @@ struct Deferred {
 /// record, the settings table (loaded, and started the frame with) and its storage, an enabled
 /// AC's feed ceiling (None: no AC, or a measure-only one), the protocol and the transmit queue,
 /// the AC task's holds, the status words.
-pub struct Parts<
-    'r,
-    const Q: usize,
-    const T: usize,
-    const A: usize,
-    const R: usize,
-    S: SettingsStorage,
-> {
+pub struct Parts<'r, const Q: usize, const A: usize, const R: usize, S: SettingsStorage> {
     pub blocks: &'r mut Producer<'static, Block, Q>,
     pub replan: &'r mut Replan<R>,
     pub table: &'r mut Persistent<S>,
     pub ceiling: Option<FeedCeiling>,
-    pub proto: &'r mut Protocol<'static>,
-    pub tx: &'r mut Producer<'static, u8, T>,
+    pub console: &'r mut dyn Console,
     pub ac_alarms: &'r mut Consumer<'static, Alarm, A>,
     pub status: &'r Status,
 }
@@ -243,14 +191,16 @@ pub enum Step<'l> {
     /// Nothing came from the line source (`room`: it may have taken a line, and `idle`: the
     /// machine stands): the look-ahead's held block runs.
     NoLine { room: bool, idle: bool },
+    /// The line source has no more lines (a program file's end, or its first refused line): the
+    /// look-ahead's held block runs, and the run ends once the machine stands.
+    End,
 }
 
-/// The loader in serial mode: the state it keeps between turns, and the parts it works on. Loader
+/// The loader: the state it keeps between turns, and the parts it works on. Loader
 /// task (the idle loop); [`run`] turns it while the board runs.
 pub struct Loader<
     'r,
     const Q: usize,
-    const T: usize,
     const A: usize,
     const R: usize,
     S: SettingsStorage,
@@ -259,8 +209,7 @@ pub struct Loader<
     blocks: &'r mut Producer<'static, Block, Q>,
     replan: &'r mut Replan<R>,
     table: &'r mut Persistent<S>,
-    proto: &'r mut Protocol<'static>,
-    out: Tx<'r, T, B>,
+    console: &'r mut dyn Console,
     ac_alarms: &'r mut Consumer<'static, Alarm, A>,
     status: &'r Status,
     board: &'r mut B,
@@ -268,7 +217,6 @@ pub struct Loader<
     /// (and `$$` lists) at once takes effect for the NC settings at the next start.
     settings: Settings,
     cfg: FrameConfig,
-    mm_per_blu: f32,
     /// The AC's limits F0, T0 for the `AC:` field, as the AC task started with them.
     ac_settings: AcSettings,
     /// The AC caps the feed (the boards give the ceiling only then): the status report's `AC:`
@@ -298,6 +246,17 @@ pub struct Loader<
     ac_hold_published: bool,
     /// This turn's view of the machine, taken before the line source is polled.
     now: Now,
+    /// The console has no more lines ([`Event::End`]).
+    ended: bool,
+}
+
+/// How a loader's run ended (a console that ends: a program file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Finished {
+    /// Every line has run: the machine stands idle.
+    Done,
+    /// The machine holds (unattended: a frame overrun) and stands.
+    Held,
 }
 
 /// The machine as a turn of the loader sees it.
@@ -311,46 +270,48 @@ struct Now {
     ac_held: bool,
 }
 
-/// Loader task: runs while [`LoaderBoard::running`] (on a board: for ever; the operator ends the
-/// session by resetting the machine).
+/// Loader task: runs while [`LoaderBoard::running`] and until the console's lines have all run
+/// (a serial line's never end: the operator ends the session by resetting the machine), or an
+/// unattended run holds. None: the board stopped it.
 pub fn run<
+    'r,
     const Q: usize,
-    const T: usize,
     const A: usize,
     const R: usize,
     S: SettingsStorage,
     B: LoaderBoard,
 >(
-    parts: Parts<'_, Q, T, A, R, S>,
-    board: &mut B,
-) {
+    parts: Parts<'r, Q, A, R, S>,
+    board: &'r mut B,
+) -> Option<Finished> {
     let mut loader = Loader::new(parts, board);
     while loader.board.running() {
         loader.turn();
+        if let Some(f) = loader.finished() {
+            return Some(f);
+        }
     }
+    None
 }
 
-impl<'r, const Q: usize, const T: usize, const A: usize, const R: usize, S, B>
-    Loader<'r, Q, T, A, R, S, B>
+impl<'r, const Q: usize, const A: usize, const R: usize, S, B> Loader<'r, Q, A, R, S, B>
 where
     S: SettingsStorage,
     B: LoaderBoard,
 {
     /// Starts the serial line and says the banner.
-    pub fn new(parts: Parts<'r, Q, T, A, R, S>, board: &'r mut B) -> Self {
+    pub fn new(parts: Parts<'r, Q, A, R, S>, board: &'r mut B) -> Self {
         let Parts {
             blocks,
             replan,
             table,
             ceiling,
-            proto,
-            tx,
+            console,
             ac_alarms,
             status,
         } = parts;
         board.start();
-        let mut out = Tx::<T, B>::new(tx);
-        proto.start(&mut out);
+        console.start();
         let settings = table.settings.nc;
         let ac_enabled = ceiling.is_some();
         if !ac_enabled {
@@ -360,24 +321,18 @@ where
             Some(c) => Tape::with_ac_ceiling(settings, c),
             None => Tape::new(settings),
         };
-        let mm_per_blu = {
-            let (num, den) = settings.blu.per_mm();
-            den as f32 / num as f32
-        };
-        let overrides = proto.overrides();
+        let overrides = console.overrides();
         let loader = Loader {
             blocks,
             replan,
             ac_settings: table.settings.ac,
             table,
-            proto,
-            out,
+            console,
             ac_alarms,
             status,
             board,
             settings,
             cfg: FrameConfig::from_settings(&settings),
-            mm_per_blu,
             ac_enabled,
             tape,
             line_no: 0,
@@ -397,6 +352,7 @@ where
                 state: State::Idle,
                 ac_held: false,
             },
+            ended: false,
         };
         loader.publish();
         loader
@@ -413,6 +369,26 @@ where
             ),
             Relaxed,
         );
+    }
+
+    /// Whether the run has ended: the console has no more lines and everything it gave has run
+    /// (the machine idle, nothing held or waiting), or, unattended, the machine holds and stands.
+    pub fn finished(&self) -> Option<Finished> {
+        let status = self.status;
+        if self.ended
+            && self.deferred.is_none()
+            && !self.tape.holds_a_block()
+            && self.blocks.len() == 0
+            && status.idle.load(Relaxed)
+            && !self.replan.pending()
+            && !self.replan.aborting()
+        {
+            Some(Finished::Done)
+        } else if !self.console.attended() && self.hold && status.stopped() {
+            Some(Finished::Held)
+        } else {
+            None
+        }
     }
 
     /// One turn of the loader's loop: the news in order, each a [`Step`].
@@ -508,7 +484,7 @@ where
         // protocol answers it after the step).
         let mut line = heapless::String::<LINE_MAX>::new();
         let polled = {
-            let mut cx = Context {
+            let mut cx: Context<'_, dyn SettingsTable + '_> = Context {
                 table: &mut *self.table,
                 modes: self.tape.parser().modes(),
                 machine: &self.settings,
@@ -525,12 +501,7 @@ where
                     None
                 },
             };
-            let event = if room {
-                self.proto.poll(&mut self.out, &mut cx)
-            } else {
-                self.proto.poll_realtime(&mut self.out)
-            };
-            match event {
+            match self.console.poll(&mut cx, room) {
                 Event::None => Some(Step::NoLine { room, idle }),
                 Event::Gcode { line: l, check } => {
                     // At most LINE_MAX bytes: the protocol refuses longer lines.
@@ -545,6 +516,7 @@ where
                 Event::Reset => Some(Step::Reset { trip: None }),
                 Event::Unlock => Some(Step::Unlock),
                 Event::RxOverflow { lost } => Some(Step::RxOverflow { lost }),
+                Event::End => Some(Step::End),
                 Event::Replied | Event::CheckMode(_) => None,
             }
         };
@@ -569,7 +541,7 @@ where
                     self.publish();
                 }
                 // An alarm (a frame overrun, a trip) keeps the hold until `$X`.
-                if cycle_start && self.hold && self.proto.alarm_code().is_none() {
+                if cycle_start && self.hold && self.console.alarm_code().is_none() {
                     self.hold = false;
                     self.publish();
                 }
@@ -597,30 +569,19 @@ where
             Step::Realtime(p) => self.realtime(p),
             Step::Reset { trip } => self.reset(trip),
             Step::Unlock => self.unlock(),
-            Step::RxOverflow { lost } => self.proto.rx_overflow(lost, &mut self.out),
+            Step::RxOverflow { lost } => self.console.say(News::RxOverflow { lost }),
+            Step::End => {
+                self.ended = true;
+                self.run_held();
+            }
         }
     }
 
     /// Hold with `ALARM:111`.
-    fn frame_late(&mut self, long: Option<(u32, u32)>, n: u32) {
+    fn frame_late(&mut self, long: Option<(u32, u32)>, overruns: u32) {
         self.hold = true;
         self.publish();
-        let (proto, out) = (&mut *self.proto, &mut self.out);
-        proto.alarm(alarm::FRAME_OVERRUN, out);
-        match long {
-            Some((max, limit)) => proto.message(
-                out,
-                format_args!(
-                    "Frame ISR took {max} cycles, the board allows {limit}: lower $201 or $110"
-                ),
-            ),
-            None => proto.message(
-                out,
-                format_args!(
-                    "Frame overran its period ({n} frames so far, no pulse lost): lower $201 or $110"
-                ),
-            ),
-        }
+        self.console.say(News::FrameLate { long, overruns });
     }
 
     /// A tool breakage (the AC task's request): the spindle stops at once and stays off; the
@@ -632,8 +593,7 @@ where
             self.spindle = (Spindle::Off, 0);
             self.board
                 .spindle(Spindle::Off, 0, self.table.settings.spindle_max_rpm);
-            self.proto
-                .message(&mut self.out, format_args!("Spindle stopped"));
+            self.console.say(News::SpindleStopped);
         }
     }
 
@@ -641,48 +601,36 @@ where
     /// reaction set is answered (by the re-planner), not an alarm, unless the reaction is
     /// refused.
     fn ac_alarm(&mut self, a: Alarm) {
-        let (proto, out) = (&mut *self.proto, &mut self.out);
         if !self.ac_enabled {
             // A measure-only AC holds nothing: what it would have held for is told, and the
             // machine goes on unlocked (an alarm would refuse the sender's next line). The AC's
-            // controller entered its hold with the verdict: it resumes at once, so the next
-            // verdict is told too.
-            proto.message(out, format_args!("AC (measure only) would hold: {}", a));
-            self.status.ac_resume.store(true, Relaxed);
+            // controller entered its hold with the verdict: with an operator it resumes at once,
+            // so the next verdict is told too (unattended, its log keeps the hold).
+            self.console.say(News::AcHold {
+                alarm: &a,
+                lock: None,
+                measure_only: true,
+            });
+            if self.console.attended() {
+                self.status.ac_resume.store(true, Relaxed);
+            }
             return;
         }
-        proto.message(out, format_args!("AC hold: {}", a));
         let replanned = matches!(a, Alarm::Chatter { .. }) && self.replan.reacts();
-        if !matches!(a, Alarm::Overload { .. }) && !replanned {
-            proto.alarm(ac_alarm(&a), out);
-        }
+        let lock = (!matches!(a, Alarm::Overload { .. }) && !replanned).then(|| ac_alarm(&a));
+        self.console.say(News::AcHold {
+            alarm: &a,
+            lock,
+            measure_only: false,
+        });
     }
 
     /// Chatter suppression's news: the detour and the copies are queued, or the spindle turns at
     /// the lobe's speed, or the reaction is refused (`ALARM:109`).
     fn replanned(&mut self, event: replan::Event) {
-        let mm_per_blu = self.mm_per_blu;
-        let (proto, out) = (&mut *self.proto, &mut self.out);
         match event {
             replan::Event::None => {}
-            replan::Event::Replanned(r) => {
-                let mm = |blu: i32| blu as f32 * mm_per_blu;
-                proto.message(
-                    out,
-                    format_args!(
-                        "Chatter: depth reduced by {:.3} mm from X{:.3} Y{:.3} Z{:.3}, the rest \
-                         of line {} in two passes to X{:.3} Y{:.3} (re-plan {})",
-                        r.lift as f32 * mm_per_blu,
-                        mm(r.at[0]),
-                        mm(r.at[1]),
-                        mm(r.at[2]),
-                        r.line,
-                        mm(r.to[0]),
-                        mm(r.to[1]),
-                        r.count
-                    ),
-                );
-            }
+            replan::Event::Replanned(r) => self.console.say(News::Replanned(&r)),
             replan::Event::Speed(s) => {
                 // The spindle turns at the lobe's speed until the program commands another (in
                 // its state: a stopped spindle stays stopped; a simulated one turns anyway); the
@@ -691,22 +639,9 @@ where
                 self.board
                     .spindle(self.spindle.0, s.to, self.table.settings.spindle_max_rpm);
                 self.replan.speed_applied(self.status, s.to);
-                proto.message(
-                    out,
-                    format_args!(
-                        "Chatter: spindle speed S{} to S{} (chatter {} Hz, {} tooth periods per \
-                         chatter period) at line {} (change {})",
-                        s.from, s.to, s.chatter_hz, s.m, s.line, s.count
-                    ),
-                );
+                self.console.say(News::Speed(&s));
             }
-            replan::Event::Refused { why, .. } => {
-                proto.alarm(alarm::AC_CHATTER, out);
-                proto.message(
-                    out,
-                    format_args!("Chatter: not re-planned: {}", why.message()),
-                );
-            }
+            replan::Event::Refused { at, why } => self.console.say(News::NotReplanned { at, why }),
         }
     }
 
@@ -732,14 +667,18 @@ where
             }
         }
         let result = self.queue_line(d.no, &d.line);
-        if d.end && result.is_ok() {
+        let end = d.end && result.is_ok();
+        if end {
             self.status.ac_new_job.store(true, Relaxed);
         }
-        self.proto.reply(result, &mut self.out);
+        self.console.reply(result);
+        if end {
+            self.console.say(News::ProgramEnd);
+        }
     }
 
     /// Parses a line through the tape and queues its blocks (logged when accepted).
-    fn queue_line(&mut self, no: u32, line: &str) -> Result<(), GrblError> {
+    fn queue_line(&mut self, no: u32, line: &str) -> Result<(), Refused> {
         let (blocks, replan, status, last_feed) = (
             &mut *self.blocks,
             &mut *self.replan,
@@ -749,7 +688,7 @@ where
         let result = self
             .tape
             .line(no, line, |b| enqueue(blocks, replan, status, b, last_feed))
-            .map_err(GrblError::from);
+            .map_err(Refused::Tape);
         if result.is_ok() {
             self.board.log_gcode(line);
         }
@@ -767,8 +706,8 @@ where
             let result = probe
                 .line(line_no, line)
                 .map(|_| ())
-                .map_err(GrblError::from);
-            self.proto.reply(result, &mut self.out);
+                .map_err(|e| Refused::Tape(TapeError::Gcode(e)));
+            self.console.reply(result);
         } else if let Some((state, rpm, end)) =
             sync_line::<B>(&self.tape, line_no, line, self.spindle)
         {
@@ -784,11 +723,11 @@ where
                     end,
                 });
             } else {
-                self.proto.reply(Err(GrblError::OVERFLOW), &mut self.out);
+                self.console.reply(Err(Refused::Grbl(GrblError::OVERFLOW)));
             }
         } else {
             let result = self.queue_line(line_no, line);
-            self.proto.reply(result, &mut self.out);
+            self.console.reply(result);
         }
     }
 
@@ -817,7 +756,7 @@ where
                 self.jogging = true;
             }
         });
-        self.proto.reply(result, &mut self.out);
+        self.console.reply(result.map_err(Refused::Grbl));
     }
 
     /// Realtime requests: hold, resume, jog cancel, overrides, the status report.
@@ -826,7 +765,7 @@ where
         if p.hold() || p.door() {
             self.hold = true;
         }
-        if p.resume() && self.proto.alarm_code().is_none() {
+        if p.resume() && self.console.alarm_code().is_none() {
             self.hold = false;
             if ac_held {
                 self.status.ac_resume.store(true, Relaxed);
@@ -837,7 +776,7 @@ where
             self.cancel_jog = true;
         }
         if p.overrides() {
-            self.overrides = self.proto.overrides();
+            self.overrides = self.console.overrides();
         }
         self.publish();
         if p.status() {
@@ -891,8 +830,8 @@ where
             ac,
             frame_cycles: status.frame_cycles(),
         };
-        self.proto
-            .status_report(&data, options, self.settings.blu, &mut self.out);
+        self.console
+            .status_report(&data, options, self.settings.blu);
     }
 
     /// A soft reset (the protocol has answered it) or an input trip: stop at once, drop the
@@ -919,22 +858,17 @@ where
         self.hold = false;
         self.cancel_jog = false;
         self.jogging = false;
-        self.overrides = self.proto.overrides();
+        self.overrides = self.console.overrides();
         self.publish();
-        let (proto, out) = (&mut *self.proto, &mut self.out);
         match trip {
             Some(t) => {
-                proto.alarm(trip_alarm(&t), out);
-                if t.estop {
-                    proto.message(out, format_args!("E-stop"));
-                } else {
-                    proto.message(out, format_args!("Limit switch {:03b} (ZYX)", t.limits));
-                }
+                self.console.say(News::Tripped(t));
                 if waiting {
-                    proto.reply(Err(GrblError::GCODE_LOCK), out);
+                    self.console
+                        .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
                 }
             }
-            None if moving => proto.alarm(alarm::ABORT_CYCLE, out),
+            None if moving => self.console.say(News::AbortCycle),
             None => {}
         }
     }
@@ -945,11 +879,7 @@ where
         if let Some(t) = self.board.latched() {
             if !self.board.acknowledge() {
                 // The e-stop or a limit switch is still active: the alarm stays.
-                self.proto.alarm(trip_alarm(&t), &mut self.out);
-                self.proto.message(
-                    &mut self.out,
-                    format_args!("E-stop or limit switch still active"),
-                );
+                self.console.say(News::StillActive(t));
                 return;
             }
         }

@@ -1,6 +1,6 @@
 //! Run-time bodies of the firmware, written once over the [`crate::ports`] and called by a thin
 //! RTIC app per board (hal/) and by the host simulation: the frame ISR and the pulse-end ISR
-//! ([`isr`]), the sampler and the AC period ([`ac`]), the serial loader ([`loader`]), the status
+//! ([`isr`]), the sampler and the AC period ([`ac`]), the loader ([`loader`]) with its consoles ([`console`]: a serial line, [`program`]: a program file), the status
 //! words between the contexts ([`status`]), and the timer arithmetic of init ([`clocks_for_hz`],
 //! [`clocks_for_ns`]) for a board's clock (`ports::TimerClock`).
 //!
@@ -10,9 +10,11 @@
 
 pub mod ac;
 pub mod actask;
+pub mod console;
 pub mod isr;
 pub mod loader;
 pub mod monitor;
+pub mod program;
 pub mod replan;
 pub mod status;
 #[cfg(test)]

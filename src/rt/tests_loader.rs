@@ -1,10 +1,12 @@
-//! Host tests of the serial loader ([`super::loader::run`]) on one thread: a test board whose
-//! `running` and `wait` run the real frame (one frame per call, the pulse end right after it),
-//! feed the sender's bytes at given frames, collect the replies and play the operator inputs and
-//! the spindle output. What is checked: a spindle change waits for the motion before it and
-//! applies before the line's own; an e-stop stops at once with the position exact and latches
-//! ALARM:10 until released and `$X`; the feed hold and cycle start buttons hold and resume; M2
-//! waits for the motion and ends the job, on a board with a spindle and on one without.
+//! Host tests of the loader ([`super::loader::run`]), serial and program mode, on one thread: a
+//! test board whose `running` and `wait` run the real frame (one frame per call, the pulse end
+//! right after it), feed the sender's bytes at given frames (or a program file in memory),
+//! collect the replies and play the operator inputs and the spindle output. What is checked: a
+//! spindle change waits for the motion before it and applies before the line's own; an e-stop
+//! stops at once with the position exact and latches ALARM:10 until released and `$X`; the feed
+//! hold and cycle start buttons hold and resume; M2 waits for the motion and ends the job, on a
+//! board with a spindle and on one without; a program file runs whatever its read size, stops at
+//! its first refused line with the file's line number, and ends held on a frame overrun.
 extern crate std;
 
 use std::boxed::Box;
@@ -16,7 +18,9 @@ use core::sync::atomic::Ordering::Relaxed;
 
 use heapless::spsc::{Consumer, Producer, Queue};
 
-use super::loader::{run, LoaderBoard, Parts};
+use super::console::Serial;
+use super::loader::{run, Finished, LoaderBoard, Parts};
+use super::program::{Program, ProgramFile, Said};
 use super::{FrameTask, Reloads, Status};
 use crate::ac::Alarm;
 use crate::gcode::Spindle;
@@ -29,6 +33,10 @@ use crate::protocol::settings::Persistent;
 use crate::protocol::Protocol;
 
 std::thread_local! {
+    /// A program-mode session (`rt::program`): the program file's bytes and the read size. None
+    /// (the default): serial mode.
+    static PROGRAM: core::cell::RefCell<Option<(Vec<u8>, usize)>> =
+        const { core::cell::RefCell::new(None) };
     /// The session's AC task: None (the default) no AC; `Some(ceiling)` an AC task whose periods
     /// run (`Status::ac_state` is `AC_RUN` from the first frame on), the loader getting
     /// `ceiling`: `Some` when the AC is enabled (the boards pass it so), None measure-only.
@@ -164,6 +172,32 @@ struct Bench<const S: bool = true> {
     job_end_at: Option<(u64, [i32; 3])>,
     /// The frames at which each `ok` came.
     oks_at: Vec<u64>,
+    /// Program mode: how the run ended, whether it succeeded, its result lines.
+    program: Option<(Option<Finished>, bool, Vec<String>)>,
+}
+
+/// A program file in memory, read `chunk` bytes at a time; its result lines.
+struct MemFile {
+    bytes: Vec<u8>,
+    at: usize,
+    chunk: usize,
+    results: Vec<String>,
+}
+
+impl ProgramFile for MemFile {
+    const NAME: &'static str = "program.nc";
+
+    fn read(&mut self, buf: &mut [u8]) -> Option<usize> {
+        let rest = self.bytes.get(self.at..).unwrap_or(&[]);
+        let n = self.chunk.min(buf.len()).min(rest.len());
+        buf[..n].copy_from_slice(&rest[..n]);
+        self.at += n;
+        Some(n)
+    }
+
+    fn result(&mut self, kind: Said, text: core::fmt::Arguments) {
+        self.results.push(std::format!("{}: {}", kind.word(), text));
+    }
 }
 
 impl<const S: bool> Bench<S> {
@@ -277,7 +311,6 @@ impl<const S: bool> Bench<S> {
 
 impl<const S: bool> LoaderBoard for Bench<S> {
     fn start(&mut self) {}
-    fn kick() {}
 
     const SPINDLE: bool = S;
 
@@ -436,6 +469,7 @@ fn session_on<const S: bool>(
         alarms: alarm_tx,
         job_end_at: None,
         oks_at: Vec::new(),
+        program: None,
     };
     // The breakage and chatter events are an enabled AC's (its holds apply): the loader gets its
     // ceiling, as the boards give it with `$250=1`.
@@ -449,20 +483,143 @@ fn session_on<const S: bool>(
     let mut replan = Box::new(crate::rt::replan::Replan::<
         { crate::rt::replan::record_len(Q) },
     >::new(settings, &table.settings.ac, [0; 3]));
+    if let Some((bytes, chunk)) = PROGRAM.with(|p| p.borrow_mut().take()) {
+        let mut console = Program::new(MemFile {
+            bytes,
+            at: 0,
+            chunk,
+            results: Vec::new(),
+        });
+        let finished = run(
+            Parts {
+                blocks: &mut blocks_tx,
+                replan: &mut replan,
+                table: &mut table,
+                ceiling,
+                console: &mut console,
+                ac_alarms: &mut alarms,
+                status,
+            },
+            &mut bench,
+        );
+        let ok = console.ok();
+        bench.program = Some((finished, ok, console.into_file().results));
+        return bench;
+    }
+    let mut console = Serial::new(&mut proto, &mut tx_p, || {}, &settings);
     run(
         Parts {
             blocks: &mut blocks_tx,
             replan: &mut replan,
             table: &mut table,
             ceiling,
-            proto: &mut proto,
-            tx: &mut tx_p,
+            console: &mut console,
             ac_alarms: &mut alarms,
             status,
         },
         &mut bench,
     );
     bench
+}
+
+/// Program mode: `program` read `chunk` bytes at a time through the one loader, on the QEMU
+/// board's shape (a simulated spindle), for at most `frames` frames, with an AC event. Returns
+/// how the run ended, whether it succeeded, its result lines, and the bench.
+fn program_run(
+    program: &str,
+    chunk: usize,
+    frames: u64,
+    ac_event: Option<(u64, AcEvent)>,
+) -> (Option<Finished>, bool, Vec<String>, Bench) {
+    PROGRAM.with(|p| *p.borrow_mut() = Some((program.as_bytes().to_vec(), chunk)));
+    let mut b = session_full(&[], &[], None, frames, ESTOP, None, ac_event);
+    let (finished, ok, results) = b.program.take().expect("a program run");
+    (finished, ok, results, b)
+}
+
+/// Program mode is the same loader with a program file for its line source: every line runs in
+/// order whatever the read size (a line split across reads, CRLF, a last line without its
+/// newline), the run ends once the machine stands after the file's last block, and nothing after
+/// M2 is read.
+#[test]
+fn a_program_file_runs_through_the_loader_whatever_its_read_size() {
+    let program = "G91 G1 F30 X0.01\r\nY0.01\n\n(a comment)\nX-0.005 Y0.005\nG1 Z-0.002";
+    let mut ends = Vec::new();
+    for chunk in [1, 7, 256] {
+        let (finished, ok, results, b) = program_run(program, chunk, 40_000, None);
+        assert_eq!(finished, Some(Finished::Done), "chunk {chunk}");
+        assert!(ok && results.is_empty(), "chunk {chunk}: {results:?}");
+        assert!(b.frames < 40_000 && b.status.idle.load(Relaxed));
+        assert_eq!(b.status.encoder(), [50, 150, -20], "chunk {chunk}");
+        ends.push(b.frames);
+    }
+    // The same motion, frame for frame, however the file was read.
+    assert!(ends.windows(2).all(|w| w[0] == w[1]), "{ends:?}");
+    // M2 ends the reading: the line after it never runs.
+    let (finished, ok, results, b) =
+        program_run("G91 G1 F30 X0.01\nM2\nG1 X0.05\n", 16, 40_000, None);
+    assert_eq!((finished, ok), (Some(Finished::Done), true), "{results:?}");
+    assert_eq!(b.status.encoder(), [100, 0, 0]);
+}
+
+/// The first refused line ends the reading: `error: line N: ...` with the file's own line number
+/// (blank and comment lines count), the blocks before it run, the run fails. The same for a line
+/// that is not UTF-8 or too long, refused before the parser.
+#[test]
+fn the_first_refused_line_of_a_program_stops_it_and_the_blocks_before_it_run() {
+    let (finished, ok, results, b) = program_run(
+        "G91 G1 F30 X0.01\n\n(comment)\nG1 X0.01 Q5\nG1 Y0.01\n",
+        256,
+        40_000,
+        None,
+    );
+    assert_eq!((finished, ok), (Some(Finished::Done), false));
+    assert_eq!(results.len(), 1, "{results:?}");
+    assert!(results[0].starts_with("error: line 4: "), "{results:?}");
+    assert_eq!(b.status.encoder(), [100, 0, 0]);
+
+    // Raw bytes, read five at a time: the bad byte is in the second line.
+    let bytes = b"G91 G1 F30 X0.01\nG1 Y0.01 (\xff)\nG1 Y0.01\n".to_vec();
+    PROGRAM.with(|p| *p.borrow_mut() = Some((bytes, 5)));
+    let mut b = session_full(&[], &[], None, 40_000, ESTOP, None, None);
+    let (finished, ok, results) = b.program.take().unwrap();
+    assert_eq!((finished, ok), (Some(Finished::Done), false));
+    assert_eq!(results, ["error: line 2: not UTF-8"]);
+    assert_eq!(b.status.encoder(), [100, 0, 0]);
+
+    let long = std::format!(
+        "G91 G1 F30 X0.01\nG1 Y0.01 ({})\nG1 Y0.01\n",
+        "x".repeat(300)
+    );
+    let (_, ok, results, b) = program_run(&long, 64, 40_000, None);
+    assert!(!ok);
+    assert_eq!(results, ["error: line 2: line too long"]);
+    assert_eq!(b.status.encoder(), [100, 0, 0]);
+}
+
+/// Unattended, a frame overrun holds the machine and ends the run once it stands (with the
+/// position exact): `alarm: frame overrun ...`, [`Finished::Held`]; the rest is not read.
+#[test]
+fn a_frame_overrun_holds_a_program_and_ends_it_standing() {
+    let program = "G91 G1 F30 X0.05\nG1 Y0.05\n";
+    let (finished, _, results, b) =
+        program_run(program, 256, 40_000, Some((300, AcEvent::LatePulseEnd(50))));
+    assert_eq!(finished, Some(Finished::Held), "{results:?}");
+    assert_eq!(results.len(), 1, "{results:?}");
+    assert!(
+        results[0].starts_with("alarm: frame overrun: ") && results[0].contains("no pulse lost"),
+        "{results:?}"
+    );
+    assert!(b.status.stopped());
+    let [x, y, _] = b.status.encoder();
+    assert!(
+        x > 0 && x < 500 && y == 0,
+        "held on the first move: {x}, {y}"
+    );
+    // Without the overrun the same program runs to its end.
+    let (finished, ok, _, b) = program_run(program, 256, 40_000, None);
+    assert_eq!((finished, ok), (Some(Finished::Done), true));
+    assert_eq!(b.status.encoder(), [500, 500, 0]);
 }
 
 fn oks(out: &str) -> usize {

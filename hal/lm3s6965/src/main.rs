@@ -373,22 +373,39 @@ mod app {
                 .replan
                 .insert(Replan::new(*settings, &cx.local.table.settings.ac, [0; 3]));
         // Program mode runs `program.nc` and exits; without it, serial mode.
-        crate::program::run(producer, replan, settings, ceiling, *cx.local.refused);
+        if let Some(program) = crate::program::open() {
+            crate::program::run(
+                program,
+                producer,
+                replan,
+                cx.local.table,
+                ceiling,
+                *cx.local.refused,
+                cx.local.ac_alarms,
+                B::TIMER_HZ,
+            );
+        }
         // No program file: the operator streams G-code over the serial line.
         SERIAL.store(true, Relaxed);
+        let mut console = millac::rt::console::Serial::new(
+            cx.local.proto,
+            cx.local.tx,
+            crate::uart::kick,
+            &cx.local.table.settings.nc,
+        );
         millac::rt::loader::run(
             millac::rt::loader::Parts {
                 blocks: producer,
                 replan,
                 table: cx.local.table,
                 ceiling,
-                proto: cx.local.proto,
-                tx: cx.local.tx,
+                console: &mut console,
                 ac_alarms: cx.local.ac_alarms,
                 status: &STATUS,
             },
             &mut crate::uart::QemuLoader {
                 clock_hz: B::TIMER_HZ,
+                serial: true,
                 log: crate::session::SessionLog::create(),
             },
         );

@@ -24,6 +24,11 @@ impl SessionLog {
         SessionLog(LogFile::create(SERVE_LOG_FILE.as_bytes()))
     }
 
+    /// No log (program mode: the program file is the record).
+    pub const fn none() -> Self {
+        SessionLog(None)
+    }
+
     fn write(&mut self, l: SessionLine) {
         let Some(f) = self.0.as_mut() else {
             return;

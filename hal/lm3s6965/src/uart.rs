@@ -71,7 +71,7 @@ pub fn on_interrupt<const N: usize>(tx: &mut Consumer<'static, u8, N>, mut rx: i
 }
 
 /// Moves queued bytes into the transmit FIFO while it has room; enables the transmit interrupt
-/// when bytes are left. UART0 task ([`Tx::write`] pends it to start sending).
+/// when bytes are left. UART0 task ([`kick`] pends it to start sending).
 fn drain<const N: usize>(tx: &mut Consumer<'static, u8, N>) {
     while read(UART0 + FR) & FR_TXFF == 0 {
         match tx.dequeue() {
@@ -105,12 +105,19 @@ pub fn set_spindle_rpm(rpm: u32) {
     }
 }
 
-/// The QEMU board as the serial loader sees it: UART0 (`init` with the board's UART clock; `kick`
-/// pends UART0), the session log `serve.nc` and a simulated spindle: the S of a spindle change
-/// reaches the simulated cut through the ADC's requests ([`spindle_rpm`]), after the motion
-/// before it, as on the real board. No operator inputs.
+/// Pends UART0 so that it moves queued bytes out (the serial console's writer). Loader task.
+pub fn kick() {
+    cortex_m::peripheral::NVIC::pend(lm3s6965::Interrupt::UART0);
+}
+
+/// The QEMU board as the loader sees it: in serial mode UART0 (`start` with the board's UART
+/// clock; `kick` pends UART0) and the session log `serve.nc`; in both modes a simulated spindle:
+/// the S of a spindle change reaches the simulated cut through the ADC's requests
+/// ([`spindle_rpm`]), after the motion before it, as on the real board. No operator inputs.
 pub struct QemuLoader {
     pub clock_hz: u32,
+    /// Serial mode: UART0 is started (program mode leaves it off).
+    pub serial: bool,
     pub log: crate::session::SessionLog,
 }
 
@@ -124,11 +131,9 @@ impl millac::rt::loader::LoaderBoard for QemuLoader {
     }
 
     fn start(&mut self) {
-        init(self.clock_hz);
-    }
-
-    fn kick() {
-        cortex_m::peripheral::NVIC::pend(lm3s6965::Interrupt::UART0);
+        if self.serial {
+            init(self.clock_hz);
+        }
     }
 
     fn log_gcode(&mut self, line: &str) {

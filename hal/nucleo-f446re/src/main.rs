@@ -56,6 +56,7 @@ mod app {
     use millac::gcode::Spindle;
     use millac::inputs::{Debouncer, Events, Trip};
     use millac::ports::{OperatorInputs, PinInputs};
+    use millac::rt::console::Serial;
     use millac::rt::loader::LoaderBoard;
     use rtic::Mutex;
     use stm32f4xx_hal::gpio::{AnyPin, Input, Output};
@@ -409,14 +410,15 @@ mod app {
             .local
             .replan
             .insert(Replan::new(settings.nc, &settings.ac, [0; 3]));
+        let nc = settings.nc;
+        let mut console = Serial::new(cx.local.proto, cx.local.tx, kick, &nc);
         millac::rt::loader::run(
             millac::rt::loader::Parts {
                 blocks: cx.local.producer,
                 replan,
                 table: cx.local.table,
                 ceiling,
-                proto: cx.local.proto,
-                tx: cx.local.tx,
+                console: &mut console,
                 ac_alarms: cx.local.ac_alarms,
                 status: &STATUS,
             },
@@ -426,6 +428,11 @@ mod app {
         loop {
             cortex_m::asm::nop();
         }
+    }
+
+    /// Pends USART2 so that it moves queued bytes out (the serial console's writer).
+    fn kick() {
+        rtic::pend(stm32f4xx_hal::pac::Interrupt::USART2);
     }
 
     /// The board as the serial loader sees it: USART2, the operator inputs (through the shared
@@ -453,10 +460,6 @@ mod app {
     impl<M: Mutex<T = Debouncer>> LoaderBoard for Nucleo<'_, M> {
         fn start(&mut self) {
             board::usart2_start();
-        }
-
-        fn kick() {
-            rtic::pend(stm32f4xx_hal::pac::Interrupt::USART2);
         }
 
         const SPINDLE: bool = true;
