@@ -20,6 +20,7 @@
 //! - frame timer, pulse timer, sample clock, force/torque ADC, serial, settings storage: millac's
 //!   own traits below.
 use crate::nc::Block;
+use crate::settings::{BoardLimits, IsrBounds, Settings};
 
 /// The Initiator's block queue as the frame sees it: the running block stays at the front until
 /// it is done. Frame ISR (the consumer end of the queue the loader fills); the host simulation.
@@ -122,7 +123,7 @@ pub trait StepPort {
 pub trait FrameTimer {
     /// Acknowledges the frame timer's interrupt.
     fn ack(&mut self);
-    /// Sets the reload value of the next periods (from [`TimerClock::reload`]).
+    /// Sets the reload value of the next periods (from [`Board::reload`]).
     fn set_reload(&mut self, reload: u32);
 }
 
@@ -134,13 +135,39 @@ pub trait PulseTimer {
     fn ack(&mut self);
 }
 
-/// The clock of a board's timers. Init context (it divides).
-pub trait TimerClock {
+/// What a board is, as the core needs to know it: its timers' clock, the limits its settings are
+/// validated against (rates, ISR times, whether its frame applies the plan ratio), the ISR bounds
+/// they derive from, and whether it drives a spindle. One implementation per board, in the
+/// board's folder (`hal/<board>/src/facts.rs`, which the host tools include too: one
+/// definition). Init (the reloads, the settings' validation; it divides) and the loader.
+pub trait Board {
     /// Timer clock in Hz.
     const TIMER_HZ: u32;
     /// Reload value for a period of `clocks` timer clocks (boards differ: some count
     /// `reload + 1` clocks per period).
     fn reload(clocks: u32) -> u32;
+    /// The limits the settings are validated against (`Settings::validate`).
+    const LIMITS: BoardLimits;
+    /// The ISR bounds [`Board::LIMITS`] derive from, on a board that states them (None: the
+    /// limits' generic rule, see `BoardLimits`).
+    const ISR_BOUNDS: Option<IsrBounds>;
+    /// The board drives a spindle: a line that changes M3/M4/M5 or S waits until the motion
+    /// queued before it has finished (grbl's buffer sync), then the loader applies it.
+    const SPINDLE: bool;
+
+    /// The most core cycles a frame may take with settings `s` (the board's
+    /// `BoardLimits::frame_work_allowed_ns`), less the exception entry and return that a
+    /// measurement inside the handler does not see; None without ISR bounds. Init (it divides).
+    fn frame_limit_cycles(s: &Settings) -> Option<u32> {
+        let b = Self::ISR_BOUNDS?;
+        let ns = Self::LIMITS.frame_work_allowed_ns(s);
+        let cycles = ns * u64::from(b.core_hz) / 1_000_000_000;
+        Some(
+            u32::try_from(cycles)
+                .unwrap_or(u32::MAX)
+                .saturating_sub(b.entry_exit_cycles),
+        )
+    }
 }
 
 /// The sample clock of the force/torque ADC. Sampler task (its interrupt).

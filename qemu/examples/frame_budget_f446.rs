@@ -16,8 +16,8 @@
 //! prints the PCs of every frame longer than N instructions (as `frame_budget` does).
 //!
 //! Prints the worst cases against the instruction bounds the board's stated ISR times come from
-//! (`millac_qemu::f446_limits::ISR_BOUNDS`), and the highest W0 the F446 sustains with the default
-//! pulse timing and with 2 us + 2 us: with the stated times (`f446_limits::LIMITS`, the
+//! (`millac_qemu::f446_facts::ISR_BOUNDS`), and the highest W0 the F446 sustains with the default
+//! pulse timing and with 2 us + 2 us: with the stated times (`f446_facts::LIMITS`, the
 //! firmware's validation) and with the measured counts at the same cycles per instruction. Fails
 //! when a program fails or a count exceeds its bound.
 use anyhow::{Context, Result};
@@ -58,7 +58,7 @@ fn main() -> Result<()> {
     }
     let _ = std::fs::remove_dir_all(&root);
     println!("F446 frame ISR worst case: {fworst} instructions; pulse-end ISR: {pworst}");
-    let bounds = millac_qemu::f446_limits::ISR_BOUNDS;
+    let bounds = millac_qemu::f446_facts::ISR_BOUNDS;
     println!(
         "bounds: frame {} instructions, pulse end {}, at {}.{} cycles per instruction + {} per \
          interrupt at {} MHz",
@@ -69,7 +69,7 @@ fn main() -> Result<()> {
         bounds.entry_exit_cycles,
         bounds.core_hz / 1_000_000
     );
-    let stated = millac_qemu::f446_limits::LIMITS;
+    let stated = millac_qemu::f446_facts::LIMITS;
     let measured = millac::settings::BoardLimits {
         frame_work_ns: bounds.ns(fworst as u32),
         pulse_end_ns: bounds.ns(pworst as u32),
@@ -94,7 +94,7 @@ fn main() -> Result<()> {
     anyhow::ensure!(
         fworst <= u64::from(bounds.frame_instructions)
             && pworst <= u64::from(bounds.pulse_end_instructions),
-        "an ISR count exceeds its bound: raise ISR_BOUNDS in hal/nucleo-f446re/src/limits.rs (and the figures of docs/dev/results-nc.md)"
+        "an ISR count exceeds its bound: raise ISR_BOUNDS in hal/nucleo-f446re/src/facts.rs (and the figures of docs/dev/results-nc.md)"
     );
     Ok(())
 }

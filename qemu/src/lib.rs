@@ -30,16 +30,18 @@
 pub mod analysis;
 pub mod emulator;
 pub mod evaluation;
-/// The Nucleo-F446RE's limits and ISR bounds: the board's own file, for the CI's checks of its
-/// build and the budget benchmark (one definition, in the board's folder).
-#[path = "../../hal/nucleo-f446re/src/limits.rs"]
-pub mod f446_limits;
+/// What the Nucleo-F446RE is (its clocks, limits and ISR bounds, `millac::ports::Board`): the
+/// board's own file, for the CI's checks of its build and the budget benchmark (one definition,
+/// in the board's folder).
+#[path = "../../hal/nucleo-f446re/src/facts.rs"]
+pub mod f446_facts;
 pub mod host;
 pub mod interrupt;
-/// The LM3S6965's timer clock under QEMU: the board's own file, for the host simulation's frame
-/// timer (one definition, in the board's folder).
-#[path = "../../hal/lm3s6965/src/clock.rs"]
-pub mod lm3s_clock;
+/// What the LM3S6965 under QEMU is (its timer clock, limits, spindle, `millac::ports::Board`):
+/// the board's own file, for the host simulation's frame timer (one definition, in the board's
+/// folder).
+#[path = "../../hal/lm3s6965/src/facts.rs"]
+pub mod lm3s_facts;
 /// The files the LM3S6965 firmware shares with the host through semihosting: the board's own
 /// file (one definition, in the board's folder).
 #[path = "../../hal/lm3s6965/src/files.rs"]

@@ -179,9 +179,9 @@ fn f446_under_qemu_streams_grbl_and_pulses_like_the_host_core() {
     }
 
     // Both ISRs ran under the plugin within the instruction bounds the board's stated times
-    // (`f446_limits::LIMITS`) are derived from: a frame that grows past them must come
+    // (`f446_facts::LIMITS`) are derived from: a frame that grows past them must come
     // with new limits.
-    let bounds = millac_qemu::f446_limits::ISR_BOUNDS;
+    let bounds = millac_qemu::f446_facts::ISR_BOUNDS;
     let (frames, pulses) = (&s.capture.handlers[0].1, &s.capture.handlers[1].1);
     assert!(frames.len() > 100 && !pulses.is_empty());
     let (fmax, pmax) = (frames.iter().max().unwrap(), pulses.iter().max().unwrap());
@@ -207,7 +207,7 @@ fn f446_under_qemu_streams_grbl_and_pulses_like_the_host_core() {
 /// ends one line and chains the next) is queued under a hold before it runs, as the budget
 /// benchmark does. Nothing moved while it was sent; it ends where it started with the host
 /// core's pulses; its frames stay within the instruction bound the board's stated times come
-/// from (`f446_limits::ISR_BOUNDS`). Streamed one line per `ok` without the hold, a quiet host let the
+/// from (`f446_facts::ISR_BOUNDS`). Streamed one line per `ok` without the hold, a quiet host let the
 /// queue run dry before each corner and never ran this frame.
 #[test]
 fn f446_worst_frame_stays_within_its_bound() {
@@ -241,7 +241,7 @@ fn f446_worst_frame_stays_within_its_bound() {
     assert_eq!(vcd::positions(0, &s.capture.pins), [0, 0, 0]);
     assert!(s.status.starts_with("<Idle"), "{}", s.status);
 
-    let bounds = millac_qemu::f446_limits::ISR_BOUNDS;
+    let bounds = millac_qemu::f446_facts::ISR_BOUNDS;
     let (frames, pulses) = (&s.capture.handlers[0].1, &s.capture.handlers[1].1);
     let (fmax, pmax) = (frames.iter().max().unwrap(), pulses.iter().max().unwrap());
     println!("corners: TIM2 max {fmax} instructions, TIM5 max {pmax}");

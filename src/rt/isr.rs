@@ -33,10 +33,10 @@ use core::sync::atomic::Ordering::Relaxed;
 
 use super::status::Status;
 use crate::nc::{Frame, Pulses, Rate};
-use crate::ports::{BlockSource, FeedCap, FrameTimer, PulseTimer, StepPort, TimerClock};
+use crate::ports::{BlockSource, Board, FeedCap, FrameTimer, PulseTimer, StepPort};
 use crate::settings::Settings;
 
-/// Frame timer reload values for the two rates (from `TimerClock::reload`, computed in init).
+/// Frame timer reload values for the two rates (from `Board::reload`, computed in init).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Reloads {
     pub feed: u32,
@@ -44,9 +44,9 @@ pub struct Reloads {
 }
 
 impl Reloads {
-    /// The reloads of a board's frame timer (clock `C`) for the settings' W0 (`frame_hz`) and
-    /// rapid rate (`rapid_hz`). Init context (and the host board).
-    pub fn for_settings<C: TimerClock>(settings: &Settings) -> Reloads {
+    /// The reloads of a board's frame timer (its clock, `C`) for the settings' W0 (`frame_hz`)
+    /// and rapid rate (`rapid_hz`). Init context (and the host board).
+    pub fn for_settings<C: Board>(settings: &Settings) -> Reloads {
         Reloads {
             feed: C::reload(super::clocks_for_hz(C::TIMER_HZ, settings.frame_hz)),
             rapid: C::reload(super::clocks_for_hz(C::TIMER_HZ, settings.rapid_hz)),

@@ -43,7 +43,7 @@ use crate::ac::AcSettings;
 use crate::ac::{Alarm, FeedCeiling};
 use crate::gcode::tape::{finish_block, Tape, TapeError};
 use crate::nc::{operator, Block, FrameConfig, Motion};
-use crate::ports::SettingsStorage;
+use crate::ports::{Board, SettingsStorage};
 use crate::protocol::codes::{ac_alarm, alarm, GrblError};
 use crate::protocol::report::{feed_blu_per_min, AcReport, AcState, State, StatusData};
 use crate::protocol::rx::{Overrides, Pending};
@@ -81,10 +81,11 @@ pub trait LoaderBoard {
     /// Soft reset.
     fn log_reset(&mut self) {}
 
-    /// The board drives a spindle: a line that changes M3/M4/M5 or S waits until the motion
-    /// queued before it has finished (grbl's buffer sync), then [`LoaderBoard::spindle`] applies
-    /// it, and only then does the line's own motion queue; its `ok` comes after that.
-    const SPINDLE: bool = false;
+    /// What the board is (its `Board::SPINDLE`: a line that changes M3/M4/M5 or S waits until
+    /// the motion queued before it has finished, grbl's buffer sync, then
+    /// [`LoaderBoard::spindle`] applies it, and only then does the line's own motion queue; its
+    /// `ok` comes after that).
+    type Board: Board;
     /// Sets the spindle output (the machine stands): `rpm` of `max_rpm` (`$30`, as the table
     /// holds it now: a change acts at the next spindle command). Also called with `Off` on a soft
     /// reset and on an e-stop or limit alarm, before the queue is dropped.
@@ -658,7 +659,7 @@ where
         let Some(d) = self.deferred.take() else {
             return;
         };
-        if B::SPINDLE && (d.spindle, d.rpm) != self.spindle {
+        if B::Board::SPINDLE && (d.spindle, d.rpm) != self.spindle {
             self.board
                 .spindle(d.spindle, d.rpm, self.table.settings.spindle_max_rpm);
             self.spindle = (d.spindle, d.rpm);
@@ -928,7 +929,7 @@ fn sync_line<B: LoaderBoard>(
         },
         Err(_) => return None,
     };
-    (end || (B::SPINDLE && out != applied)).then_some((out.0, out.1, end))
+    (end || (B::Board::SPINDLE && out != applied)).then_some((out.0, out.1, end))
 }
 
 /// Soft reset or jog cancel: the frame stops at once and drops every queued block (the abort

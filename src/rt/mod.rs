@@ -2,7 +2,7 @@
 //! RTIC app per board (hal/) and by the host simulation: the frame ISR and the pulse-end ISR
 //! ([`isr`]), the sampler and the AC period ([`ac`]), the loader ([`loader`]) with its consoles ([`console`]: a serial line, [`program`]: a program file), the status
 //! words between the contexts ([`status`]), and the timer arithmetic of init ([`clocks_for_hz`],
-//! [`clocks_for_ns`]) for a board's clock (`ports::TimerClock`).
+//! [`clocks_for_ns`]) for a board's clock (`ports::Board`).
 //!
 //! Contexts: [`isr::FrameTask::run`] frame ISR; [`isr::pulse_end`] pulse-end ISR; [`ac::sample`]
 //! sampler; [`ac::AcPeriod::run`] AC task; the clock

@@ -136,7 +136,20 @@ enum AcEvent {
     },
 }
 
-/// `S`: the board drives a spindle (`LoaderBoard::SPINDLE`).
+/// The bench's board: `S`, it drives a spindle.
+struct TestBoard<const S: bool>;
+
+impl<const S: bool> crate::ports::Board for TestBoard<S> {
+    const TIMER_HZ: u32 = 1_000_000;
+    fn reload(clocks: u32) -> u32 {
+        clocks
+    }
+    const LIMITS: crate::settings::BoardLimits = crate::settings::BoardLimits::GENERIC;
+    const ISR_BOUNDS: Option<crate::settings::IsrBounds> = None;
+    const SPINDLE: bool = S;
+}
+
+/// `S`: the board drives a spindle (`Board::SPINDLE`).
 struct Bench<const S: bool = true> {
     status: &'static Status,
     frame: FrameTask,
@@ -312,7 +325,7 @@ impl<const S: bool> Bench<S> {
 impl<const S: bool> LoaderBoard for Bench<S> {
     fn start(&mut self) {}
 
-    const SPINDLE: bool = S;
+    type Board = TestBoard<S>;
 
     fn spindle(&mut self, state: Spindle, rpm: u32, _max_rpm: u32) {
         self.spindle.push(SpindleCall {

@@ -3,18 +3,17 @@
 //! one-shot); the simulated ADC's sample clock on Timer 2 (TIMER_2A, periodic, only when the host
 //! serves the ADC). Raw volatile register access: the `lm3s6965` device crate has interrupt names
 //! only. [`Lm3s6965`] implements the core's ports (`millac::ports`: StepPort, FrameTimer,
-//! PulseTimer, TimerClock, SampleClock) with one register access each. `init` runs in `#[init]`;
+//! PulseTimer, SampleClock) with one register access each (what the board is, `millac::ports::Board`,
+//! is in `crate::facts`). `init` runs in `#[init]`;
 //! everything else in the frame and pulse-end ISRs (and the sampler).
 //!
 //! Pins (port B): PB0 X_STEP, PB1 Y_STEP, PB2 Z_STEP, PB3 X_SIGN, PB4 Y_SIGN, PB5 Z_SIGN.
 //! Registers (LM3S6965 datasheet): SYSCTL RCGC1/RCGC2 clock gates; GPIO DIR, DEN and the masked
 //! data window (address bits [9:2] select the pins a store changes); GPTM CFG, TAMR, CTL, IMR, ICR,
 //! TAILR.
-use crate::clock::QemuClock;
-use millac::ports::{FrameTimer, PulseTimer, SampleClock, StepPort, TimerClock};
+use millac::ports::{FrameTimer, PulseTimer, SampleClock, StepPort};
 
-/// The board. Zero-sized: all state is in the peripherals.
-pub struct Lm3s6965;
+pub use crate::facts::Lm3s6965;
 
 // System control: run-mode clock gating.
 const SYSCTL_RCGC1: usize = 0x400F_E104;
@@ -79,20 +78,6 @@ pub(crate) fn read(addr: usize) -> u32 {
 /// Sets `bits` in a register (read-modify-write). Init only: not atomic against ISRs.
 fn set_bits(addr: usize, bits: u32) {
     write(addr, read(addr) | bits);
-}
-
-/// What the board sustains, for the settings validation (`Settings::validate`): QEMU states no
-/// measured ISR times, so the generic limits and their 75 % rule (`BoardLimits::GENERIC`).
-pub const LIMITS: millac::settings::BoardLimits = millac::settings::BoardLimits::GENERIC;
-
-/// QEMU's lm3s6965evb timers: 12.5 MHz, a period of TAILR clocks (see [`QemuClock`]; the one
-/// definition the host simulation shares).
-impl TimerClock for Lm3s6965 {
-    const TIMER_HZ: u32 = QemuClock::TIMER_HZ;
-
-    fn reload(clocks: u32) -> u32 {
-        QemuClock::reload(clocks)
-    }
 }
 
 impl Lm3s6965 {

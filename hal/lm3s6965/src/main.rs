@@ -60,7 +60,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 // The defmt global logger: frames to semihosting stdout (linked for it, nothing is called).
 use defmt_semihosting as _;
 mod board;
-mod clock;
+mod facts;
 mod files;
 mod program;
 mod results;
@@ -106,7 +106,7 @@ mod app {
     use millac::ac::FeedCeiling;
     use millac::monitor::chatter::Spectrum;
     use millac::nc::{Block, Frame, FrameConfig};
-    use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
+    use millac::ports::{BlockSource, Board, Codes, SampleClock};
     use millac::protocol::rx::{RxIsr, RxShared};
     use millac::protocol::settings::record::{LoadStatus, RecordError};
     use millac::protocol::settings::Persistent;
@@ -174,13 +174,13 @@ mod app {
         // The result file first: everything after may report into it.
         results::create();
         // The stored record (validated as a whole), or the defaults.
-        let (table, status) = Persistent::load(FileStorage, board::LIMITS);
+        let (table, status) = Persistent::load(FileStorage, B::LIMITS);
         let refused = match status {
             LoadStatus::Refused(e) => Some(e),
             LoadStatus::Loaded | LoadStatus::Missing => None,
         };
         let settings = table.settings.nc;
-        if let Err(e) = settings.validate(&board::LIMITS) {
+        if let Err(e) = settings.validate(&B::LIMITS) {
             fail(format_args!("settings: {}", e.message()));
         }
         let (producer, consumer) = cx.local.queue.split();

@@ -122,7 +122,7 @@ pub struct QemuLoader {
 }
 
 impl millac::rt::loader::LoaderBoard for QemuLoader {
-    const SPINDLE: bool = true;
+    type Board = crate::facts::Lm3s6965;
 
     /// The simulated spindle takes the commanded speed; stopping it (M5, a reset) leaves the
     /// speed: the simulated cut has no stopped spindle (the plant turns whenever the tool moves).

@@ -26,22 +26,10 @@
 //! below: the frame path is one store per port call, with no proxy that the compiler might not
 //! inline (the no-call check of CI scans the built ISRs).
 use millac::ports::{
-    Codes, Conversion, ForceTorqueAdc, FrameTimer, PulseTimer, SampleClock, StepPort, TimerClock,
+    Codes, Conversion, ForceTorqueAdc, FrameTimer, PulseTimer, SampleClock, StepPort,
 };
 
-/// The board. Zero-sized: all state is in the peripherals.
-pub struct F446;
-
-/// What the board sustains, for the settings validation (`Settings::validate`): see
-/// [`crate::limits`] (docs/dev/results-nc.md, "Speed on the Nucleo-F446RE").
-pub const LIMITS: millac::settings::BoardLimits = crate::limits::LIMITS;
-
-/// Core clock (SYSCLK = HCLK) in Hz.
-pub const CORE_HZ: u32 = crate::limits::ISR_BOUNDS.core_hz;
-/// PCLK1 (USART2) in Hz.
-pub const PCLK1_HZ: u32 = 45_000_000;
-/// APB1 timer clock (TIM2, TIM3, TIM5) in Hz.
-pub const TIMER_HZ: u32 = 2 * PCLK1_HZ;
+pub use crate::facts::{CORE_HZ, F446, PCLK1_HZ, TIMER_HZ};
 
 // GPIO port C (AHB1).
 const GPIOC: usize = 0x4002_0800;
@@ -176,15 +164,6 @@ fn read(addr: usize) -> u32 {
 /// Sets `bits` in a register (read-modify-write). Init only: not atomic against ISRs.
 fn set_bits(addr: usize, bits: u32) {
     write(addr, read(addr) | bits);
-}
-
-/// TIM2, TIM3, TIM5 count ARR + 1 clocks per period.
-impl TimerClock for F446 {
-    const TIMER_HZ: u32 = TIMER_HZ;
-
-    fn reload(clocks: u32) -> u32 {
-        clocks.saturating_sub(1).max(1)
-    }
 }
 
 impl F446 {

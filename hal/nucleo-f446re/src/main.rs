@@ -25,8 +25,8 @@ use defmt_rtt as _;
 use panic_probe as _;
 
 mod board;
+mod facts;
 mod flash;
-mod limits;
 
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1])]
 mod app {
@@ -37,7 +37,7 @@ mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::Alarm;
     use millac::nc::{Block, Frame, FrameConfig};
-    use millac::ports::{BlockSource, Codes, SampleClock, TimerClock};
+    use millac::ports::{BlockSource, Board, Codes, SampleClock};
     use millac::protocol::rx::{RxIsr, RxShared};
     use millac::protocol::settings::record::LoadStatus;
     use millac::protocol::settings::Persistent;
@@ -90,7 +90,7 @@ mod app {
         // With the plan ratio only where the board's limits say so (`BoardLimits::plan_ratio`,
         // which also decides whether `$263=2` is accepted): the F446's frame is past its
         // instruction bound with it (`limits::LIMITS`).
-        frame: FrameTask<{ board::LIMITS.plan_ratio }>,
+        frame: FrameTask<{ F446::LIMITS.plan_ratio }>,
         consumer: Consumer<'static, Block, QUEUE>,
         producer: Producer<'static, Block, QUEUE>,
         table: Persistent<FlashStore<Sector>>,
@@ -167,7 +167,7 @@ mod app {
         core.DWT.enable_cycle_counter();
         let watchdog_reset = F446::watchdog_reset();
 
-        let (table, status) = Persistent::load(FlashStore::new(flash::sector()), board::LIMITS);
+        let (table, status) = Persistent::load(FlashStore::new(flash::sector()), F446::LIMITS);
         // Under QEMU: no DMA model, so no ADC samples: the AC is off ($250=0).
         #[cfg(feature = "qemu")]
         let table = {
@@ -183,7 +183,7 @@ mod app {
             LoadStatus::Loaded | LoadStatus::Missing => None,
         };
         let settings = table.settings.nc;
-        if let Err(e) = settings.validate(&board::LIMITS) {
+        if let Err(e) = settings.validate(&F446::LIMITS) {
             defmt::panic!("settings: {}", e.message());
         }
         let (producer, consumer) = cx.local.queue.split();
@@ -395,7 +395,7 @@ mod app {
             inputs: cx.shared.inputs,
             enable,
             direction,
-            frame_limit: frame_limit_cycles(&cx.local.table.settings.nc),
+            frame_limit: F446::frame_limit_cycles(&cx.local.table.settings.nc).unwrap_or(u32::MAX),
         };
         let ceiling = cx
             .local
@@ -445,24 +445,12 @@ mod app {
         frame_limit: u32,
     }
 
-    /// The most cycles a frame may take with the running settings
-    /// (`BoardLimits::frame_work_allowed_ns`), less the exception entry and return that the DWT
-    /// measurement inside the handler does not see. Idle (once).
-    fn frame_limit_cycles(nc: &millac::Settings) -> u32 {
-        let ns = board::LIMITS.frame_work_allowed_ns(nc);
-        let cycles = ns * u64::from(board::CORE_HZ) / 1_000_000_000;
-        let entry_exit = crate::limits::ISR_BOUNDS.entry_exit_cycles;
-        u32::try_from(cycles)
-            .unwrap_or(u32::MAX)
-            .saturating_sub(entry_exit)
-    }
-
     impl<M: Mutex<T = Debouncer>> LoaderBoard for Nucleo<'_, M> {
         fn start(&mut self) {
             board::usart2_start();
         }
 
-        const SPINDLE: bool = true;
+        type Board = F446;
 
         /// Enable high for M3/M4, direction high for M4, PWM duty S / `$30`.
         fn spindle(&mut self, state: Spindle, rpm: u32, max_rpm: u32) {

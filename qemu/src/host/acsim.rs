@@ -377,7 +377,7 @@ impl ForceTorqueAdc for HostAdc {
 /// Frame period in ns for a rate: the reload the firmware computes for the QEMU board
 /// (`millac::rt::Reloads::for_settings`, the same clock), in whole timer clocks.
 pub fn period_ns(settings: &Settings, rate: Rate) -> u64 {
-    let reloads = millac::rt::Reloads::for_settings::<crate::lm3s_clock::QemuClock>(settings);
+    let reloads = millac::rt::Reloads::for_settings::<crate::lm3s_facts::Lm3s6965>(settings);
     crate::host::board::reload_ns(reloads.of(rate))
 }
 

@@ -8,9 +8,9 @@
 //! pulse ends before anything of lower priority runs (the pulse width is shorter than the frame
 //! ISR's work plus the sampler's start). A sample at the same instant as a frame interrupt runs
 //! after it (the frame ISR has the highest priority).
-use crate::lm3s_clock::QemuClock;
+use crate::lm3s_facts::Lm3s6965;
 use millac::nc::Frame;
-use millac::ports::{BlockSource, FrameTimer, PulseTimer, StepPort, TimerClock};
+use millac::ports::{BlockSource, Board, FrameTimer, PulseTimer, StepPort};
 use millac::rt::{isr, FrameTask, Reloads, Status};
 use millac::Settings;
 
@@ -73,7 +73,7 @@ pub struct Interrupt {
 impl HostFrames {
     /// The frame task at the feed rate, as a board's init starts it.
     pub fn new(settings: &Settings) -> HostFrames {
-        let reloads = Reloads::for_settings::<QemuClock>(settings);
+        let reloads = Reloads::for_settings::<Lm3s6965>(settings);
         HostFrames {
             task: FrameTask::new(
                 Frame::new(millac::nc::FrameConfig::from_settings(settings)),
@@ -111,7 +111,7 @@ impl HostFrames {
 
 /// A frame timer reload of the QEMU board in ns (QEMU counts a period of TAILR clocks).
 pub fn reload_ns(reload: u32) -> u64 {
-    u64::from(reload) * 1_000_000_000 / u64::from(QemuClock::TIMER_HZ)
+    u64::from(reload) * 1_000_000_000 / u64::from(Lm3s6965::TIMER_HZ)
 }
 
 #[cfg(test)]

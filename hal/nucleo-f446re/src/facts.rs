@@ -1,8 +1,36 @@
-//! What the Nucleo-F446RE sustains, as the settings validation sees it (init and the loader;
-//! the host tools include this file too, `millac_qemu::f446_limits`, for the CI's checks and the
-//! budget benchmark): its ISR bounds and the limits derived from them. Board facts live with the
-//! board; the core knows only the shapes (`millac::settings::{BoardLimits, IsrBounds}`).
+//! What the Nucleo-F446RE is (`millac::ports::Board`; init, where the reloads are computed and
+//! the settings validated, and the loader; the host tools include this file too,
+//! `millac_qemu::f446_facts`, for the CI's checks and the budget benchmark): its clocks, its ISR
+//! bounds and the limits derived from them, its spindle. Board facts live with the board; the
+//! core knows only the shapes (`millac::ports::Board`, `millac::settings::{BoardLimits,
+//! IsrBounds}`).
+use millac::ports::Board;
 use millac::settings::{BoardLimits, IsrBounds};
+
+/// The board. Zero-sized: all state is in the peripherals (its ports are in `board.rs`).
+pub struct F446;
+
+/// Core clock (SYSCLK = HCLK) in Hz.
+pub const CORE_HZ: u32 = ISR_BOUNDS.core_hz;
+/// PCLK1 (USART2) in Hz.
+pub const PCLK1_HZ: u32 = 45_000_000;
+/// APB1 timer clock (TIM2, TIM3, TIM5) in Hz.
+pub const TIMER_HZ: u32 = 2 * PCLK1_HZ;
+
+impl Board for F446 {
+    const TIMER_HZ: u32 = TIMER_HZ;
+
+    /// TIM2, TIM3, TIM5 count ARR + 1 clocks per period.
+    fn reload(clocks: u32) -> u32 {
+        clocks.saturating_sub(1).max(1)
+    }
+
+    /// See [`LIMITS`] (docs/dev/results-nc.md, "Speed on the Nucleo-F446RE").
+    const LIMITS: BoardLimits = LIMITS;
+    const ISR_BOUNDS: Option<IsrBounds> = Some(ISR_BOUNDS);
+    /// Enable, direction and PWM outputs (`board.rs`).
+    const SPINDLE: bool = true;
+}
 
 /// The Nucleo-F446RE's ISR bounds (see `IsrBounds`): instruction counts measured under QEMU
 /// (`frame_budget_f446`), a cycles-per-instruction bound, the exception entry and return.
