@@ -31,6 +31,20 @@ pub trait BlockSource {
     fn pop(&mut self);
 }
 
+/// The block queue's consumer end as the frame's block source (every board's frame ISR): the
+/// running block is read in place at the front (never copied) and dequeued when it is done.
+impl<const N: usize> BlockSource for heapless::spsc::Consumer<'_, Block, N> {
+    #[inline(always)]
+    fn front(&mut self) -> Option<&Block> {
+        self.peek()
+    }
+    #[inline(always)]
+    fn pop(&mut self) {
+        // The value is dropped unread: only the head index moves.
+        let _ = self.dequeue();
+    }
+}
+
 /// A host queue as the frame's block source (host tests and simulations; feature `std`).
 #[cfg(any(test, feature = "std"))]
 impl BlockSource for std::collections::VecDeque<Block> {

@@ -26,7 +26,7 @@ use crate::ac::Alarm;
 use crate::gcode::Spindle;
 use crate::inputs::{Events, Trip};
 use crate::nc::{Block, Frame, FrameConfig};
-use crate::ports::{BlockSource, FrameTimer, PulseTimer, SettingsStorage, StepPort};
+use crate::ports::{FrameTimer, PulseTimer, SettingsStorage, StepPort};
 use crate::protocol::rx::RxIsr;
 use crate::protocol::rx::RxShared;
 use crate::protocol::settings::Persistent;
@@ -92,17 +92,6 @@ impl FrameTimer for NoTimer {
 impl PulseTimer for NoTimer {
     fn start(&mut self) {}
     fn ack(&mut self) {}
-}
-
-struct Source<'a>(&'a mut Consumer<'static, Block, Q>);
-
-impl BlockSource for Source<'_> {
-    fn front(&mut self) -> Option<&Block> {
-        self.0.peek()
-    }
-    fn pop(&mut self) {
-        let _ = self.0.dequeue();
-    }
 }
 
 /// What the board saw the loader do with the spindle: when (frame), what, and where the machine
@@ -292,7 +281,7 @@ impl<const S: bool> Bench<S> {
             &mut self.pins,
             &mut NoTimer,
             &mut NoTimer,
-            &mut Source(&mut self.blocks),
+            &mut self.blocks,
             self.status,
         );
         // The pulse timer's interrupt: only after a frame that raised PULSE lines (late: after

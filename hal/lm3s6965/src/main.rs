@@ -106,7 +106,7 @@ mod app {
     use millac::ac::FeedCeiling;
     use millac::monitor::chatter::Spectrum;
     use millac::nc::{Block, Frame, FrameConfig};
-    use millac::ports::{BlockSource, Board, Codes, SampleClock};
+    use millac::ports::{Board, Codes, SampleClock};
     use millac::protocol::rx::{RxIsr, RxShared};
     use millac::protocol::settings::record::{LoadStatus, RecordError};
     use millac::protocol::settings::Persistent;
@@ -268,24 +268,9 @@ mod app {
     /// The frame ISR: highest priority (4). No locks, logging, allocation or panics.
     #[task(binds = TIMER_0A, priority = 4, local = [frame, consumer])]
     fn frame(cx: frame::Context) {
-        let src = &mut Source(cx.local.consumer);
-        cx.local.frame.run(&mut B, &mut B, &mut B, src, &STATUS);
-    }
-
-    /// The block queue as the frame's Initiator sees it: the running block stays at the front
-    /// (read in place, never copied) and is dequeued when it is done.
-    struct Source<'a>(&'a mut Consumer<'static, Block, QUEUE>);
-
-    impl BlockSource for Source<'_> {
-        #[inline(always)]
-        fn front(&mut self) -> Option<&Block> {
-            self.0.peek()
-        }
-        #[inline(always)]
-        fn pop(&mut self) {
-            // The value is dropped unread: only the head index moves.
-            let _ = self.0.dequeue();
-        }
+        cx.local
+            .frame
+            .run(&mut B, &mut B, &mut B, cx.local.consumer, &STATUS);
     }
 
     /// UART0 (serial mode only: its interrupts are enabled by the loader): received bytes to the

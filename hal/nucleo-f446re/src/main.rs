@@ -37,7 +37,7 @@ mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::Alarm;
     use millac::nc::{Block, Frame, FrameConfig};
-    use millac::ports::{BlockSource, Board, Codes, SampleClock};
+    use millac::ports::{Board, Codes, SampleClock};
     use millac::protocol::rx::{RxIsr, RxShared};
     use millac::protocol::settings::record::LoadStatus;
     use millac::protocol::settings::Persistent;
@@ -284,10 +284,9 @@ mod app {
     #[task(binds = TIM2, priority = 3, local = [frame, consumer, cycles])]
     fn frame(cx: frame::Context) {
         let t0 = DWT::cycle_count();
-        let src = &mut Source(cx.local.consumer);
         cx.local
             .frame
-            .run(&mut F446, &mut F446, &mut F446, src, &STATUS);
+            .run(&mut F446, &mut F446, &mut F446, cx.local.consumer, &STATUS);
         FRAMES.store(FRAMES.load(Relaxed).wrapping_add(1), Relaxed);
         let dt = DWT::cycle_count().wrapping_sub(t0);
         let c = cx.local.cycles;
@@ -298,20 +297,6 @@ mod app {
         if dt > c.max {
             c.max = dt;
             STATUS.frame_cycles_max.store(dt, Relaxed);
-        }
-    }
-
-    /// The block queue as the frame's Initiator sees it.
-    struct Source<'a>(&'a mut Consumer<'static, Block, QUEUE>);
-
-    impl BlockSource for Source<'_> {
-        #[inline(always)]
-        fn front(&mut self) -> Option<&Block> {
-            self.0.peek()
-        }
-        #[inline(always)]
-        fn pop(&mut self) {
-            let _ = self.0.dequeue();
         }
     }
 
