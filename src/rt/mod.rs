@@ -16,6 +16,7 @@ pub mod loader;
 pub mod monitor;
 pub mod program;
 pub mod replan;
+pub mod start;
 pub mod status;
 #[cfg(test)]
 mod tests_loader;

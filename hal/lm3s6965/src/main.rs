@@ -27,30 +27,8 @@
 //!
 //! No monotonic/SysTick: any that is added must have a priority below the frame's.
 //!
-//! # Output
-//!
-//! Two channels, never mixed:
-//! - the log, for people: defmt (`defmt::error!/warn!/info!`, no timestamp) through
-//!   `defmt-semihosting`'s global logger on semihosting stdout; the host decodes the frames with
-//!   this ELF's `.defmt` table (`millac_qemu::defmtlog`). The logger takes a critical section, so
-//!   the frame and pulse-end ISRs never log, and the others format their text first ([`text`]);
-//! - the results, for the tools: `result.txt` (`crate::files::RESULT_FILE`, see "Result file"
-//!   there; [`crate::results`]): errors, alarms, the hold and the final position.
-//!
-//! The exit status (semihosting SYS_EXIT) is failure after an error, a hold or a panic.
-//!
-//! # Settings
-//!
-//! init loads the persistent record through `crate::storage::FileStorage` (`settings.bin` in
-//! QEMU's working directory): a valid record gives the frame and the parser its NC settings and
-//! the AC controller its AC settings (`$250=0` turns the AC's feed cap off even when the host
-//! enables it); no file gives the defaults, silently. A refused record (truncated, corrupt, of
-//! another version, invalid values) gives the defaults and:
-//! - serial mode: `ALARM:120` and `[MSG:<why>; defaults loaded]` after the banner, G-code locked
-//!   until `$X` (`Protocol::settings_refused`); `$RST=*` or any `$N=value` stores a new record;
-//! - program mode (`program.nc`): `error: settings: <why>; nothing runs` (log and result file)
-//!   and exit with failure before anything moves: a program run unattended must not run on
-//!   settings the operator did not choose, and there is no `$X` to acknowledge them.
+//! The board's log and result file: `crate::voice`; its settings record and what a refused one
+//! does: `crate::storage`.
 #![no_std]
 #![no_main]
 
@@ -59,6 +37,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 
 // The defmt global logger: frames to semihosting stdout (linked for it, nothing is called).
 use defmt_semihosting as _;
+mod adaptive;
 mod board;
 mod facts;
 mod files;
@@ -96,7 +75,7 @@ fn panic(info: &PanicInfo) -> ! {
 mod app {
     use core::sync::atomic::Ordering::Relaxed;
 
-    use crate::board;
+    use crate::adaptive;
     use crate::semihost::LogFile;
     use crate::simadc::SimAdc;
     use crate::storage::FileStorage;
@@ -105,20 +84,17 @@ mod app {
     use millac::ac::Alarm;
     use millac::ac::FeedCeiling;
     use millac::monitor::chatter::Spectrum;
-    use millac::nc::{Block, Frame, FrameConfig};
+    use millac::nc::Block;
     use millac::ports::{Board, Codes, SampleClock};
     use millac::protocol::rx::{RxIsr, RxShared};
-    use millac::protocol::settings::record::{LoadStatus, RecordError};
+    use millac::protocol::settings::record::RecordError;
     use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
     use millac::rt::actask::{
-        self, AcTask, MonitorTask, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE,
-        VERDICT_QUEUE,
+        AcTask, MonitorTask, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE, VERDICT_QUEUE,
     };
-    use millac::rt::monitor::ChatterTask;
     use millac::rt::replan::Replan;
-    use millac::rt::{self, clocks_for_hz, clocks_for_ns, FrameTask, Reloads};
-    use millac::wire::FLAG_AC_ENABLED;
+    use millac::rt::{self, FrameTask};
     use millac::Settings;
 
     use crate::program::held_exit;
@@ -173,68 +149,31 @@ mod app {
     fn init(cx: init::Context) -> (Shared, Local) {
         // The result file first: everything after may report into it.
         results::create();
-        // The stored record (validated as a whole), or the defaults.
-        let (table, status) = Persistent::load(FileStorage, B::LIMITS);
-        let refused = match status {
-            LoadStatus::Refused(e) => Some(e),
-            LoadStatus::Loaded | LoadStatus::Missing => None,
+        // The stored record (validated as a whole), or the defaults; the reloads they give.
+        let start = match rt::start::start::<B, _>(FileStorage) {
+            Ok(s) => s,
+            Err(e) => fail(format_args!("settings: {}", e.message())),
         };
+        let frame = start.frame();
+        let (table, refused) = (start.table, start.refused);
         let settings = table.settings.nc;
-        if let Err(e) = settings.validate(&B::LIMITS) {
-            fail(format_args!("settings: {}", e.message()));
-        }
         let (producer, consumer) = cx.local.queue.split();
-
-        let reloads = Reloads::for_settings::<B>(&settings);
-        let pulse = B::reload(clocks_for_ns(B::TIMER_HZ, settings.pulse_width_ns));
         // No cap unless the AC says otherwise, 100 % feed (before any interrupt is enabled).
         STATUS.start();
-        B::init(reloads.feed, pulse);
+        B::init(start.reloads.feed, start.pulse);
 
         // The simulated ADC and the AC, if the host serves them (blocks until it is ready).
-        let (mut sampler, mut ac, mut ceiling, mut monitor) = (None, None, None, None);
         let (alarm_tx, ac_alarms) = cx.local.alarms.split();
-        if let Some((adc, flags)) = SimAdc::open() {
-            let ac_settings = table.settings.ac;
-            let Some(log) = LogFile::create(crate::files::AC_LOG_FILE.as_bytes()) else {
-                fail(format_args!("cannot create ac.log"));
+        let queues = adaptive::Queues {
+            samples: cx.local.samples,
+            sound: cx.local.sound,
+            verdicts: cx.local.verdicts,
+        };
+        let (sampler, ac, monitor, ceiling) =
+            match adaptive::start(&table.settings, queues, alarm_tx) {
+                Some(a) => (Some(a.sampler), Some(a.ac), a.monitor, a.ceiling),
+                None => (None, None, None, None),
             };
-            let enabled = flags & FLAG_AC_ENABLED != 0 && table.settings.ac_enabled;
-            if enabled {
-                ceiling = Some(ac_settings.ceiling);
-            }
-            // The AC task and its sampler, with the breakage monitor the settings turn on ($268):
-            // invalid AC or monitor settings stop the firmware here.
-            let samples = cx.local.samples.split();
-            let (mut s, mut task) = match actask::start(
-                &STATUS,
-                settings,
-                &ac_settings,
-                enabled,
-                adc,
-                log,
-                samples,
-                alarm_tx,
-            ) {
-                Ok(t) => t,
-                Err(e) => fail(format_args!("{}: {}", e.what, e.why)),
-            };
-            // The chatter monitor ($266), its own task.
-            match ChatterTask::from_settings(&ac_settings) {
-                Ok(Some(c)) => {
-                    let (sound_tx, sound_rx) = cx.local.sound.split();
-                    let (verdict_tx, verdict_rx) = cx.local.verdicts.split();
-                    s = s.with_sound(sound_tx);
-                    task = task.with_verdicts(verdict_rx);
-                    monitor = Some(MonitorTask::new(&STATUS, c, sound_rx, verdict_tx));
-                }
-                Ok(None) => {}
-                Err(e) => fail(format_args!("chatter settings: {}", e.message())),
-            }
-            sampler = Some(s);
-            ac = Some(task);
-            board::sample_timer_start(B::reload(clocks_for_hz(B::TIMER_HZ, ac_settings.sample_hz)));
-        }
 
         let (uart_rx, rx) = cx.local.serial_rx.split();
         let mut proto = Protocol::new(rx, (QUEUE - 1) as u16);
@@ -251,7 +190,7 @@ mod app {
                 proto,
                 tx,
                 ac_alarms,
-                frame: FrameTask::new(Frame::new(FrameConfig::from_settings(&settings)), reloads),
+                frame,
                 consumer,
                 producer,
                 settings,

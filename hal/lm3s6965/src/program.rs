@@ -60,7 +60,7 @@ impl ProgramFile for SemihostProgram {
 
 /// Runs `program` to its end and exits QEMU: success unless a line, the file or the settings
 /// record was refused, or the run held. With a refused settings record nothing runs (see
-/// "Settings" in the crate docs). Idle loader.
+/// "At start-up" in `crate::storage`). Idle loader.
 #[allow(clippy::too_many_arguments)]
 pub fn run(
     mut program: SemihostProgram,

@@ -8,6 +8,19 @@
 //! image in one SYS_WRITE: QEMU stopped between the two leaves an empty or short file, which the
 //! record's length and CRC checks refuse at the next start (defaults and an alarm), never garbage.
 //! No rename-into-place: it would replace the host's link instead of writing through it.
+//!
+//! # At start-up
+//!
+//! init loads the persistent record through `crate::storage::FileStorage` (`settings.bin` in
+//! QEMU's working directory): a valid record gives the frame and the parser its NC settings and
+//! the AC controller its AC settings (`$250=0` turns the AC's feed cap off even when the host
+//! enables it); no file gives the defaults, silently. A refused record (truncated, corrupt, of
+//! another version, invalid values) gives the defaults and:
+//! - serial mode: `ALARM:120` and `[MSG:<why>; defaults loaded]` after the banner, G-code locked
+//!   until `$X` (`Protocol::settings_refused`); `$RST=*` or any `$N=value` stores a new record;
+//! - program mode (`program.nc`): `error: settings: <why>; nothing runs` (log and result file)
+//!   and exit with failure before anything moves: a program run unattended must not run on
+//!   settings the operator did not choose, and there is no `$X` to acknowledge them.
 use cortex_m_semihosting::nr;
 
 use crate::semihost::{close, read, write_all};

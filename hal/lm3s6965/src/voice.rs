@@ -1,6 +1,18 @@
 //! The QEMU board's voice (init, the loader and the tasks, the panic handler; never the frame or
 //! pulse-end ISR): a human log message formatted before defmt's logger takes its critical section,
 //! errors into the result file and the log, and the exit through semihosting.
+//!
+//! # Output
+//!
+//! Two channels, never mixed:
+//! - the log, for people: defmt (`defmt::error!/warn!/info!`, no timestamp) through
+//!   `defmt-semihosting`'s global logger on semihosting stdout; the host decodes the frames with
+//!   this ELF's `.defmt` table (`millac_qemu::defmtlog`). The logger takes a critical section, so
+//!   the frame and pulse-end ISRs never log, and the others format their text first ([`text`]);
+//! - the results, for the tools: `result.txt` (`crate::files::RESULT_FILE`, see "Result file"
+//!   there; [`crate::results`]): errors, alarms, the hold and the final position.
+//!
+//! The exit status (semihosting SYS_EXIT) is failure after an error, a hold or a panic.
 use core::fmt::{self, Write as _};
 
 use cortex_m_semihosting::debug;

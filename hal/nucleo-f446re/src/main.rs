@@ -27,6 +27,7 @@ use panic_probe as _;
 mod board;
 mod facts;
 mod flash;
+mod loader;
 
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1])]
 mod app {
@@ -36,15 +37,14 @@ mod app {
     use cortex_m::peripheral::DWT;
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::Alarm;
-    use millac::nc::{Block, Frame, FrameConfig};
+    use millac::nc::Block;
     use millac::ports::{Board, Codes, SampleClock};
     use millac::protocol::rx::{RxIsr, RxShared};
-    use millac::protocol::settings::record::LoadStatus;
     use millac::protocol::settings::Persistent;
     use millac::protocol::Protocol;
-    use millac::rt::actask::{self, AcTask, LogSink, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
+    use millac::rt::actask::{self, AcTask, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use millac::rt::replan::Replan;
-    use millac::rt::{self, clocks_for_ns, FrameTask, Reloads, Status};
+    use millac::rt::{self, FrameTask, Status};
     use stm32f4xx_hal::prelude::*;
     #[cfg(not(feature = "qemu"))]
     use stm32f4xx_hal::rcc::Config;
@@ -53,12 +53,10 @@ mod app {
 
     use crate::board::{self, TripleAdc, F446};
     use crate::flash::{self, Sector};
-    use millac::gcode::Spindle;
-    use millac::inputs::{Debouncer, Events, Trip};
+    use crate::loader::{kick, DefmtLog, Nucleo};
+    use millac::inputs::Debouncer;
     use millac::ports::{OperatorInputs, PinInputs};
     use millac::rt::console::Serial;
-    use millac::rt::loader::LoaderBoard;
-    use rtic::Mutex;
     use stm32f4xx_hal::gpio::{AnyPin, Input, Output};
 
     /// The status words between the contexts.
@@ -167,7 +165,12 @@ mod app {
         core.DWT.enable_cycle_counter();
         let watchdog_reset = F446::watchdog_reset();
 
-        let (table, status) = Persistent::load(FlashStore::new(flash::sector()), F446::LIMITS);
+        let start = match rt::start::start::<F446, _>(FlashStore::new(flash::sector())) {
+            Ok(s) => s,
+            Err(e) => defmt::panic!("settings: {}", e.message()),
+        };
+        let frame = start.frame();
+        let (table, refused) = (start.table, start.refused);
         // Under QEMU: no DMA model, so no ADC samples: the AC is off ($250=0).
         #[cfg(feature = "qemu")]
         let table = {
@@ -175,22 +178,13 @@ mod app {
             table.settings.ac_enabled = false;
             table
         };
-        let refused = match status {
-            LoadStatus::Refused(e) => {
-                defmt::warn!("settings record refused: {}; defaults loaded", e.message());
-                Some(e)
-            }
-            LoadStatus::Loaded | LoadStatus::Missing => None,
-        };
-        let settings = table.settings.nc;
-        if let Err(e) = settings.validate(&F446::LIMITS) {
-            defmt::panic!("settings: {}", e.message());
+        if let Some(e) = refused {
+            defmt::warn!("settings record refused: {}; defaults loaded", e.message());
         }
+        let settings = table.settings.nc;
         let (producer, consumer) = cx.local.queue.split();
-        let reloads = Reloads::for_settings::<F446>(&settings);
-        let pulse = F446::reload(clocks_for_ns(F446::TIMER_HZ, settings.pulse_width_ns));
         STATUS.start();
-        F446::init(reloads.feed, pulse);
+        F446::init(start.reloads.feed, start.pulse);
 
         // The AC, when enabled by the settings ($250); the sampler runs always (it feeds the
         // watchdog).
@@ -256,7 +250,7 @@ mod app {
                 inputs: Debouncer::new(millac::inputs::DEBOUNCE_SAMPLES),
             },
             Local {
-                frame: FrameTask::new(Frame::new(FrameConfig::from_settings(&settings)), reloads),
+                frame,
                 consumer,
                 producer,
                 table,
@@ -412,79 +406,6 @@ mod app {
         // Never reached: the board's loader runs for ever.
         loop {
             cortex_m::asm::nop();
-        }
-    }
-
-    /// Pends USART2 so that it moves queued bytes out (the serial console's writer).
-    fn kick() {
-        rtic::pend(stm32f4xx_hal::pac::Interrupt::USART2);
-    }
-
-    /// The board as the serial loader sees it: USART2, the operator inputs (through the shared
-    /// debouncer: a short lock against the sampler), the spindle outputs.
-    struct Nucleo<'a, M: Mutex<T = Debouncer>> {
-        inputs: M,
-        enable: &'a mut AnyPin<Output>,
-        direction: &'a mut AnyPin<Output>,
-        /// The frame work the running settings tolerate, in DWT cycles.
-        frame_limit: u32,
-    }
-
-    impl<M: Mutex<T = Debouncer>> LoaderBoard for Nucleo<'_, M> {
-        fn start(&mut self) {
-            board::usart2_start();
-        }
-
-        type Board = F446;
-
-        /// Enable high for M3/M4, direction high for M4, PWM duty S / `$30`.
-        fn spindle(&mut self, state: Spindle, rpm: u32, max_rpm: u32) {
-            match state {
-                Spindle::Off => {
-                    board::spindle_pwm_set(0);
-                    self.enable.set_low();
-                }
-                Spindle::Cw | Spindle::Ccw => {
-                    self.direction.set_state((state == Spindle::Ccw).into());
-                    board::spindle_pwm_set(board::spindle_duty(rpm, max_rpm));
-                    self.enable.set_high();
-                }
-            }
-            defmt::info!("spindle {} at {} rpm", defmt::Debug2Format(&state), rpm);
-        }
-
-        fn frame_limit_cycles(&self) -> Option<u32> {
-            Some(self.frame_limit)
-        }
-
-        fn inputs(&mut self) -> Events {
-            self.inputs.lock(|d| d.take())
-        }
-
-        fn latched(&mut self) -> Option<Trip> {
-            self.inputs.lock(|d| d.latched())
-        }
-
-        fn acknowledge(&mut self) -> bool {
-            self.inputs.lock(|d| d.acknowledge())
-        }
-
-        fn latch_active(&mut self) -> bool {
-            self.inputs.lock(|d| {
-                let i = d.inputs();
-                d.latched().is_some() && (i.estop || i.limits != 0)
-            })
-        }
-    }
-
-    /// The AC log lines at defmt's debug level (`DEFMT_LOG=debug` to see them).
-    pub struct DefmtLog;
-
-    impl LogSink for DefmtLog {
-        fn write(&mut self, bytes: &[u8]) {
-            if let Ok(s) = core::str::from_utf8(bytes) {
-                defmt::debug!("{=str}", s.trim_end());
-            }
         }
     }
 }
