@@ -19,23 +19,23 @@
 //! - operator inputs: [`PinInputs`] implements [`OperatorInputs`] over embedded-hal input pins;
 //! - frame timer, pulse timer, sample clock, force/torque ADC, serial, settings storage: millac's
 //!   own traits below.
-use crate::nc::Block;
+use crate::nc::Sealed;
 use crate::settings::{BoardLimits, IsrBounds, Settings};
 
 /// The Initiator's block queue as the frame sees it: the running block stays at the front until
 /// it is done. Frame ISR (the consumer end of the queue the loader fills); the host simulation.
 pub trait BlockSource {
     /// The front block, by reference (no copy in the ISR), or None when the queue is empty.
-    fn front(&mut self) -> Option<&Block>;
+    fn front(&mut self) -> Option<&Sealed>;
     /// Removes the front block (called once, when it is done).
     fn pop(&mut self);
 }
 
 /// The block queue's consumer end as the frame's block source (every board's frame ISR): the
 /// running block is read in place at the front (never copied) and dequeued when it is done.
-impl<const N: usize> BlockSource for heapless::spsc::Consumer<'_, Block, N> {
+impl<const N: usize> BlockSource for heapless::spsc::Consumer<'_, Sealed, N> {
     #[inline(always)]
-    fn front(&mut self) -> Option<&Block> {
+    fn front(&mut self) -> Option<&Sealed> {
         self.peek()
     }
     #[inline(always)]
@@ -47,8 +47,8 @@ impl<const N: usize> BlockSource for heapless::spsc::Consumer<'_, Block, N> {
 
 /// A host queue as the frame's block source (host tests and simulations; feature `std`).
 #[cfg(any(test, feature = "std"))]
-impl BlockSource for std::collections::VecDeque<Block> {
-    fn front(&mut self) -> Option<&Block> {
+impl BlockSource for std::collections::VecDeque<Sealed> {
+    fn front(&mut self) -> Option<&Sealed> {
         std::collections::VecDeque::front(self)
     }
     fn pop(&mut self) {

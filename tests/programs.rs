@@ -11,7 +11,7 @@ use proptest::prelude::*;
 
 /// Runs a program and returns its blocks' traces, after checking that the tape accepted it and
 /// that the blocks came from exactly the lines that move the machine.
-fn run_program(p: &Program) -> (Vec<millac::nc::Block>, Vec<Trace>) {
+fn run_program(p: &Program) -> (Vec<millac::nc::Sealed>, Vec<Trace>) {
     let (blocks, err) = tape(&p.text("\n"), 64);
     assert_eq!(err, None, "valid program refused:\n{}", p.text("\n"));
     assert_eq!(

@@ -4,7 +4,7 @@
 use super::lines::{LineError, Lines};
 use super::{GcodeError, Lookahead, Parsed, Parser};
 use crate::ac::{apply_ceiling, FeedCeiling};
-use crate::nc::{Block, FrameConfig};
+use crate::nc::{Block, FrameConfig, Sealed};
 use crate::settings::Settings;
 
 /// Why the tape stopped: a line refused before parsing, or by the parser.
@@ -54,7 +54,7 @@ struct Finish {
 }
 
 impl Finish {
-    fn block(&self, b: Block) -> Block {
+    fn block(&self, b: Block) -> Sealed {
         finish_block(b, self.ceiling, &self.cfg, self.q0)
     }
 }
@@ -67,12 +67,11 @@ pub fn finish_block(
     ceiling: Option<FeedCeiling>,
     cfg: &FrameConfig,
     q0: u32,
-) -> Block {
+) -> Sealed {
     if let Some(c) = ceiling {
         apply_ceiling(&mut b, c, q0);
     }
-    b.seal(cfg);
-    b
+    b.seal(cfg)
 }
 
 impl Tape {
@@ -110,7 +109,7 @@ impl Tape {
 
     /// Takes the next bytes. On an error the blocks accepted before it have all been emitted
     /// (none is held back), then the error is returned.
-    pub fn feed(&mut self, bytes: &[u8], mut emit: impl FnMut(Block)) -> Result<(), TapeError> {
+    pub fn feed(&mut self, bytes: &[u8], mut emit: impl FnMut(Sealed)) -> Result<(), TapeError> {
         if self.done {
             return Ok(());
         }
@@ -125,7 +124,7 @@ impl Tape {
     }
 
     /// End of the tape: a last line without a newline, then the held block.
-    pub fn finish(&mut self, mut emit: impl FnMut(Block)) -> Result<(), TapeError> {
+    pub fn finish(&mut self, mut emit: impl FnMut(Sealed)) -> Result<(), TapeError> {
         let finish = self.finish;
         let mut emit = |b: Block| emit(finish.block(b));
         let mut result = Ok(());
@@ -147,7 +146,7 @@ impl Tape {
         &mut self,
         n: u32,
         text: &str,
-        mut emit: impl FnMut(Block),
+        mut emit: impl FnMut(Sealed),
     ) -> Result<(), TapeError> {
         let finish = self.finish;
         let mut emit = |b: Block| emit(finish.block(b));
@@ -171,7 +170,7 @@ impl Tape {
     /// Emits the held block, decelerating at its end as at the end of a program: for a streamed
     /// program whose next line has not arrived while the machine would otherwise stop (a lone
     /// line from a sender runs at once). Loader task.
-    pub fn flush(&mut self, mut emit: impl FnMut(Block)) {
+    pub fn flush(&mut self, mut emit: impl FnMut(Sealed)) {
         if let Some(b) = self.lookahead.flush() {
             emit(self.finish.block(b));
         }
@@ -179,7 +178,7 @@ impl Tape {
 
     /// Soft reset of a streamed program: the held block is emitted (the blocks already queued
     /// run as well) and the modes return to power-up; the position stays. Loader task.
-    pub fn reset(&mut self, emit: impl FnMut(Block)) {
+    pub fn reset(&mut self, emit: impl FnMut(Sealed)) {
         self.flush(emit);
         self.parser.reset_modes();
     }
@@ -255,7 +254,7 @@ fn step(
 mod tests {
     extern crate std;
     use super::*;
-    use crate::nc::Motion;
+    use crate::nc::{Motion, Sealed};
     use std::vec::Vec;
 
     /// A streamed program, line by line: an error refuses only its line (the next lines run from
@@ -264,7 +263,7 @@ mod tests {
     #[test]
     fn streamed_lines_refuse_one_line_and_flush_on_demand() {
         let mut tape = Tape::new(Settings::default());
-        let mut out: Vec<Block> = Vec::new();
+        let mut out: Vec<Sealed> = Vec::new();
         tape.line(1, "G21 G91 G1 F100 X1", |b| out.push(b)).unwrap();
         assert!(out.is_empty() && tape.holds_a_block());
         let e = tape.line(2, "G1 X1 Q7", |b| out.push(b)).unwrap_err();
@@ -308,7 +307,7 @@ mod tests {
     #[test]
     fn the_parser_follows_a_jog() {
         let mut tape = Tape::new(Settings::default());
-        let mut out: Vec<Block> = Vec::new();
+        let mut out: Vec<Sealed> = Vec::new();
         tape.line(1, "G21 G91 G1 F100 X1", |b| out.push(b)).unwrap();
         tape.flush(|b| out.push(b));
         let modes = tape.parser().modes();
@@ -338,7 +337,7 @@ mod tests {
     #[test]
     fn abort_drops_the_held_block_and_stands_where_the_machine_stopped() {
         let mut tape = Tape::new(Settings::default());
-        let mut out: Vec<Block> = Vec::new();
+        let mut out: Vec<Sealed> = Vec::new();
         tape.line(1, "G20 G91 G1 F10 X1", |b| out.push(b)).unwrap();
         tape.line(2, "X1", |b| out.push(b)).unwrap();
         assert_eq!(out.len(), 1);

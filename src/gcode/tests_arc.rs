@@ -261,13 +261,13 @@ fn end_just_outside_the_circle_past_a_crossing_is_accepted_and_exact() {
     // Centre (-1000, 0) BLU from the start (0, 0); end (-1, 1001) from the centre: past the +b
     // crossing (0, 1000), one BLU outside the circle.
     let mut p = parser();
-    let mut b = block(&mut p, "G3 F30 X-0.1001 Y0.1001 I-0.1");
+    let b = block(&mut p, "G3 F30 X-0.1001 Y0.1001 I-0.1");
     let Motion::Arc(a) = b.motion else {
         panic!("{b:?}")
     };
     assert_eq!(a.targets[a.n_targets as usize - 1], [-1, 1001]);
     let cfg = FrameConfig::from_settings(&Settings::default());
-    b.seal(&cfg);
+    let b = b.seal(&cfg);
     let mut frame = Frame::new(cfg);
     let mut last = [0; 3];
     for f in Sim::new(&mut frame, [b].into_iter(), u32::MAX, 1 << 24) {

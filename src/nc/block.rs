@@ -169,9 +169,9 @@ impl Block {
     ///   a (each axis of the plane sees a sinusoid of that amplitude; grbl limits arcs the same
     ///   way): f <= sqrt(a R) q0 / W0, see [`centripetal_feed`].
     ///
-    /// An unsealed block (all 0) runs at its feed without deceleration, and never starts: its
-    /// ramp is 0 (every block the tape emits is sealed).
-    pub fn seal(&mut self, cfg: &super::FrameConfig) {
+    /// Only a sealed block reaches the frame ([`Sealed`]: the queue's type): an unsealed one
+    /// (all 0) would never start, its ramp being 0.
+    pub fn seal(mut self, cfg: &super::FrameConfig) -> Sealed {
         let k = cfg.decel_gain_q8;
         let regs = |f: u32, decel: bool| {
             let floor = (f / 5).max(1);
@@ -207,6 +207,56 @@ impl Block {
             }
             Motion::Rapid(_) | Motion::Dwell(_) => {}
         }
+        Sealed(self)
+    }
+}
+
+/// A block the frame may run: sealed by [`Block::seal`] after its last change, the only way to
+/// make one. It cannot be changed (it reads as a [`Block`] through `Deref`), so the frame never
+/// sees registers that disagree with the feed; whoever changes a block (the re-planner) takes it
+/// apart ([`Sealed::into_block`]) and seals it again. The block queue carries these. Any context.
+///
+/// ```
+/// # use millac::nc::{Block, Dwell, FrameConfig, Motion};
+/// let cfg = FrameConfig::from_settings(&millac::Settings::default());
+/// let s = Block { line: 1, motion: Motion::Dwell(Dwell { frames: 1 }) }.seal(&cfg);
+/// assert_eq!(s.line, 1);
+/// ```
+/// It reads as a block, and cannot be changed in place:
+/// ```compile_fail
+/// # use millac::nc::{Block, Dwell, FrameConfig, Motion};
+/// let cfg = FrameConfig::from_settings(&millac::Settings::default());
+/// let mut s = Block { line: 1, motion: Motion::Dwell(Dwell { frames: 1 }) }.seal(&cfg);
+/// s.line = 2;
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Sealed(Block);
+
+impl Sealed {
+    /// A dwell of no frames (sealing changes nothing in a dwell): a placeholder where a block
+    /// must be, doing nothing.
+    pub const NOTHING: Sealed = Sealed(Block {
+        line: 0,
+        motion: Motion::Dwell(Dwell { frames: 0 }),
+    });
+
+    /// The block, to read (the frame: `src.front().map(Sealed::block)`).
+    #[inline(always)]
+    pub const fn block(&self) -> &Block {
+        &self.0
+    }
+
+    /// The block, to change (and seal again).
+    pub const fn into_block(self) -> Block {
+        self.0
+    }
+}
+
+impl core::ops::Deref for Sealed {
+    type Target = Block;
+    #[inline(always)]
+    fn deref(&self) -> &Block {
+        &self.0
     }
 }
 

@@ -38,7 +38,7 @@
 //!   figures);
 //!   starting it only sets the remainders, the command count and the feed registers. Arcs, rapids
 //!   and dwells still load in a frame of their own.
-use super::block::{dirs, Block, Linear, Motion};
+use super::block::{dirs, Block, Linear, Motion, Sealed};
 use super::operator;
 use crate::ports::{BlockSource, FeedCap};
 use crate::settings::Settings;
@@ -213,7 +213,7 @@ impl Frame {
             // one queued block per frame (bounded work) until the loader lifts the abort.
             self.mode = Mode::Idle;
             self.v = 0;
-            if src.front().is_some() {
+            if src.front().map(Sealed::block).is_some() {
                 src.pop();
             }
             return Pulses {
@@ -224,7 +224,7 @@ impl Frame {
         if self.mode == Mode::Idle {
             // A hold keeps the next block from starting.
             if !operator::held(op) {
-                if let Some(b) = src.front() {
+                if let Some(b) = src.front().map(Sealed::block) {
                     self.initiate(b);
                 }
             }
@@ -254,7 +254,7 @@ impl Frame {
             // load frame, so short blocks run at their programmed feed.
             Mode::Linear => {
                 // The line's registers are read in place, from the front block (never copied).
-                let (steps, signs) = match src.front() {
+                let (steps, signs) = match src.front().map(Sealed::block) {
                     Some(Block {
                         motion: Motion::Linear(l),
                         ..
@@ -286,7 +286,7 @@ impl Frame {
                     if let Some(Block {
                         motion: Motion::Linear(l),
                         ..
-                    }) = src.front()
+                    }) = src.front().map(Sealed::block)
                     {
                         self.load_linear(l);
                     }
@@ -465,7 +465,7 @@ impl Frame {
     /// Loads segment `self.seg` of the running arc (the source's front block).
     #[inline(always)]
     fn load_segment(&mut self, src: &mut impl BlockSource) {
-        match src.front() {
+        match src.front().map(Sealed::block) {
             Some(Block {
                 motion: Motion::Arc(c),
                 ..

@@ -1,6 +1,6 @@
 //! A frame driven without hardware: feeds blocks to [`Frame::tick`] and yields every frame's output
 //! with the rate it ran at. Used by host tests and the host tool (host); never by the firmware.
-use super::block::Block;
+use super::block::Sealed;
 use super::frame::{Frame, Pulses, Rate};
 use crate::ports::BlockSource;
 
@@ -19,13 +19,13 @@ pub struct SimFrame {
 /// An iterator as the frame's block queue: the front block is held until the frame pops it.
 struct IterSource<I> {
     it: I,
-    head: Option<Block>,
+    head: Option<Sealed>,
     /// The frame asked for a block and there was none.
     exhausted: bool,
 }
 
-impl<I: Iterator<Item = Block>> BlockSource for IterSource<I> {
-    fn front(&mut self) -> Option<&Block> {
+impl<I: Iterator<Item = Sealed>> BlockSource for IterSource<I> {
+    fn front(&mut self) -> Option<&Sealed> {
         if self.head.is_none() {
             self.head = self.it.next();
             self.exhausted = self.head.is_none();
@@ -39,7 +39,7 @@ impl<I: Iterator<Item = Block>> BlockSource for IterSource<I> {
 
 /// Runs `frame` over `blocks` until the last block is done (or `max_ticks` frames have run),
 /// with `feed_cap` as the adaptive feed cap of every frame.
-pub struct Sim<'f, I: Iterator<Item = Block>> {
+pub struct Sim<'f, I: Iterator<Item = Sealed>> {
     frame: &'f mut Frame,
     blocks: IterSource<I>,
     tick: u64,
@@ -48,7 +48,7 @@ pub struct Sim<'f, I: Iterator<Item = Block>> {
     rate: Rate,
 }
 
-impl<'f, I: Iterator<Item = Block>> Sim<'f, I> {
+impl<'f, I: Iterator<Item = Sealed>> Sim<'f, I> {
     pub fn new(frame: &'f mut Frame, blocks: I, feed_cap: u32, max_ticks: u64) -> Self {
         let rate = frame.rate();
         Sim {
@@ -66,7 +66,7 @@ impl<'f, I: Iterator<Item = Block>> Sim<'f, I> {
     }
 }
 
-impl<I: Iterator<Item = Block>> Iterator for Sim<'_, I> {
+impl<I: Iterator<Item = Sealed>> Iterator for Sim<'_, I> {
     type Item = SimFrame;
 
     fn next(&mut self) -> Option<SimFrame> {

@@ -26,10 +26,10 @@ fn signs_of(d: [i64; 3]) -> u8 {
     (0..3).filter(|&k| d[k] > 0).fold(0u8, |s, k| s | 1 << k)
 }
 
-fn line(d: [i64; 3], f: u32, decel: bool) -> Block {
+fn line(d: [i64; 3], f: u32, decel: bool) -> Sealed {
     let steps = d.map(|v| v.unsigned_abs() as u32);
     let q = isqrt(d.iter().map(|v| (v * v) as u64).sum()).max(1) as u32;
-    let mut b = Block {
+    let b = Block {
         line: 1,
         motion: Motion::Linear(Linear {
             steps,
@@ -43,13 +43,12 @@ fn line(d: [i64; 3], f: u32, decel: bool) -> Block {
             dir: [1; 3],
         }),
     };
-    b.seal(&cfg());
-    b
+    b.seal(&cfg())
 }
 
 /// An arc in the XY plane with centre offset `c` from the start, `sweep` radians (sign = direction).
 /// Segment targets follow the rule in block.rs: axis crossings at the rounded start radius, then the end.
-fn arc(start: [i32; 2], r: f64, a0: f64, sweep: f64, f: u32) -> (Block, [i32; 2]) {
+fn arc(start: [i32; 2], r: f64, a0: f64, sweep: f64, f: u32) -> (Sealed, [i32; 2]) {
     let ccw = sweep > 0.0;
     let s = [(r * a0.cos()).round() as i32, (r * a0.sin()).round() as i32];
     let e = [
@@ -113,10 +112,8 @@ fn arc(start: [i32; 2], r: f64, a0: f64, sweep: f64, f: u32) -> (Block, [i32; 2]
             length,
         }),
     };
-    let mut b = b;
-    b.seal(&cfg());
     let _ = start;
-    (b, [e[0] - s[0], e[1] - s[1]])
+    (b.seal(&cfg()), [e[0] - s[0], e[1] - s[1]])
 }
 
 /// Perpendicular distance of point p from the line through 0 and d.
@@ -331,7 +328,8 @@ fn ptp_runs_at_rapid_rate_with_three_deceleration_steps() {
             steps: [5000, 300, 0],
             signs: 0b001,
         }),
-    };
+    }
+    .seal(&cfg());
     let mut frame = Frame::new(cfg());
     let frames: Vec<_> = Sim::new(&mut frame, [block].into_iter(), u32::MAX, 1 << 30).collect();
     assert!(frames.iter().skip(1).all(|f| f.rate == Rate::Rapid));
@@ -368,7 +366,7 @@ fn ptp_runs_at_rapid_rate_with_three_deceleration_steps() {
 #[test]
 fn longest_line_pulses_on_every_command() {
     let q = Q_MAX;
-    let mut b = Block {
+    let b = Block {
         line: 1,
         motion: Motion::Linear(Linear {
             steps: [q, 1, 0],
@@ -382,7 +380,7 @@ fn longest_line_pulses_on_every_command() {
             dir: [1; 3],
         }),
     };
-    b.seal(&cfg());
+    let b = b.seal(&cfg());
     let mut frame = Frame::new(cfg());
     // Frame 0 loads, then one command per frame.
     let out: Vec<_> = Sim::new(&mut frame, [b].into_iter(), u32::MAX, 1001).collect();
@@ -392,7 +390,7 @@ fn longest_line_pulses_on_every_command() {
 }
 
 /// Interpolation commands of the lines among `blocks` (q each).
-pub(super) fn line_commands(blocks: &[Block]) -> u64 {
+pub(super) fn line_commands(blocks: &[Sealed]) -> u64 {
     blocks
         .iter()
         .map(|b| match b.motion {
@@ -414,7 +412,7 @@ fn chained_lines_run_at_the_programmed_feed() {
             1 => [0, len, 0],
             _ => [-len, -len, 0],
         };
-        let blocks: Vec<Block> = (0..1000).map(|k| line(d(k), f, false)).collect();
+        let blocks: Vec<Sealed> = (0..1000).map(|k| line(d(k), f, false)).collect();
         let commands = line_commands(&blocks);
         let mut frame = Frame::new(cfg());
         let mut ends = Vec::new();
@@ -462,7 +460,8 @@ fn dwell_waits_its_frames() {
         Block {
             line: 1,
             motion: Motion::Dwell(Dwell { frames: 500 }),
-        },
+        }
+        .seal(&cfg()),
         line([10, 0, 0], 3000, false),
     ];
     let mut frame = Frame::new(cfg());

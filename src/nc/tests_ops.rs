@@ -17,11 +17,11 @@ fn cfg() -> FrameConfig {
     FrameConfig::from_settings(&settings())
 }
 
-fn line(d: [i64; 3], f: u32, decel: bool, cfg: &FrameConfig) -> Block {
+fn line(d: [i64; 3], f: u32, decel: bool, cfg: &FrameConfig) -> Sealed {
     let steps = d.map(|v| v.unsigned_abs() as u32);
     let q = isqrt(d.iter().map(|v| (v * v) as u64).sum()).max(1) as u32;
     let signs = (0..3).filter(|&k| d[k] > 0).fold(0u8, |s, k| s | 1 << k);
-    let mut b = Block {
+    let b = Block {
         line: 1,
         motion: Motion::Linear(Linear {
             steps,
@@ -35,11 +35,10 @@ fn line(d: [i64; 3], f: u32, decel: bool, cfg: &FrameConfig) -> Block {
             dir: [1; 3],
         }),
     };
-    b.seal(cfg);
-    b
+    b.seal(cfg)
 }
 
-fn rapid(d: [i64; 3]) -> Block {
+fn rapid(d: [i64; 3]) -> Sealed {
     Block {
         line: 1,
         motion: Motion::Rapid(Rapid {
@@ -47,12 +46,13 @@ fn rapid(d: [i64; 3]) -> Block {
             signs: (0..3).filter(|&k| d[k] > 0).fold(0u8, |s, k| s | 1 << k),
         }),
     }
+    .seal(&cfg())
 }
 
 /// A frame, its queue and a record of every frame's pulses.
 struct Rig {
     frame: Frame,
-    q: VecDeque<Block>,
+    q: VecDeque<Sealed>,
     /// Per frame: the step bits.
     steps: Vec<u8>,
     /// Pulses per axis with their signs.
@@ -60,7 +60,7 @@ struct Rig {
 }
 
 impl Rig {
-    fn new(cfg: FrameConfig, blocks: &[Block]) -> Self {
+    fn new(cfg: FrameConfig, blocks: &[Sealed]) -> Self {
         Rig {
             frame: Frame::new(cfg),
             q: blocks.iter().copied().collect(),
@@ -202,7 +202,7 @@ fn each_axis_stays_within_its_own_acceleration() {
 #[test]
 fn chained_lines_keep_their_speed_at_the_junction() {
     let c = cfg();
-    let blocks: Vec<Block> = (0..200)
+    let blocks: Vec<Sealed> = (0..200)
         .map(|k| {
             line(
                 if k % 2 == 0 { [10, 0, 0] } else { [10, 1, 0] },
@@ -257,7 +257,7 @@ fn feed_hold_stops_at_the_acceleration_and_resume_ends_exactly() {
 #[test]
 fn a_hold_in_a_decelerating_chain_and_an_arc_loses_nothing() {
     let c = cfg();
-    let mut arc = Block {
+    let arc = Block {
         line: 2,
         motion: Motion::Arc(Arc {
             plane: Plane::XY,
@@ -274,7 +274,7 @@ fn a_hold_in_a_decelerating_chain_and_an_arc_loses_nothing() {
             ramp: 0,
         }),
     };
-    arc.seal(&c);
+    let arc = arc.seal(&c);
     let blocks = [
         line([500, 0, 0], 3000, false, &c),
         line([500, 500, 0], 3000, true, &c),
@@ -456,7 +456,8 @@ fn a_hold_stops_a_dwell_and_keeps_the_next_block_from_starting() {
         Block {
             line: 1,
             motion: Motion::Dwell(Dwell { frames: 1000 }),
-        },
+        }
+        .seal(&c),
         line([100, 0, 0], 3000, false, &c),
     ];
     let mut rig = Rig::new(c, &blocks);
@@ -502,8 +503,8 @@ fn abort_stops_at_once_and_drops_the_queue_keeping_the_position() {
 }
 
 /// A full circle of radius R as one sealed block in the XY plane, starting at (R, 0).
-fn circle(r: i32, f: u32, cfg: &FrameConfig) -> Block {
-    let mut b = Block {
+fn circle(r: i32, f: u32, cfg: &FrameConfig) -> Sealed {
+    let b = Block {
         line: 1,
         motion: Motion::Arc(Arc {
             plane: Plane::XY,
@@ -520,8 +521,7 @@ fn circle(r: i32, f: u32, cfg: &FrameConfig) -> Block {
             ramp: 0,
         }),
     };
-    b.seal(cfg);
-    b
+    b.seal(cfg)
 }
 
 /// An arc's feed is capped so that its centripetal acceleration v^2 / R stays within the axes'

@@ -42,7 +42,7 @@ use core::sync::atomic::Ordering::Relaxed;
 use crate::ac::AcSettings;
 use crate::ac::{Alarm, FeedCeiling};
 use crate::gcode::tape::{finish_block, Tape, TapeError};
-use crate::nc::{operator, Block, FrameConfig, Motion};
+use crate::nc::{operator, FrameConfig, Motion, Sealed};
 use crate::ports::{Board, SettingsStorage};
 use crate::protocol::codes::{ac_alarm, alarm, GrblError};
 use crate::protocol::report::{feed_blu_per_min, AcReport, AcState, State, StatusData};
@@ -146,7 +146,7 @@ struct Deferred {
 /// AC's feed ceiling (None: no AC, or a measure-only one), the protocol and the transmit queue,
 /// the AC task's holds, the status words.
 pub struct Parts<'r, const Q: usize, const A: usize, const R: usize, S: SettingsStorage> {
-    pub blocks: &'r mut Producer<'static, Block, Q>,
+    pub blocks: &'r mut Producer<'static, Sealed, Q>,
     pub replan: &'r mut Replan<R>,
     pub table: &'r mut Persistent<S>,
     pub ceiling: Option<FeedCeiling>,
@@ -207,7 +207,7 @@ pub struct Loader<
     S: SettingsStorage,
     B: LoaderBoard,
 > {
-    blocks: &'r mut Producer<'static, Block, Q>,
+    blocks: &'r mut Producer<'static, Sealed, Q>,
     replan: &'r mut Replan<R>,
     table: &'r mut Persistent<S>,
     console: &'r mut dyn Console,
@@ -936,7 +936,7 @@ fn sync_line<B: LoaderBoard>(
 /// bit, one block per frame), then the operator's word is restored. Returns the position (BLU)
 /// and SIGN lines where the machine stopped, for the parser. Loader task.
 fn abort<const Q: usize>(
-    blocks: &mut Producer<'static, Block, Q>,
+    blocks: &mut Producer<'static, Sealed, Q>,
     status: &Status,
     board: &mut impl LoaderBoard,
 ) -> ([i32; 3], u8) {
@@ -955,10 +955,10 @@ fn abort<const Q: usize>(
 /// programmed feed (for the status report). The loader takes a line only with room for it and
 /// nothing waiting in the record, so the record has room and this does not wait.
 fn enqueue<const Q: usize, const R: usize>(
-    blocks: &mut Producer<'static, Block, Q>,
+    blocks: &mut Producer<'static, Sealed, Q>,
     replan: &mut Replan<R>,
     status: &Status,
-    b: Block,
+    b: Sealed,
     feed: &mut u32,
 ) {
     *feed = match b.motion {
@@ -970,7 +970,7 @@ fn enqueue<const Q: usize, const R: usize>(
 }
 
 /// Queues a block, waiting while the queue is full (the frame drains it). Loader task, both modes.
-pub fn enqueue_block<const Q: usize>(blocks: &mut Producer<'static, Block, Q>, b: Block) {
+pub fn enqueue_block<const Q: usize>(blocks: &mut Producer<'static, Sealed, Q>, b: Sealed) {
     while blocks.enqueue(b).is_err() {
         core::hint::spin_loop();
     }

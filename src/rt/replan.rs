@@ -57,7 +57,7 @@ use core::sync::atomic::Ordering::Relaxed;
 use crate::ac::AcSettings;
 use crate::monitor::chatter::{lobe_rpm, ChatterSettings};
 use crate::nc::{
-    isqrt, operator, steps_and_signs, Block, Dwell, FrameConfig, Linear, Motion, Rapid, X, Y, Z,
+    isqrt, operator, steps_and_signs, Block, FrameConfig, Linear, Motion, Rapid, Sealed, X, Y, Z,
 };
 use crate::protocol::codes::alarm;
 use crate::rt::Status;
@@ -81,14 +81,14 @@ pub trait Sink {
     /// Blocks queued and not yet done by the frame (the running block included).
     fn queued(&self) -> usize;
     /// Queues `b` if there is room.
-    fn try_push(&mut self, b: Block) -> Result<(), Block>;
+    fn try_push(&mut self, b: Sealed) -> Result<(), Sealed>;
 }
 
-impl<const Q: usize> Sink for heapless::spsc::Producer<'static, Block, Q> {
+impl<const Q: usize> Sink for heapless::spsc::Producer<'static, Sealed, Q> {
     fn queued(&self) -> usize {
         heapless::spsc::Producer::len(self)
     }
-    fn try_push(&mut self, b: Block) -> Result<(), Block> {
+    fn try_push(&mut self, b: Sealed) -> Result<(), Sealed> {
         self.enqueue(b)
     }
 }
@@ -98,7 +98,7 @@ impl<const Q: usize> Sink for heapless::spsc::Producer<'static, Block, Q> {
 #[cfg(any(test, feature = "std"))]
 #[derive(Clone, Debug, Default)]
 pub struct HostQueue {
-    pub blocks: std::collections::VecDeque<Block>,
+    pub blocks: std::collections::VecDeque<Sealed>,
     pub cap: usize,
 }
 
@@ -107,7 +107,7 @@ impl Sink for HostQueue {
     fn queued(&self) -> usize {
         self.blocks.len()
     }
-    fn try_push(&mut self, b: Block) -> Result<(), Block> {
+    fn try_push(&mut self, b: Sealed) -> Result<(), Sealed> {
         if self.blocks.len() >= self.cap {
             return Err(b);
         }
@@ -118,7 +118,7 @@ impl Sink for HostQueue {
 
 #[cfg(any(test, feature = "std"))]
 impl crate::ports::BlockSource for HostQueue {
-    fn front(&mut self) -> Option<&Block> {
+    fn front(&mut self) -> Option<&Sealed> {
         self.blocks.front()
     }
     fn pop(&mut self) {
@@ -199,20 +199,21 @@ pub fn displacement(b: &Block) -> [i32; 3] {
     }
 }
 
-/// A rapid by `d` (BLU).
-fn rapid(line: u32, d: [i32; 3]) -> Block {
+/// A rapid by `d` (BLU), sealed.
+fn rapid(line: u32, d: [i32; 3], cfg: &FrameConfig) -> Sealed {
     let (steps, signs) = steps_and_signs(d.map(i64::from));
     Block {
         line,
         motion: Motion::Rapid(Rapid { steps, signs }),
     }
+    .seal(cfg)
 }
 
 /// The straight feed move `l` re-made for the XY move `d` (BLU), sealed.
-fn feed_move(line: u32, l: &Linear, d: [i32; 2], decel: bool, cfg: &FrameConfig) -> Block {
+fn feed_move(line: u32, l: &Linear, d: [i32; 2], decel: bool, cfg: &FrameConfig) -> Sealed {
     let (steps, signs) = steps_and_signs([i64::from(d[0]), i64::from(d[1]), 0]);
     let q = isqrt(u64::from(steps[0]).pow(2) + u64::from(steps[1]).pow(2)) as u32;
-    let mut b = Block {
+    Block {
         line,
         motion: Motion::Linear(Linear {
             steps,
@@ -221,9 +222,8 @@ fn feed_move(line: u32, l: &Linear, d: [i32; 2], decel: bool, cfg: &FrameConfig)
             decel,
             ..*l
         }),
-    };
-    b.seal(cfg);
-    b
+    }
+    .seal(cfg)
 }
 
 /// The detour that removes the rest of `held` (a straight XY feed move ending at `p1`) in two
@@ -235,7 +235,7 @@ pub fn detour(
     lift: u32,
     nc: &Settings,
     cfg: &FrameConfig,
-) -> Result<heapless::Vec<Block, DETOUR>, Refusal> {
+) -> Result<heapless::Vec<Sealed, DETOUR>, Refusal> {
     let Motion::Linear(l) = &held.motion else {
         return Err(Refusal::NotLinear);
     };
@@ -257,10 +257,10 @@ pub fn detour(
     }
     let line = held.line;
     for b in [
-        rapid(line, [0, 0, up]),
+        rapid(line, [0, 0, up], cfg),
         feed_move(line, l, d, true, cfg),
-        rapid(line, [-d[0], -d[1], 0]),
-        rapid(line, [0, 0, -up]),
+        rapid(line, [-d[0], -d[1], 0], cfg),
+        rapid(line, [0, 0, -up], cfg),
         feed_move(line, l, d, l.decel, cfg),
     ] {
         // DETOUR blocks fit.
@@ -362,7 +362,7 @@ enum State {
 /// A queued block and where it starts.
 #[derive(Clone, Copy, Debug)]
 struct Entry {
-    block: Block,
+    block: Sealed,
     start: [i32; 3],
     /// The thickness (BLU) of the layer this block cuts when a detour made it (the lower pass:
     /// the step; the upper pass of a split layer: the rest); 0 for a programmed block (unknown).
@@ -373,10 +373,7 @@ struct Entry {
 }
 
 const EMPTY: Entry = Entry {
-    block: Block {
-        line: 0,
-        motion: Motion::Dwell(Dwell { frames: 0 }),
-    },
+    block: Sealed::NOTHING,
     start: [0; 3],
     layer: 0,
     speed: false,
@@ -412,7 +409,7 @@ pub struct Replan<const N: usize> {
     state: State,
     count: u32,
     /// The re-plan under way: the detour, the held block's sequence number, the stop.
-    path: heapless::Vec<Block, DETOUR>,
+    path: heapless::Vec<Sealed, DETOUR>,
     held_seq: u32,
     at: [i32; 3],
     /// Its step and the layers of its upper and lower pass (0: unknown).
@@ -546,7 +543,7 @@ impl<const N: usize> Replan<N> {
     /// re-plan's) or the frame is dropping the queue: the loader waits for the frame, polling,
     /// and offers it again. So the record holds the queue and one block more, and the rest of
     /// it is room for detours. Loader task.
-    pub fn offer(&mut self, sink: &mut impl Sink, b: Block) -> Result<(), Block> {
+    pub fn offer(&mut self, sink: &mut impl Sink, b: Sealed) -> Result<(), Sealed> {
         self.trim(self.front(sink));
         self.drain(sink);
         let full = self.issued.wrapping_sub(self.base) as usize >= N;
@@ -563,7 +560,7 @@ impl<const N: usize> Replan<N> {
     pub fn enqueue(
         &mut self,
         sink: &mut impl Sink,
-        b: Block,
+        b: Sealed,
         status: &Status,
         mut wait: impl FnMut(),
     ) {
@@ -583,7 +580,7 @@ impl<const N: usize> Replan<N> {
         }
     }
 
-    fn record(&mut self, b: Block) {
+    fn record(&mut self, b: Sealed) {
         let i = self.issued as usize % N;
         if let Some(e) = self.ring.get_mut(i) {
             *e = Entry {

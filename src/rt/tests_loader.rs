@@ -25,7 +25,7 @@ use super::{FrameTask, Reloads, Status};
 use crate::ac::Alarm;
 use crate::gcode::Spindle;
 use crate::inputs::{Events, Trip};
-use crate::nc::{Block, Frame, FrameConfig};
+use crate::nc::{Frame, FrameConfig, Sealed};
 use crate::ports::{FrameTimer, PulseTimer, SettingsStorage, StepPort};
 use crate::protocol::rx::RxIsr;
 use crate::protocol::rx::RxShared;
@@ -142,7 +142,7 @@ impl<const S: bool> crate::ports::Board for TestBoard<S> {
 struct Bench<const S: bool = true> {
     status: &'static Status,
     frame: FrameTask,
-    blocks: Consumer<'static, Block, Q>,
+    blocks: Consumer<'static, Sealed, Q>,
     pins: Pins,
     rx: RxIsr<'static>,
     tx: Consumer<'static, u8, T>,
@@ -429,7 +429,7 @@ fn session_on<const S: bool>(
 ) -> Bench<S> {
     let status: &'static Status = Box::leak(Box::new(Status::new()));
     status.start();
-    let (blocks_tx, blocks) = Box::leak(Box::new(Queue::<Block, Q>::new())).split();
+    let (blocks_tx, blocks) = Box::leak(Box::new(Queue::<Sealed, Q>::new())).split();
     let (tx_p, tx) = Box::leak(Box::new(Queue::<u8, T>::new())).split();
     let (alarm_tx, mut alarms) = Box::leak(Box::new(Queue::<Alarm, A>::new())).split();
     let (rx, task) = Box::leak(Box::new(RxShared::new())).split();

@@ -5,7 +5,7 @@
 
 use millac::gcode::tape::{Tape, TapeError};
 use millac::nc::sim::{Sim, SimFrame};
-use millac::nc::{Block, Frame, FrameConfig, Motion};
+use millac::nc::{Block, Frame, FrameConfig, Motion, Sealed};
 use millac::Settings;
 use proptest::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
@@ -357,7 +357,7 @@ pub fn programs(n: usize) -> impl Strategy<Value = Program> {
 
 /// Reads `text` through the tape in chunks of `chunk` bytes (the loader's way): the blocks
 /// emitted, and the error if the tape refused a line.
-pub fn tape(text: &str, chunk: usize) -> (Vec<Block>, Option<TapeError>) {
+pub fn tape(text: &str, chunk: usize) -> (Vec<Sealed>, Option<TapeError>) {
     let mut t = Tape::new(Settings::default());
     let mut blocks = Vec::new();
     for c in text.as_bytes().chunks(chunk.max(1)) {
@@ -370,7 +370,7 @@ pub fn tape(text: &str, chunk: usize) -> (Vec<Block>, Option<TapeError>) {
 }
 
 /// Runs blocks through the frame from the origin until the last is done.
-pub fn run(blocks: &[Block]) -> Vec<SimFrame> {
+pub fn run(blocks: &[Sealed]) -> Vec<SimFrame> {
     let s = Settings::default();
     let mut frame = Frame::new(FrameConfig::from_settings(&s));
     let frames: Vec<SimFrame> =
@@ -502,7 +502,7 @@ pub fn arc_sweep(p0: [i64; 2], p1: [i64; 2], ccw: bool) -> f64 {
 }
 
 /// The motion blocks' line numbers, in order.
-pub fn lines_of(blocks: &[Block]) -> Vec<u32> {
+pub fn lines_of(blocks: &[Sealed]) -> Vec<u32> {
     blocks.iter().map(|b| b.line).collect()
 }
 

@@ -84,7 +84,7 @@ mod app {
     use millac::ac::Alarm;
     use millac::ac::FeedCeiling;
     use millac::monitor::chatter::Spectrum;
-    use millac::nc::Block;
+    use millac::nc::Sealed;
     use millac::ports::{Board, Codes, SampleClock};
     use millac::protocol::rx::{RxIsr, RxShared};
     use millac::protocol::settings::record::RecordError;
@@ -113,8 +113,8 @@ mod app {
     #[local]
     struct Local {
         frame: FrameTask,
-        consumer: Consumer<'static, Block, QUEUE>,
-        producer: Producer<'static, Block, QUEUE>,
+        consumer: Consumer<'static, Sealed, QUEUE>,
+        producer: Producer<'static, Sealed, QUEUE>,
         settings: Settings,
         /// The settings table of serial mode (the loaded record) and its storage.
         table: Persistent<FileStorage>,
@@ -138,7 +138,7 @@ mod app {
     }
 
     #[init(local = [
-        queue: Queue<Block, QUEUE> = Queue::new(),
+        queue: Queue<Sealed, QUEUE> = Queue::new(),
         samples: Queue<Codes, SAMPLE_QUEUE> = Queue::new(),
         sound: Queue<Sound, SOUND_QUEUE> = Queue::new(),
         verdicts: Queue<Spectrum, VERDICT_QUEUE> = Queue::new(),

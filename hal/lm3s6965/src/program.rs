@@ -9,7 +9,7 @@ use core::sync::atomic::Ordering::Relaxed;
 use cortex_m_semihosting::nr;
 use heapless::spsc::{Consumer, Producer};
 use millac::ac::{Alarm, FeedCeiling};
-use millac::nc::Block;
+use millac::nc::Sealed;
 use millac::protocol::settings::record::RecordError;
 use millac::protocol::settings::Persistent;
 use millac::rt::actask::ALARM_QUEUE;
@@ -64,7 +64,7 @@ impl ProgramFile for SemihostProgram {
 #[allow(clippy::too_many_arguments)]
 pub fn run(
     mut program: SemihostProgram,
-    blocks: &mut Producer<'static, Block, QUEUE>,
+    blocks: &mut Producer<'static, Sealed, QUEUE>,
     replan: &mut Replan<RECORD>,
     table: &mut Persistent<FileStorage>,
     ceiling: Option<FeedCeiling>,

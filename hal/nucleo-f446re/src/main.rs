@@ -37,7 +37,7 @@ mod app {
     use cortex_m::peripheral::DWT;
     use heapless::spsc::{Consumer, Producer, Queue};
     use millac::ac::Alarm;
-    use millac::nc::Block;
+    use millac::nc::Sealed;
     use millac::ports::{Board, Codes, SampleClock};
     use millac::protocol::rx::{RxIsr, RxShared};
     use millac::protocol::settings::Persistent;
@@ -89,8 +89,8 @@ mod app {
         // which also decides whether `$263=2` is accepted): the F446's frame is past its
         // instruction bound with it (`limits::LIMITS`).
         frame: FrameTask<{ F446::LIMITS.plan_ratio }>,
-        consumer: Consumer<'static, Block, QUEUE>,
-        producer: Producer<'static, Block, QUEUE>,
+        consumer: Consumer<'static, Sealed, QUEUE>,
+        producer: Producer<'static, Sealed, QUEUE>,
         table: Persistent<FlashStore<Sector>>,
         cycles: FrameCycles,
         sampler: Option<Sampler<TripleAdc>>,
@@ -110,7 +110,7 @@ mod app {
     }
 
     #[init(local = [
-        queue: Queue<Block, QUEUE> = Queue::new(),
+        queue: Queue<Sealed, QUEUE> = Queue::new(),
         samples: Queue<Codes, SAMPLE_QUEUE> = Queue::new(),
         serial_rx: RxShared = RxShared::new(),
         serial_tx: Queue<u8, TX_QUEUE> = Queue::new(),

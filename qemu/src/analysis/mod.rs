@@ -8,14 +8,14 @@ pub mod vcd;
 use crate::analysis::vcd::AXES;
 use anyhow::Result;
 use millac::gcode::tape::{Tape, TapeError};
-use millac::nc::{sim::Sim, Block, Frame, FrameConfig, Motion};
+use millac::nc::{sim::Sim, Frame, FrameConfig, Motion, Sealed};
 use millac::Settings;
 use std::collections::VecDeque;
 
 /// A block of the program with its programmed start and end (machine BLU).
 #[derive(Clone, Copy, Debug)]
 pub struct ProgBlock {
-    pub block: Block,
+    pub block: Sealed,
     pub start: [i32; 3],
     pub end: [i32; 3],
     /// Pulses per axis the block takes (position counters, summed over arc segments).
@@ -26,7 +26,7 @@ pub struct ProgBlock {
 pub fn load_program(text: &str, settings: &Settings) -> Result<Vec<ProgBlock>, TapeError> {
     let mut blocks = Vec::new();
     let mut tape = Tape::new(*settings);
-    let mut push = |b: Block| blocks.push(b);
+    let mut push = |b: Sealed| blocks.push(b);
     tape.feed(text.as_bytes(), &mut push)?;
     tape.finish(&mut push)?;
     Ok(program_of_blocks(blocks))
@@ -34,7 +34,7 @@ pub fn load_program(text: &str, settings: &Settings) -> Result<Vec<ProgBlock>, T
 
 /// The blocks in the order the frame runs them, each with its start, end and pulses, from the
 /// machine origin (a program's, or a serial session's, see `serve::replay`).
-pub fn program_of_blocks(blocks: Vec<Block>) -> Vec<ProgBlock> {
+pub fn program_of_blocks(blocks: Vec<Sealed>) -> Vec<ProgBlock> {
     let mut pos = [0i32; 3];
     blocks
         .into_iter()

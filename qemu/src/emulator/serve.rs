@@ -29,7 +29,7 @@ use crate::emulator::runner::{self, AcRun};
 use crate::{analysis, analysis::vcd, emulator::cosim, emulator::firmware};
 use anyhow::{anyhow, Context, Result};
 use millac::gcode::tape::{finish_block, Tape};
-use millac::nc::{Block, FrameConfig, Motion};
+use millac::nc::{FrameConfig, Motion, Sealed};
 use millac::protocol::jog::JogRequest;
 use millac::wire::SessionLine;
 use millac::Settings;
@@ -262,7 +262,7 @@ pub fn serve(
 /// The blocks the firmware queued in a serial session, in order, from its log `serve.nc` (see
 /// `millac::wire::SessionLine`): the same tape, jog planning and block finishing as the loader in
 /// serial mode (`millac::rt::loader`), so the session is analysed like a `run` of its program.
-pub fn replay(log: &str, settings: &Settings) -> Result<Vec<Block>> {
+pub fn replay(log: &str, settings: &Settings) -> Result<Vec<Sealed>> {
     let mut tape = Tape::new(*settings);
     let cfg = FrameConfig::from_settings(settings);
     let mut blocks = Vec::new();

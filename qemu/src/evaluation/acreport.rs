@@ -35,7 +35,7 @@ pub fn ceiling_blocks(prog: &[ProgBlock], settings: &Settings, acs: &AcSettings)
     let cfg = FrameConfig::from_settings(settings);
     prog.iter()
         .map(|b| ProgBlock {
-            block: finish_block(b.block, Some(acs.ceiling), &cfg, settings.q0),
+            block: finish_block(b.block.into_block(), Some(acs.ceiling), &cfg, settings.q0),
             ..*b
         })
         .collect()

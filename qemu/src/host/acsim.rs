@@ -10,7 +10,7 @@ use crate::host::board::HostFrames;
 use anyhow::{anyhow, Result};
 use millac::ac::{AcController, AcSettings, AcState};
 use millac::gcode::tape::finish_block;
-use millac::nc::{Block, FrameConfig, Motion, Rate};
+use millac::nc::{Block, FrameConfig, Motion, Rate, Sealed};
 use millac::ports::{Conversion, ForceTorqueAdc};
 use millac::rt::ac::{self as rt_ac, AcPeriod};
 use millac::rt::replan::{Event as ReplanEvent, HostQueue, Replan, Replanned, SpeedChange};
@@ -439,9 +439,9 @@ pub fn run_with_faults(
     let ceiling = ac.map(|s| s.ceiling);
     // The program, fed to the queue through the loader's record as the firmware's loader feeds
     // it (chatter suppression re-plans from that record).
-    let mut program: VecDeque<Block> = prog
+    let mut program: VecDeque<Sealed> = prog
         .iter()
-        .map(|b| finish_block(b.block, ceiling, &cfg, settings.q0))
+        .map(|b| finish_block(b.block.into_block(), ceiling, &cfg, settings.q0))
         .collect();
     let mut queue = HostQueue {
         blocks: VecDeque::new(),
@@ -748,14 +748,16 @@ pub fn with_constant_feed(prog: &[ProgBlock], f: u32, settings: &Settings) -> Ve
     let cfg = FrameConfig::from_settings(settings);
     prog.iter()
         .map(|b| {
-            let mut b = *b;
-            match &mut b.block.motion {
+            let mut block = b.block.into_block();
+            match &mut block.motion {
                 Motion::Linear(l) => l.f = l.f.min(f),
                 Motion::Arc(c) => c.f = c.f.min(f),
                 _ => {}
             }
-            b.block.seal(&cfg);
-            b
+            ProgBlock {
+                block: block.seal(&cfg),
+                ..*b
+            }
         })
         .collect()
 }

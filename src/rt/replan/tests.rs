@@ -8,7 +8,7 @@ use crate::rt::ac::AC_RUN;
 
 const PROGRAM: &str = "G20 G90\nG0 X0 Y0\nG0 Z-0.35\nG1 X1.0 F20\nG1 Y0.5\nG1 X0\nG0 Z0.1\nM2\n";
 
-fn blocks(text: &str, nc: Settings) -> Vec<Block> {
+fn blocks(text: &str, nc: Settings) -> Vec<Sealed> {
     let mut tape = Tape::new(nc);
     let mut out = Vec::new();
     tape.feed(text.as_bytes(), |b| out.push(b)).unwrap();
@@ -23,7 +23,7 @@ struct Rig {
     q: HostQueue,
     status: Status,
     replan: Replan<12>,
-    program: std::collections::VecDeque<Block>,
+    program: std::collections::VecDeque<Sealed>,
     trace: Vec<[i32; 3]>,
     events: Vec<Event>,
 }
