@@ -18,7 +18,7 @@ use core::sync::atomic::Ordering::Relaxed;
 
 use heapless::spsc::{Consumer, Producer, Queue};
 
-use super::console::Serial;
+use super::console::{Console, Serial};
 use super::loader::{run, Finished, LoaderBoard, Parts};
 use super::program::{Program, ProgramFile, Said};
 use super::{FrameTask, Reloads, Status};
@@ -485,42 +485,38 @@ fn session_on<const S: bool>(
     let mut replan = Box::new(crate::rt::replan::Replan::<
         { crate::rt::replan::record_len(Q) },
     >::new(settings, &table.settings.ac, [0; 3]));
-    if let Some((bytes, chunk)) = PROGRAM.with(|p| p.borrow_mut().take()) {
-        let mut console = Program::new(MemFile {
-            bytes,
-            at: 0,
-            chunk,
-            results: Vec::new(),
+    // Program mode when a program file is set, else the serial line.
+    let mut program = PROGRAM
+        .with(|p| p.borrow_mut().take())
+        .map(|(bytes, chunk)| {
+            Program::new(MemFile {
+                bytes,
+                at: 0,
+                chunk,
+                results: Vec::new(),
+            })
         });
-        let finished = run(
-            Parts {
-                blocks: &mut blocks_tx,
-                replan: &mut replan,
-                table: &mut table,
-                ceiling,
-                console: &mut console,
-                ac_alarms: &mut alarms,
-                status,
-            },
-            &mut bench,
-        );
-        let ok = console.ok();
-        bench.program = Some((finished, ok, console.into_file().results));
-        return bench;
-    }
-    let mut console = Serial::new(&mut proto, &mut tx_p, || {}, &settings);
-    run(
+    let mut serial = Serial::new(&mut proto, &mut tx_p, || {}, &settings);
+    let console: &mut dyn Console = match program.as_mut() {
+        Some(p) => p,
+        None => &mut serial,
+    };
+    let finished = run(
         Parts {
             blocks: &mut blocks_tx,
             replan: &mut replan,
             table: &mut table,
             ceiling,
-            console: &mut console,
+            console,
             ac_alarms: &mut alarms,
             status,
         },
         &mut bench,
     );
+    if let Some(p) = program {
+        let ok = p.ok();
+        bench.program = Some((finished, ok, p.into_file().results));
+    }
     bench
 }
 
