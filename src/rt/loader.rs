@@ -968,10 +968,3 @@ fn enqueue<const Q: usize, const R: usize>(
     };
     replan.enqueue(blocks, b, status, core::hint::spin_loop);
 }
-
-/// Queues a block, waiting while the queue is full (the frame drains it). Loader task, both modes.
-pub fn enqueue_block<const Q: usize>(blocks: &mut Producer<'static, Sealed, Q>, b: Sealed) {
-    while blocks.enqueue(b).is_err() {
-        core::hint::spin_loop();
-    }
-}

@@ -524,12 +524,12 @@ fn session_on<const S: bool>(
 /// board's shape (a simulated spindle), for at most `frames` frames, with an AC event. Returns
 /// how the run ended, whether it succeeded, its result lines, and the bench.
 fn program_run(
-    program: &str,
+    program: impl AsRef<[u8]>,
     chunk: usize,
     frames: u64,
     ac_event: Option<(u64, AcEvent)>,
 ) -> (Option<Finished>, bool, Vec<String>, Bench) {
-    PROGRAM.with(|p| *p.borrow_mut() = Some((program.as_bytes().to_vec(), chunk)));
+    PROGRAM.with(|p| *p.borrow_mut() = Some((program.as_ref().to_vec(), chunk)));
     let mut b = session_full(&[], &[], None, frames, ESTOP, None, ac_event);
     let (finished, ok, results) = b.program.take().expect("a program run");
     (finished, ok, results, b)
@@ -577,10 +577,8 @@ fn the_first_refused_line_of_a_program_stops_it_and_the_blocks_before_it_run() {
     assert_eq!(b.status.encoder(), [100, 0, 0]);
 
     // Raw bytes, read five at a time: the bad byte is in the second line.
-    let bytes = b"G91 G1 F30 X0.01\nG1 Y0.01 (\xff)\nG1 Y0.01\n".to_vec();
-    PROGRAM.with(|p| *p.borrow_mut() = Some((bytes, 5)));
-    let mut b = session_full(&[], &[], None, 40_000, ESTOP, None, None);
-    let (finished, ok, results) = b.program.take().unwrap();
+    let bytes = b"G91 G1 F30 X0.01\nG1 Y0.01 (\xff)\nG1 Y0.01\n";
+    let (finished, ok, results, b) = program_run(bytes, 5, 40_000, None);
     assert_eq!((finished, ok), (Some(Finished::Done), false));
     assert_eq!(results, ["error: line 2: not UTF-8"]);
     assert_eq!(b.status.encoder(), [100, 0, 0]);
