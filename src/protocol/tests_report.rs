@@ -201,18 +201,22 @@ fn the_frame_cycles_field_appears_only_when_measured() {
 #[test]
 fn status_frame_cycles_are_none_until_both_are_written() {
     use crate::rt::Status;
-    use core::sync::atomic::Ordering::Relaxed;
     // The wrapper may write either word first: a report between the two stores shows nothing.
     for min_first in [true, false] {
         let s = Status::new();
+        let w = s.split().cycles;
         assert_eq!(s.frame_cycles(), None);
-        let (first, second) = match min_first {
-            true => ((&s.frame_cycles_min, 96), (&s.frame_cycles_max, 1234)),
-            false => ((&s.frame_cycles_max, 1234), (&s.frame_cycles_min, 96)),
-        };
-        first.0.store(first.1, Relaxed);
+        if min_first {
+            w.set_min(96);
+        } else {
+            w.set_max(1234);
+        }
         assert_eq!(s.frame_cycles(), None, "{min_first}");
-        second.0.store(second.1, Relaxed);
+        if min_first {
+            w.set_max(1234);
+        } else {
+            w.set_min(96);
+        }
         assert_eq!(s.frame_cycles(), Some((96, 1234)));
     }
 }

@@ -61,9 +61,7 @@
 //! thus holds the force at its limit whatever the override (the override acts where the
 //! programmed feed binds, and in air); during a feed hold the achieved feed is 0 and the cap
 //! falls towards f_min, so a resume restarts the cut gently.
-use core::sync::atomic::Ordering::Relaxed;
-
-use super::status::Status;
+use super::status::{AcWriter, SamplerWriter};
 use crate::ac::{achieved_feed, AcController, AcOutput, AcState};
 use crate::monitor::chatter::Spectrum;
 use crate::monitor::{Breakage, BreakageDetector, BreakageSettings};
@@ -154,19 +152,19 @@ impl Trip {
 /// 0; see the module doc). Sampler task.
 pub fn sample(
     adc: &mut impl ForceTorqueAdc,
-    status: &Status,
+    status: &SamplerWriter,
     per_period: u32,
     trip: Option<&Trip>,
 ) -> Sampled {
-    let i = status.samples.load(Relaxed);
+    let i = status.samples.get();
     let conversion = adc.sample(i, status.encoder());
     if let (Some(t), Conversion::Fresh(c)) = (trip, conversion) {
         if t.over(c).is_some() {
-            status.feed_cap.store(0, Relaxed);
+            status.trip();
         }
     }
     let n = i.wrapping_add(1);
-    status.samples.store(n, Relaxed);
+    status.set_samples(n);
     let due = (n % per_period.max(1) == 0).then_some(n);
     let sound = adc.sound();
     match conversion {
@@ -315,12 +313,12 @@ fn held(out: &mut AcOutput, a: crate::ac::Alarm, ctl: &AcController) {
 /// its cap of 0 and leaves the ratio as it was (under a cap of 0 it does not matter), so no frame
 /// meets the running cap with another ratio; otherwise the ratio goes first, so a resume's cap
 /// never meets the ratio of before the hold.
-fn publish(status: &Status, feed_cap: u32, s: &crate::ac::AcSettings) {
+fn publish(status: &AcWriter, feed_cap: u32, s: &crate::ac::AcSettings) {
     let (cap, ratio) = crate::ac::frame_words(feed_cap, s);
     if cap != 0 {
-        status.plan_ratio.store(ratio, Relaxed);
+        status.set_plan_ratio(ratio);
     }
-    status.feed_cap.store(cap, Relaxed);
+    status.set_feed_cap(cap);
 }
 
 /// What one period did.
@@ -335,7 +333,7 @@ pub struct Period {
 
 impl AcPeriod {
     /// Stores the controller's first cap into `status` when `enabled`. Init context.
-    pub fn new(ctl: AcController, nc: Settings, enabled: bool, status: &Status) -> Self {
+    pub fn new(ctl: AcController, nc: Settings, enabled: bool, status: &AcWriter) -> Self {
         if enabled {
             publish(status, ctl.feed_cap(), ctl.settings());
         }
@@ -462,12 +460,12 @@ impl AcPeriod {
 
     /// One AC period: reads the encoder, gives the controller the achieved feed, runs it, writes
     /// the feed cap (when enabled) and counts the periods held with nothing moving. AC task.
-    pub fn run(&mut self, status: &Status) -> Period {
+    pub fn run(&mut self, status: &AcWriter) -> Period {
         let enc = status.encoder();
-        if status.ac_new_job.swap(false, Relaxed) {
+        if status.take_new_job() {
             self.ctl.new_job();
         }
-        if status.ac_resume.swap(false, Relaxed) {
+        if status.take_resume() {
             self.ctl.resume();
             self.still = 0;
             // A resumed cut is judged afresh (after a breakage: with the new tool), and so is the
@@ -478,9 +476,9 @@ impl AcPeriod {
             }
             self.chatter = None;
             self.tripped = None;
-            status.resumes.fetch_add(1, Relaxed);
+            status.count_resume();
         }
-        self.follow_spindle(status.spindle_rpm.load(Relaxed));
+        self.follow_spindle(status.spindle_rpm.get());
         // A feed step (a corner's deceleration and the acceleration after it, a hold, a
         // resume): the breakage monitor does not judge the force's transient as a tooth's.
         let rpm = self.breakage.as_ref().map_or(0, |m| m.rpm);
@@ -494,7 +492,7 @@ impl AcPeriod {
             let d = [0, 1, 2].map(|k| i64::from(enc[k]) - i64::from(self.last[k]));
             let period_ms = self.ctl.settings().period_ms;
             let achieved = achieved_feed(d, &self.nc, period_ms);
-            let factor = status.operator.load(Relaxed) & crate::nc::operator::FEED_MASK;
+            let factor = status.operator.get() & crate::nc::operator::FEED_MASK;
             self.ctl.set_achieved(unscale_override(achieved, factor));
         }
         let mut out = self.ctl.period();
@@ -530,7 +528,7 @@ impl AcPeriod {
             self.ctl.hold_over(a);
             held(&mut out, a, &self.ctl);
             if self.enabled {
-                status.spindle_stop.store(true, Relaxed);
+                status.ask_spindle_stop();
             }
         }
         if let Some(s) = self.chatter.take() {
@@ -540,19 +538,15 @@ impl AcPeriod {
                 threshold: self.ctl.settings().chatter_threshold,
             };
             if self.ctl.hold(a) {
-                status.chatter_hz.store(s.peak_hz.to_bits(), Relaxed);
+                status.set_chatter_hz(s.peak_hz);
                 held(&mut out, a, &self.ctl);
             }
         }
-        status.ac_state.store(
-            match out.state {
-                AcState::Run => AC_RUN,
-                AcState::Hold(a) => crate::protocol::codes::ac_alarm(&a),
-            },
-            Relaxed,
-        );
-        status.ac_force.store(out.f_n.to_bits(), Relaxed);
-        status.ac_torque.store(out.t_nm.to_bits(), Relaxed);
+        status.set_state(match out.state {
+            AcState::Run => AC_RUN,
+            AcState::Hold(a) => crate::protocol::codes::ac_alarm(&a),
+        });
+        status.set_measured(out.f_n, out.t_nm);
         if self.enabled {
             publish(status, out.feed_cap, self.ctl.settings());
         }
@@ -576,6 +570,7 @@ impl AcPeriod {
 mod tests {
     use super::*;
     use crate::ac::{AcSettings, Alarm};
+    use crate::rt::Status;
 
     /// An ADC that converts mid-scale codes until `miss_from`, then misses every conversion, and
     /// is gone from `lost_from` on.
@@ -603,8 +598,9 @@ mod tests {
     #[test]
     fn missed_conversions_keep_the_clock_and_hold_with_no_samples() {
         let status = Status::new();
+        let w = status.split();
         let ctl = AcController::new(AcSettings::default()).unwrap();
-        let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+        let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac);
         let per = period.per_period();
         let mut adc = Adc {
             miss_from: 2 * per,
@@ -613,7 +609,8 @@ mod tests {
         let mut states = [None; 5];
         for p in 0..5 {
             for k in 0..per {
-                let Sampled::Codes { codes, due, .. } = sample(&mut adc, &status, per, None) else {
+                let Sampled::Codes { codes, due, .. } = sample(&mut adc, &w.sampler, per, None)
+                else {
                     panic!("lost before its time");
                 };
                 let i = p * per + k;
@@ -623,11 +620,10 @@ mod tests {
                     period.sample(c);
                 }
             }
-            let out = period.run(&status);
-            states[p as usize] =
-                Some((out.out.state, out.out.alarm, status.feed_cap.load(Relaxed)));
+            let out = period.run(&w.ac);
+            states[p as usize] = Some((out.out.state, out.out.alarm, status.feed_cap.get()));
         }
-        assert_eq!(status.samples.load(Relaxed), 5 * per);
+        assert_eq!(status.samples.get(), 5 * per);
         for s in &states[..2] {
             assert!(
                 matches!(s, Some((AcState::Run, None, cap)) if *cap > 0),
@@ -647,21 +643,21 @@ mod tests {
         let mut halted = None;
         for p in 5..(6 + HOLD_EXIT_PERIODS) {
             for k in 0..per {
-                let due = match sample(&mut adc, &status, per, None) {
+                let due = match sample(&mut adc, &w.sampler, per, None) {
                     Sampled::Lost { due } => due,
                     s => panic!("sample {}: {s:?}", p * per + k),
                 };
                 assert_eq!(due, (k + 1 == per).then_some(p * per + k + 1));
             }
-            let out = period.run(&status);
+            let out = period.run(&w.ac);
             assert_eq!(out.out.state, AcState::Hold(Alarm::NoSamples));
-            assert_eq!(status.feed_cap.load(Relaxed), 0);
+            assert_eq!(status.feed_cap.get(), 0);
             if out.halt {
                 halted = Some(p);
                 break;
             }
         }
-        assert_eq!(status.samples.load(Relaxed) % per, 0);
+        assert_eq!(status.samples.get() % per, 0);
         // Held from period 2 on (the encoder never moved): the HOLD_EXIT_PERIODS-th held period.
         assert_eq!(halted, Some(2 + HOLD_EXIT_PERIODS - 1));
     }
@@ -678,23 +674,23 @@ mod tests {
     /// at the AC's cap times the operator's factor; returns the last cap.
     fn cap_under_override(factor_q8: u32, periods: u32) -> u32 {
         let status = Status::new();
-        status.start();
-        status.operator.store(factor_q8, Relaxed);
+        let w = status.split();
+        w.loader.set_operator(factor_q8);
         let nc = Settings::default();
         let ctl = AcController::new(AcSettings::default()).unwrap();
-        let mut period = AcPeriod::new(ctl, nc, true, &status);
+        let mut period = AcPeriod::new(ctl, nc, true, &w.ac);
         let period_ms = period.ctl.settings().period_ms as u64;
         let mut x = 0u64;
         for _ in 0..periods {
             mid_scale_window(&mut period);
-            let cap = status.feed_cap.load(Relaxed) as u64;
+            let cap = status.feed_cap.get() as u64;
             // BLU per period at feed number cap * factor: W0 f / q0 per second.
             x += cap * factor_q8 as u64 / 256 * nc.frame_hz as u64 * period_ms
                 / (nc.q0 as u64 * 1000);
-            status.encoder[0].store(x as i32, Relaxed);
-            period.run(&status);
+            w.pulse.set_encoder([x as i32, 0, 0]);
+            period.run(&w.ac);
         }
-        status.feed_cap.load(Relaxed)
+        status.feed_cap.get()
     }
 
     /// The anti-windup input is taken in programmed-feed units: under a 50 % override the cap
@@ -721,27 +717,27 @@ mod tests {
     #[test]
     fn the_operator_resumes_an_ac_hold() {
         let status = Status::new();
-        status.start();
+        let w = status.split();
         let ctl = AcController::new(AcSettings::default()).unwrap();
-        let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+        let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac);
         // A period without samples holds.
-        let out = period.run(&status);
+        let out = period.run(&w.ac);
         assert_eq!(out.out.state, AcState::Hold(Alarm::NoSamples));
         assert_eq!(
-            status.ac_state.load(Relaxed),
+            status.ac_state.get(),
             crate::protocol::codes::alarm::AC_NO_SAMPLES
         );
-        assert_eq!(status.feed_cap.load(Relaxed), 0);
+        assert_eq!(status.feed_cap.get(), 0);
         // Still held with samples again, until the operator resumes.
         mid_scale_window(&mut period);
-        assert!(matches!(period.run(&status).out.state, AcState::Hold(_)));
-        status.ac_resume.store(true, Relaxed);
+        assert!(matches!(period.run(&w.ac).out.state, AcState::Hold(_)));
+        w.loader.ask_resume();
         mid_scale_window(&mut period);
-        let out = period.run(&status);
+        let out = period.run(&w.ac);
         assert_eq!(out.out.state, AcState::Run);
-        assert!(!status.ac_resume.load(Relaxed), "the request is taken");
-        assert_eq!(status.ac_state.load(Relaxed), AC_RUN);
-        let cap = status.feed_cap.load(Relaxed);
+        assert!(!status.ac_resume.pending(), "the request is taken");
+        assert_eq!(status.ac_state.get(), AC_RUN);
+        let cap = status.feed_cap.get();
         let s = AcSettings::default();
         // From f_min, at most one FRC step up in this period.
         let most = s.f_min as f32 + s.step_per_period() + 1.0;
@@ -786,33 +782,33 @@ mod tests {
         let level = 1.1 * s.f0_n();
         for (f_n, trips) in [(0.98 * level, false), (1.02 * level, true)] {
             let status = Status::new();
-            status.start();
+            let w = status.split();
             let ctl = AcController::new(s).unwrap();
-            let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
-            let cap = status.feed_cap.load(Relaxed);
+            let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac);
+            let cap = status.feed_cap.get();
             assert!(cap > 0);
             let mut adc = Step { at: 3, f_n };
             let per = period.per_period();
             for i in 0..per {
                 if let Sampled::Codes { codes: Some(c), .. } =
-                    sample(&mut adc, &status, per, Some(&trip))
+                    sample(&mut adc, &w.sampler, per, Some(&trip))
                 {
                     period.sample(c);
                 }
-                let now = status.feed_cap.load(Relaxed);
+                let now = status.feed_cap.get();
                 if i >= 3 && trips {
                     assert_eq!(now, 0, "{f_n} N: not held at sample {i}");
                 } else {
                     assert_eq!(now, cap, "{f_n} N: held at sample {i}");
                 }
             }
-            let out = period.run(&status).out;
+            let out = period.run(&w.ac).out;
             if trips {
                 assert!(
                     matches!(out.alarm, Some(Alarm::Overload { f_n: f, .. }) if f > level),
                     "{out:?}"
                 );
-                assert_eq!(status.feed_cap.load(Relaxed), 0);
+                assert_eq!(status.feed_cap.get(), 0);
             } else {
                 assert_eq!(out.alarm, None);
             }
@@ -858,22 +854,22 @@ mod tests {
         let s = AcSettings::default();
         let trip = Trip::new(&s);
         let status = Status::new();
-        status.start();
+        let w = status.split();
         let ctl = AcController::new(s).unwrap();
-        let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
+        let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac);
         let per = period.per_period();
         let mut adc = RailSpike { at: 2 * per - 1 };
         let mut outs = Vec::new();
         for _ in 0..3 {
             for _ in 0..per {
                 if let Sampled::Codes { codes: Some(c), .. } =
-                    sample(&mut adc, &status, per, Some(&trip))
+                    sample(&mut adc, &w.sampler, per, Some(&trip))
                 {
                     period.sample(c);
                 }
             }
-            let out = period.run(&status).out;
-            outs.push((out.state, out.alarm, status.feed_cap.load(Relaxed)));
+            let out = period.run(&w.ac).out;
+            outs.push((out.state, out.alarm, status.feed_cap.get()));
         }
         assert!(
             matches!(outs[0], (AcState::Run, None, cap) if cap > 0),
@@ -890,8 +886,7 @@ mod tests {
 
     /// An enabled AC period under the plan (`FeedCeiling::Plan`, the other settings the
     /// defaults) on a started `status`, with its settings.
-    fn under_the_plan(status: &Status) -> (AcSettings, AcPeriod) {
-        status.start();
+    fn under_the_plan(status: &AcWriter) -> (AcSettings, AcPeriod) {
         let s = AcSettings {
             ceiling: crate::ac::FeedCeiling::Plan,
             ..AcSettings::default()
@@ -906,21 +901,22 @@ mod tests {
     #[test]
     fn a_hold_under_the_plan_keeps_the_plan_ratio() {
         let status = Status::new();
-        let (s, mut period) = under_the_plan(&status);
-        let k = status.plan_ratio.load(Relaxed);
+        let w = status.split();
+        let (s, mut period) = under_the_plan(&w.ac);
+        let k = status.plan_ratio.get();
         assert!(k > 0 && k < crate::ports::PLAN_ONE, "{k}");
-        assert_eq!(status.feed_cap.load(Relaxed), s.f_max);
+        assert_eq!(status.feed_cap.get(), s.f_max);
         // A period without samples holds: the cap goes to 0, the ratio stays.
-        let out = period.run(&status);
+        let out = period.run(&w.ac);
         assert_eq!(out.out.state, AcState::Hold(Alarm::NoSamples));
-        assert_eq!(status.feed_cap.load(Relaxed), 0);
-        assert_eq!(status.plan_ratio.load(Relaxed), k);
+        assert_eq!(status.feed_cap.get(), 0);
+        assert_eq!(status.plan_ratio.get(), k);
         // The resume publishes the ratio with the cap again.
-        status.ac_resume.store(true, Relaxed);
+        w.loader.ask_resume();
         mid_scale_window(&mut period);
-        assert_eq!(period.run(&status).out.state, AcState::Run);
-        assert_eq!(status.feed_cap.load(Relaxed), s.f_max);
-        assert_eq!(status.plan_ratio.load(Relaxed), k);
+        assert_eq!(period.run(&w.ac).out.state, AcState::Run);
+        assert_eq!(status.feed_cap.get(), s.f_max);
+        assert_eq!(status.plan_ratio.get(), k);
     }
 
     /// The loader's job end (`Status::ac_new_job`: M2/M30 once run, or a soft reset) restarts
@@ -928,25 +924,26 @@ mod tests {
     #[test]
     fn a_job_end_restarts_the_plan_ratio() {
         let status = Status::new();
-        let (s, mut period) = under_the_plan(&status);
-        let start = status.plan_ratio.load(Relaxed);
+        let w = status.split();
+        let (s, mut period) = under_the_plan(&w.ac);
+        let start = status.plan_ratio.get();
         // A cut at 0.94 F0 under k = PLAN_START: the first contact raises k.
         let load = 0.94 * s.f0_n();
         let mut n = 0;
         assert_eq!(
-            cut_revolutions(&mut period, &status, 3, [load; 4], &mut n),
+            cut_revolutions(&mut period, &w.ac, 3, [load; 4], &mut n),
             None
         );
-        let learnt = status.plan_ratio.load(Relaxed);
+        let learnt = status.plan_ratio.get();
         assert!(learnt > start, "{learnt} {start}");
         // The job ends; the next period (still the same cut) starts from PLAN_START again.
-        status.ac_new_job.store(true, Relaxed);
+        w.loader.ask_new_job();
         for _ in 0..10 {
             period.sample([2048; 3]);
         }
-        period.run(&status);
-        assert_eq!(status.plan_ratio.load(Relaxed), start);
-        assert!(!status.ac_new_job.load(Relaxed));
+        period.run(&w.ac);
+        assert_eq!(status.plan_ratio.get(), start);
+        assert!(!status.ac_new_job.pending());
     }
 
     /// `revs` spindle revolutions (600 rpm, 4 flutes: 25 samples a tooth at 1 kHz) of a cut whose
@@ -954,7 +951,7 @@ mod tests {
     /// +-2 code dither), through the AC period; returns the first alarm and its period.
     fn cut_revolutions(
         period: &mut AcPeriod,
-        status: &Status,
+        status: &AcWriter,
         revs: u32,
         loads: [f32; 4],
         from_period: &mut u32,
@@ -992,24 +989,24 @@ mod tests {
         let broken = [1050.0, 0.0, 2010.0, 950.0];
         for on in [true, false] {
             let status = Status::new();
-            status.start();
+            let w = status.split();
             let s = AcSettings {
                 breakage: on,
                 ..AcSettings::default()
             };
             let ctl = AcController::new(s).unwrap();
-            let mut period = AcPeriod::new(ctl, Settings::default(), true, &status)
+            let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac)
                 .with_monitors(&s)
                 .unwrap();
             assert_eq!(period.breakage().is_some(), on);
             let mut n = 0;
-            let early = cut_revolutions(&mut period, &status, 40, sound, &mut n);
+            let early = cut_revolutions(&mut period, &w.ac, 40, sound, &mut n);
             assert_eq!(early, None, "sound tool");
             let broke_at = n;
-            let hold = cut_revolutions(&mut period, &status, 5, broken, &mut n);
+            let hold = cut_revolutions(&mut period, &w.ac, 5, broken, &mut n);
             if !on {
                 assert_eq!(hold, None);
-                assert!(!status.spindle_stop.load(Relaxed));
+                assert!(!status.spindle_stop.pending());
                 continue;
             }
             let Some((at, Alarm::ToolBreakage(b))) = hold else {
@@ -1022,28 +1019,28 @@ mod tests {
                 at - broke_at
             );
             assert!(b.e1.abs() > b.th1 && b.e2.abs() > b.th2, "{b}");
-            assert!(status.spindle_stop.load(Relaxed));
+            assert!(status.spindle_stop.pending());
             assert_eq!(
-                status.ac_state.load(Relaxed),
+                status.ac_state.get(),
                 crate::protocol::codes::alarm::AC_BREAKAGE
             );
-            assert_eq!(status.feed_cap.load(Relaxed), 0);
+            assert_eq!(status.feed_cap.get(), 0);
             // The operator resumes (a new tool): the detector starts afresh and learns again.
-            status.ac_resume.store(true, Relaxed);
-            status.spindle_stop.store(false, Relaxed);
-            let again = cut_revolutions(&mut period, &status, 40, sound, &mut n);
+            w.loader.ask_resume();
+            w.loader.take_spindle_stop();
+            let again = cut_revolutions(&mut period, &w.ac, 40, sound, &mut n);
             assert_eq!(again, None);
-            assert_eq!(status.ac_state.load(Relaxed), AC_RUN);
+            assert_eq!(status.ac_state.get(), AC_RUN);
             // The new tool breaks while another hold stands (a period without samples): the
             // breakage replaces it, is said, and stops the spindle.
-            let held = period.run(&status);
+            let held = period.run(&w.ac);
             assert_eq!(held.out.alarm, Some(Alarm::NoSamples));
-            let second = cut_revolutions(&mut period, &status, 5, broken, &mut n);
+            let second = cut_revolutions(&mut period, &w.ac, 5, broken, &mut n);
             assert!(
                 matches!(second, Some((_, Alarm::ToolBreakage(_)))),
                 "{second:?}"
             );
-            assert!(status.spindle_stop.load(Relaxed));
+            assert!(status.spindle_stop.pending());
         }
     }
 }

@@ -9,13 +9,12 @@
 //! Overruns: a period whose work ends after the next deadline (the sample counter has passed
 //! `due + N`) counts one; a spawn the sampler could not make because the previous period was still
 //! pending or running (`Status::ac_missed`) counts one more.
-use core::sync::atomic::Ordering::Relaxed;
-
 use crate::ac::{AcState, Alarm};
 use crate::monitor::chatter::Spectrum;
 use crate::ports::{Codes, ForceTorqueAdc};
 use crate::rt::ac::{self as body, AcPeriod};
 use crate::rt::monitor::ChatterTask;
+use crate::rt::status::{AcWriter, SamplerWriter};
 use crate::rt::Status;
 use crate::wire::{AcLogLine, LogState, AC_LOG_HEADER, SOUND_PER_SAMPLE};
 use heapless::spsc::{Consumer, Producer};
@@ -50,7 +49,7 @@ impl LogSink for () {
 
 /// The sampler's state: the ADC, the queue to the AC task.
 pub struct Sampler<D: ForceTorqueAdc> {
-    status: &'static Status,
+    status: SamplerWriter<'static>,
     adc: D,
     queue: Producer<'static, Codes, SAMPLE_QUEUE>,
     /// The chatter monitor's sound queue (None: no chatter monitor).
@@ -72,7 +71,7 @@ pub struct SampleTick {
 
 impl<D: ForceTorqueAdc> Sampler<D> {
     pub fn new(
-        status: &'static Status,
+        status: SamplerWriter<'static>,
         adc: D,
         queue: Producer<'static, Codes, SAMPLE_QUEUE>,
         per_period: u32,
@@ -94,6 +93,12 @@ impl<D: ForceTorqueAdc> Sampler<D> {
         self
     }
 
+    /// The AC period this sample made due could not start (the previous one still runs):
+    /// counted into `Status::ac_missed`. Sampler task.
+    pub fn missed_period(&self) {
+        self.status.count_missed_period();
+    }
+
     /// Queues the sound channel's codes for the chatter monitor. Init context.
     pub fn with_sound(mut self, sound: Producer<'static, Sound, SOUND_QUEUE>) -> Self {
         self.sound = Some(sound);
@@ -106,7 +111,7 @@ impl<D: ForceTorqueAdc> Sampler<D> {
     pub fn sample(&mut self) -> SampleTick {
         match body::sample(
             &mut self.adc,
-            self.status,
+            &self.status,
             self.per_period,
             self.trip.as_ref(),
         ) {
@@ -114,13 +119,13 @@ impl<D: ForceTorqueAdc> Sampler<D> {
             body::Sampled::Codes { codes, due, sound } => {
                 if let Some(c) = codes {
                     if self.queue.enqueue(c).is_err() {
-                        self.status.samples_dropped.fetch_add(1, Relaxed);
+                        self.status.count_dropped_sample();
                     }
                 }
                 // A lost sample of sound makes the monitor restart its record (no gap judged).
                 if let (Some(q), Some(s)) = (self.sound.as_mut(), sound) {
                     if q.enqueue(s).is_err() {
-                        self.status.sound_dropped.fetch_add(1, Relaxed);
+                        self.status.count_dropped_sound();
                     }
                 }
                 SampleTick { due, lost: false }
@@ -178,7 +183,8 @@ pub struct StartError {
 /// (with the overload trip when the AC is `enabled`, i.e. applied to the feed). Init context.
 #[allow(clippy::too_many_arguments)]
 pub fn start<D: ForceTorqueAdc, W: LogSink>(
-    status: &'static Status,
+    status: AcWriter<'static>,
+    sampler_status: SamplerWriter<'static>,
     settings: crate::Settings,
     ac: &crate::ac::AcSettings,
     enabled: bool,
@@ -194,7 +200,7 @@ pub fn start<D: ForceTorqueAdc, W: LogSink>(
         what: "AC settings",
         why: e.message(),
     })?;
-    let period = AcPeriod::new(ctl, settings, enabled, status)
+    let period = AcPeriod::new(ctl, settings, enabled, &status)
         .with_monitors(ac)
         .map_err(|e| StartError {
             what: "monitor settings",
@@ -202,7 +208,7 @@ pub fn start<D: ForceTorqueAdc, W: LogSink>(
         })?;
     let (tx, rx) = samples;
     let task = AcTask::new(status, period, rx, alarms, log);
-    let mut sampler = Sampler::new(status, adc, tx, task.per_period());
+    let mut sampler = Sampler::new(sampler_status, adc, tx, task.per_period());
     if enabled {
         sampler = sampler.with_trip(body::Trip::new(ac));
     }
@@ -211,7 +217,7 @@ pub fn start<D: ForceTorqueAdc, W: LogSink>(
 
 /// The AC period's state.
 pub struct AcTask<W: LogSink> {
-    status: &'static Status,
+    status: AcWriter<'static>,
     period: AcPeriod,
     samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
     /// The chatter monitor's verdicts (None: no chatter monitor).
@@ -234,7 +240,7 @@ pub struct Period {
 impl<W: LogSink> AcTask<W> {
     /// Writes the log header. Init context.
     pub fn new(
-        status: &'static Status,
+        status: AcWriter<'static>,
         period: AcPeriod,
         samples: Consumer<'static, Codes, SAMPLE_QUEUE>,
         alarms: Producer<'static, Alarm, ALARM_QUEUE>,
@@ -276,9 +282,9 @@ impl<W: LogSink> AcTask<W> {
                 self.period.heard(s);
             }
         }
-        let p = self.period.run(self.status);
+        let p = self.period.run(&self.status);
         // Late: the next deadline passed while this period worked.
-        if self.status.samples.load(Relaxed).wrapping_sub(due) >= self.per_period {
+        if self.status.samples.get().wrapping_sub(due) >= self.per_period {
             self.late += 1;
         }
         let line = AcLogLine {
@@ -292,7 +298,7 @@ impl<W: LogSink> AcTask<W> {
                 AcState::Run => LogState::Run,
                 AcState::Hold(a) => LogState::Hold(a.message()),
             },
-            overruns: self.late + self.status.ac_missed.load(Relaxed),
+            overruns: self.late + self.status.ac_missed.get(),
         };
         let mut text: heapless::String<192> = heapless::String::new();
         let _ = line.emit(&mut text);
@@ -330,11 +336,13 @@ mod tests {
 
     fn started(ac: AcSettings, enabled: bool) -> Started {
         let status: &'static Status = Box::leak(Box::new(Status::new()));
+        let w = status.split();
         let samples: &'static mut Queue<Codes, SAMPLE_QUEUE> = Box::leak(Box::new(Queue::new()));
         let alarms: &'static mut Queue<Alarm, ALARM_QUEUE> = Box::leak(Box::new(Queue::new()));
         let (alarm_tx, _) = alarms.split();
         start(
-            status,
+            w.ac,
+            w.sampler,
             crate::Settings::default(),
             &ac,
             enabled,

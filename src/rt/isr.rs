@@ -29,9 +29,7 @@
 //!
 //! No locks, no logging, no allocation, no panic path (a QEMU test scans the built ISRs for calls
 //! and traps).
-use core::sync::atomic::Ordering::Relaxed;
-
-use super::status::Status;
+use super::status::{FrameWriter, Home, PulseWriter};
 use crate::nc::{Frame, Pulses, Rate};
 use crate::ports::{BlockSource, Board, FeedCap, FrameTimer, PulseTimer, StepPort};
 use crate::settings::Settings;
@@ -66,44 +64,49 @@ impl Reloads {
 /// the AC's plan ratio (`FeedCeiling::Plan`, `$263=2`: one load and a multiply in the frames that
 /// feed); a board without room for it in its frame budget builds `FrameTask<false>` (the ratio
 /// is the constant 1, folded away) and refuses `$263=2` (`BoardLimits::plan_ratio`).
-pub struct FrameTask<const PLAN: bool = true> {
+pub struct FrameTask<H, const PLAN: bool = true> {
     pub frame: Frame,
     pending: Pulses,
     rate: Rate,
     reloads: Reloads,
+    /// The frame ISR's handle on the status words (zero-sized in the firmware: see
+    /// `status::Home`).
+    status: FrameWriter<H>,
 }
 
 /// The AC's feed cap and plan ratio (one load each, only by the frames that feed; the ratio only
 /// with `PLAN`) and the operator's word (one load per frame) as the frame reads them.
-struct StatusCap<'a, const PLAN: bool>(&'a Status);
+struct StatusCap<'a, const PLAN: bool>(&'a super::Status);
 
 impl<const PLAN: bool> FeedCap for StatusCap<'_, PLAN> {
     #[inline(always)]
     fn feed_cap(&self) -> u32 {
-        self.0.feed_cap.load(Relaxed)
+        self.0.feed_cap.get()
     }
     #[inline(always)]
     fn operator(&self) -> u32 {
-        self.0.operator.load(Relaxed)
+        self.0.operator.get()
     }
     #[inline(always)]
     fn planned(&self, f: u32) -> u32 {
         if PLAN {
-            crate::ports::times_ratio(f, self.0.plan_ratio.load(Relaxed))
+            crate::ports::times_ratio(f, self.0.plan_ratio.get())
         } else {
             f
         }
     }
 }
 
-impl<const PLAN: bool> FrameTask<PLAN> {
-    /// A frame task at the feed rate (the frame timer starts with `reloads.feed`). Init context.
-    pub const fn new(frame: Frame, reloads: Reloads) -> Self {
+impl<H: Home, const PLAN: bool> FrameTask<H, PLAN> {
+    /// A frame task at the feed rate (the frame timer starts with `reloads.feed`), publishing
+    /// through `status`. Init context.
+    pub const fn new(frame: Frame, reloads: Reloads, status: FrameWriter<H>) -> Self {
         FrameTask {
             frame,
             pending: Pulses { steps: 0, signs: 0 },
             rate: Rate::Feed,
             reloads,
+            status,
         }
     }
 
@@ -115,7 +118,6 @@ impl<const PLAN: bool> FrameTask<PLAN> {
         timer: &mut impl FrameTimer,
         pulse: &mut impl PulseTimer,
         src: &mut impl BlockSource,
-        status: &Status,
     ) {
         timer.ack();
         let pending = self.pending;
@@ -124,8 +126,7 @@ impl<const PLAN: bool> FrameTask<PLAN> {
                 // Overrun: the last pulse has not ended (the pulse-end interrupt waits behind this
                 // one). Raising the line again would lose an edge: this frame does nothing, its
                 // pulses go out a period later, and the loader holds the machine.
-                let n = status.frame_overruns.load(Relaxed);
-                status.frame_overruns.store(n.wrapping_add(1), Relaxed);
+                self.status.count_overrun();
                 return;
             }
             port.write_steps(pending.steps);
@@ -134,25 +135,19 @@ impl<const PLAN: bool> FrameTask<PLAN> {
 
         let frame = &mut self.frame;
         let was_idle = frame.idle();
-        let p = frame.tick(src, StatusCap::<PLAN>(status));
+        let p = frame.tick(src, StatusCap::<PLAN>(&self.status));
 
         if pending.steps == 0 {
             port.write_signs(p.signs);
         } else {
-            status.next_signs.store(p.signs, Relaxed);
+            self.status.set_next_signs(p.signs);
         }
         self.pending = p;
 
         // Position and blocks done: published by the frames without pulses (see
         // `Status::position`), so a hold or the end of the program always reports them exactly.
         if p.steps == 0 {
-            let [x, y, z] = frame.position();
-            status.position[0].store(x, Relaxed);
-            status.position[1].store(y, Relaxed);
-            status.position[2].store(z, Relaxed);
-            status.blocks_done.store(frame.blocks_done(), Relaxed);
-            status.velocity_q8.store(frame.velocity_q8(), Relaxed);
-            status.ladder.store(frame.ladder(), Relaxed);
+            self.status.publish(frame);
         }
 
         // The rate and the idle flag change only when a block is loaded or done. They are
@@ -170,9 +165,8 @@ impl<const PLAN: bool> FrameTask<PLAN> {
                     Rate::Rapid => self.reloads.rapid,
                 });
             }
-            status
-                .idle
-                .store(idle && p.steps == 0 && pending.steps == 0, Relaxed);
+            self.status
+                .set_idle(idle && p.steps == 0 && pending.steps == 0);
         }
     }
 }
@@ -181,25 +175,19 @@ impl<const PLAN: bool> FrameTask<PLAN> {
 /// only writer of `encoder`: plain load and store), lowers them and only then writes the SIGN
 /// lines for the next pulses. Pulse-end ISR.
 #[inline(always)]
-pub fn pulse_end(port: &mut impl StepPort, pulse: &mut impl PulseTimer, status: &Status) {
+pub fn pulse_end(
+    port: &mut impl StepPort,
+    pulse: &mut impl PulseTimer,
+    status: PulseWriter<impl Home>,
+) {
     pulse.ack();
     let pins = port.read_pins();
     // Per axis, not a loop (the firmware outside the ISRs is built for size: no unrolling).
-    let [e0, e1, e2] = &status.encoder;
-    count_pulse(e0, pins);
-    count_pulse(e1, pins >> 1);
-    count_pulse(e2, pins >> 2);
+    status.count(0, pins);
+    status.count(1, pins >> 1);
+    status.count(2, pins >> 2);
     port.write_steps(0);
-    port.write_signs(status.next_signs.load(Relaxed));
-}
-
-/// One axis's encoder count: bit 0 of `pins` its PULSE line, bit 3 its SIGN line.
-#[inline(always)]
-fn count_pulse(e: &core::sync::atomic::AtomicI32, pins: u8) {
-    if pins & 1 != 0 {
-        let d = if pins & 8 != 0 { 1 } else { -1 };
-        e.store(e.load(Relaxed).wrapping_add(d), Relaxed);
-    }
+    port.write_signs(status.next_signs.get());
 }
 
 #[cfg(test)]
@@ -289,22 +277,25 @@ mod tests {
         tape.finish(|b| blocks.push_back(b)).unwrap();
         let n_blocks = blocks.len() as u32;
         let mut src = blocks;
-        let status = Status::new();
-        status.start();
+        let status = crate::rt::Status::new();
+        let w = status.split();
         let reloads = Reloads {
             feed: 2500,
             rapid: 475,
         };
-        let mut task =
-            FrameTask::<true>::new(Frame::new(FrameConfig::from_settings(&settings)), reloads);
+        let mut task = FrameTask::<_, true>::new(
+            Frame::new(FrameConfig::from_settings(&settings)),
+            reloads,
+            w.frame,
+        );
         let (mut pins, mut timer, mut oneshot) =
             (Pins::default(), Timer::default(), OneShot::default());
         for _ in 0..200_000 {
-            task.run(&mut pins, &mut timer, &mut oneshot, &mut src, &status);
+            task.run(&mut pins, &mut timer, &mut oneshot, &mut src);
             if oneshot.pulse_running {
-                pulse_end(&mut pins, &mut oneshot, &status);
+                pulse_end(&mut pins, &mut oneshot, w.pulse);
             }
-            if status.idle.load(Relaxed) && src.is_empty() && task.frame.idle() {
+            if status.idle.get() && src.is_empty() && task.frame.idle() {
                 break;
             }
         }
@@ -314,12 +305,12 @@ mod tests {
             pins.violations.len(),
             pins.violations.first()
         );
-        assert!(status.idle.load(Relaxed), "did not finish");
+        assert!(status.idle.get(), "did not finish");
         let end = [-10, 0, 0];
         assert_eq!(task.frame.position(), end);
         assert_eq!(status.encoder(), end);
         assert_eq!(status.position(), end);
-        assert_eq!(status.blocks_done.load(Relaxed), n_blocks);
+        assert_eq!(status.blocks_done.get(), n_blocks);
         assert!(pins.rises.iter().all(|&r| r > 0));
         // Retimed to the rapid rate for each G0 and back to W0 after it.
         assert_eq!(timer.reloads, [475, 2500, 475, 2500]);

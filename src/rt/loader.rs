@@ -37,7 +37,6 @@
 //! The loader never blocks: while the block queue has no room for a line's blocks it polls the
 //! realtime requests only (`Console::poll` without room: `Protocol::poll_realtime`), so `?`, `!`, `~` and a reset are served at
 //! once whatever the queue holds, and a hold with a full queue cannot stall it.
-use core::sync::atomic::Ordering::Relaxed;
 
 use crate::ac::AcSettings;
 use crate::ac::{Alarm, FeedCeiling};
@@ -52,7 +51,7 @@ use crate::protocol::{Context, Event, SettingsTable};
 use crate::rt::ac::AC_RUN;
 use crate::rt::console::{trip_alarm, Console, News, Refused};
 use crate::rt::replan::{self, Replan};
-use crate::rt::Status;
+use crate::rt::status::LoaderWriter;
 use crate::settings::Settings;
 use heapless::spsc::{Consumer, Producer};
 
@@ -152,7 +151,7 @@ pub struct Parts<'r, const Q: usize, const A: usize, const R: usize, S: Settings
     pub ceiling: Option<FeedCeiling>,
     pub console: &'r mut dyn Console,
     pub ac_alarms: &'r mut Consumer<'static, Alarm, A>,
-    pub status: &'r Status,
+    pub status: &'r LoaderWriter<'r>,
 }
 
 /// What happens to the loader: each turn of its loop gathers the news (the frame's, the AC's, the
@@ -212,7 +211,7 @@ pub struct Loader<
     table: &'r mut Persistent<S>,
     console: &'r mut dyn Console,
     ac_alarms: &'r mut Consumer<'static, Alarm, A>,
-    status: &'r Status,
+    status: &'r LoaderWriter<'r>,
     board: &'r mut B,
     /// The frame's configuration and the parser's, fixed at init: a `$N=value` the table stores
     /// (and `$$` lists) at once takes effect for the NC settings at the next start.
@@ -346,8 +345,8 @@ where
             deferred: None,
             broken: false,
             overrun: 0,
-            overruns: status.frame_overruns.load(Relaxed),
-            ac_hold_published: status.feed_cap.load(Relaxed) == 0,
+            overruns: status.frame_overruns.get(),
+            ac_hold_published: status.feed_cap.get() == 0,
             now: Now {
                 idle: true,
                 state: State::Idle,
@@ -363,13 +362,10 @@ where
     /// the hold a rapid walks its ladder down and no block starts, see `operator::with_ac_hold`).
     fn publish(&self) {
         let (ov, status) = (self.overrides, self.status);
-        status.operator.store(
-            operator::with_ac_hold(
-                operator::word(ov.feed, ov.rapid, self.hold, false),
-                status.feed_cap.load(Relaxed),
-            ),
-            Relaxed,
-        );
+        status.set_operator(operator::with_ac_hold(
+            operator::word(ov.feed, ov.rapid, self.hold, false),
+            status.feed_cap.get(),
+        ));
     }
 
     /// Whether the run has ended: the console has no more lines and everything it gave has run
@@ -380,7 +376,7 @@ where
             && self.deferred.is_none()
             && !self.tape.holds_a_block()
             && self.blocks.len() == 0
-            && status.idle.load(Relaxed)
+            && status.idle.get()
             && !self.replan.pending()
             && !self.replan.aborting()
         {
@@ -395,7 +391,7 @@ where
     /// One turn of the loader's loop: the news in order, each a [`Step`].
     pub fn turn(&mut self) {
         let status = self.status;
-        if (status.feed_cap.load(Relaxed) == 0) != self.ac_hold_published {
+        if (status.feed_cap.get() == 0) != self.ac_hold_published {
             self.ac_hold_published = !self.ac_hold_published;
             self.publish();
         }
@@ -404,7 +400,7 @@ where
         // pins (the interrupts take longer than the period: no pulse was lost, the frame held
         // them back, but the motion no longer keeps its timing; said once per hold, overruns
         // while already held are not news).
-        let n = status.frame_overruns.load(Relaxed);
+        let n = status.frame_overruns.get();
         let late = core::mem::replace(&mut self.overruns, n) != n && !self.hold;
         let long = match (self.board.frame_limit_cycles(), status.frame_cycles()) {
             (Some(limit), Some((_, max))) if max > limit && max > self.overrun => {
@@ -416,7 +412,7 @@ where
         if late || long.is_some() {
             self.step(Step::FrameLate { long, overruns: n });
         }
-        if status.spindle_stop.swap(false, Relaxed) {
+        if status.take_spindle_stop() {
             self.step(Step::Breakage);
         }
         while let Some(a) = self.ac_alarms.dequeue() {
@@ -443,7 +439,7 @@ where
             feed_hold: inputs.feed_hold,
             cycle_start: inputs.cycle_start,
         });
-        let idle = self.blocks.len() == 0 && status.idle.load(Relaxed) && !self.replan.pending();
+        let idle = self.blocks.len() == 0 && status.idle.get() && !self.replan.pending();
         self.now.idle = idle;
         if idle {
             self.jogging = false;
@@ -461,7 +457,7 @@ where
             return;
         }
         // A measure-only AC's verdict holds nothing (its state is only logged).
-        let ac_held = self.ac_enabled && status.ac_state.load(Relaxed) > AC_RUN;
+        let ac_held = self.ac_enabled && status.ac_state.get() > AC_RUN;
         let state = if self.hold || ac_held {
             State::Hold {
                 complete: status.stopped(),
@@ -613,7 +609,7 @@ where
                 measure_only: true,
             });
             if self.console.attended() {
-                self.status.ac_resume.store(true, Relaxed);
+                self.status.ask_resume();
             }
             return;
         }
@@ -664,13 +660,13 @@ where
                 .spindle(d.spindle, d.rpm, self.table.settings.spindle_max_rpm);
             self.spindle = (d.spindle, d.rpm);
             if d.rpm != 0 {
-                self.status.spindle_rpm.store(d.rpm, Relaxed);
+                self.status.set_spindle_rpm(d.rpm);
             }
         }
         let result = self.queue_line(d.no, &d.line);
         let end = d.end && result.is_ok();
         if end {
-            self.status.ac_new_job.store(true, Relaxed);
+            self.status.ask_new_job();
         }
         self.console.reply(result);
         if end {
@@ -769,7 +765,7 @@ where
         if p.resume() && self.console.alarm_code().is_none() {
             self.hold = false;
             if ac_held {
-                self.status.ac_resume.store(true, Relaxed);
+                self.status.ask_resume();
             }
         }
         if p.jog_cancel() && self.jogging {
@@ -790,17 +786,14 @@ where
         let status = self.status;
         let Now { idle, state, .. } = self.now;
         let options = self.table.report_options();
-        let v = status.velocity_q8.load(Relaxed);
-        let ac = match status.ac_state.load(Relaxed) {
+        let v = status.velocity_q8.get();
+        let ac = match status.ac_state.get() {
             _ if !self.ac_enabled => None,
             0 => None,
             n => {
                 let (f, t) = status.ac_measured();
                 Some(AcReport {
-                    feed_share_pct: AcReport::feed_share(
-                        status.feed_cap.load(Relaxed),
-                        self.last_feed,
-                    ),
+                    feed_share_pct: AcReport::feed_share(status.feed_cap.get(), self.last_feed),
                     f_ratio_milli: AcReport::ratio_milli(f, self.ac_settings.f0_n()),
                     t_ratio_milli: AcReport::ratio_milli(t, self.ac_settings.t0_nm()),
                     state: if n > AC_RUN {
@@ -849,7 +842,7 @@ where
             .spindle(Spindle::Off, 0, self.table.settings.spindle_max_rpm);
         self.board.log_reset();
         // A soft reset ends the job: the AC starts the next one afresh.
-        status.ac_new_job.store(true, Relaxed);
+        status.ask_new_job();
         let (at, signs) = abort(self.blocks, status, self.board);
         self.replan.restart(at);
         self.tape.abort(at, signs);
@@ -885,7 +878,7 @@ where
             }
         }
         if self.now.ac_held {
-            self.status.ac_resume.store(true, Relaxed);
+            self.status.ask_resume();
         }
     }
 
@@ -937,18 +930,17 @@ fn sync_line<B: LoaderBoard>(
 /// and SIGN lines where the machine stopped, for the parser. Loader task.
 fn abort<const Q: usize>(
     blocks: &mut Producer<'static, Sealed, Q>,
-    status: &Status,
+    status: &LoaderWriter,
     board: &mut impl LoaderBoard,
 ) -> ([i32; 3], u8) {
-    let word = status.operator.load(Relaxed);
-    status.operator.store(word | operator::ABORT, Relaxed);
+    status.operator_bits(operator::ABORT, true);
     // The frame pops one block per frame and publishes idle and the position in the frames
     // without pulses: wait for both.
-    while blocks.len() != 0 || !status.idle.load(Relaxed) {
+    while blocks.len() != 0 || !status.idle.get() {
         board.wait();
     }
-    status.operator.store(word & !operator::ABORT, Relaxed);
-    (status.position(), status.next_signs.load(Relaxed))
+    status.operator_bits(operator::ABORT, false);
+    (status.position(), status.next_signs.get())
 }
 
 /// Queues a block through the re-plan's record (see `crate::rt::replan`), remembering its
@@ -957,7 +949,7 @@ fn abort<const Q: usize>(
 fn enqueue<const Q: usize, const R: usize>(
     blocks: &mut Producer<'static, Sealed, Q>,
     replan: &mut Replan<R>,
-    status: &Status,
+    status: &LoaderWriter,
     b: Sealed,
     feed: &mut u32,
 ) {

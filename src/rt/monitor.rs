@@ -5,7 +5,6 @@
 //! period preempts it, as the HP's interrupt preempted the AC program), spawned by the sampler
 //! every AC period; it hands each record's verdict to the AC task, which holds the feed at its
 //! next period ([`crate::rt::ac::AcPeriod::heard`]). Host: the simulation calls it per sample.
-use core::sync::atomic::Ordering::Relaxed;
 
 use super::status::Status;
 use crate::ac::AcSettings;
@@ -52,14 +51,11 @@ impl ChatterTask {
     /// says). The spindle speed follows `status` (0: none commanded, keep the last); an AC resume
     /// or lost sound since the last call restarts the record. Monitor task or host.
     pub fn sound(&mut self, codes: &[u16], status: &Status) -> Option<Spectrum> {
-        let rpm = status.spindle_rpm.load(Relaxed);
+        let rpm = status.spindle_rpm.get();
         if rpm != 0 {
             self.rpm = rpm;
         }
-        let seen = (
-            status.resumes.load(Relaxed),
-            status.sound_dropped.load(Relaxed),
-        );
+        let seen = (status.resumes.get(), status.sound_dropped.get());
         if seen != self.seen {
             self.seen = seen;
             self.detector.restart();
@@ -103,8 +99,9 @@ mod tests {
         };
         let mut task = ChatterTask::from_settings(&s).unwrap().unwrap();
         let status = Status::new();
+        let w = status.split();
         assert_eq!(task.rpm(), 600);
-        status.spindle_rpm.store(1500, Relaxed);
+        w.loader.set_spindle_rpm(1500);
         let mut spectra = Vec::new();
         for i in 0..600u32 {
             let codes: [u16; 5] = core::array::from_fn(|j| {
@@ -120,8 +117,12 @@ mod tests {
         assert_eq!(spectra.len(), 11);
         // A resume restarts the record: the next spectrum comes a whole record after it.
         let record = crate::monitor::chatter::RECORD as u32;
-        for (counter, at) in [(&status.resumes, 1000u32), (&status.sound_dropped, 2000)] {
-            counter.fetch_add(1, Relaxed);
+        let bumps: [(&dyn Fn(), u32); 2] = [
+            (&|| w.ac.count_resume(), 1000),
+            (&|| w.sampler.count_dropped_sound(), 2000),
+        ];
+        for (bump, at) in bumps {
+            bump();
             let mut n = 0;
             let first = loop {
                 n += 1;

@@ -52,7 +52,6 @@
 //! detour then go straight to further depth steps (the speeds failed in that cut). The new speed stays
 //! until the program commands another. [`Event::Speed`] tells the loader, which applies it to
 //! the spindle and then calls [`Replan::speed_applied`] (the AC resumes only then).
-use core::sync::atomic::Ordering::Relaxed;
 
 use crate::ac::AcSettings;
 use crate::monitor::chatter::{lobe_rpm, ChatterSettings};
@@ -60,7 +59,7 @@ use crate::nc::{
     isqrt, operator, steps_and_signs, Block, FrameConfig, Linear, Motion, Rapid, Sealed, X, Y, Z,
 };
 use crate::protocol::codes::alarm;
-use crate::rt::Status;
+use crate::rt::status::LoaderWriter;
 use crate::settings::Settings;
 
 /// Blocks of one detour.
@@ -473,9 +472,9 @@ impl<const N: usize> Replan<N> {
 
     /// The loader has applied [`Event::Speed`]'s speed `rpm` to the spindle: the monitors follow
     /// it and the AC resumes. Loader task.
-    pub fn speed_applied(&self, status: &Status, rpm: u32) {
-        status.spindle_rpm.store(rpm, Relaxed);
-        status.ac_resume.store(true, Relaxed);
+    pub fn speed_applied(&self, status: &LoaderWriter, rpm: u32) {
+        status.set_spindle_rpm(rpm);
+        status.ask_resume();
     }
 
     /// The spindle speed for the chatter hold in block `seq`, if `$277` allows one and the
@@ -485,7 +484,7 @@ impl<const N: usize> Replan<N> {
         seq: u32,
         line: u32,
         at: [i32; 3],
-        status: &Status,
+        status: &LoaderWriter,
     ) -> Option<SpeedChange> {
         if self.max_rpm == 0 {
             return None;
@@ -498,8 +497,8 @@ impl<const N: usize> Replan<N> {
         if tries >= SPEED_TRIES {
             return None;
         }
-        let hz = f32::from_bits(status.chatter_hz.load(Relaxed));
-        let rpm = match status.spindle_rpm.load(Relaxed) {
+        let hz = status.chatter_hz();
+        let rpm = match status.spindle_rpm.get() {
             0 => self.monitor_rpm,
             r => r,
         };
@@ -561,7 +560,7 @@ impl<const N: usize> Replan<N> {
         &mut self,
         sink: &mut impl Sink,
         b: Sealed,
-        status: &Status,
+        status: &LoaderWriter,
         mut wait: impl FnMut(),
     ) {
         let mut b = b;
@@ -635,7 +634,7 @@ impl<const N: usize> Replan<N> {
     /// a chatter hold that has stopped the machine starts the frame's abort; the emptied queue
     /// gets the detour and the copies, and the AC is told to resume; waiting blocks are queued as
     /// room comes. Loader task.
-    pub fn poll(&mut self, sink: &mut impl Sink, status: &Status) -> Event {
+    pub fn poll(&mut self, sink: &mut impl Sink, status: &LoaderWriter) -> Event {
         if let Some(e) = self.late.pop_front() {
             self.drain(sink);
             return e;
@@ -643,7 +642,7 @@ impl<const N: usize> Replan<N> {
         let mut event = Event::None;
         match self.state {
             State::Watch => {
-                let chatter = status.ac_state.load(Relaxed) == alarm::AC_CHATTER;
+                let chatter = status.ac_state.get() == alarm::AC_CHATTER;
                 if self.reacts() && chatter && status.stopped() {
                     let done = self.front(sink);
                     self.trim(done);
@@ -655,9 +654,9 @@ impl<const N: usize> Replan<N> {
                         // Held in a rapid, a dwell or at the end: no cut to re-plan (the verdict
                         // was on the sound of the cut before); the AC resumes.
                         self.state = State::Done {
-                            resumes: status.resumes.load(Relaxed),
+                            resumes: status.resumes.get(),
                         };
-                        status.ac_resume.store(true, Relaxed);
+                        status.ask_resume();
                         self.drain(sink);
                         return Event::None;
                     };
@@ -668,7 +667,7 @@ impl<const N: usize> Replan<N> {
                         .flatten();
                     if let Some(change) = change {
                         self.state = State::Done {
-                            resumes: status.resumes.load(Relaxed),
+                            resumes: status.resumes.get(),
                         };
                         self.drain(sink);
                         return Event::Speed(change);
@@ -701,13 +700,12 @@ impl<const N: usize> Replan<N> {
                             self.path = path;
                             self.held_seq = done;
                             self.at = at;
-                            let w = status.operator.load(Relaxed);
-                            status.operator.store(w | operator::ABORT, Relaxed);
+                            status.operator_bits(operator::ABORT, true);
                             self.state = State::Abort;
                         }
                         Err(why) => {
                             self.state = State::Done {
-                                resumes: status.resumes.load(Relaxed),
+                                resumes: status.resumes.get(),
                             };
                             event = Event::Refused { at, why };
                         }
@@ -715,19 +713,18 @@ impl<const N: usize> Replan<N> {
                 }
             }
             State::Abort => {
-                if sink.queued() == 0 && status.idle.load(Relaxed) {
-                    let w = status.operator.load(Relaxed);
-                    status.operator.store(w & !operator::ABORT, Relaxed);
+                if sink.queued() == 0 && status.idle.get() {
+                    status.operator_bits(operator::ABORT, false);
                     event = self.requeue();
                     self.state = State::Done {
-                        resumes: status.resumes.load(Relaxed),
+                        resumes: status.resumes.get(),
                     };
-                    status.ac_resume.store(true, Relaxed);
+                    status.ask_resume();
                 }
                 return event;
             }
             State::Done { resumes } => {
-                if status.resumes.load(Relaxed) != resumes {
+                if status.resumes.get() != resumes {
                     self.state = State::Watch;
                 }
             }

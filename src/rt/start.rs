@@ -5,6 +5,7 @@ use crate::nc::{Frame, FrameConfig};
 use crate::ports::{Board, SettingsStorage};
 use crate::protocol::settings::record::{LoadStatus, RecordError};
 use crate::protocol::settings::Persistent;
+use crate::rt::status::{FrameWriter, Home};
 use crate::rt::{clocks_for_ns, FrameTask, Reloads};
 use crate::settings::SettingsError;
 
@@ -40,10 +41,15 @@ pub fn start<B: Board, S: SettingsStorage>(storage: S) -> Result<Start<S>, Setti
 }
 
 impl<S> Start<S> {
-    /// The frame task for the settings (`PLAN`: the board's `BoardLimits::plan_ratio`).
-    pub fn frame<const PLAN: bool>(&self) -> FrameTask<PLAN> {
+    /// The frame task for the settings (`PLAN`: the board's `BoardLimits::plan_ratio`),
+    /// publishing through the frame ISR's handle.
+    pub fn frame<H: Home, const PLAN: bool>(&self, status: FrameWriter<H>) -> FrameTask<H, PLAN> {
         let nc = &self.table.settings.nc;
-        FrameTask::new(Frame::new(FrameConfig::from_settings(nc)), self.reloads)
+        FrameTask::new(
+            Frame::new(FrameConfig::from_settings(nc)),
+            self.reloads,
+            status,
+        )
     }
 }
 

@@ -14,13 +14,12 @@ use std::collections::VecDeque;
 use std::string::String;
 use std::vec::Vec;
 
-use core::sync::atomic::Ordering::Relaxed;
-
 use heapless::spsc::{Consumer, Producer, Queue};
 
 use super::console::{Console, Serial};
 use super::loader::{run, Finished, LoaderBoard, Parts};
 use super::program::{Program, ProgramFile, Said};
+use super::status::{AcWriter, CycleWriter, PulseWriter, Writers};
 use super::{FrameTask, Reloads, Status};
 use crate::ac::Alarm;
 use crate::gcode::Spindle;
@@ -141,7 +140,12 @@ impl<const S: bool> crate::ports::Board for TestBoard<S> {
 /// `S`: the board drives a spindle (`Board::SPINDLE`).
 struct Bench<const S: bool = true> {
     status: &'static Status,
-    frame: FrameTask,
+    /// The handles of the contexts the bench plays: the pulse end, the AC task, the
+    /// board's frame wrapper (the loader's goes to the loader).
+    pulse_w: PulseWriter<&'static Status>,
+    ac_w: AcWriter<'static>,
+    cycles_w: CycleWriter<&'static Status>,
+    frame: FrameTask<&'static Status>,
     blocks: Consumer<'static, Sealed, Q>,
     pins: Pins,
     rx: RxIsr<'static>,
@@ -222,26 +226,25 @@ impl<const S: bool> Bench<S> {
             Some((at, c)) if self.frames >= at => c,
             _ => 400,
         };
-        let s = self.status;
-        if AC_TASK.with(|c| c.get()).is_some() && s.ac_state.load(Relaxed) == 0 {
-            s.ac_state.store(crate::rt::ac::AC_RUN, Relaxed);
+        let (s, ac) = (self.status, &self.ac_w);
+        if AC_TASK.with(|c| c.get()).is_some() && s.ac_state.get() == 0 {
+            ac.set_state(crate::rt::ac::AC_RUN);
         }
         if let Some((at, AcEvent::Chatter { .. })) = self.ac_event {
             if at == self.frames {
-                s.feed_cap.store(0, Relaxed);
-                s.chatter_hz.store(1680f32.to_bits(), Relaxed);
-                s.ac_state
-                    .store(crate::protocol::codes::alarm::AC_CHATTER, Relaxed);
+                ac.set_feed_cap(0);
+                ac.set_chatter_hz(1680.0);
+                ac.set_state(crate::protocol::codes::alarm::AC_CHATTER);
                 let _ = self.alarms.enqueue(Alarm::Chatter {
                     freq_hz: 1680.0,
                     amplitude: 9.5,
                     threshold: 4.0,
                 });
             }
-            if s.ac_resume.swap(false, Relaxed) {
-                s.feed_cap.store(u32::MAX, Relaxed);
-                s.ac_state.store(crate::rt::ac::AC_RUN, Relaxed);
-                s.resumes.fetch_add(1, Relaxed);
+            if ac.take_resume() {
+                ac.set_feed_cap(u32::MAX);
+                ac.set_state(crate::rt::ac::AC_RUN);
+                ac.count_resume();
             }
         }
         if self.ac_event == Some((self.frames, AcEvent::Breakage)) {
@@ -252,15 +255,13 @@ impl<const S: bool> Bench<S> {
                 th1: 300.0,
                 th2: 200.0,
             };
-            s.feed_cap.store(0, Relaxed);
-            s.ac_state
-                .store(crate::protocol::codes::alarm::AC_BREAKAGE, Relaxed);
-            s.spindle_stop.store(true, Relaxed);
+            ac.set_feed_cap(0);
+            ac.set_state(crate::protocol::codes::alarm::AC_BREAKAGE);
+            ac.ask_spindle_stop();
             let _ = self.alarms.enqueue(Alarm::ToolBreakage(b));
         }
         if self.ac_event == Some((self.frames, AcEvent::MeasuredBreakage)) {
-            s.ac_state
-                .store(crate::protocol::codes::alarm::AC_BREAKAGE, Relaxed);
+            ac.set_state(crate::protocol::codes::alarm::AC_BREAKAGE);
             let _ = self
                 .alarms
                 .enqueue(Alarm::ToolBreakage(crate::monitor::Breakage {
@@ -271,19 +272,15 @@ impl<const S: bool> Bench<S> {
                     th2: 200.0,
                 }));
         }
-        if s.frame_cycles_min.load(Relaxed) == 0 || cycles < s.frame_cycles_min.load(Relaxed) {
-            s.frame_cycles_min.store(cycles, Relaxed);
+        let (min, max) = s.frame_cycles().unwrap_or((u32::MAX, 0));
+        if cycles < min {
+            self.cycles_w.set_min(cycles);
         }
-        if cycles > s.frame_cycles_max.load(Relaxed) {
-            s.frame_cycles_max.store(cycles, Relaxed);
+        if cycles > max {
+            self.cycles_w.set_max(cycles);
         }
-        self.frame.run(
-            &mut self.pins,
-            &mut NoTimer,
-            &mut NoTimer,
-            &mut self.blocks,
-            self.status,
-        );
+        self.frame
+            .run(&mut self.pins, &mut NoTimer, &mut NoTimer, &mut self.blocks);
         // The pulse timer's interrupt: only after a frame that raised PULSE lines (late: after
         // every other frame only, while the board overruns).
         let late = match self.ac_event {
@@ -293,7 +290,7 @@ impl<const S: bool> Bench<S> {
             _ => false,
         };
         if self.pins.levels & 0b111 != 0 && !late {
-            super::pulse_end(&mut self.pins, &mut NoTimer, self.status);
+            super::pulse_end(&mut self.pins, &mut NoTimer, self.pulse_w);
         }
         while let Some(b) = self.tx.dequeue() {
             self.out.push(b as char);
@@ -301,13 +298,13 @@ impl<const S: bool> Bench<S> {
                 self.oks_at.push(self.frames);
             }
         }
-        if self.job_end_at.is_none() && s.ac_new_job.load(Relaxed) {
+        if self.job_end_at.is_none() && s.ac_new_job.pending() {
             self.job_end_at = Some((self.frames, s.encoder()));
         }
     }
 
     fn idle(&self) -> bool {
-        self.status.idle.load(core::sync::atomic::Ordering::Relaxed)
+        self.status.idle.get()
     }
 }
 
@@ -428,7 +425,14 @@ fn session_on<const S: bool>(
     ac_event: Option<(u64, AcEvent)>,
 ) -> Bench<S> {
     let status: &'static Status = Box::leak(Box::new(Status::new()));
-    status.start();
+    let Writers {
+        frame: frame_w,
+        pulse: pulse_w,
+        ac: ac_w,
+        loader,
+        cycles: cycles_w,
+        sampler: _,
+    } = status.split();
     let (blocks_tx, blocks) = Box::leak(Box::new(Queue::<Sealed, Q>::new())).split();
     let (tx_p, tx) = Box::leak(Box::new(Queue::<u8, T>::new())).split();
     let (alarm_tx, mut alarms) = Box::leak(Box::new(Queue::<Alarm, A>::new())).split();
@@ -444,9 +448,13 @@ fn session_on<const S: bool>(
     let mut tx_p = tx_p;
     let mut bench = Bench {
         status,
+        pulse_w,
+        ac_w,
+        cycles_w,
         frame: FrameTask::new(
             Frame::new(FrameConfig::from_settings(&settings)),
             Reloads { feed: 1, rapid: 1 },
+            frame_w,
         ),
         blocks,
         pins: Pins::default(),
@@ -509,7 +517,7 @@ fn session_on<const S: bool>(
             ceiling,
             console,
             ac_alarms: &mut alarms,
-            status,
+            status: &loader,
         },
         &mut bench,
     );
@@ -547,7 +555,7 @@ fn a_program_file_runs_through_the_loader_whatever_its_read_size() {
         let (finished, ok, results, b) = program_run(program, chunk, 40_000, None);
         assert_eq!(finished, Some(Finished::Done), "chunk {chunk}");
         assert!(ok && results.is_empty(), "chunk {chunk}: {results:?}");
-        assert!(b.frames < 40_000 && b.status.idle.load(Relaxed));
+        assert!(b.frames < 40_000 && b.status.idle.get());
         assert_eq!(b.status.encoder(), [50, 150, -20], "chunk {chunk}");
         ends.push(b.frames);
     }
@@ -990,7 +998,7 @@ fn a_tool_breakage_stops_the_spindle_and_only_a_reset_leads_on() {
     );
     // Off within a loader turn or two of the request, with the feed held mid-block.
     assert!(b.spindle[1].frame >= 2000 && b.spindle[1].frame <= 2010);
-    assert_eq!(b.status.spindle_rpm.load(Relaxed), 1000);
+    assert_eq!(b.status.spindle_rpm.get(), 1000);
     assert!(b.out.contains("ALARM:108\r\n"), "{}", b.out);
     assert!(b.out.contains("[MSG:Spindle stopped]"), "{}", b.out);
     assert!(
@@ -1006,7 +1014,7 @@ fn a_tool_breakage_stops_the_spindle_and_only_a_reset_leads_on() {
         "{}",
         b.out
     );
-    assert!(!b.status.ac_resume.load(Relaxed), "~ and $X refused");
+    assert!(!b.status.ac_resume.pending(), "~ and $X refused");
     // A reset, then `$X`: unlocked, the queue dropped, the spindle left off.
     let sends = [
         (1, "M3 S1000\n"),
@@ -1022,10 +1030,7 @@ fn a_tool_breakage_stops_the_spindle_and_only_a_reset_leads_on() {
         b.spindle
     );
     assert!(b.out.contains("[MSG:Caution: Unlocked]"), "{}", b.out);
-    assert!(
-        b.status.ac_resume.load(Relaxed),
-        "the AC is asked to resume"
-    );
+    assert!(b.status.ac_resume.pending(), "the AC is asked to resume");
     assert!(b.status.encoder()[0] < 10_000, "the block was dropped");
     // Without a breakage the spindle just runs.
     let b = session_full(&sends[..2], &[], None, 3000, ESTOP, None, None);
@@ -1108,7 +1113,7 @@ fn a_chatter_hold_changes_the_spindle_speed_first() {
     assert_eq!(calls, [(Spindle::Cw, 6000), (Spindle::Cw, 6300)]);
     // The change is made where the hold stopped the machine, inside the first line.
     assert!(b.spindle[1].position[0] > 0 && b.spindle[1].position[0] < 1000);
-    assert_eq!(b.status.spindle_rpm.load(Relaxed), 6300);
+    assert_eq!(b.status.spindle_rpm.get(), 6300);
     assert_eq!(oks(&b.out), 3);
     assert_eq!(b.status.position(), [1000, 100, 0]);
 }
@@ -1153,7 +1158,7 @@ fn a_frame_overrun_holds_and_loses_no_pulse() {
     );
     assert!(b.out.contains("ALARM:111"), "{}", b.out);
     assert!(b.out.contains("Frame overran its period"), "{}", b.out);
-    assert!(b.status.frame_overruns.load(Relaxed) > 0);
+    assert!(b.status.frame_overruns.get() > 0);
     assert_eq!(b.status.encoder(), [10_000, 0, 0], "{}", b.out);
     assert_eq!(b.status.position(), [10_000, 0, 0]);
 }
@@ -1229,5 +1234,5 @@ fn a_measure_only_ac_tells_its_verdicts_without_an_alarm() {
     assert!(b.out.contains("<Idle|"), "{}", b.out);
     assert_eq!(b.status.encoder(), [100, 100, 0]);
     // The AC, held by its verdict, is asked to resume, so its next verdict is told too.
-    assert!(b.status.ac_resume.load(Relaxed), "the AC stays deaf");
+    assert!(b.status.ac_resume.pending(), "the AC stays deaf");
 }

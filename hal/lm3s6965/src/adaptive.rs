@@ -13,13 +13,14 @@ use millac::rt::actask::{
 };
 use millac::rt::clocks_for_hz;
 use millac::rt::monitor::ChatterTask;
+use millac::rt::status::{AcWriter, SamplerWriter};
 use millac::wire::FLAG_AC_ENABLED;
 
 use crate::board::Lm3s6965 as B;
 use crate::semihost::LogFile;
-use crate::shared::STATUS;
 use crate::simadc::SimAdc;
 use crate::voice::fail;
+use millac::rt::status::STATUS;
 
 /// The AC's tasks, when the host serves the ADC.
 pub struct Adaptive {
@@ -45,6 +46,8 @@ pub fn start(
     settings: &MachineSettings,
     queues: Queues,
     alarms: Producer<'static, Alarm, ALARM_QUEUE>,
+    status: AcWriter<'static>,
+    sampler_status: SamplerWriter<'static>,
 ) -> Option<Adaptive> {
     let (adc, flags) = SimAdc::open()?;
     let ac_settings = settings.ac;
@@ -54,7 +57,8 @@ pub fn start(
     // `$250=0` turns the AC's feed cap off even when the host enables it.
     let enabled = flags & FLAG_AC_ENABLED != 0 && settings.ac_enabled;
     let (mut sampler, mut ac) = match actask::start(
-        &STATUS,
+        status,
+        sampler_status,
         settings.nc,
         &ac_settings,
         enabled,

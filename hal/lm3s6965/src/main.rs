@@ -99,8 +99,11 @@ mod app {
 
     use crate::program::held_exit;
     use crate::results;
-    use crate::shared::{QUEUE, RECORD, SERIAL, STATUS};
+    use crate::shared::{QUEUE, RECORD, SERIAL};
     use crate::voice::{error, fail, text};
+    use millac::rt::console::{Console, Serial};
+    use millac::rt::loader;
+    use millac::rt::status::{LoaderWriter, PulseWriter, Static};
 
     /// The board this binary drives (a unit struct: its ports are `&mut B`).
     use crate::board::Lm3s6965 as B;
@@ -112,7 +115,11 @@ mod app {
 
     #[local]
     struct Local {
-        frame: FrameTask,
+        frame: FrameTask<Static>,
+        /// Each context's handle on the status words (`millac::rt::status`): the pulse end's, the
+        /// loader's (the frame task, the sampler and the AC task hold theirs).
+        pulse_status: PulseWriter<Static>,
+        loader_status: LoaderWriter<'static>,
         consumer: Consumer<'static, Sealed, QUEUE>,
         producer: Producer<'static, Sealed, QUEUE>,
         settings: Settings,
@@ -154,12 +161,13 @@ mod app {
             Ok(s) => s,
             Err(e) => fail(format_args!("settings: {}", e.message())),
         };
-        let frame = start.frame();
+        // No cap unless the AC says otherwise, 100 % feed (before any interrupt is enabled); each
+        // context's handle.
+        let status = rt::status::split_static();
+        let frame = start.frame(status.frame);
         let (table, refused) = (start.table, start.refused);
         let settings = table.settings.nc;
         let (producer, consumer) = cx.local.queue.split();
-        // No cap unless the AC says otherwise, 100 % feed (before any interrupt is enabled).
-        STATUS.start();
         B::init(start.reloads.feed, start.pulse);
 
         // The simulated ADC and the AC, if the host serves them (blocks until it is ready).
@@ -170,7 +178,7 @@ mod app {
             verdicts: cx.local.verdicts,
         };
         let (sampler, ac, monitor, ceiling) =
-            match adaptive::start(&table.settings, queues, alarm_tx) {
+            match adaptive::start(&table.settings, queues, alarm_tx, status.ac, status.sampler) {
                 Some(a) => (Some(a.sampler), Some(a.ac), a.monitor, a.ceiling),
                 None => (None, None, None, None),
             };
@@ -191,6 +199,8 @@ mod app {
                 tx,
                 ac_alarms,
                 frame,
+                pulse_status: status.pulse,
+                loader_status: status.loader,
                 consumer,
                 producer,
                 settings,
@@ -207,9 +217,8 @@ mod app {
     /// The frame ISR: highest priority (4). No locks, logging, allocation or panics.
     #[task(binds = TIMER_0A, priority = 4, local = [frame, consumer])]
     fn frame(cx: frame::Context) {
-        cx.local
-            .frame
-            .run(&mut B, &mut B, &mut B, cx.local.consumer, &STATUS);
+        let local = cx.local;
+        local.frame.run(&mut B, &mut B, &mut B, local.consumer);
     }
 
     /// UART0 (serial mode only: its interrupts are enabled by the loader): received bytes to the
@@ -224,9 +233,9 @@ mod app {
     }
 
     /// The pulse-end ISR: same priority as the frame, so it runs after the frame has finished.
-    #[task(binds = TIMER_1A, priority = 4)]
-    fn pulse_end(_: pulse_end::Context) {
-        rt::pulse_end(&mut B, &mut B, &STATUS);
+    #[task(binds = TIMER_1A, priority = 4, local = [pulse_status])]
+    fn pulse_end(cx: pulse_end::Context) {
+        rt::pulse_end(&mut B, &mut B, *cx.local.pulse_status);
     }
 
     /// The sampler: one lockstep exchange with the host's simulated ADC per Timer 2 period,
@@ -248,7 +257,7 @@ mod app {
         let due = tick.due;
         if let Some(due) = due {
             if ac_period::spawn(due).is_err() {
-                STATUS.ac_missed.fetch_add(1, Relaxed);
+                s.missed_period();
             }
             // Still busy with a record's FFT: it drains the queue when it is done (the queue
             // holds 63 ms of sound).
@@ -282,57 +291,53 @@ mod app {
         }
     }
 
-    /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI).
+    /// The loader (busy loop: QEMU 7.2 with icount loses timer interrupts on WFI): program
+    /// mode when QEMU's working directory holds `program.nc` (it runs the file and exits), else
+    /// serial mode (the operator streams G-code over UART0).
     #[idle(local = [
-        producer, settings, table, refused, ceiling, proto, tx, ac_alarms,
+        producer, settings, table, refused, ceiling, proto, tx, ac_alarms, loader_status,
         replan: Option<Replan<RECORD>> = None
     ])]
     fn idle(cx: idle::Context) -> ! {
-        let producer = cx.local.producer;
-        let (settings, ceiling) = (cx.local.settings, *cx.local.ceiling);
+        let local = cx.local;
         // The loader's record of the queued blocks: chatter suppression (`$276`) re-plans from
         // it, in both modes (and changes the spindle speed first where `$277` allows).
-        let replan =
-            cx.local
-                .replan
-                .insert(Replan::new(*settings, &cx.local.table.settings.ac, [0; 3]));
-        // Program mode runs `program.nc` and exits; without it, serial mode.
-        if let Some(program) = crate::program::open() {
-            crate::program::run(
-                program,
-                producer,
+        let replan = local.replan.insert(Replan::new(
+            *local.settings,
+            &local.table.settings.ac,
+            [0; 3],
+        ));
+        let mut program =
+            crate::program::open().map(|p| crate::program::console(p, *local.refused));
+        let serial = program.is_none();
+        SERIAL.store(serial, Relaxed);
+        let mut line = Serial::new(local.proto, local.tx, crate::uart::kick, local.settings);
+        let console: &mut dyn Console = match program.as_mut() {
+            Some(p) => p,
+            None => &mut line,
+        };
+        let finished = loader::run(
+            loader::Parts {
+                blocks: local.producer,
                 replan,
-                cx.local.table,
-                ceiling,
-                *cx.local.refused,
-                cx.local.ac_alarms,
-                B::TIMER_HZ,
-            );
-        }
-        // No program file: the operator streams G-code over the serial line.
-        SERIAL.store(true, Relaxed);
-        let mut console = millac::rt::console::Serial::new(
-            cx.local.proto,
-            cx.local.tx,
-            crate::uart::kick,
-            &cx.local.table.settings.nc,
-        );
-        millac::rt::loader::run(
-            millac::rt::loader::Parts {
-                blocks: producer,
-                replan,
-                table: cx.local.table,
-                ceiling,
-                console: &mut console,
-                ac_alarms: cx.local.ac_alarms,
-                status: &STATUS,
+                table: local.table,
+                ceiling: *local.ceiling,
+                console,
+                ac_alarms: local.ac_alarms,
+                status: local.loader_status,
             },
             &mut crate::uart::QemuLoader {
                 clock_hz: B::TIMER_HZ,
-                serial: true,
-                log: crate::session::SessionLog::create(),
+                serial,
+                log: match serial {
+                    true => crate::session::SessionLog::create(),
+                    false => crate::session::SessionLog::none(),
+                },
             },
         );
+        if let Some(p) = program {
+            crate::program::finish(p, finished);
+        }
         // The board's loader never ends (it runs while the board says so: always).
         crate::voice::exit(true)
     }

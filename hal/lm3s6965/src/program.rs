@@ -4,23 +4,15 @@
 //! the log. Every accepted block runs; the run reports the final position (or the hold's) and
 //! exits QEMU. The first refused line stops the reading; the blocks before it still run.
 use core::fmt;
-use core::sync::atomic::Ordering::Relaxed;
 
 use cortex_m_semihosting::nr;
-use heapless::spsc::{Consumer, Producer};
-use millac::ac::{Alarm, FeedCeiling};
-use millac::nc::Sealed;
 use millac::protocol::settings::record::RecordError;
-use millac::protocol::settings::Persistent;
-use millac::rt::actask::ALARM_QUEUE;
-use millac::rt::loader::{self, Finished, Parts};
+use millac::rt::loader::Finished;
 use millac::rt::program::{Program, ProgramFile, Said};
-use millac::rt::replan::Replan;
 
-use crate::shared::{QUEUE, RECORD, STATUS};
-use crate::storage::FileStorage;
 use crate::voice::{exit, log_error, text, Text};
 use crate::{results, semihost};
+use millac::rt::status::STATUS;
 
 /// `program.nc` open for reading, and the errors said so far for the log.
 pub struct SemihostProgram {
@@ -58,20 +50,13 @@ impl ProgramFile for SemihostProgram {
     }
 }
 
-/// Runs `program` to its end and exits QEMU: success unless a line, the file or the settings
-/// record was refused, or the run held. With a refused settings record nothing runs (see
-/// "At start-up" in `crate::storage`). Idle loader.
-#[allow(clippy::too_many_arguments)]
-pub fn run(
+/// `program` as the loader's line source; with a refused settings record nothing runs (see "At
+/// start-up" in `crate::storage`): said into the result file, and QEMU exits with failure.
+/// Idle loader.
+pub fn console(
     mut program: SemihostProgram,
-    blocks: &mut Producer<'static, Sealed, QUEUE>,
-    replan: &mut Replan<RECORD>,
-    table: &mut Persistent<FileStorage>,
-    ceiling: Option<FeedCeiling>,
     refused: Option<RecordError>,
-    ac_alarms: &mut Consumer<'static, Alarm, ALARM_QUEUE>,
-    clock_hz: u32,
-) -> ! {
+) -> Program<SemihostProgram> {
     if let Some(e) = refused {
         program.result(
             Said::Error,
@@ -83,24 +68,12 @@ pub fn run(
         );
         end(program, false);
     }
-    let mut console = Program::new(program);
-    let mut board = crate::uart::QemuLoader {
-        clock_hz,
-        serial: false,
-        log: crate::session::SessionLog::none(),
-    };
-    let finished = loader::run(
-        Parts {
-            blocks,
-            replan,
-            table,
-            ceiling,
-            console: &mut console,
-            ac_alarms,
-            status: &STATUS,
-        },
-        &mut board,
-    );
+    Program::new(program)
+}
+
+/// The run has ended (`loader::run` returned `finished`): exits QEMU, with success unless a
+/// line or the file was refused or the run held. Idle loader.
+pub fn finish(console: Program<SemihostProgram>, finished: Option<Finished>) -> ! {
     if finished == Some(Finished::Held) {
         held_exit();
     }
@@ -129,7 +102,7 @@ pub fn held_exit() -> ! {
 /// frame last published it), into the result file and the log.
 fn report_position(held: bool) {
     let [x, y, z] = STATUS.position();
-    let blocks = STATUS.blocks_done.load(Relaxed);
+    let blocks = STATUS.blocks_done.get();
     results::line(format_args!(
         "millac: {}blocks={} position={},{},{}",
         if held { "hold " } else { "" },

@@ -1,11 +1,7 @@
 //! What the app's contexts share outside RTIC's resources (all contexts: the ISRs, the tasks, the
-//! loader): the status words, the serial-mode flag, and the block queue's sizes.
+//! loader): the serial-mode flag and the block queue's sizes (the status words are the core's
+//! `millac::rt::status::STATUS`).
 use core::sync::atomic::AtomicBool;
-
-use millac::rt::Status;
-
-/// The status words between the contexts (all zero at reset but `idle`).
-pub static STATUS: Status = Status::new();
 
 /// The loader runs in serial mode: an operator can resume an AC hold, so a long hold does not end
 /// the session. Written once by the loader.

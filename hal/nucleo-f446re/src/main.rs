@@ -44,7 +44,7 @@ mod app {
     use millac::protocol::Protocol;
     use millac::rt::actask::{self, AcTask, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
     use millac::rt::replan::Replan;
-    use millac::rt::{self, FrameTask, Status};
+    use millac::rt::{self, FrameTask};
     use stm32f4xx_hal::prelude::*;
     #[cfg(not(feature = "qemu"))]
     use stm32f4xx_hal::rcc::Config;
@@ -57,10 +57,9 @@ mod app {
     use millac::inputs::Debouncer;
     use millac::ports::{OperatorInputs, PinInputs};
     use millac::rt::console::Serial;
+    use millac::rt::status::{CycleWriter, LoaderWriter, PulseWriter, Static};
     use stm32f4xx_hal::gpio::{AnyPin, Input, Output};
 
-    /// The status words between the contexts.
-    static STATUS: Status = Status::new();
     /// Frames since reset (the sampler feeds the watchdog only while it grows).
     static FRAMES: AtomicU32 = AtomicU32::new(0);
 
@@ -81,6 +80,8 @@ mod app {
     pub struct FrameCycles {
         min: u32,
         max: u32,
+        /// The frame wrapper's handle on the status words: the cycles for the status report.
+        status: CycleWriter<Static>,
     }
 
     #[local]
@@ -88,11 +89,15 @@ mod app {
         // With the plan ratio only where the board's limits say so (`BoardLimits::plan_ratio`,
         // which also decides whether `$263=2` is accepted): the F446's frame is past its
         // instruction bound with it (`limits::LIMITS`).
-        frame: FrameTask<{ F446::LIMITS.plan_ratio }>,
+        frame: FrameTask<Static, { F446::LIMITS.plan_ratio }>,
         consumer: Consumer<'static, Sealed, QUEUE>,
         producer: Producer<'static, Sealed, QUEUE>,
         table: Persistent<FlashStore<Sector>>,
         cycles: FrameCycles,
+        /// Each context's handle on the status words (`millac::rt::status`): the pulse end's, the
+        /// loader's (the frame task, the sampler, the AC task and the frame wrapper hold theirs).
+        pulse_status: PulseWriter<Static>,
+        loader_status: LoaderWriter<'static>,
         sampler: Option<Sampler<TripleAdc>>,
         ac: Option<AcTask<DefmtLog>>,
         frames_seen: u32,
@@ -169,7 +174,10 @@ mod app {
             Ok(s) => s,
             Err(e) => defmt::panic!("settings: {}", e.message()),
         };
-        let frame = start.frame();
+        // No cap unless the AC says otherwise, 100 % feed (before any interrupt is enabled); each
+        // context's handle.
+        let status = rt::status::split_static();
+        let frame = start.frame(status.frame);
         let (table, refused) = (start.table, start.refused);
         // Under QEMU: no DMA model, so no ADC samples: the AC is off ($250=0).
         #[cfg(feature = "qemu")]
@@ -183,7 +191,6 @@ mod app {
         }
         let settings = table.settings.nc;
         let (producer, consumer) = cx.local.queue.split();
-        STATUS.start();
         F446::init(start.reloads.feed, start.pulse);
 
         // The AC, when enabled by the settings ($250); the sampler runs always (it feeds the
@@ -199,7 +206,8 @@ mod app {
         // warning.
         let (sampler, ac) = if table.settings.ac_enabled {
             match actask::start(
-                &STATUS,
+                status.ac,
+                status.sampler,
                 settings,
                 &ac_settings,
                 true,
@@ -257,7 +265,10 @@ mod app {
                 cycles: FrameCycles {
                     min: u32::MAX,
                     max: 0,
+                    status: status.cycles,
                 },
+                pulse_status: status.pulse,
+                loader_status: status.loader,
                 sampler,
                 ac,
                 frames_seen: 0,
@@ -278,26 +289,27 @@ mod app {
     #[task(binds = TIM2, priority = 3, local = [frame, consumer, cycles])]
     fn frame(cx: frame::Context) {
         let t0 = DWT::cycle_count();
-        cx.local
+        let local = cx.local;
+        local
             .frame
-            .run(&mut F446, &mut F446, &mut F446, cx.local.consumer, &STATUS);
+            .run(&mut F446, &mut F446, &mut F446, local.consumer);
         FRAMES.store(FRAMES.load(Relaxed).wrapping_add(1), Relaxed);
         let dt = DWT::cycle_count().wrapping_sub(t0);
-        let c = cx.local.cycles;
+        let c = local.cycles;
         if dt < c.min {
             c.min = dt;
-            STATUS.frame_cycles_min.store(dt, Relaxed);
+            c.status.set_min(dt);
         }
         if dt > c.max {
             c.max = dt;
-            STATUS.frame_cycles_max.store(dt, Relaxed);
+            c.status.set_max(dt);
         }
     }
 
     /// The pulse-end ISR: same priority as the frame.
-    #[task(binds = TIM5, priority = 3)]
-    fn pulse_end(_: pulse_end::Context) {
-        rt::pulse_end(&mut F446, &mut F446, &STATUS);
+    #[task(binds = TIM5, priority = 3, local = [pulse_status])]
+    fn pulse_end(cx: pulse_end::Context) {
+        rt::pulse_end(&mut F446, &mut F446, *cx.local.pulse_status);
     }
 
     /// USART2: received bytes into the protocol's ring, queued bytes out. Priority 2.
@@ -347,7 +359,7 @@ mod app {
         let due = s.sample().due;
         if let Some(due) = due {
             if ac_period::spawn(due).is_err() {
-                STATUS.ac_missed.fetch_add(1, Relaxed);
+                s.missed_period();
             }
         }
     }
@@ -365,7 +377,10 @@ mod app {
 
     /// The loader: the grbl protocol on USART2, forever.
     #[idle(
-        local = [producer, table, proto, tx, ac_alarms, spindle, replan: Option<Replan<RECORD>> = None],
+        local = [
+            producer, table, proto, tx, ac_alarms, spindle, loader_status,
+            replan: Option<Replan<RECORD>> = None
+        ],
         shared = [inputs]
     )]
     fn idle(cx: idle::Context) -> ! {
@@ -399,7 +414,7 @@ mod app {
                 ceiling,
                 console: &mut console,
                 ac_alarms: cx.local.ac_alarms,
-                status: &STATUS,
+                status: cx.local.loader_status,
             },
             &mut board,
         );

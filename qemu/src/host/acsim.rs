@@ -14,11 +14,11 @@ use millac::nc::{Block, FrameConfig, Motion, Rate, Sealed};
 use millac::ports::{Conversion, ForceTorqueAdc};
 use millac::rt::ac::{self as rt_ac, AcPeriod};
 use millac::rt::replan::{Event as ReplanEvent, HostQueue, Replan, Replanned, SpeedChange};
+use millac::rt::status::SamplerWriter;
 use millac::rt::Status;
 use millac::Settings;
 use millac_plant::{Damage, Material, Process, Stock, Tool, ToothEvent, Transducer};
 use std::collections::VecDeque;
-use std::sync::atomic::Ordering::Relaxed;
 
 /// One AC period of a run: what the controller saw and did, and what really happened.
 #[derive(Clone, Debug, PartialEq)]
@@ -344,7 +344,7 @@ type HostSampled = (
 /// AC is applied) over the host ADC.
 fn sample(
     adc: &mut HostAdc,
-    status: &Status,
+    status: &SamplerWriter,
     per_period: u32,
     trip: Option<&rt_ac::Trip>,
 ) -> HostSampled {
@@ -432,8 +432,11 @@ pub fn run_with_faults(
     anti_windup: bool,
     faults: &[crate::host::fault::Fault],
 ) -> Result<HostRun> {
-    // The firmware's frame ISR and pulse end on the host board.
-    let mut frames = HostFrames::new(settings);
+    // The firmware's frame ISR and pulse end on the host board, and its status words (the
+    // contexts' handles: the frame's and the pulse end's in the host board, the others below).
+    let status = Status::new();
+    let w = status.split();
+    let mut frames = HostFrames::new(settings, w.frame, w.pulse);
     // An enabled AC's feed ceiling, as the firmware's tape applies it (the same function).
     let cfg = FrameConfig::from_settings(settings);
     let ceiling = ac.map(|s| s.ceiling);
@@ -458,16 +461,12 @@ pub fn run_with_faults(
         },
     };
     let mut replan = Replan::<REPLAN_RECORD>::new(*settings, &reactions, [0; 3]);
-    // The firmware's sampler and AC period (`millac::rt::ac`) over a host status and ADC.
-    let status = Status::new();
-    status.start();
-    status
-        .spindle_rpm
-        .store(cut.spindle_rpm.round() as u32, Relaxed);
+    // The firmware's sampler and AC period (`millac::rt::ac`) over the host status and ADC.
+    w.loader.set_spindle_rpm(cut.spindle_rpm.round() as u32);
     let mut period = match ac {
         Some(s) => {
             let ctl = AcController::new(s).map_err(|e| anyhow!("AC settings: {}", e.message()))?;
-            let p = AcPeriod::new(ctl, *settings, true, &status)
+            let p = AcPeriod::new(ctl, *settings, true, &w.ac)
                 .with_monitors(&s)
                 .map_err(|e| anyhow!("monitor settings: {}", e.message()))?;
             Some(if anti_windup {
@@ -498,7 +497,7 @@ pub fn run_with_faults(
     let mut out = HostRun::default();
     let (mut t, mut next_sample) = (0u64, sample_ns);
     // The operator's word as the loader keeps it (the host has no operator: run, 100 %).
-    let word = status.operator.load(Relaxed);
+    let word = status.operator.get();
     // The controller's feed number, as the firmware logs it (under the plan k x f_max).
     let mut logged_cap = u32::MAX;
     let mut pos = [0i64; 3];
@@ -520,7 +519,7 @@ pub fn run_with_faults(
             match queue.blocks.front() {
                 // The end of the job as the loader sees it: the frame published idle (its last
                 // pulses out) and nothing left to load.
-                None if status.idle.load(Relaxed)
+                None if status.idle.get()
                     && program.is_empty()
                     && !replan.pending()
                     && !replan.aborting() =>
@@ -537,13 +536,13 @@ pub fn run_with_faults(
         // while the frame drops the queue for a re-plan: that word carries the abort bit until
         // `Replan::poll` has finished it.
         if !replan.aborting() {
-            status.operator.store(
-                millac::nc::operator::with_ac_hold(word, status.feed_cap.load(Relaxed)),
-                Relaxed,
-            );
+            w.loader.set_operator(millac::nc::operator::with_ac_hold(
+                word,
+                status.feed_cap.get(),
+            ));
         }
         // The frame interrupt at t: the pulses the interrupt before computed go out now.
-        let irq = frames.interrupt(&mut queue, &status);
+        let irq = frames.interrupt(&mut queue);
         if irq.pulsed {
             pos = status.encoder().map(i64::from);
             first.get_or_insert(t);
@@ -576,13 +575,13 @@ pub fn run_with_faults(
         // The samples up to the next frame interrupt (one at the same instant runs after it).
         while next_sample < t {
             next_sample += sample_ns;
-            let (codes, due, sound) = sample(&mut adc, &status, per_period, trip.as_ref());
+            let (codes, due, sound) = sample(&mut adc, &w.sampler, per_period, trip.as_ref());
             if let (Some(ac), Some(codes)) = (period.as_mut(), codes) {
                 ac.sample(codes);
             }
             // The sampler's trip writes the frame's cap between periods (the frame reads it every
             // frame).
-            if status.feed_cap.load(Relaxed) == 0 && out.hold_ns.is_none() {
+            if status.feed_cap.get() == 0 && out.hold_ns.is_none() {
                 out.hold_ns = Some(next_sample - sample_ns);
             }
             // The chatter monitor's task (its own in the firmware, below the AC task): each
@@ -601,14 +600,14 @@ pub fn run_with_faults(
             let mut estimates = None;
             let (f_meas, t_meas, e, state) = match period.as_mut() {
                 Some(ac) => {
-                    let r = ac.run(&status);
+                    let r = ac.run(&w.ac);
                     if let Some(v) = heard {
                         ac.heard(v);
                     }
                     estimates = ac.ctl.law_estimates();
                     halt = r.halt;
                     let o = r.out;
-                    if status.feed_cap.load(Relaxed) == 0 && out.hold_ns.is_none() {
+                    if status.feed_cap.get() == 0 && out.hold_ns.is_none() {
                         out.hold_ns = Some(next_sample - sample_ns);
                     }
                     logged_cap = o.feed_cap;
@@ -646,7 +645,7 @@ pub fn run_with_faults(
             period_start = pos;
         }
         // The loader's turn: chatter suppression.
-        match replan.poll(&mut queue, &status) {
+        match replan.poll(&mut queue, &w.loader) {
             ReplanEvent::None => {}
             ReplanEvent::Replanned(r) => out.replans.push((t as f64 * 1e-9, r)),
             ReplanEvent::Refused { why, .. } => out.refused.push((t as f64 * 1e-9, why)),
@@ -655,7 +654,7 @@ pub fn run_with_faults(
                 adc.process
                     .set_spindle_rpm(f64::from(s.to))
                     .map_err(|e| anyhow!("chatter spindle speed S{}: {}", s.to, e.0))?;
-                replan.speed_applied(&status, s.to);
+                replan.speed_applied(&w.loader, s.to);
                 out.speeds.push((t as f64 * 1e-9, s));
             }
         }

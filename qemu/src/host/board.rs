@@ -11,6 +11,7 @@
 use crate::lm3s_facts::Lm3s6965;
 use millac::nc::Frame;
 use millac::ports::{BlockSource, Board, FrameTimer, PulseTimer, StepPort};
+use millac::rt::status::{FrameWriter, PulseWriter};
 use millac::rt::{isr, FrameTask, Reloads, Status};
 use millac::Settings;
 
@@ -54,8 +55,10 @@ impl PulseTimer for OneShot {
 }
 
 /// The firmware's frame task on the host board, at the QEMU board's timer clock.
-pub struct HostFrames {
-    task: FrameTask<true>,
+pub struct HostFrames<'a> {
+    task: FrameTask<&'a Status, true>,
+    /// The pulse-end ISR's handle (the frame's is in its task).
+    end: PulseWriter<&'a Status>,
     pins: Pins,
     timer: Timer,
     pulse: OneShot,
@@ -70,15 +73,22 @@ pub struct Interrupt {
     pub pulsed: bool,
 }
 
-impl HostFrames {
-    /// The frame task at the feed rate, as a board's init starts it.
-    pub fn new(settings: &Settings) -> HostFrames {
+impl<'a> HostFrames<'a> {
+    /// The frame task at the feed rate, as a board's init starts it, with the frame ISR's and the
+    /// pulse end's handles on the status.
+    pub fn new(
+        settings: &Settings,
+        frame: FrameWriter<&'a Status>,
+        end: PulseWriter<&'a Status>,
+    ) -> Self {
         let reloads = Reloads::for_settings::<Lm3s6965>(settings);
         HostFrames {
             task: FrameTask::new(
                 Frame::new(millac::nc::FrameConfig::from_settings(settings)),
                 reloads,
+                frame,
             ),
+            end,
             pins: Pins::default(),
             timer: Timer(reloads.feed),
             pulse: OneShot::default(),
@@ -87,18 +97,13 @@ impl HostFrames {
 
     /// One frame interrupt and, when it pulsed, its pulse end: `FrameTask::run` and `pulse_end`,
     /// the firmware's bodies.
-    pub fn interrupt(&mut self, src: &mut impl BlockSource, status: &Status) -> Interrupt {
+    pub fn interrupt(&mut self, src: &mut impl BlockSource) -> Interrupt {
         let period_ns = reload_ns(self.timer.0);
-        self.task.run(
-            &mut self.pins,
-            &mut self.timer,
-            &mut self.pulse,
-            src,
-            status,
-        );
+        self.task
+            .run(&mut self.pins, &mut self.timer, &mut self.pulse, src);
         let pulsed = self.pulse.0;
         if pulsed {
-            isr::pulse_end(&mut self.pins, &mut self.pulse, status);
+            isr::pulse_end(&mut self.pins, &mut self.pulse, self.end);
         }
         Interrupt { period_ns, pulsed }
     }
@@ -151,17 +156,17 @@ mod tests {
             acsim::period_ns(&settings, Rate::Rapid),
         );
         assert_ne!(feed, rapid);
-        let status = Status::new();
-        status.start();
+        let status = millac::rt::Status::new();
+        let w = status.split();
         let mut queue: std::collections::VecDeque<_> = prog.iter().map(|b| b.block).collect();
-        let mut frames = HostFrames::new(&settings);
+        let mut frames = HostFrames::new(&settings, w.frame, w.pulse);
         let mut ends = 0;
         // The rate the frame before started with.
         let mut last_rate = Rate::Feed;
         for _ in 0..100_000 {
             let was_idle = frames.frame().idle();
             let rate = frames.frame().rate();
-            let irq = frames.interrupt(&mut queue, &status);
+            let irq = frames.interrupt(&mut queue);
             if was_idle && last_rate == Rate::Rapid {
                 assert_eq!(irq.period_ns, rapid, "the frame after a rapid");
                 ends += 1;
@@ -169,7 +174,7 @@ mod tests {
                 assert_eq!(irq.period_ns, feed, "a frame that loads after a feed block");
             }
             last_rate = rate;
-            if status.idle.load(std::sync::atomic::Ordering::Relaxed) && queue.is_empty() {
+            if status.idle.get() && queue.is_empty() {
                 break;
             }
         }

@@ -5,6 +5,7 @@ use crate::gcode::tape::Tape;
 use crate::nc::Frame;
 use crate::protocol::codes::ac_alarm;
 use crate::rt::ac::AC_RUN;
+use crate::rt::status::{Status, Writers};
 
 const PROGRAM: &str = "G20 G90\nG0 X0 Y0\nG0 Z-0.35\nG1 X1.0 F20\nG1 Y0.5\nG1 X0\nG0 Z0.1\nM2\n";
 
@@ -21,7 +22,8 @@ fn blocks(text: &str, nc: Settings) -> Vec<Sealed> {
 struct Rig {
     frame: Frame,
     q: HostQueue,
-    status: Status,
+    status: &'static Status,
+    w: Writers<'static, &'static Status>,
     replan: Replan<12>,
     program: std::collections::VecDeque<Sealed>,
     trace: Vec<[i32; 3]>,
@@ -30,9 +32,9 @@ struct Rig {
 
 impl Rig {
     fn new(text: &str, nc: Settings, lift_mm: f32) -> Rig {
-        let status = Status::new();
-        status.start();
-        status.ac_state.store(AC_RUN, Relaxed);
+        let status: &'static Status = Box::leak(Box::new(Status::new()));
+        let w = status.split();
+        w.ac.set_state(AC_RUN);
         Rig {
             frame: Frame::new(FrameConfig::from_settings(&nc)),
             // A small queue: the blocks behind a held one are more than it holds.
@@ -41,6 +43,7 @@ impl Rig {
                 cap: 3,
             },
             status,
+            w,
             replan: Replan::new(
                 nc,
                 &AcSettings {
@@ -63,24 +66,24 @@ impl Rig {
                 break;
             }
         }
-        let held = self.status.ac_state.load(Relaxed) != AC_RUN;
+        let held = self.status.ac_state.get() != AC_RUN;
         let cap = if held { 0 } else { u32::MAX };
-        let word = self.status.operator.load(Relaxed);
+        let word = self.status.operator.get();
         self.frame
             .tick(&mut self.q, (cap, word, crate::ports::PLAN_ONE));
-        self.status.publish_frame(&self.frame);
+        self.w.frame.publish_all(&self.frame);
         if self.trace.last() != Some(&self.frame.position()) {
             self.trace.push(self.frame.position());
         }
-        if self.status.ac_resume.swap(false, Relaxed) {
-            self.status.ac_state.store(AC_RUN, Relaxed);
-            self.status.resumes.fetch_add(1, Relaxed);
+        if self.w.ac.take_resume() {
+            self.w.ac.set_state(AC_RUN);
+            self.w.ac.count_resume();
         }
-        match self.replan.poll(&mut self.q, &self.status) {
+        match self.replan.poll(&mut self.q, &self.w.loader) {
             Event::None => {}
             Event::Speed(s) => {
                 // The loader's part: the spindle takes it, then the AC resumes.
-                self.replan.speed_applied(&self.status, s.to);
+                self.replan.speed_applied(&self.w.loader, s.to);
                 self.events.push(Event::Speed(s));
             }
             e => self.events.push(e),
@@ -94,8 +97,8 @@ impl Rig {
             threshold: 1.0,
         };
         // As the AC period publishes a chatter hold: its frequency, then the state.
-        self.status.chatter_hz.store(1680f32.to_bits(), Relaxed);
-        self.status.ac_state.store(ac_alarm(&a), Relaxed);
+        self.w.ac.set_chatter_hz(1680.0);
+        self.w.ac.set_state(ac_alarm(&a));
     }
 
     fn done(&self) -> bool {
@@ -111,7 +114,7 @@ impl Rig {
             if self.done() {
                 return;
             }
-            if self.status.ac_state.load(Relaxed) == AC_RUN && hold_when(self.frame.position()) {
+            if self.status.ac_state.get() == AC_RUN && hold_when(self.frame.position()) {
                 self.chatter();
             }
             self.step();
@@ -267,7 +270,7 @@ fn holds_that_cannot_be_replanned_stay_holds() {
         }
         assert_eq!(r.frame.position(), at);
         assert!(r.q.queued() > 0);
-        assert_eq!(r.status.operator.load(Relaxed) & operator::ABORT, 0);
+        assert_eq!(r.status.operator.get() & operator::ABORT, 0);
     }
 }
 
@@ -394,7 +397,7 @@ fn the_spindle_speed_comes_first_then_the_depth_steps() {
             },
             [0; 3],
         );
-        r.status.spindle_rpm.store(14_000, Relaxed);
+        r.w.loader.set_spindle_rpm(14_000);
         r
     };
     let plain = {
@@ -453,7 +456,7 @@ fn the_spindle_speed_comes_first_then_the_depth_steps() {
     assert_eq!(speeds[0].chatter_hz, 1680);
     assert!((3000..3100).contains(&speeds[0].at[0]), "{:?}", speeds[0]);
     // The speed stays (the monitors judge at it).
-    assert_eq!(r.status.spindle_rpm.load(Relaxed), 6300);
+    assert_eq!(r.status.spindle_rpm.get(), 6300);
     // One detour (four more blocks), for the third hold in the slot.
     assert_eq!(r.frame.blocks_done(), plain + 4);
     // Without a depth step the third hold in the block stays a hold.
@@ -465,7 +468,7 @@ fn the_spindle_speed_comes_first_then_the_depth_steps() {
             refused = Some(*why);
             break;
         }
-        if r.status.ac_state.load(Relaxed) == AC_RUN
+        if r.status.ac_state.get() == AC_RUN
             && at
                 .first()
                 .is_some_and(|&x| r.frame.position()[2] == Z1 && r.frame.position()[0] >= x)
@@ -477,5 +480,5 @@ fn the_spindle_speed_comes_first_then_the_depth_steps() {
     }
     assert_eq!(refused, Some(Refusal::NoSpeed), "{:?}", r.events);
     assert_eq!(r.events.len(), 3);
-    assert!(r.status.ac_state.load(Relaxed) != AC_RUN, "still held");
+    assert!(r.status.ac_state.get() != AC_RUN, "still held");
 }
