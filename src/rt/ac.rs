@@ -68,7 +68,7 @@ use crate::ac::{achieved_feed, AcController, AcOutput, AcState};
 use crate::monitor::chatter::Spectrum;
 use crate::monitor::{Breakage, BreakageDetector, BreakageSettings};
 use crate::ports::{Codes, Conversion, ForceTorqueAdc};
-use crate::settings::Settings;
+use crate::settings::{Settings, Valid};
 use crate::wire::SOUND_PER_SAMPLE;
 
 /// The breakage monitor of an AC period ([`AcPeriod::with_breakage`]): the detector fed every
@@ -360,21 +360,11 @@ impl AcPeriod {
     /// and the host simulation build it with this one function. (Chatter is judged by its own
     /// task, `crate::rt::monitor`, whose verdicts come in through [`AcPeriod::heard`].) Init
     /// context.
-    pub fn with_monitors(
-        self,
-        s: &crate::ac::AcSettings,
-    ) -> Result<Self, crate::monitor::BreakageSettingsError> {
-        if !s.breakage {
-            return Ok(self);
+    pub fn with_monitors(self, s: &Valid<crate::ac::AcSettings>) -> Self {
+        match s.breakage_settings() {
+            Some(b) => self.with_breakage(b, s.monitor_rpm, s.flutes),
+            None => self,
         }
-        self.with_breakage(
-            BreakageSettings {
-                sample_hz: s.sample_hz,
-                ..BreakageSettings::default()
-            },
-            s.monitor_rpm,
-            s.flutes,
-        )
     }
 
     /// Judges the resultant force of every sample for tool breakage (`crate::monitor::breakage`)
@@ -383,11 +373,11 @@ impl AcPeriod {
     /// thesis' reaction. Init context.
     pub fn with_breakage(
         mut self,
-        settings: BreakageSettings,
+        settings: Valid<BreakageSettings>,
         rpm: u32,
         flutes: u32,
-    ) -> Result<Self, crate::monitor::BreakageSettingsError> {
-        let mut detector = BreakageDetector::new(settings)?;
+    ) -> Self {
+        let mut detector = BreakageDetector::new(settings);
         let teeth = u8::try_from(flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1);
         detector.set_spindle(rpm as f32, teeth);
         self.breakage = Some(BreakageMonitor {
@@ -396,7 +386,7 @@ impl AcPeriod {
             teeth,
             pending: None,
         });
-        Ok(self)
+        self
     }
 
     /// The breakage monitor, if on.
@@ -603,7 +593,7 @@ mod tests {
     #[test]
     fn missed_conversions_keep_the_clock_and_hold_with_no_samples() {
         let status = Status::new();
-        let ctl = AcController::new(AcSettings::default()).unwrap();
+        let ctl = AcController::new(AcSettings::default().validated().unwrap());
         let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
         let per = period.per_period();
         let mut adc = Adc {
@@ -681,7 +671,7 @@ mod tests {
         status.start();
         status.operator.store(factor_q8, Relaxed);
         let nc = Settings::default();
-        let ctl = AcController::new(AcSettings::default()).unwrap();
+        let ctl = AcController::new(AcSettings::default().validated().unwrap());
         let mut period = AcPeriod::new(ctl, nc, true, &status);
         let period_ms = period.ctl.settings().period_ms as u64;
         let mut x = 0u64;
@@ -722,7 +712,7 @@ mod tests {
     fn the_operator_resumes_an_ac_hold() {
         let status = Status::new();
         status.start();
-        let ctl = AcController::new(AcSettings::default()).unwrap();
+        let ctl = AcController::new(AcSettings::default().validated().unwrap());
         let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
         // A period without samples holds.
         let out = period.run(&status);
@@ -787,7 +777,7 @@ mod tests {
         for (f_n, trips) in [(0.98 * level, false), (1.02 * level, true)] {
             let status = Status::new();
             status.start();
-            let ctl = AcController::new(s).unwrap();
+            let ctl = AcController::new(s.validated().unwrap());
             let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
             let cap = status.feed_cap.load(Relaxed);
             assert!(cap > 0);
@@ -859,7 +849,7 @@ mod tests {
         let trip = Trip::new(&s);
         let status = Status::new();
         status.start();
-        let ctl = AcController::new(s).unwrap();
+        let ctl = AcController::new(s.validated().unwrap());
         let mut period = AcPeriod::new(ctl, Settings::default(), true, &status);
         let per = period.per_period();
         let mut adc = RailSpike { at: 2 * per - 1 };
@@ -896,7 +886,7 @@ mod tests {
             ceiling: crate::ac::FeedCeiling::Plan,
             ..AcSettings::default()
         };
-        let ctl = AcController::new(s).unwrap();
+        let ctl = AcController::new(s.validated().unwrap());
         (s, AcPeriod::new(ctl, Settings::default(), true, status))
     }
 
@@ -996,11 +986,12 @@ mod tests {
             let s = AcSettings {
                 breakage: on,
                 ..AcSettings::default()
-            };
-            let ctl = AcController::new(s).unwrap();
-            let mut period = AcPeriod::new(ctl, Settings::default(), true, &status)
-                .with_monitors(&s)
-                .unwrap();
+            }
+            .validated()
+            .unwrap();
+            let ctl = AcController::new(s);
+            let mut period =
+                AcPeriod::new(ctl, Settings::default(), true, &status).with_monitors(&s);
             assert_eq!(period.breakage().is_some(), on);
             let mut n = 0;
             let early = cut_revolutions(&mut period, &status, 40, sound, &mut n);
