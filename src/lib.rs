@@ -39,4 +39,4 @@ pub mod rt;
 pub mod settings;
 pub mod wire;
 
-pub use settings::{Blu, Settings, SettingsError};
+pub use settings::{Blu, Settings, SettingsError, Valid};

@@ -3,6 +3,54 @@
 //! [`BoardLimits`]; [`BoardLimits::GENERIC`] for the QEMU board and the host tools). Read by the host tool, the G-code parser
 //! (task) and, once validated, by the frame (ISR) through [`crate::nc::FrameConfig`]; listed and
 //! set through [`crate::protocol::settings`].
+//!
+//! Settings that passed their checks are a type of their own, [`Valid`]: they are checked once,
+//! where they are made (a stored record's decode, `$N=value`, a host tool's input), and whatever is
+//! built from them (the frame's configuration, the adaptive controller, the process monitors) takes
+//! a `Valid` and does not check again.
+
+use core::ops::Deref;
+
+/// Settings that passed their checks: a consumer that takes a `Valid<T>` does not check again.
+///
+/// Only this crate's validating functions make one: [`Settings::validated`] (for a board),
+/// `AcSettings::validated`, `BreakageSettings::validated`, `ChatterSettings::validated`,
+/// `MachineSettings::validated` (for a board), and the projections of a valid whole that need no
+/// second check (`Valid<MachineSettings>::nc` and `::ac`, the monitors' settings derived from valid
+/// AC settings). Read through [`Deref`] (`valid.frame_hz`); [`Valid::get`] gives the settings back
+/// (to change a copy, which must be validated again to become a `Valid`).
+///
+/// ```
+/// use millac::settings::{BoardLimits, Settings};
+/// let s = Settings::default().validated(&BoardLimits::GENERIC).unwrap();
+/// assert_eq!(s.frame_hz, 5000);
+/// let slow = Settings { frame_hz: 10, ..s.get() };
+/// assert!(slow.validated(&BoardLimits::GENERIC).is_err());
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Valid<T>(T);
+
+impl<T> Valid<T> {
+    /// Wraps settings that the caller has just checked (or that a checked whole bounds): for the
+    /// validating functions of this crate only.
+    pub(crate) const fn checked(settings: T) -> Self {
+        Valid(settings)
+    }
+
+    /// The settings themselves.
+    pub fn get(self) -> T {
+        self.0
+    }
+
+}
+
+impl<T> Deref for Valid<T> {
+    type Target = T;
+
+    fn deref(&self) -> &T {
+        &self.0
+    }
+}
 
 /// The basic length unit: one pulse moves one BLU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -276,6 +324,13 @@ impl SettingsError {
 }
 
 impl Settings {
+    /// [`Settings::validate`] for `board`, and the settings as a [`Valid`] when they pass: what a
+    /// consumer of NC settings takes.
+    pub fn validated(self, board: &BoardLimits) -> Result<Valid<Settings>, SettingsError> {
+        self.validate(board)?;
+        Ok(Valid::checked(self))
+    }
+
     /// Checks every setting for `board`: the generic ranges, with the frame and rapid rate caps
     /// taken from the board (up to [`FRAME_HZ_CEILING`] / [`RAPID_HZ_CEILING`]), and the timing
     /// rule of [`crate::rt::isr`] with the board's measured ISR times (see [`BoardLimits`]).

@@ -676,7 +676,8 @@ fn a_setting_persists_into_the_next_session() {
     }
     let bytes = std::fs::read(&settings).expect("the settings file");
     assert_eq!(
-        record::decode(&bytes, &millac::settings::BoardLimits::GENERIC),
+        record::decode(&bytes, &millac::settings::BoardLimits::GENERIC)
+            .map(millac::settings::Valid::get),
         Ok(want)
     );
     let Session {

@@ -39,6 +39,8 @@ pub use drr::{Drr, Measured, Sensor, SensorFault, CODE_MAX};
 pub use ecr::Errors;
 pub use settings::{AcSettings, AcSettingsError, Calibration, FeedCeiling, Pick};
 
+use crate::settings::Valid;
+
 /// Why the controller holds the feed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Alarm {
@@ -330,9 +332,9 @@ pub fn achieved_feed(delta_blu: [i64; 3], nc: &crate::Settings, period_ms: u32) 
 }
 
 impl AcController {
-    /// A controller in Run at f = f_min, or the reason the settings are refused.
-    pub fn new(s: AcSettings) -> Result<Self, AcSettingsError> {
-        s.validate()?;
+    /// A controller in Run at f = f_min (its settings checked: see [`Valid`]).
+    pub fn new(s: Valid<AcSettings>) -> Self {
+        let s = s.get();
         let mut c = AcController {
             f0_n: s.f0_n(),
             t0_nm: s.t0_nm(),
@@ -357,7 +359,7 @@ impl AcController {
             s,
         };
         c.new_job();
-        Ok(c)
+        c
     }
 
     /// The controller with another feed law (see [`law`]); the holds, the clamps, the

@@ -1,9 +1,15 @@
 //! Settings of the adaptive controller (ADC calibration, window pick, permissible limits and the
 //! optimal fraction, FRC limits, overload and sensor-fault thresholds) and their validation. Read by
-//! the host tool and, once validated by [`super::AcController::new`], by the AC task.
+//! the host tool and, once validated ([`AcSettings::validated`]), by the AC task; the process
+//! monitors' settings derived from valid AC settings ([`Valid::breakage_settings`],
+//! [`Valid::chatter_settings`]).
 //!
 //! Units: forces in N, torques in N*m, feeds in *feed numbers* (the frame's `f`; at the paper's
 //! defaults W0 = 5 kHz, q0 = 3000, BLU = 0.0001 in, one feed number is 0.01 ipm, f = 100 x FR).
+
+use crate::monitor::chatter::ChatterSettings;
+use crate::monitor::BreakageSettings;
+use crate::settings::Valid;
 
 /// Calibration of one ADC channel: `value = gain * (code - offset)`.
 ///
@@ -304,6 +310,13 @@ impl core::fmt::Display for AcSettingsError {
 }
 
 impl AcSettings {
+    /// [`AcSettings::validate`], and the settings as a [`Valid`] when they pass: what the
+    /// controller ([`super::AcController::new`]) and the monitors' derivations take.
+    pub fn validated(self) -> Result<Valid<AcSettings>, AcSettingsError> {
+        self.validate()?;
+        Ok(Valid::checked(self))
+    }
+
     /// Checks every setting. After this, every computation of the controller is finite (no NaN,
     /// no infinity, no division by zero) for every input code, so the AC task does no checks of
     /// its own.
@@ -414,5 +427,107 @@ impl AcSettings {
     /// The product is formed in u64 and converted once, so host and target get the same f32.
     pub fn step_per_period(&self) -> f32 {
         ((self.fdot_m as u64 * self.period_ms as u64) as f32) / 1000.0
+    }
+}
+
+impl Valid<AcSettings> {
+    /// The breakage monitor's settings when `$268` turns it on: the detector's defaults at the
+    /// AC's sample rate. No second check: [`AcSettings::validate`] bounds the sample rate to the
+    /// breakage detector's own range (100..=100 000 Hz), and the rest are the detector's defaults.
+    pub fn breakage_settings(&self) -> Option<Valid<BreakageSettings>> {
+        self.breakage.then(|| {
+            Valid::checked(BreakageSettings {
+                sample_hz: self.sample_hz,
+                ..BreakageSettings::default()
+            })
+        })
+    }
+
+    /// The chatter monitor's settings when `$266` (the threshold) is above 0 (0: off): the
+    /// detector's defaults with that threshold. No second check: [`AcSettings::validate`] keeps the
+    /// threshold finite (and this only gives one above 0), and the rest are the detector's
+    /// defaults.
+    pub fn chatter_settings(&self) -> Option<Valid<ChatterSettings>> {
+        (self.chatter_threshold > 0.0).then(|| {
+            Valid::checked(ChatterSettings {
+                threshold: self.chatter_threshold,
+                ..ChatterSettings::default()
+            })
+        })
+    }
+}
+
+#[cfg(test)]
+mod derived_tests {
+    use super::*;
+
+    fn valid(s: AcSettings) -> Valid<AcSettings> {
+        s.validated()
+            .unwrap_or_else(|e| panic!("{}: {s:?}", e.message()))
+    }
+
+    /// The breakage settings derived from valid AC settings pass the detector's own validation
+    /// at both ends of the AC's sample rate range (what makes the derivation's missing check
+    /// honest), and exist only with `$268` on.
+    #[test]
+    fn breakage_settings_from_valid_ac_settings_pass_their_own_checks() {
+        assert_eq!(valid(AcSettings::default()).breakage_settings(), None);
+        for sample_hz in [100_000, 100, 1000] {
+            let ac = valid(AcSettings {
+                sample_hz,
+                period_ms: 1000,
+                fdot_m: 1000,
+                breakage: true,
+                ..AcSettings::default()
+            });
+            let b = ac.breakage_settings().expect("$268 on");
+            assert_eq!(b.validate(), Ok(()), "{b:?}");
+            assert_eq!(b.sample_hz, sample_hz);
+            assert_eq!(b.get().validated(), Ok(b));
+        }
+        // Just outside the range the AC settings are refused, so no derivation sees them.
+        for sample_hz in [99, 100_001] {
+            let ac = AcSettings {
+                sample_hz,
+                period_ms: 1000,
+                fdot_m: 1000,
+                breakage: true,
+                ..AcSettings::default()
+            };
+            assert!(ac.validated().is_err(), "{sample_hz}");
+        }
+    }
+
+    /// The chatter settings derived from valid AC settings pass the detector's own validation at
+    /// the edges of the thresholds the AC settings accept (the smallest positive f32, the largest
+    /// finite one), and exist only with a threshold above 0.
+    #[test]
+    fn chatter_settings_from_valid_ac_settings_pass_their_own_checks() {
+        assert_eq!(valid(AcSettings::default()).chatter_settings(), None);
+        for threshold in [
+            f32::MAX,
+            f32::from_bits(1),
+            f32::MIN_POSITIVE,
+            1e-6,
+            1.0,
+            1e12,
+        ] {
+            let ac = valid(AcSettings {
+                chatter_threshold: threshold,
+                ..AcSettings::default()
+            });
+            let c = ac.chatter_settings().expect("threshold above 0");
+            assert_eq!(c.validate(), Ok(()), "{c:?}");
+            assert_eq!(c.threshold, threshold);
+            assert_eq!(c.get().validated(), Ok(c));
+        }
+        // Not finite or negative: the AC settings are refused, so no derivation sees them.
+        for threshold in [f32::INFINITY, f32::NAN, -1.0] {
+            let ac = AcSettings {
+                chatter_threshold: threshold,
+                ..AcSettings::default()
+            };
+            assert!(ac.validated().is_err(), "{threshold}");
+        }
     }
 }

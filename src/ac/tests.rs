@@ -16,7 +16,7 @@ pub(super) fn paper() -> AcSettings {
 }
 
 pub(super) fn ctl(s: AcSettings) -> AcController {
-    AcController::new(s).expect("valid settings")
+    AcController::new(s.validated().expect("valid settings"))
 }
 
 /// Codes for a torque (N*m) and force components (N) under the default calibration.
@@ -502,7 +502,7 @@ fn settings_validation() {
         let mut s = d;
         edit(&mut s);
         assert_eq!(s.validate(), Err(e));
-        assert_eq!(AcController::new(s).err(), Some(e));
+        assert_eq!(s.validated().err(), Some(e));
         assert!(!e.message().is_empty());
         assert_eq!(format!("{e}"), e.message());
     }
@@ -678,7 +678,7 @@ fn the_settings_strategy_picks_the_controllers_feed_law() {
             strategy,
             ..AcSettings::default()
         };
-        let c = AcController::new(s).unwrap();
+        let c = AcController::new(s.validated().unwrap());
         let name = match c.law {
             FeedLaw::Paper => "Paper",
             FeedLaw::Integral(_) => "Integral",

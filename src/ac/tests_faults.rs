@@ -255,7 +255,7 @@ fn plausibility_settings_validation() {
         let mut s = d;
         edit(&mut s);
         assert_eq!(s.validate(), Err(e));
-        assert_eq!(AcController::new(s).err(), Some(e));
+        assert_eq!(s.validated().err(), Some(e));
         assert_eq!(format!("{e}"), e.message());
     }
 }

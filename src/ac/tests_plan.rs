@@ -76,7 +76,7 @@ fn a_right_plan_runs_at_k_1_after_the_first_contact() {
 }
 
 fn ctl_plan() -> AcController {
-    AcController::new(plan()).expect("valid settings")
+    AcController::new(plan().validated().expect("valid settings"))
 }
 
 #[test]
@@ -205,7 +205,7 @@ fn a_new_job_meets_its_first_entry_at_plan_start_and_learns_its_own_k() {
 /// Outside the plan a new job changes nothing.
 #[test]
 fn a_new_job_leaves_the_other_ceilings_alone() {
-    let mut c = AcController::new(AcSettings::default()).expect("valid settings");
+    let mut c = AcController::new(AcSettings::default().validated().expect("valid settings"));
     run(&mut c, 1.0, &[0.5; 10]);
     let before = c.feed_cap();
     assert_ne!(before, plan_start(c.settings()));

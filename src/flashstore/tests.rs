@@ -435,9 +435,10 @@ fn a_settings_change_loads_back_from_flash() {
     let (mut t, status) = Persistent::load(
         FlashStore::new(&mut ram),
         crate::settings::BoardLimits::GENERIC,
-    );
+    )
+    .unwrap();
     assert_eq!(
-        (t.settings, status),
+        (t.settings.get(), status),
         (MachineSettings::default(), LoadStatus::Missing)
     );
     let (n, v) = parse_assignment("$0=7").unwrap();
@@ -446,17 +447,19 @@ fn a_settings_change_loads_back_from_flash() {
     let (back, status) = Persistent::load(
         FlashStore::new(&mut ram),
         crate::settings::BoardLimits::GENERIC,
-    );
+    )
+    .unwrap();
     assert_eq!(status, LoadStatus::Loaded);
     assert_eq!(back.settings, changed);
     assert_eq!(back.settings.nc.pulse_width_ns, 7000);
-    assert_ne!(back.settings, MachineSettings::default());
+    assert_ne!(back.settings.get(), MachineSettings::default());
 
     let mut ram = Ram::<SMALL>::erased();
     let (mut t, _) = Persistent::load(
         FlashStore::new(&mut ram),
         crate::settings::BoardLimits::GENERIC,
-    );
+    )
+    .unwrap();
     let values = [3, 4, 7, 8, 3, 4, 7, 8, 3, 4];
     for us in values {
         let (n, v) = parse_assignment(&std::format!("$0={us}")).unwrap();
@@ -465,7 +468,8 @@ fn a_settings_change_loads_back_from_flash() {
     let (back, status) = Persistent::load(
         FlashStore::new(&mut ram),
         crate::settings::BoardLimits::GENERIC,
-    );
+    )
+    .unwrap();
     assert_eq!(status, LoadStatus::Loaded);
     assert_eq!(back.settings.nc.pulse_width_ns, 4000);
     let slots = FlashStore::<Ram<SMALL>>::SLOTS;

@@ -87,6 +87,8 @@
 
 use core::fmt;
 
+use crate::settings::Valid;
+
 /// Most flutes the detector handles (the size of its per-tooth rings: end mills for die sinking
 /// have 2 to 8; each flute more costs 32 bytes of state).
 pub const MAX_FLUTES: usize = 8;
@@ -366,6 +368,13 @@ impl fmt::Display for BreakageSettingsError {
 }
 
 impl BreakageSettings {
+    /// [`BreakageSettings::validate`], and the settings as a [`Valid`] when they pass: what
+    /// [`BreakageDetector::new`] takes.
+    pub fn validated(self) -> Result<Valid<BreakageSettings>, BreakageSettingsError> {
+        self.validate()?;
+        Ok(Valid::checked(self))
+    }
+
     /// Checks every setting; after it every computation of the detector is finite.
     pub fn validate(&self) -> Result<(), BreakageSettingsError> {
         use BreakageSettingsError as E;
@@ -547,11 +556,10 @@ pub struct BreakageDetector {
 }
 
 impl BreakageDetector {
-    /// A detector with an unknown spindle, or the reason the settings are refused.
-    pub fn new(s: BreakageSettings) -> Result<Self, BreakageSettingsError> {
-        s.validate()?;
-        Ok(BreakageDetector {
-            s,
+    /// A detector with an unknown spindle (its settings checked: see [`Valid`]).
+    pub fn new(s: Valid<BreakageSettings>) -> Self {
+        BreakageDetector {
+            s: s.get(),
             period_q16: 0,
             flutes: 1,
             decay: 1.0,
@@ -585,7 +593,7 @@ impl BreakageDetector {
             rev: 0,
             #[cfg(any(test, feature = "std"))]
             e_last: (0.0, 0.0),
-        })
+        }
     }
 
     pub fn settings(&self) -> &BreakageSettings {

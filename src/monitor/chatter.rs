@@ -17,6 +17,8 @@
 //!   amplitude A in the middle of a bin reads A.
 use microfft::real::rfft_256;
 
+use crate::settings::Valid;
+
 /// Samples per detection record (the FFT's size).
 pub const RECORD: usize = 256;
 
@@ -82,6 +84,14 @@ impl ChatterSettings {
         self.sound_hz as f32 / RECORD as f32
     }
 
+    /// [`ChatterSettings::validate`], and the settings as a [`Valid`] when they pass: what
+    /// [`ChatterDetector::new`] takes.
+    pub fn validated(self) -> Result<Valid<ChatterSettings>, ChatterSettingsError> {
+        self.validate()?;
+        Ok(Valid::checked(self))
+    }
+
+    /// Checks every setting; after it every computation of the detector is finite.
     pub fn validate(&self) -> Result<(), ChatterSettingsError> {
         if !(1000..=100_000).contains(&self.sound_hz) {
             return Err(ChatterSettingsError::SoundRate);
@@ -125,8 +135,9 @@ pub struct ChatterDetector {
 }
 
 impl ChatterDetector {
-    pub fn new(s: ChatterSettings) -> Result<Self, ChatterSettingsError> {
-        s.validate()?;
+    /// A detector at its first record (its settings checked: see [`Valid`]).
+    pub fn new(s: Valid<ChatterSettings>) -> Self {
+        let s = s.get();
         let mut window = [0.0f32; RECORD];
         let mut sum = 0.0f32;
         for (i, w) in window.iter_mut().enumerate() {
@@ -134,14 +145,14 @@ impl ChatterDetector {
             *w = 0.5 * (1.0 - libm::cosf(2.0 * core::f32::consts::PI * i as f32 / RECORD as f32));
             sum += *w;
         }
-        Ok(ChatterDetector {
+        ChatterDetector {
             s,
             record: [0.0; RECORD],
             window,
             scale: 2.0 / sum,
             filled: 0,
             cycle: 0,
-        })
+        }
     }
 
     pub fn settings(&self) -> &ChatterSettings {
@@ -320,11 +331,14 @@ mod tests {
     }
 
     fn detector(threshold: f32) -> ChatterDetector {
-        ChatterDetector::new(ChatterSettings {
-            threshold,
-            ..ChatterSettings::default()
-        })
-        .unwrap()
+        ChatterDetector::new(
+            ChatterSettings {
+                threshold,
+                ..ChatterSettings::default()
+            }
+            .validated()
+            .unwrap(),
+        )
     }
 
     /// A chatter tone far from the tooth harmonics is found at its frequency with its amplitude,
@@ -369,12 +383,15 @@ mod tests {
             .unwrap();
         assert!(s.chatter && (s.peak_hz - 1015.6).abs() <= 20.0, "{s:?}");
         // With the harmonics not left out, the forced vibration alone would read as chatter.
-        let mut d = ChatterDetector::new(ChatterSettings {
-            threshold: 0.5,
-            harmonics: 0,
-            ..ChatterSettings::default()
-        })
-        .unwrap();
+        let mut d = ChatterDetector::new(
+            ChatterSettings {
+                threshold: 0.5,
+                harmonics: 0,
+                ..ChatterSettings::default()
+            }
+            .validated()
+            .unwrap(),
+        );
         let s = (0..RECORD)
             .filter_map(|i| d.push(sound(i, 5000.0, 400.0, 3.0, 0.0, 0.0), 12_000, 2))
             .last()
@@ -445,7 +462,7 @@ mod tests {
                 ..Default::default()
             },
         ] {
-            assert!(ChatterDetector::new(bad).is_err(), "{bad:?}");
+            assert!(bad.validated().is_err(), "{bad:?}");
         }
     }
 

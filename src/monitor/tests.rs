@@ -59,11 +59,14 @@ impl Model {
 }
 
 fn det(mode: ThresholdMode) -> BreakageDetector {
-    let mut d = BreakageDetector::new(BreakageSettings {
-        mode,
-        ..BreakageSettings::default()
-    })
-    .expect("valid settings");
+    let mut d = BreakageDetector::new(
+        BreakageSettings {
+            mode,
+            ..BreakageSettings::default()
+        }
+        .validated()
+        .expect("valid settings"),
+    );
     d.set_spindle(600.0, Z as u8);
     d
 }
@@ -328,7 +331,7 @@ fn the_detector_latches_until_reset() {
 #[test]
 fn no_decisions_without_spindle_or_in_air() {
     // A broken tooth while the spindle is unknown: nothing.
-    let mut d = BreakageDetector::new(BreakageSettings::default()).expect("valid");
+    let mut d = BreakageDetector::new(BreakageSettings::default().validated().expect("valid"));
     let m = Model {
         chip: Some((1, 1.0, 100)),
         ..Model::new()
@@ -401,7 +404,7 @@ fn run_samples(
 #[test]
 fn per_sample_steady_cut_and_break_at_600_and_610_rpm() {
     for rpm in [600.0, 610.0] {
-        let mut d = BreakageDetector::new(BreakageSettings::default()).expect("valid");
+        let mut d = BreakageDetector::new(BreakageSettings::default().validated().expect("valid"));
         d.set_spindle(rpm, Z as u8);
         assert_eq!(
             run_samples(&mut d, &Model::new(), rpm, 60.0, 7.0),
@@ -411,7 +414,7 @@ fn per_sample_steady_cut_and_break_at_600_and_610_rpm() {
         // A tooth broken 5 s into the cut.
         let tooth_s = 60.0 / (rpm * Z as f32);
         let from = (5.0 / tooth_s) as u32;
-        let mut d = BreakageDetector::new(BreakageSettings::default()).expect("valid");
+        let mut d = BreakageDetector::new(BreakageSettings::default().validated().expect("valid"));
         d.set_spindle(rpm, Z as u8);
         let m = Model {
             chip: Some((3, 1.0, from)),
@@ -514,7 +517,7 @@ fn settings_validation_names_the_setting() {
     ];
     for (s, e) in bad {
         assert_eq!(s.validate(), Err(e));
-        assert_eq!(BreakageDetector::new(s).err(), Some(e));
+        assert_eq!(s.validated().err(), Some(e));
         assert!(!e.message().is_empty());
     }
 }

@@ -16,7 +16,7 @@ use core::fmt::{self, Write};
 
 use crate::ac::settings::{AcSettings, AcSettingsError};
 use crate::gcode::number::{parse_decimal, Decimal, NumError};
-use crate::settings::{Blu, BoardLimits, Settings, SettingsError};
+use crate::settings::{Blu, BoardLimits, Settings, SettingsError, Valid};
 
 mod persistent;
 pub mod record;
@@ -264,6 +264,13 @@ impl MachineSettings {
         Ok(())
     }
 
+    /// [`MachineSettings::validate`] for `board`, and the settings as a [`Valid`] when they pass:
+    /// what the settings table holds ([`Persistent`]) and what the boards start from.
+    pub fn validated(self, board: &BoardLimits) -> Result<Valid<MachineSettings>, Invalid> {
+        self.validate(board)?;
+        Ok(Valid::checked(self))
+    }
+
     /// `$N=value`: sets one setting on a copy, validates the copy for `board`, and only then
     /// takes it. Lengths and rates round to the nearest BLU, ns or us; `$200` (BLU) converts the
     /// settings listed in mm so that they keep their mm values (soft limits rounded inward).
@@ -273,12 +280,21 @@ impl MachineSettings {
         value: Decimal,
         board: &BoardLimits,
     ) -> Result<(), SetError> {
+        *self = self.with(number, value, board)?.get();
+        Ok(())
+    }
+
+    /// A copy with `$N=value` set, validated for `board` (what [`MachineSettings::set`] takes).
+    fn with(
+        &self,
+        number: u16,
+        value: Decimal,
+        board: &BoardLimits,
+    ) -> Result<Valid<MachineSettings>, SetError> {
         let e = entry(number).ok_or(SetError::Unsupported)?;
         let mut new = *self;
         new.assign(e, value)?;
-        new.validate(board).map_err(SetError::Invalid)?;
-        *self = new;
-        Ok(())
+        new.validated(board).map_err(SetError::Invalid)
     }
 
     /// [`parse_assignment`] then [`MachineSettings::set`].
@@ -382,6 +398,40 @@ impl MachineSettings {
             self.write_value(e, w)?;
             w.write_str("\r\n")?;
         }
+        Ok(())
+    }
+}
+
+impl Valid<MachineSettings> {
+    /// The NC settings, valid for the board the whole was validated for (no second check:
+    /// [`MachineSettings::validate`] runs [`Settings::validate`]).
+    pub fn nc(&self) -> Valid<Settings> {
+        Valid::checked(self.nc)
+    }
+
+    /// The AC settings, valid (no second check: [`MachineSettings::validate`] runs
+    /// [`AcSettings::validate`]).
+    pub fn ac(&self) -> Valid<AcSettings> {
+        Valid::checked(self.ac)
+    }
+
+    /// The settings with adaptive control on or off (`$250`), still valid: no check depends on it.
+    pub fn with_ac_enabled(self, on: bool) -> Self {
+        Valid::checked(MachineSettings {
+            ac_enabled: on,
+            ..self.get()
+        })
+    }
+
+    /// `$N=value` on the valid settings: set on a copy, the copy validated for `board`, and only
+    /// then taken (a refused value changes nothing).
+    pub fn set(
+        &mut self,
+        number: u16,
+        value: Decimal,
+        board: &BoardLimits,
+    ) -> Result<(), SetError> {
+        *self = self.with(number, value, board)?;
         Ok(())
     }
 }

@@ -66,7 +66,7 @@ use crate::ac::{achieved_feed, AcController, AcOutput, AcState};
 use crate::monitor::chatter::Spectrum;
 use crate::monitor::{Breakage, BreakageDetector, BreakageSettings};
 use crate::ports::{Codes, Conversion, ForceTorqueAdc};
-use crate::settings::Settings;
+use crate::settings::{Settings, Valid};
 use crate::wire::SOUND_PER_SAMPLE;
 
 /// The breakage monitor of an AC period ([`AcPeriod::with_breakage`]): the detector fed every
@@ -358,21 +358,11 @@ impl AcPeriod {
     /// and the host simulation build it with this one function. (Chatter is judged by its own
     /// task, `crate::rt::monitor`, whose verdicts come in through [`AcPeriod::heard`].) Init
     /// context.
-    pub fn with_monitors(
-        self,
-        s: &crate::ac::AcSettings,
-    ) -> Result<Self, crate::monitor::BreakageSettingsError> {
-        if !s.breakage {
-            return Ok(self);
+    pub fn with_monitors(self, s: &Valid<crate::ac::AcSettings>) -> Self {
+        match s.breakage_settings() {
+            Some(b) => self.with_breakage(b, s.monitor_rpm, s.flutes),
+            None => self,
         }
-        self.with_breakage(
-            BreakageSettings {
-                sample_hz: s.sample_hz,
-                ..BreakageSettings::default()
-            },
-            s.monitor_rpm,
-            s.flutes,
-        )
     }
 
     /// Judges the resultant force of every sample for tool breakage (`crate::monitor::breakage`)
@@ -381,11 +371,11 @@ impl AcPeriod {
     /// thesis' reaction. Init context.
     pub fn with_breakage(
         mut self,
-        settings: BreakageSettings,
+        settings: Valid<BreakageSettings>,
         rpm: u32,
         flutes: u32,
-    ) -> Result<Self, crate::monitor::BreakageSettingsError> {
-        let mut detector = BreakageDetector::new(settings)?;
+    ) -> Self {
+        let mut detector = BreakageDetector::new(settings);
         let teeth = u8::try_from(flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1);
         detector.set_spindle(rpm as f32, teeth);
         self.breakage = Some(BreakageMonitor {
@@ -394,7 +384,7 @@ impl AcPeriod {
             teeth,
             pending: None,
         });
-        Ok(self)
+        self
     }
 
     /// The breakage monitor, if on.
@@ -599,7 +589,7 @@ mod tests {
     fn missed_conversions_keep_the_clock_and_hold_with_no_samples() {
         let status = Status::new();
         let w = status.split();
-        let ctl = AcController::new(AcSettings::default()).unwrap();
+        let ctl = AcController::new(AcSettings::default().validated().unwrap());
         let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac);
         let per = period.per_period();
         let mut adc = Adc {
@@ -677,7 +667,7 @@ mod tests {
         let w = status.split();
         w.loader.set_operator(factor_q8);
         let nc = Settings::default();
-        let ctl = AcController::new(AcSettings::default()).unwrap();
+        let ctl = AcController::new(AcSettings::default().validated().unwrap());
         let mut period = AcPeriod::new(ctl, nc, true, &w.ac);
         let period_ms = period.ctl.settings().period_ms as u64;
         let mut x = 0u64;
@@ -718,7 +708,7 @@ mod tests {
     fn the_operator_resumes_an_ac_hold() {
         let status = Status::new();
         let w = status.split();
-        let ctl = AcController::new(AcSettings::default()).unwrap();
+        let ctl = AcController::new(AcSettings::default().validated().unwrap());
         let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac);
         // A period without samples holds.
         let out = period.run(&w.ac);
@@ -783,7 +773,7 @@ mod tests {
         for (f_n, trips) in [(0.98 * level, false), (1.02 * level, true)] {
             let status = Status::new();
             let w = status.split();
-            let ctl = AcController::new(s).unwrap();
+            let ctl = AcController::new(s.validated().unwrap());
             let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac);
             let cap = status.feed_cap.get();
             assert!(cap > 0);
@@ -855,7 +845,7 @@ mod tests {
         let trip = Trip::new(&s);
         let status = Status::new();
         let w = status.split();
-        let ctl = AcController::new(s).unwrap();
+        let ctl = AcController::new(s.validated().unwrap());
         let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac);
         let per = period.per_period();
         let mut adc = RailSpike { at: 2 * per - 1 };
@@ -891,7 +881,7 @@ mod tests {
             ceiling: crate::ac::FeedCeiling::Plan,
             ..AcSettings::default()
         };
-        let ctl = AcController::new(s).unwrap();
+        let ctl = AcController::new(s.validated().unwrap());
         (s, AcPeriod::new(ctl, Settings::default(), true, status))
     }
 
@@ -993,11 +983,11 @@ mod tests {
             let s = AcSettings {
                 breakage: on,
                 ..AcSettings::default()
-            };
-            let ctl = AcController::new(s).unwrap();
-            let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac)
-                .with_monitors(&s)
-                .unwrap();
+            }
+            .validated()
+            .unwrap();
+            let ctl = AcController::new(s);
+            let mut period = AcPeriod::new(ctl, Settings::default(), true, &w.ac).with_monitors(&s);
             assert_eq!(period.breakage().is_some(), on);
             let mut n = 0;
             let early = cut_revolutions(&mut period, &w.ac, 40, sound, &mut n);

@@ -16,6 +16,7 @@ use crate::rt::ac::{self as body, AcPeriod};
 use crate::rt::monitor::ChatterTask;
 use crate::rt::status::{AcWriter, SamplerWriter};
 use crate::rt::Status;
+use crate::settings::Valid;
 use crate::wire::{AcLogLine, LogState, AC_LOG_HEADER, SOUND_PER_SAMPLE};
 use heapless::spsc::{Consumer, Producer};
 
@@ -170,23 +171,17 @@ impl MonitorTask {
     }
 }
 
-/// Why the AC tasks did not start: which settings were refused, and why (init context; a board
-/// says it as `<what>: <why>` and stops, or runs without the AC).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct StartError {
-    pub what: &'static str,
-    pub why: &'static str,
-}
-
 /// The AC tasks every board starts from its settings: the controller, the AC period with the
 /// process monitors the settings turn on, the AC task over the sample queue, and its sampler
-/// (with the overload trip when the AC is `enabled`, i.e. applied to the feed). Init context.
+/// (with the overload trip when the AC is `enabled`, i.e. applied to the feed). Nothing is checked
+/// here: the AC settings come validated (a [`Valid`]), and so do the monitors' settings derived
+/// from them. Init context.
 #[allow(clippy::too_many_arguments)]
 pub fn start<D: ForceTorqueAdc, W: LogSink>(
     status: AcWriter<'static>,
     sampler_status: SamplerWriter<'static>,
     settings: crate::Settings,
-    ac: &crate::ac::AcSettings,
+    ac: &Valid<crate::ac::AcSettings>,
     enabled: bool,
     adc: D,
     log: W,
@@ -195,24 +190,16 @@ pub fn start<D: ForceTorqueAdc, W: LogSink>(
         Consumer<'static, Codes, SAMPLE_QUEUE>,
     ),
     alarms: Producer<'static, Alarm, ALARM_QUEUE>,
-) -> Result<(Sampler<D>, AcTask<W>), StartError> {
-    let ctl = crate::ac::AcController::new(*ac).map_err(|e| StartError {
-        what: "AC settings",
-        why: e.message(),
-    })?;
-    let period = AcPeriod::new(ctl, settings, enabled, &status)
-        .with_monitors(ac)
-        .map_err(|e| StartError {
-            what: "monitor settings",
-            why: e.message(),
-        })?;
+) -> (Sampler<D>, AcTask<W>) {
+    let ctl = crate::ac::AcController::new(*ac);
+    let period = AcPeriod::new(ctl, settings, enabled, &status).with_monitors(ac);
     let (tx, rx) = samples;
     let task = AcTask::new(status, period, rx, alarms, log);
     let mut sampler = Sampler::new(sampler_status, adc, tx, task.per_period());
     if enabled {
         sampler = sampler.with_trip(body::Trip::new(ac));
     }
-    Ok((sampler, task))
+    (sampler, task)
 }
 
 /// The AC period's state.
@@ -332,9 +319,9 @@ mod tests {
         }
     }
 
-    type Started = Result<(Sampler<Quiet>, AcTask<()>), StartError>;
+    type Started = (Sampler<Quiet>, AcTask<()>);
 
-    fn started(ac: AcSettings, enabled: bool) -> Started {
+    fn started(ac: Valid<AcSettings>, enabled: bool) -> Started {
         let status: &'static Status = Box::leak(Box::new(Status::new()));
         let w = status.split();
         let samples: &'static mut Queue<Codes, SAMPLE_QUEUE> = Box::leak(Box::new(Queue::new()));
@@ -353,26 +340,31 @@ mod tests {
         )
     }
 
-    /// The boards' start of the AC tasks: valid settings start them (the sampler with the
-    /// overload trip only when the AC is applied); refused AC settings say so.
+    /// The boards' start of the AC tasks: it takes validated AC settings (a `Valid`, so it has no
+    /// refusal of its own) and starts the tasks, the sampler with the overload trip only when the
+    /// AC is applied, the breakage monitor when the settings turn it on. Settings that fail their
+    /// checks never reach it: their validation refuses them.
     #[test]
-    fn the_ac_tasks_start_from_valid_settings_and_refuse_invalid_ones() {
-        let (s, t) = started(AcSettings::default(), true).unwrap();
+    fn the_ac_tasks_start_from_valid_settings() {
+        let valid = AcSettings::default().validated().unwrap();
+        let (s, t) = started(valid, true);
         assert!(s.trip.is_some());
         assert_eq!(t.per_period(), AcSettings::default().samples_per_period());
-        let (s, _) = started(AcSettings::default(), false).unwrap();
+        assert!(t.period.breakage().is_none());
+        let (s, _) = started(valid, false);
         assert!(s.trip.is_none());
         let bad_ac = AcSettings {
             period_ms: 0,
             ..AcSettings::default()
         };
-        assert_eq!(started(bad_ac, true).err().unwrap().what, "AC settings");
+        assert_eq!(bad_ac.validated(), Err(crate::ac::AcSettingsError::Period));
         // The AC settings' validation covers what the monitors take from them: with the
-        // breakage monitor on, valid settings start too.
+        // breakage monitor on, valid settings start it.
         let monitored = AcSettings {
             breakage: true,
             ..AcSettings::default()
         };
-        assert!(started(monitored, true).is_ok());
+        let (_, t) = started(monitored.validated().unwrap(), true);
+        assert!(t.period.breakage().is_some());
     }
 }

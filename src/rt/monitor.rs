@@ -8,7 +8,8 @@
 
 use super::status::Status;
 use crate::ac::AcSettings;
-use crate::monitor::chatter::{ChatterDetector, ChatterSettings, ChatterSettingsError, Spectrum};
+use crate::monitor::chatter::{ChatterDetector, Spectrum};
+use crate::settings::Valid;
 
 /// The sound channel's code of silence (a 12-bit ADC's mid-scale): the chatter detector takes
 /// code - this.
@@ -29,21 +30,15 @@ impl ChatterTask {
     /// The monitor the AC settings ask for: `$266` the threshold (0: off, `None`), `$267` the
     /// flutes (the tooth harmonics left out), `$269` the speed until the machine is commanded one
     /// (`Status::spindle_rpm`). Init context.
-    pub fn from_settings(s: &AcSettings) -> Result<Option<Self>, ChatterSettingsError> {
-        if s.chatter_threshold <= 0.0 {
-            return Ok(None);
-        }
-        let settings = ChatterSettings {
-            threshold: s.chatter_threshold,
-            ..ChatterSettings::default()
-        };
-        Ok(Some(ChatterTask {
-            detector: ChatterDetector::new(settings)?,
+    pub fn from_settings(s: &Valid<AcSettings>) -> Option<Self> {
+        let settings = s.chatter_settings()?;
+        Some(ChatterTask {
+            detector: ChatterDetector::new(settings),
             rpm: s.monitor_rpm,
             flutes: s.flutes,
             last: None,
             seen: (0, 0),
-        }))
+        })
     }
 
     /// The sound channel's codes of one sample (oldest first): the spectrum of the record they
@@ -89,15 +84,13 @@ mod tests {
     /// (256 sound samples) with a tone near the tool's mode found and judged as chatter.
     #[test]
     fn one_spectrum_per_record_at_the_commanded_speed() {
-        assert!(ChatterTask::from_settings(&AcSettings::default())
-            .unwrap()
-            .is_none());
+        assert!(ChatterTask::from_settings(&AcSettings::default().validated().unwrap()).is_none());
         let s = AcSettings {
             chatter_threshold: 5.0,
             flutes: 2,
             ..AcSettings::default()
         };
-        let mut task = ChatterTask::from_settings(&s).unwrap().unwrap();
+        let mut task = ChatterTask::from_settings(&s.validated().unwrap()).unwrap();
         let status = Status::new();
         let w = status.split();
         assert_eq!(task.rpm(), 600);

@@ -1,13 +1,12 @@
 //! A board's start (init, before any interrupt is enabled): the settings table loaded from the
-//! board's storage for its limits, the NC settings validated for the board, and the frame timer's
+//! board's storage, validated once for the board's limits, and the frame timer's
 //! reloads and the pulse one-shot's reload they give. Both boards' apps begin here.
 use crate::nc::{Frame, FrameConfig};
 use crate::ports::{Board, SettingsStorage};
 use crate::protocol::settings::record::{LoadStatus, RecordError};
-use crate::protocol::settings::Persistent;
+use crate::protocol::settings::{Invalid, Persistent};
 use crate::rt::status::{FrameWriter, Home};
 use crate::rt::{clocks_for_ns, FrameTask, Reloads};
-use crate::settings::SettingsError;
 
 /// What a board starts with.
 pub struct Start<S> {
@@ -22,16 +21,16 @@ pub struct Start<S> {
     pub pulse: u32,
 }
 
-/// Loads the settings for board `B` from `storage` and validates the NC settings for it; an
-/// error means the board cannot run them (the defaults are outside its limits). Init.
-pub fn start<B: Board, S: SettingsStorage>(storage: S) -> Result<Start<S>, SettingsError> {
-    let (table, status) = Persistent::load(storage, B::LIMITS);
+/// Loads the settings for board `B` from `storage`, validated for it once (the record at its
+/// decode, or the defaults that replace it); an error means the board cannot run them (the
+/// defaults are outside its limits). Init.
+pub fn start<B: Board, S: SettingsStorage>(storage: S) -> Result<Start<S>, Invalid> {
+    let (table, status) = Persistent::load(storage, B::LIMITS)?;
     let refused = match status {
         LoadStatus::Refused(e) => Some(e),
         LoadStatus::Loaded | LoadStatus::Missing => None,
     };
-    let nc = table.settings.nc;
-    nc.validate(&B::LIMITS)?;
+    let nc = table.settings.nc();
     Ok(Start {
         reloads: Reloads::for_settings::<B>(&nc),
         pulse: B::reload(clocks_for_ns(B::TIMER_HZ, nc.pulse_width_ns)),
@@ -56,7 +55,7 @@ impl<S> Start<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::settings::{BoardLimits, IsrBounds};
+    use crate::settings::{BoardLimits, IsrBounds, SettingsError};
 
     struct Slow;
     impl Board for Slow {
@@ -107,6 +106,8 @@ mod tests {
             (1_000_000 + nc.rapid_hz / 2) / nc.rapid_hz - 1
         );
         assert_eq!(s.pulse, nc.pulse_width_ns.div_ceil(1000) - 1);
-        assert!(start::<Slow, _>(Empty).is_err());
+        let e = start::<Slow, _>(Empty).err().expect("refused");
+        assert_eq!(e, Invalid::Nc(SettingsError::FrameRate));
+        assert_eq!(e.message(), SettingsError::FrameRate.message());
     }
 }

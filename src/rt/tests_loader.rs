@@ -437,10 +437,13 @@ fn session_on<const S: bool>(
     let (tx_p, tx) = Box::leak(Box::new(Queue::<u8, T>::new())).split();
     let (alarm_tx, mut alarms) = Box::leak(Box::new(Queue::<Alarm, A>::new())).split();
     let (rx, task) = Box::leak(Box::new(RxShared::new())).split();
-    let (mut table, _) = Persistent::load(NoStorage, crate::settings::BoardLimits::GENERIC);
+    let (mut table, _) =
+        Persistent::load(NoStorage, crate::settings::BoardLimits::GENERIC).unwrap();
     if let Some((_, AcEvent::Chatter { step_mm, max_rpm })) = ac_event {
-        table.settings.ac.chatter_step_mm = step_mm;
-        table.settings.ac.chatter_max_rpm = max_rpm;
+        let mut m = table.settings.get();
+        m.ac.chatter_step_mm = step_mm;
+        m.ac.chatter_max_rpm = max_rpm;
+        table.settings = m.validated(&table.board).unwrap();
     }
     let settings = table.settings.nc;
     let mut proto = Protocol::new(task, (Q - 1) as u16);

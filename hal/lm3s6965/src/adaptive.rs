@@ -1,7 +1,7 @@
 //! The AC side of the QEMU board's init: when the host serves the simulated ADC
 //! (`crate::simadc`), the AC task and its sampler (with the breakage monitor the settings turn
-//! on, `$268`), the chatter monitor (`$266`), `ac.log`, and the sample timer started. Init; invalid
-//! AC or monitor settings stop the firmware here (`crate::voice::fail`).
+//! on, `$268`), the chatter monitor (`$266`), `ac.log`, and the sample timer started. Init; the
+//! settings come validated from the start (`millac::rt::start`), so nothing here refuses them.
 use heapless::spsc::{Producer, Queue};
 use millac::ac::{Alarm, FeedCeiling};
 use millac::monitor::chatter::Spectrum;
@@ -14,6 +14,7 @@ use millac::rt::actask::{
 use millac::rt::clocks_for_hz;
 use millac::rt::monitor::ChatterTask;
 use millac::rt::status::{AcWriter, SamplerWriter};
+use millac::settings::Valid;
 use millac::wire::FLAG_AC_ENABLED;
 
 use crate::board::Lm3s6965 as B;
@@ -43,20 +44,20 @@ pub struct Queues {
 /// Opens the simulated ADC (blocking until the host is ready) and starts the AC on it; None when
 /// the host serves no ADC (no `adc.req`): no sample timer, no AC task, the feed cap stays off.
 pub fn start(
-    settings: &MachineSettings,
+    settings: &Valid<MachineSettings>,
     queues: Queues,
     alarms: Producer<'static, Alarm, ALARM_QUEUE>,
     status: AcWriter<'static>,
     sampler_status: SamplerWriter<'static>,
 ) -> Option<Adaptive> {
     let (adc, flags) = SimAdc::open()?;
-    let ac_settings = settings.ac;
+    let ac_settings = settings.ac();
     let Some(log) = LogFile::create(crate::files::AC_LOG_FILE.as_bytes()) else {
         fail(format_args!("cannot create ac.log"));
     };
     // `$250=0` turns the AC's feed cap off even when the host enables it.
     let enabled = flags & FLAG_AC_ENABLED != 0 && settings.ac_enabled;
-    let (mut sampler, mut ac) = match actask::start(
+    let (mut sampler, mut ac) = actask::start(
         status,
         sampler_status,
         settings.nc,
@@ -66,20 +67,16 @@ pub fn start(
         log,
         queues.samples.split(),
         alarms,
-    ) {
-        Ok(t) => t,
-        Err(e) => fail(format_args!("{}: {}", e.what, e.why)),
-    };
+    );
     let monitor = match ChatterTask::from_settings(&ac_settings) {
-        Ok(Some(c)) => {
+        Some(c) => {
             let (sound_tx, sound_rx) = queues.sound.split();
             let (verdict_tx, verdict_rx) = queues.verdicts.split();
             sampler = sampler.with_sound(sound_tx);
             ac = ac.with_verdicts(verdict_rx);
             Some(MonitorTask::new(&STATUS, c, sound_rx, verdict_tx))
         }
-        Ok(None) => None,
-        Err(e) => fail(format_args!("chatter settings: {}", e.message())),
+        None => None,
     };
     crate::board::sample_timer_start(B::reload(clocks_for_hz(B::TIMER_HZ, ac_settings.sample_hz)));
     Some(Adaptive {

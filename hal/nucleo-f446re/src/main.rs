@@ -183,7 +183,7 @@ mod app {
         #[cfg(feature = "qemu")]
         let table = {
             let mut table = table;
-            table.settings.ac_enabled = false;
+            table.settings = table.settings.with_ac_enabled(false);
             table
         };
         if let Some(e) = refused {
@@ -195,17 +195,17 @@ mod app {
 
         // The AC, when enabled by the settings ($250); the sampler runs always (it feeds the
         // watchdog).
-        let ac_settings = table.settings.ac;
+        let ac_settings = table.settings.ac();
         let (alarm_tx, ac_alarms) = cx.local.alarms.split();
         if ac_settings.chatter_threshold > 0.0 {
             defmt::warn!("$266: this board has no sound channel; chatter detection is off");
         }
         // The breakage monitor when the settings turn it on ($268), on the force channels;
         // chatter ($266) needs a sound channel this board does not have: a threshold set here is
-        // ignored (said once at start). Invalid AC or monitor settings turn the AC off with a
-        // warning.
+        // ignored (said once at start). The settings come validated from the start, so the AC
+        // tasks take them as they are.
         let (sampler, ac) = if table.settings.ac_enabled {
-            match actask::start(
+            let (s, t) = actask::start(
                 status.ac,
                 status.sampler,
                 settings,
@@ -215,13 +215,8 @@ mod app {
                 DefmtLog,
                 cx.local.samples.split(),
                 alarm_tx,
-            ) {
-                Ok((s, t)) => (Some(s), Some(t)),
-                Err(e) => {
-                    defmt::warn!("{}: {}; the AC is off", e.what, e.why);
-                    (None, None)
-                }
-            }
+            );
+            (Some(s), Some(t))
         } else {
             (None, None)
         };

@@ -285,8 +285,10 @@ pub fn replay(
     acs: millac::ac::AcSettings,
 ) -> Result<Vec<millac::ac::AcOutput>> {
     let per = acs.samples_per_period() as usize;
-    let mut ctl =
-        millac::ac::AcController::new(acs).map_err(|e| anyhow::anyhow!("{}", e.message()))?;
+    let mut ctl = millac::ac::AcController::new(
+        acs.validated()
+            .map_err(|e| anyhow::anyhow!("{}", e.message()))?,
+    );
     let mut last = [0i64; 3];
     let mut out = Vec::with_capacity(records.len());
     for (k, rec) in records.iter().enumerate() {

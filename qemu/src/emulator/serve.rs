@@ -100,13 +100,15 @@ pub fn store_strategy(out: &Path, strategy: millac::ac::law::Strategy) -> Result
         Ok(_) => {
             let bytes =
                 std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
-            record::decode(&bytes, &millac::settings::BoardLimits::GENERIC).map_err(|e| {
-                anyhow!(
-                    "{}: {}; --strategy does not overwrite a refused record",
-                    path.display(),
-                    e.message()
-                )
-            })?
+            record::decode(&bytes, &millac::settings::BoardLimits::GENERIC)
+                .map_err(|e| {
+                    anyhow!(
+                        "{}: {}; --strategy does not overwrite a refused record",
+                        path.display(),
+                        e.message()
+                    )
+                })?
+                .get()
         }
         Err(_) => MachineSettings::default(),
     };
@@ -148,6 +150,7 @@ pub fn serve(
         .and_then(|b| {
             millac::protocol::settings::record::decode(&b, &millac::settings::BoardLimits::GENERIC)
                 .ok()
+                .map(millac::settings::Valid::get)
         })
         .unwrap_or_default();
     let port = crate::emulator::port::Port::open(tcp)?;

@@ -83,7 +83,7 @@ pub type Trace = (Vec<PeriodRow>, Option<(f64, Breakage)>);
 pub fn trace(run: &HostRun, cut: &Cut, bs: BreakageSettings) -> Result<Trace> {
     let cal = AcSettings::default().cal;
     let sample_hz = f64::from(bs.sample_hz);
-    let mut det = BreakageDetector::new(bs).map_err(|e| anyhow!("{e:?}"))?;
+    let mut det = BreakageDetector::new(bs.validated().map_err(|e| anyhow!("{e:?}"))?);
     let flutes = u8::try_from(cut.tool.flutes).map_err(|_| anyhow!("too many flutes"))?;
     det.set_spindle(cut.spindle_rpm as f32, flutes);
     let (mut rows, mut detection) = (Vec::new(), None);

@@ -104,12 +104,16 @@ pub struct ChatterRun {
 pub fn run(depth_mm: f64, records: usize, threshold: f32, seed: u64) -> Result<ChatterRun> {
     let mut sim = t::sim(depth_mm).ok_or_else(|| anyhow!("preset cut at {depth_mm} mm"))?;
     let mut mic = Listener::new(Microphone::default(), f64::from(SOUND_HZ), seed);
-    let mut det = ChatterDetector::new(ChatterSettings {
+    let settings = ChatterSettings {
         sound_hz: SOUND_HZ,
         threshold,
         ..ChatterSettings::default()
-    })
-    .map_err(|e| anyhow!("{}", e.message()))?;
+    };
+    let mut det = ChatterDetector::new(
+        settings
+            .validated()
+            .map_err(|e| anyhow!("{}", e.message()))?,
+    );
     let per_tooth = (60.0 / (t::RPM * f64::from(t::FLUTES)) / sim.dt()).round() as usize;
     let perturb_at = 2.0 * 60.0 / t::RPM;
     let mut past: std::collections::VecDeque<(f64, f64)> = std::collections::VecDeque::new();

@@ -463,12 +463,14 @@ pub fn run_with_faults(
     let mut replan = Replan::<REPLAN_RECORD>::new(*settings, &reactions, [0; 3]);
     // The firmware's sampler and AC period (`millac::rt::ac`) over the host status and ADC.
     w.loader.set_spindle_rpm(cut.spindle_rpm.round() as u32);
+    // The AC settings checked once: the controller and the monitors take them as they are.
+    let ac = ac
+        .map(AcSettings::validated)
+        .transpose()
+        .map_err(|e| anyhow!("AC settings: {}", e.message()))?;
     let mut period = match ac {
         Some(s) => {
-            let ctl = AcController::new(s).map_err(|e| anyhow!("AC settings: {}", e.message()))?;
-            let p = AcPeriod::new(ctl, *settings, true, &w.ac)
-                .with_monitors(&s)
-                .map_err(|e| anyhow!("monitor settings: {}", e.message()))?;
+            let p = AcPeriod::new(AcController::new(s), *settings, true, &w.ac).with_monitors(&s);
             Some(if anti_windup {
                 p
             } else {
@@ -479,11 +481,9 @@ pub fn run_with_faults(
     };
     // The sampler's overload trip (the AC is applied here whenever it runs).
     let trip = ac.map(|s| rt_ac::Trip::new(&s));
-    let mut chatter = match ac {
-        Some(s) => millac::rt::monitor::ChatterTask::from_settings(&s)
-            .map_err(|e| anyhow!("chatter settings: {}", e.message()))?,
-        None => None,
-    };
+    let mut chatter = ac
+        .as_ref()
+        .and_then(millac::rt::monitor::ChatterTask::from_settings);
     let mut verdict = None;
     let mut adc = HostAdc {
         process: cut.process()?,

@@ -9,17 +9,20 @@
 
 use core::fmt::{self, Write};
 
-use super::{record, MachineSettings};
+use super::{record, Invalid, MachineSettings, SetError};
 use crate::gcode::number::Decimal;
 use crate::ports::SettingsStorage;
 use crate::protocol::report::ReportOptions;
 use crate::protocol::{GrblError, SettingsTable};
-use crate::settings::BoardLimits;
+use crate::settings::{BoardLimits, Valid};
 
 /// The settings as `$$` lists them (the stored record, or the defaults that replaced a missing or
 /// refused one) and the storage that keeps them.
 pub struct Persistent<S> {
-    pub settings: MachineSettings,
+    /// Validated for [`Persistent::board`] once, where they were made (the record's decode, the
+    /// defaults at load, every set): read them through `Deref` (`table.settings.nc.frame_hz`), or
+    /// as valid parts (`table.settings.nc()`, `.ac()`).
+    pub settings: Valid<MachineSettings>,
     pub storage: S,
     /// The board's limits every set is validated for.
     pub board: BoardLimits,
@@ -29,23 +32,24 @@ impl<S: SettingsStorage> Persistent<S> {
     /// Loads the record from `storage` ([`record::load`]) for `board` (the QEMU board and the
     /// host tools: `BoardLimits::GENERIC`): the table, and how the load went (a
     /// [`record::LoadStatus::Refused`] is the caller's alarm); every later set is validated for
-    /// the same limits.
-    pub fn load(mut storage: S, board: BoardLimits) -> (Self, record::LoadStatus) {
-        let loaded = record::load(&mut storage, &board);
-        (
+    /// the same limits. The error: the board cannot run the defaults that replace a missing or
+    /// refused record.
+    pub fn load(mut storage: S, board: BoardLimits) -> Result<(Self, record::LoadStatus), Invalid> {
+        let loaded = record::load(&mut storage, &board)?;
+        Ok((
             Persistent {
                 settings: loaded.settings,
                 storage,
                 board,
             },
             loaded.status,
-        )
+        ))
     }
 }
 
 impl<S: SettingsStorage> SettingsTable for Persistent<S> {
     fn list(&self, out: &mut dyn Write) -> fmt::Result {
-        SettingsTable::list(&self.settings, out)
+        SettingsTable::list(&*self.settings, out)
     }
 
     /// Validated, stored, and only then taken: a refused value (its grbl error) or a refused store
@@ -56,7 +60,7 @@ impl<S: SettingsStorage> SettingsTable for Persistent<S> {
     }
 
     fn get(&self, n: u16, out: &mut dyn Write) -> Result<(), u8> {
-        SettingsTable::get(&self.settings, n, out)
+        SettingsTable::get(&*self.settings, n, out)
     }
 
     /// `$RST=$` and `$RST=*`: the defaults, stored (this also replaces a refused record, so the
@@ -65,8 +69,10 @@ impl<S: SettingsStorage> SettingsTable for Persistent<S> {
     fn restore(&mut self, what: u8) -> Result<(), u8> {
         match what {
             b'$' | b'*' => {
-                let defaults = MachineSettings::default();
-                record::store(&mut self.storage, &defaults, &self.board).map_err(|e| e.code())?;
+                let defaults = MachineSettings::default()
+                    .validated(&self.board)
+                    .map_err(|e| SetError::Invalid(e).code())?;
+                record::store(&mut self.storage, &defaults).map_err(|e| e.code())?;
                 self.settings = defaults;
                 Ok(())
             }
@@ -75,6 +81,6 @@ impl<S: SettingsStorage> SettingsTable for Persistent<S> {
     }
 
     fn report_options(&self) -> ReportOptions {
-        SettingsTable::report_options(&self.settings)
+        SettingsTable::report_options(&*self.settings)
     }
 }

@@ -23,7 +23,7 @@ use super::{AcStrategy, Invalid, MachineSettings, ReportSettings, SetError};
 use crate::ac::settings::{AcSettings, Calibration, FeedCeiling, Pick};
 use crate::gcode::number::Decimal;
 use crate::ports::SettingsStorage;
-use crate::settings::{Blu, BoardLimits, Settings};
+use crate::settings::{Blu, BoardLimits, Settings, Valid};
 
 pub const MAGIC: [u8; 4] = *b"MLST";
 pub const VERSION: u16 = 5;
@@ -98,7 +98,7 @@ impl LoadStatus {
 /// The settings [`load`] gives, and how it got them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Loaded {
-    pub settings: MachineSettings,
+    pub settings: Valid<MachineSettings>,
     pub status: LoadStatus,
 }
 
@@ -263,8 +263,8 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
 }
 
 /// The settings of a record image, checked (length, magic, CRC, version, values, validation for
-/// `board`).
-pub fn decode(bytes: &[u8], board: &BoardLimits) -> Result<MachineSettings, RecordError> {
+/// `board`): valid settings, checked here once.
+pub fn decode(bytes: &[u8], board: &BoardLimits) -> Result<Valid<MachineSettings>, RecordError> {
     let mut t = Take { b: bytes, pos: 0 };
     let magic: [u8; 4] = t.bytes().ok_or(RecordError::Truncated)?;
     let version = t.u16().ok_or(RecordError::Truncated)?;
@@ -295,8 +295,7 @@ pub fn decode(bytes: &[u8], board: &BoardLimits) -> Result<MachineSettings, Reco
     }
     let s = payload(&mut t).ok_or(RecordError::Truncated)?;
     let s = s.ok_or(RecordError::Value)?;
-    s.validate(board).map_err(RecordError::Invalid)?;
-    Ok(s)
+    s.validated(board).map_err(RecordError::Invalid)
 }
 
 /// The payload's fields: None when short, Some(None) for a byte with no meaning.
@@ -422,8 +421,10 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
 /// `board`: a record another board accepted but this one cannot run is refused); nothing stored
 /// or erased storage gives the defaults; anything else (truncated, corrupt, another version,
 /// invalid values) gives the defaults and [`LoadStatus::Refused`], which the caller reports as
-/// an alarm. Never writes: the next store replaces a refused record.
-pub fn load<S: SettingsStorage>(storage: &mut S, board: &BoardLimits) -> Loaded {
+/// an alarm. Never writes: the next store replaces a refused record. The defaults are validated
+/// for `board` too: the error when the board cannot run them (the settings are checked once, here
+/// or in [`decode`]).
+pub fn load<S: SettingsStorage>(storage: &mut S, board: &BoardLimits) -> Result<Loaded, Invalid> {
     let mut buf = [0u8; RECORD_LEN + 64];
     let status = match storage.load(&mut buf) {
         None => LoadStatus::Missing,
@@ -432,29 +433,27 @@ pub fn load<S: SettingsStorage>(storage: &mut S, board: &BoardLimits) -> Loaded 
             Some(img) if !img.is_empty() && img.iter().all(|&b| b == 0xFF) => LoadStatus::Missing,
             Some(img) => match decode(img, board) {
                 Ok(settings) => {
-                    return Loaded {
+                    return Ok(Loaded {
                         settings,
                         status: LoadStatus::Loaded,
-                    }
+                    })
                 }
                 Err(e) => LoadStatus::Refused(e),
             },
         },
     };
-    Loaded {
-        settings: MachineSettings::default(),
+    Ok(Loaded {
+        settings: MachineSettings::default().validated(board)?,
         status,
-    }
+    })
 }
 
-/// Validates `s` for `board` and stores it: [`SetError::Invalid`] (nothing written) or
+/// Stores valid settings (validated by whoever made the [`Valid`], for the board they are for):
 /// [`SetError::Storage`] when the storage refused.
 pub fn store<S: SettingsStorage>(
     storage: &mut S,
-    s: &MachineSettings,
-    board: &BoardLimits,
+    s: &Valid<MachineSettings>,
 ) -> Result<(), SetError> {
-    s.validate(board).map_err(SetError::Invalid)?;
     if storage.store(&encode(s)) {
         Ok(())
     } else {
@@ -466,7 +465,7 @@ pub fn store<S: SettingsStorage>(
 /// then take it, so a refused value or a refused store (grbl error 7) changes neither the
 /// settings nor the record.
 pub fn set_persistent<S: SettingsStorage>(
-    settings: &mut MachineSettings,
+    settings: &mut Valid<MachineSettings>,
     storage: &mut S,
     number: u16,
     value: Decimal,
@@ -474,7 +473,7 @@ pub fn set_persistent<S: SettingsStorage>(
 ) -> Result<(), SetError> {
     let mut new = *settings;
     new.set(number, value, board)?;
-    store(storage, &new, board)?;
+    store(storage, &new)?;
     *settings = new;
     Ok(())
 }

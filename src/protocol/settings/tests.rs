@@ -454,7 +454,7 @@ proptest! {
     fn record_round_trips_and_flips_are_refused(s in arb_settings(), bit in 0usize..RECORD_LEN * 8) {
         prop_assume!(s.validate(&crate::settings::BoardLimits::GENERIC).is_ok());
         let img = record::encode(&s);
-        prop_assert_eq!(record::decode(&img, &crate::settings::BoardLimits::GENERIC), Ok(s));
+        prop_assert_eq!(record::decode(&img, &crate::settings::BoardLimits::GENERIC).map(crate::settings::Valid::get), Ok(s));
         let mut bad = img;
         bad[bit / 8] ^= 1 << (bit % 8);
         prop_assert!(record::decode(&bad, &crate::settings::BoardLimits::GENERIC).is_err());
@@ -477,7 +477,8 @@ fn record_of_the_defaults_is_stable() {
     assert_eq!(img.len(), RECORD_LEN);
     assert_eq!(hex(&img), DEFAULT_IMAGE);
     assert_eq!(
-        record::decode(&img, &crate::settings::BoardLimits::GENERIC),
+        record::decode(&img, &crate::settings::BoardLimits::GENERIC)
+            .map(crate::settings::Valid::get),
         Ok(MachineSettings::default())
     );
 }
@@ -600,12 +601,14 @@ impl SettingsStorage for MemStorage {
 fn load_gives_defaults_with_or_without_an_alarm() {
     let d = MachineSettings::default();
     let mut st = MemStorage::default();
-    let l = record::load(&mut st, &crate::settings::BoardLimits::GENERIC);
-    assert_eq!((l.settings, l.status), (d, LoadStatus::Missing));
+    let l = record::load(&mut st, &crate::settings::BoardLimits::GENERIC).unwrap();
+    assert_eq!((l.settings.get(), l.status), (d, LoadStatus::Missing));
     assert!(!l.status.alarm());
     st.image = Some(std::vec![0xFF; RECORD_LEN]);
     assert_eq!(
-        record::load(&mut st, &crate::settings::BoardLimits::GENERIC).status,
+        record::load(&mut st, &crate::settings::BoardLimits::GENERIC)
+            .unwrap()
+            .status,
         LoadStatus::Missing,
         "erased flash"
     );
@@ -621,8 +624,8 @@ fn load_gives_defaults_with_or_without_an_alarm() {
     ];
     for (image, e) in refused {
         st.image = Some(image);
-        let l = record::load(&mut st, &crate::settings::BoardLimits::GENERIC);
-        assert_eq!((l.settings, l.status), (d, LoadStatus::Refused(e)));
+        let l = record::load(&mut st, &crate::settings::BoardLimits::GENERIC).unwrap();
+        assert_eq!((l.settings.get(), l.status), (d, LoadStatus::Refused(e)));
         assert!(l.status.alarm());
     }
     assert_eq!(st.stores, 0, "load never writes");
@@ -631,7 +634,9 @@ fn load_gives_defaults_with_or_without_an_alarm() {
 #[test]
 fn persistent_sets_store_and_reload() {
     let mut st = MemStorage::default();
-    let mut m = MachineSettings::default();
+    let mut m = MachineSettings::default()
+        .validated(&crate::settings::BoardLimits::GENERIC)
+        .unwrap();
     for stmt in ["$0=4", "$200=0.001", "$254=3500", "$13=1"] {
         let (n, v) = parse_assignment(stmt).unwrap();
         record::set_persistent(
@@ -644,7 +649,7 @@ fn persistent_sets_store_and_reload() {
         .unwrap();
     }
     assert_eq!(st.stores, 4);
-    let l = record::load(&mut st, &crate::settings::BoardLimits::GENERIC);
+    let l = record::load(&mut st, &crate::settings::BoardLimits::GENERIC).unwrap();
     assert_eq!((l.settings, l.status), (m, LoadStatus::Loaded));
     assert_eq!(listing(&l.settings), listing(&m));
     // A refused value stores nothing; a refused store changes nothing.
@@ -671,18 +676,18 @@ fn persistent_sets_store_and_reload() {
     .unwrap_err();
     assert_eq!((e, e.code()), (SetError::Storage, 7));
     assert_eq!((m, st.image.clone()), before);
-    // Invalid settings are never stored.
-    st.refuse = false;
+    // Invalid settings are never stored: only valid ones can be (`record::store` takes a
+    // `Valid`), and these are refused on the way to becoming one.
     let bad = MachineSettings {
         report: ReportSettings {
             status_mask: 9,
             inches: false,
         },
-        ..m
+        ..m.get()
     };
     assert_eq!(
-        record::store(&mut st, &bad, &crate::settings::BoardLimits::GENERIC),
-        Err(SetError::Invalid(Invalid::Range))
+        bad.validated(&crate::settings::BoardLimits::GENERIC),
+        Err(Invalid::Range)
     );
     assert_eq!(st.stores, 4);
 }
@@ -717,9 +722,9 @@ fn over_the_protocol(table: &mut Persistent<MemStorage>, line: &str) -> String {
 #[test]
 fn the_persistent_table_stores_each_set_before_its_ok() {
     let (mut t, status) =
-        Persistent::load(MemStorage::default(), crate::settings::BoardLimits::GENERIC);
+        Persistent::load(MemStorage::default(), crate::settings::BoardLimits::GENERIC).unwrap();
     assert_eq!(
-        (t.settings, status),
+        (t.settings.get(), status),
         (MachineSettings::default(), LoadStatus::Missing)
     );
     assert_eq!(over_the_protocol(&mut t, "$0=7"), "ok\r\n");
@@ -730,7 +735,8 @@ fn the_persistent_table_stores_each_set_before_its_ok() {
             ..MemStorage::default()
         },
         crate::settings::BoardLimits::GENERIC,
-    );
+    )
+    .unwrap();
     assert_eq!(status, LoadStatus::Loaded);
     assert_eq!(back.settings.nc.pulse_width_ns, 7000);
     assert_eq!(back.settings, t.settings);
@@ -744,10 +750,11 @@ fn the_persistent_table_stores_each_set_before_its_ok() {
     t.storage.refuse = false;
     assert_eq!(over_the_protocol(&mut t, "$RST=#"), "error:3\r\n");
     assert_eq!(over_the_protocol(&mut t, "$RST=$"), "ok\r\n");
-    assert_eq!(t.settings, MachineSettings::default());
+    assert_eq!(t.settings.get(), MachineSettings::default());
     let stored = t.storage.image.clone().unwrap();
     assert_eq!(
-        record::decode(&stored, &crate::settings::BoardLimits::GENERIC),
+        record::decode(&stored, &crate::settings::BoardLimits::GENERIC)
+            .map(crate::settings::Valid::get),
         Ok(MachineSettings::default())
     );
     // One flipped byte: the defaults, refused for its checksum.
@@ -759,9 +766,10 @@ fn the_persistent_table_stores_each_set_before_its_ok() {
             ..MemStorage::default()
         },
         crate::settings::BoardLimits::GENERIC,
-    );
+    )
+    .unwrap();
     assert_eq!(status, LoadStatus::Refused(RecordError::Checksum));
-    assert_eq!(t.settings, MachineSettings::default());
+    assert_eq!(t.settings.get(), MachineSettings::default());
 }
 
 /// A board with its own limits (a fast one, as the Nucleo-F446RE states): the table validates
@@ -779,7 +787,7 @@ fn a_board_table_validates_sets_and_loads_for_its_limits() {
         pulse_end_ns: 400,
         plan_ratio: true,
     };
-    let (mut t, status) = Persistent::load(MemStorage::default(), fast);
+    let (mut t, status) = Persistent::load(MemStorage::default(), fast).unwrap();
     assert_eq!(status, LoadStatus::Missing);
     // 2 us pulse, 2 us sign setup, rapid and W0 at 200 kHz (the rapid rate first: W0 <= rapid).
     for stmt in ["$0=2", "$207=2", "$110=30480", "$201=200000"] {
@@ -796,18 +804,65 @@ fn a_board_table_validates_sets_and_loads_for_its_limits() {
     assert!(generic.set_line("$201=200000").is_err());
     let mut st = t.storage;
     assert_eq!(
-        record::load(&mut st, &fast).status,
+        record::load(&mut st, &fast).unwrap().status,
         LoadStatus::Loaded,
         "the board loads its record"
     );
     assert!(matches!(
-        record::load(&mut st, &crate::settings::BoardLimits::GENERIC).status,
+        record::load(&mut st, &crate::settings::BoardLimits::GENERIC)
+            .unwrap()
+            .status,
         LoadStatus::Refused(RecordError::Invalid(_))
     ));
     // Above the board's own maximum: refused, nothing stored.
-    let (mut t, _) = Persistent::load(st, fast);
+    let (mut t, _) = Persistent::load(st, fast).unwrap();
     let stores = t.storage.stores;
     let (n, v) = parse_assignment("$201=260000").unwrap();
     assert!(t.set(n, v).is_err());
     assert_eq!(t.storage.stores, stores);
+}
+
+/// Settings validated as a whole give their parts as valid settings with no second check (each
+/// part passes its own validation), keep their validity with `$250` changed, and a refused
+/// `$N=value` on valid settings leaves them as they were; settings a board cannot run do not
+/// become valid for it.
+#[test]
+fn valid_settings_give_valid_parts_and_stay_valid() {
+    use crate::settings::BoardLimits;
+    let generic = BoardLimits::GENERIC;
+    let mut m = MachineSettings::default().validated(&generic).unwrap();
+    for stmt in ["$201=20000", "$268=1", "$266=2.5", "$252=100000"] {
+        let (n, v) = parse_assignment(stmt).unwrap();
+        m.set(n, v, &generic)
+            .unwrap_or_else(|e| panic!("{stmt}: {}", e.message()));
+    }
+    assert_eq!(m.nc().get(), m.nc);
+    assert_eq!(m.nc().validate(&generic), Ok(()));
+    assert_eq!(m.ac().get(), m.ac);
+    assert_eq!(m.ac().validate(), Ok(()));
+    let off = m.with_ac_enabled(false);
+    assert!(!off.ac_enabled);
+    assert_eq!(off.validate(&generic), Ok(()));
+    assert_eq!(
+        MachineSettings {
+            ac_enabled: true,
+            ..off.get()
+        },
+        m.get()
+    );
+    let before = m;
+    let (n, v) = parse_assignment("$201=50").unwrap();
+    assert_eq!(
+        m.set(n, v, &generic),
+        Err(SetError::Invalid(Invalid::Nc(SettingsError::FrameRate)))
+    );
+    assert_eq!(m, before);
+    let slow = BoardLimits {
+        max_frame_hz: 1_000,
+        ..generic
+    };
+    assert_eq!(
+        MachineSettings::default().validated(&slow),
+        Err(Invalid::Nc(SettingsError::FrameRate))
+    );
 }
