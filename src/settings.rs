@@ -41,7 +41,6 @@ impl<T> Valid<T> {
     pub fn get(self) -> T {
         self.0
     }
-
 }
 
 impl<T> Deref for Valid<T> {

@@ -1,7 +1,9 @@
-//! The AC side of the QEMU board's init: when the host serves the simulated ADC
+//! The AC side of the QEMU board: at init, when the host serves the simulated ADC
 //! (`crate::simadc`), the AC task and its sampler (with the breakage monitor the settings turn
-//! on, `$268`), the chatter monitor (`$266`), `ac.log`, and the sample timer started. Init; the
-//! settings come validated from the start (`millac::rt::start`), so nothing here refuses them.
+//! on, `$268`), the chatter monitor (`$266`), `ac.log`, and the sample timer started (the settings
+//! come validated from the start, `millac::rt::start`, so nothing here refuses them); then the
+//! sampler task's tick and what follows an AC period (its alarm said, a long hold's end of the
+//! run). Init, sampler task, AC task.
 use heapless::spsc::{Producer, Queue};
 use millac::ac::{Alarm, FeedCeiling};
 use millac::monitor::chatter::Spectrum;
@@ -18,9 +20,15 @@ use millac::settings::Valid;
 use millac::wire::FLAG_AC_ENABLED;
 
 use crate::board::Lm3s6965 as B;
+use crate::program::held_exit;
+use crate::results;
 use crate::semihost::LogFile;
+use crate::shared::SERIAL;
 use crate::simadc::SimAdc;
-use crate::voice::fail;
+use crate::voice::{error, fail, text};
+use core::sync::atomic::Ordering::Relaxed;
+use millac::ports::SampleClock;
+use millac::rt::actask::Period;
 use millac::rt::status::STATUS;
 
 /// The AC's tasks, when the host serves the ADC.
@@ -85,4 +93,42 @@ pub fn start(
         monitor,
         ceiling: enabled.then_some(ac_settings.ceiling),
     })
+}
+
+/// One tick of the sample clock: one sample (the sampler's; without one the clock stops), and
+/// the AC period it makes due, if it does. Sampler task.
+pub fn sample(sampler: &mut Option<Sampler<SimAdc>>) -> Option<u32> {
+    SampleClock::ack(&mut B);
+    let Some(s) = sampler.as_mut() else {
+        SampleClock::stop(&mut B);
+        return None;
+    };
+    let tick = s.sample();
+    // The host has gone: without samples the AC cannot guard the cut. Said once; the periods go
+    // on, see no samples and hold, and the run ends as after any hold.
+    if tick.lost {
+        error(format_args!("simulated ADC lost"));
+    }
+    tick.due
+}
+
+/// The AC period the last sample made due could not start (the previous one still runs).
+/// Sampler task.
+pub fn missed_period(sampler: &mut Option<Sampler<SimAdc>>) {
+    if let Some(s) = sampler.as_mut() {
+        s.missed_period();
+    }
+}
+
+/// After an AC period: its hold's alarm into the result file and the log; program mode ends
+/// the run after a long hold with nothing moving (serial mode waits for the operator). AC task.
+pub fn period_done(p: Period) {
+    if let Some(a) = p.alarm {
+        let t = text(format_args!("{}", a));
+        results::line(format_args!("alarm: {}", t));
+        defmt::warn!("alarm: {=str}", t.as_str());
+    }
+    if p.halt && !SERIAL.load(Relaxed) {
+        held_exit();
+    }
 }

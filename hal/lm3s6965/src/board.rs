@@ -96,17 +96,13 @@ impl Lm3s6965 {
         set_bits(GPIOB + GPIO_DIR, PINS);
         set_bits(GPIOB + GPIO_DEN, PINS);
 
-        // Pulse timer: 32-bit one-shot, interrupt on time-out, not started.
-        write(TIMER1 + GPTM_CTL, 0);
-        write(TIMER1 + GPTM_CFG, CFG_32BIT);
-        write(TIMER1 + GPTM_TAMR, TAMR_ONE_SHOT);
-        write(TIMER1 + GPTM_TAILR, pulse_reload);
-        write(TIMER1 + GPTM_ICR, TATO);
-        write(TIMER1 + GPTM_IMR, TATO);
+        // Pulse timer: one-shot, not started (the frame starts it with each pulse).
+        timer32(TIMER1, TAMR_ONE_SHOT, pulse_reload);
 
-        // Frame timer: 32-bit periodic, interrupt on time-out, started (the interrupt is taken
-        // once init returns and RTIC unmasks it).
-        start_periodic(TIMER0, frame_reload);
+        // Frame timer: periodic, started (the interrupt is taken once init returns and RTIC
+        // unmasks it).
+        timer32(TIMER0, TAMR_PERIODIC, frame_reload);
+        write(TIMER0 + GPTM_CTL, CTL_TAEN);
     }
 }
 
@@ -168,19 +164,20 @@ impl StepPort for Lm3s6965 {
 pub fn sample_timer_start(reload: u32) {
     set_bits(SYSCTL_RCGC1, RCGC1_TIMER2);
     let _ = read(SYSCTL_RCGC1);
-    start_periodic(TIMER2, reload);
+    timer32(TIMER2, TAMR_PERIODIC, reload);
+    write(TIMER2 + GPTM_CTL, CTL_TAEN);
 }
 
-/// Starts the timer at `base` as a 32-bit periodic timer of `reload` clocks with its time-out
-/// interrupt on (the frame timer and the sample clock). Init context.
-fn start_periodic(base: usize, reload: u32) {
+/// Sets up the timer at `base`, stopped, as a 32-bit timer in `mode` (`TAMR_ONE_SHOT` or
+/// `TAMR_PERIODIC`) of `reload` clocks, with its time-out interrupt on (the frame and pulse
+/// timers, the sample clock). Setting `CTL_TAEN` starts it. Init context.
+fn timer32(base: usize, mode: u32, reload: u32) {
     write(base + GPTM_CTL, 0);
     write(base + GPTM_CFG, CFG_32BIT);
-    write(base + GPTM_TAMR, TAMR_PERIODIC);
+    write(base + GPTM_TAMR, mode);
     write(base + GPTM_TAILR, reload);
     write(base + GPTM_ICR, TATO);
     write(base + GPTM_IMR, TATO);
-    write(base + GPTM_CTL, CTL_TAEN);
 }
 
 /// Timer 2, the sample clock of the simulated ADC. Sampler task.

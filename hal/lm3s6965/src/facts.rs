@@ -21,6 +21,6 @@ impl Board for Lm3s6965 {
     const LIMITS: BoardLimits = BoardLimits::GENERIC;
     const ISR_BOUNDS: Option<IsrBounds> = None;
     /// A simulated one: the S of a spindle change reaches the simulated cut through the ADC's
-    /// requests (`crate::uart::spindle_rpm`).
+    /// requests (`crate::loader::spindle_rpm`).
     const SPINDLE: bool = true;
 }

@@ -66,7 +66,7 @@ impl ForceTorqueAdc for SimAdc {
         let q = Request {
             index,
             encoder,
-            spindle_rpm: crate::uart::spindle_rpm(),
+            spindle_rpm: crate::loader::spindle_rpm(),
         }
         .emit();
         let mut r = [0u8; wire::Response::LEN];

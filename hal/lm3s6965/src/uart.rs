@@ -2,8 +2,8 @@
 //! for a G-code sender. RX and TX by interrupt (the UART0 hardware task, a priority below the
 //! frame): every received byte goes to the caller's sink at once (the protocol takes realtime
 //! bytes out there); bytes to send wait in a lock-free queue that the interrupt drains while the
-//! transmit FIFO has room. `init` from init or the loader (through [`QemuLoader`], the serial loader's
-//! `LoaderBoard`); `on_interrupt` from the UART0 task; `QemuLoader::kick` from the loader.
+//! transmit FIFO has room. `init` from the loader (`crate::loader::QemuLoader`, the loader's
+//! `LoaderBoard`, in serial mode); `on_interrupt` from the UART0 task; `kick` from the loader.
 //!
 //! Registers (LM3S6965 datasheet, PL011): DR 0x000, FR 0x018 (RXFE bit 4, TXFF bit 5), IBRD 0x024,
 //! FBRD 0x028, LCRH 0x02C, CTL 0x030, IM 0x038, MIS 0x040, ICR 0x044; clock gate RCGC1 bit 0.
@@ -87,68 +87,7 @@ fn drain<const N: usize>(tx: &mut Consumer<'static, u8, N>) {
     }
 }
 
-/// The spindle speed the serial session has commanded (rpm, the S of its last spindle change; 0
-/// before any), for the simulated ADC's requests: the simulated spindle turns at it. Written by
-/// the loader task ([`QemuLoader`]'s `spindle`), read by the sampler.
-static SPINDLE_RPM: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
-
-/// The spindle speed commanded in the serial session (rpm; 0: none yet). Sampler task.
-pub fn spindle_rpm() -> u32 {
-    SPINDLE_RPM.load(core::sync::atomic::Ordering::Relaxed)
-}
-
-/// The simulated spindle turns at `rpm` from the next ADC request on (0: no change). Loader task
-/// (the serial loader's spindle changes; in tape mode the chatter reaction's speed, `$277`).
-pub fn set_spindle_rpm(rpm: u32) {
-    if rpm > 0 {
-        SPINDLE_RPM.store(rpm, core::sync::atomic::Ordering::Relaxed);
-    }
-}
-
 /// Pends UART0 so that it moves queued bytes out (the serial console's writer). Loader task.
 pub fn kick() {
     cortex_m::peripheral::NVIC::pend(lm3s6965::Interrupt::UART0);
-}
-
-/// The QEMU board as the loader sees it: in serial mode UART0 (`start` with the board's UART
-/// clock; `kick` pends UART0) and the session log `serve.nc`; in both modes a simulated spindle:
-/// the S of a spindle change reaches the simulated cut through the ADC's requests
-/// ([`spindle_rpm`]), after the motion before it, as on the real board. No operator inputs.
-pub struct QemuLoader {
-    pub clock_hz: u32,
-    /// Serial mode: UART0 is started (program mode leaves it off).
-    pub serial: bool,
-    pub log: crate::session::SessionLog,
-}
-
-impl millac::rt::loader::LoaderBoard for QemuLoader {
-    type Board = crate::facts::Lm3s6965;
-
-    /// The simulated spindle takes the commanded speed; stopping it (M5, a reset) leaves the
-    /// speed: the simulated cut has no stopped spindle (the plant turns whenever the tool moves).
-    fn spindle(&mut self, _state: millac::gcode::Spindle, rpm: u32, _max_rpm: u32) {
-        set_spindle_rpm(rpm);
-    }
-
-    fn start(&mut self) {
-        if self.serial {
-            init(self.clock_hz);
-        }
-    }
-
-    fn log_gcode(&mut self, line: &str) {
-        self.log.gcode(line);
-    }
-
-    fn log_jog(&mut self, jog: &millac::protocol::jog::JogRequest) {
-        self.log.jog(jog);
-    }
-
-    fn log_flush(&mut self) {
-        self.log.flush();
-    }
-
-    fn log_reset(&mut self) {
-        self.log.reset();
-    }
 }

@@ -68,3 +68,19 @@ pub fn exit(ok: bool) -> ! {
         cortex_m::asm::nop();
     }
 }
+
+/// Set by the first panic: a panic inside the panic handler (the logger taken where the first
+/// panic struck) only exits.
+static PANICKED: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+
+/// Any context: `panic: <message>` in the result file and in the log, exit with failure.
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    cortex_m::interrupt::disable();
+    if !PANICKED.swap(true, core::sync::atomic::Ordering::Relaxed) {
+        let t = text(format_args!("{}", info));
+        results::line(format_args!("panic: {}", t));
+        defmt::error!("panic: {=str}", t.as_str());
+    }
+    exit(false)
+}

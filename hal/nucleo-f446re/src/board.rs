@@ -1,6 +1,7 @@
 //! The Nucleo-F446RE board (STM32F446RE, Cortex-M4F at 180 MHz): the core's ports with one register
-//! access each, plus the set-up of the peripherals that need exact timing. `init` and the `*_start`
-//! functions run in `#[init]`; the port methods in the frame ISR (TIM2), the pulse-end ISR (TIM5),
+//! access each, plus the set-up of the peripherals that need exact timing, the clock tree and the
+//! pins, and the frame's own measurement. `init`, `clocks`, `pins` and the `*_start` functions run
+//! in `#[init]`; the port methods in the frame ISR (TIM2), the pulse-end ISR (TIM5),
 //! the sampler (TIM3) and the serial task (USART2), as each item says.
 //!
 //! # Pins and peripherals
@@ -30,6 +31,14 @@ use millac::ports::{
 };
 
 pub use crate::facts::{CORE_HZ, F446, PCLK1_HZ, TIMER_HZ};
+
+use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
+use cortex_m::peripheral::{DCB, DWT};
+use millac::ports::PinInputs;
+use millac::rt::status::{CycleWriter, Static};
+use stm32f4xx_hal::gpio::{AnyPin, Input, Output};
+use stm32f4xx_hal::pac;
+use stm32f4xx_hal::rcc::Rcc;
 
 // GPIO port C (AHB1).
 const GPIOC: usize = 0x4002_0800;
@@ -350,8 +359,6 @@ static PINS_WRITTEN: [core::sync::atomic::AtomicU8; 2] = [
     core::sync::atomic::AtomicU8::new(0),
     core::sync::atomic::AtomicU8::new(0),
 ];
-#[cfg(feature = "qemu")]
-use core::sync::atomic::Ordering::Relaxed;
 
 /// The DMA target of the triple ADC, two halves used in turn (ping-pong): [T, Fu, Fv] of one
 /// conversion each (ADC1, ADC2, ADC3). The sampler reads the half the DMA completed last while the
@@ -598,4 +605,114 @@ pub fn spindle_duty(rpm: u32, max_rpm: u32) -> u32 {
 /// Sets the PWM compare value (from [`spindle_duty`]). Loader task.
 pub fn spindle_pwm_set(duty: u32) {
     write(TIM4 + TIM_CCR1, duty.min(PWM_PERIOD));
+}
+
+/// Frames since reset (the sampler feeds the watchdog only while it grows). Written by the frame
+/// wrapper ([`FrameCycles::measure`]).
+static FRAMES: AtomicU32 = AtomicU32::new(0);
+
+/// Frames since reset. Sampler task.
+pub fn frames() -> u32 {
+    FRAMES.load(Relaxed)
+}
+
+/// The frame's own measurement with the DWT cycle counter: cycles from the first instruction of
+/// the handler to its last (the exception entry and return, 12 + ~10 cycles on a Cortex-M4 with
+/// zero wait states, come on top), min and max since reset, published for the status report.
+pub struct FrameCycles {
+    min: u32,
+    max: u32,
+    /// The frame wrapper's handle on the status words.
+    status: CycleWriter<Static>,
+}
+
+impl FrameCycles {
+    /// Starts the cycle counter. Init.
+    pub fn new(dcb: &mut DCB, dwt: &mut DWT, status: CycleWriter<Static>) -> Self {
+        dcb.enable_trace();
+        dwt.enable_cycle_counter();
+        FrameCycles {
+            min: u32::MAX,
+            max: 0,
+            status,
+        }
+    }
+
+    /// Runs `frame` (the frame ISR's body), counts it and measures it. Frame ISR.
+    #[inline(always)]
+    pub fn measure(&mut self, frame: impl FnOnce()) {
+        let t0 = DWT::cycle_count();
+        frame();
+        FRAMES.store(FRAMES.load(Relaxed).wrapping_add(1), Relaxed);
+        let dt = DWT::cycle_count().wrapping_sub(t0);
+        if dt < self.min {
+            self.min = dt;
+            self.status.set_min(dt);
+        }
+        if dt > self.max {
+            self.max = dt;
+            self.status.set_max(dt);
+        }
+    }
+}
+
+/// The clock tree: 180 MHz from the ST-LINK's 8 MHz (HSE bypass), APB1 at [`PCLK1_HZ`] (its timers
+/// at [`TIMER_HZ`]), checked. Under QEMU (the netduinoplus2 has no RCC model: it reads 0, and
+/// `freeze` would wait for HSE ready for ever) the reset clocks; its timers count at their own
+/// fixed clock. Init.
+pub fn clocks(rcc: pac::RCC) -> Rcc {
+    #[cfg(not(feature = "qemu"))]
+    {
+        use stm32f4xx_hal::prelude::*;
+        let rcc = rcc.freeze(
+            stm32f4xx_hal::rcc::Config::hse(8.MHz())
+                .bypass_hse_oscillator()
+                .sysclk(CORE_HZ.Hz())
+                .pclk1(PCLK1_HZ.Hz())
+                .pclk2(90.MHz()),
+        );
+        let c = rcc.clocks;
+        if c.sysclk().raw() != CORE_HZ || c.timclk1().raw() != TIMER_HZ {
+            defmt::panic!(
+                "clock tree: sysclk {} Hz, APB1 timers {} Hz",
+                c.sysclk().raw(),
+                c.timclk1().raw()
+            );
+        }
+        rcc
+    }
+    #[cfg(feature = "qemu")]
+    {
+        use stm32f4xx_hal::rcc::RccExt;
+        rcc.constrain()
+    }
+}
+
+/// The operator input pins (embedded-hal input pins with pull-ups).
+pub type InputPins = PinInputs<AnyPin<Input>>;
+/// The spindle's enable and direction pins.
+pub type SpindlePins = (AnyPin<Output>, AnyPin<Output>);
+
+/// The operator inputs (pull-ups, switches to ground): PB12 e-stop (normally closed), PB13 feed
+/// hold, PB14 cycle start, PB15 / PB1 / PB2 X / Y / Z limit; the spindle's PA8 enable and PA9
+/// direction (high = M4) outputs, and its PWM on PB6 (TIM4 CH1) started. Init.
+pub fn pins(gpioa: pac::GPIOA, gpiob: pac::GPIOB, rcc: &mut Rcc) -> (InputPins, SpindlePins) {
+    use stm32f4xx_hal::gpio::GpioExt;
+    let (gpioa, gpiob) = (gpioa.split(rcc), gpiob.split(rcc));
+    let inputs = PinInputs {
+        estop: gpiob.pb12.into_pull_up_input().erase(),
+        feed_hold: gpiob.pb13.into_pull_up_input().erase(),
+        cycle_start: gpiob.pb14.into_pull_up_input().erase(),
+        limits: [
+            gpiob.pb15.into_pull_up_input().erase(),
+            gpiob.pb1.into_pull_up_input().erase(),
+            gpiob.pb2.into_pull_up_input().erase(),
+        ],
+    };
+    let spindle = (
+        gpioa.pa8.into_push_pull_output().erase(),
+        gpioa.pa9.into_push_pull_output().erase(),
+    );
+    spindle_pwm_start();
+    (inputs, spindle)
 }

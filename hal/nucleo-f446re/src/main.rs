@@ -15,15 +15,17 @@
 //! pins' levels kept in RAM for the pulse-end ISR's read-back, the operator inputs released, the
 //! AC off); see `board` and `flash`.
 //!
-//! The frame measures itself with the DWT cycle counter: cycles from the first instruction of the
-//! handler to its last (the exception entry and return, 12 + ~10 cycles on a Cortex-M4 with zero
-//! wait states, come on top), min and max since reset.
+//! This app binds the runtime written once in `millac::rt` to the board's interrupts; the
+//! board's parts: `board` (clocks, pins, ports, the frame's measurement), `adaptive` (the AC
+//! tasks, the sampler's tick), `loader` (the loader's ends and run), `flash` (the settings
+//! record), `facts` (the board's limits).
 #![no_std]
 #![no_main]
 
 use defmt_rtt as _;
 use panic_probe as _;
 
+mod adaptive;
 mod board;
 mod facts;
 mod flash;
@@ -31,44 +33,24 @@ mod loader;
 
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1])]
 mod app {
-    use core::sync::atomic::AtomicU32;
-    use core::sync::atomic::Ordering::Relaxed;
-
-    use cortex_m::peripheral::DWT;
-    use heapless::spsc::{Consumer, Producer, Queue};
+    use heapless::spsc::{Consumer, Queue};
     use millac::ac::Alarm;
-    use millac::nc::Sealed;
-    use millac::ports::{Board, Codes, SampleClock};
-    use millac::protocol::rx::{RxIsr, RxShared};
-    use millac::protocol::settings::Persistent;
-    use millac::protocol::Protocol;
-    use millac::rt::actask::{self, AcTask, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
-    use millac::rt::replan::Replan;
-    use millac::rt::{self, FrameTask};
-    use stm32f4xx_hal::prelude::*;
-    #[cfg(not(feature = "qemu"))]
-    use stm32f4xx_hal::rcc::Config;
-
-    use millac::flashstore::FlashStore;
-
-    use crate::board::{self, TripleAdc, F446};
-    use crate::flash::{self, Sector};
-    use crate::loader::{kick, DefmtLog, Nucleo};
     use millac::inputs::Debouncer;
-    use millac::ports::{OperatorInputs, PinInputs};
-    use millac::rt::console::Serial;
-    use millac::rt::status::{CycleWriter, LoaderWriter, PulseWriter, Static};
-    use stm32f4xx_hal::gpio::{AnyPin, Input, Output};
+    use millac::nc::Sealed;
+    use millac::ports::Codes;
+    use millac::protocol::rx::{RxIsr, RxShared};
+    use millac::protocol::Protocol;
+    use millac::rt::actask::{AcTask, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
+    use millac::rt::replan::Replan;
+    use millac::rt::status::{PulseWriter, Static};
+    use millac::rt::{self, FrameTask};
 
-    /// Frames since reset (the sampler feeds the watchdog only while it grows).
-    static FRAMES: AtomicU32 = AtomicU32::new(0);
-
-    /// Queue slots (a heapless spsc queue holds one less: 31 blocks).
-    const QUEUE: usize = 32;
-    /// The loader's record of queued blocks: the queue and room for nested chatter detours.
-    const RECORD: usize = millac::rt::replan::record_len(QUEUE);
-    /// Transmit queue slots.
-    const TX_QUEUE: usize = 512;
+    use crate::adaptive::{self, Tick};
+    use crate::board::{self, FrameCycles, TripleAdc, F446};
+    use crate::flash;
+    use crate::loader::{DefmtLog, Ends, QUEUE, RECORD, TX_QUEUE};
+    use millac::flashstore::FlashStore;
+    use millac::ports::Board;
 
     /// The operator inputs' debouncer: sampled by the sampler task, read by the loader.
     #[shared]
@@ -76,42 +58,21 @@ mod app {
         inputs: Debouncer,
     }
 
-    /// The frame's own measurement: min and max cycles since reset.
-    pub struct FrameCycles {
-        min: u32,
-        max: u32,
-        /// The frame wrapper's handle on the status words: the cycles for the status report.
-        status: CycleWriter<Static>,
-    }
-
     #[local]
     struct Local {
         // With the plan ratio only where the board's limits say so (`BoardLimits::plan_ratio`,
         // which also decides whether `$263=2` is accepted): the F446's frame is past its
-        // instruction bound with it (`limits::LIMITS`).
+        // instruction bound with it (`facts::LIMITS`).
         frame: FrameTask<Static, { F446::LIMITS.plan_ratio }>,
         consumer: Consumer<'static, Sealed, QUEUE>,
-        producer: Producer<'static, Sealed, QUEUE>,
-        table: Persistent<FlashStore<Sector>>,
         cycles: FrameCycles,
-        /// Each context's handle on the status words (`millac::rt::status`): the pulse end's, the
-        /// loader's (the frame task, the sampler, the AC task and the frame wrapper hold theirs).
         pulse_status: PulseWriter<Static>,
-        loader_status: LoaderWriter<'static>,
         sampler: Option<Sampler<TripleAdc>>,
         ac: Option<AcTask<DefmtLog>>,
-        frames_seen: u32,
-        /// The operator input pins (embedded-hal input pins with pull-ups).
-        pins: PinInputs<AnyPin<Input>>,
-        /// Sample ticks per input sample (~1 kHz).
-        input_every: u32,
-        /// The spindle enable and direction pins.
-        spindle: (AnyPin<Output>, AnyPin<Output>),
+        tick: Tick,
         uart_rx: RxIsr<'static>,
         uart_tx: Consumer<'static, u8, TX_QUEUE>,
-        proto: Protocol<'static>,
-        tx: Producer<'static, u8, TX_QUEUE>,
-        ac_alarms: Consumer<'static, Alarm, ALARM_QUEUE>,
+        loader: Ends,
     }
 
     #[init(local = [
@@ -123,53 +84,9 @@ mod app {
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let mut core = cx.core;
-        #[cfg(not(feature = "qemu"))]
-        let mut rcc = cx.device.RCC.freeze(
-            Config::hse(8.MHz())
-                .bypass_hse_oscillator()
-                .sysclk(board::CORE_HZ.Hz())
-                .pclk1(board::PCLK1_HZ.Hz())
-                .pclk2(90.MHz()),
-        );
-        #[cfg(not(feature = "qemu"))]
-        {
-            let c = rcc.clocks;
-            if c.sysclk().raw() != board::CORE_HZ || c.timclk1().raw() != board::TIMER_HZ {
-                defmt::panic!(
-                    "clock tree: sysclk {} Hz, APB1 timers {} Hz",
-                    c.sysclk().raw(),
-                    c.timclk1().raw()
-                );
-            }
-        }
-        // QEMU's netduinoplus2 has no RCC model (reads 0: `freeze` would wait for HSE ready
-        // forever); its timers count at their own fixed clock (`board::TIMER_HZ`).
-        #[cfg(feature = "qemu")]
-        let mut rcc = cx.device.RCC.constrain();
-        // Operator inputs (pull-ups, switches to ground): PB12 e-stop (normally closed), PB13 feed
-        // hold, PB14 cycle start, PB15 / PB1 / PB2 X / Y / Z limit. Spindle: PA8 enable, PA9
-        // direction (high = M4), PB6 PWM (TIM4 CH1).
-        let gpioa = cx.device.GPIOA.split(&mut rcc);
-        let gpiob = cx.device.GPIOB.split(&mut rcc);
-        let pins = PinInputs {
-            estop: gpiob.pb12.into_pull_up_input().erase(),
-            feed_hold: gpiob.pb13.into_pull_up_input().erase(),
-            cycle_start: gpiob.pb14.into_pull_up_input().erase(),
-            limits: [
-                gpiob.pb15.into_pull_up_input().erase(),
-                gpiob.pb1.into_pull_up_input().erase(),
-                gpiob.pb2.into_pull_up_input().erase(),
-            ],
-        };
-        let spindle = (
-            gpioa.pa8.into_push_pull_output().erase(),
-            gpioa.pa9.into_push_pull_output().erase(),
-        );
-        board::spindle_pwm_start();
-        core.DCB.enable_trace();
-        core.DWT.enable_cycle_counter();
+        let mut rcc = board::clocks(cx.device.RCC);
+        let (pins, spindle) = board::pins(cx.device.GPIOA, cx.device.GPIOB, &mut rcc);
         let watchdog_reset = F446::watchdog_reset();
-
         let start = match rt::start::start::<F446, _>(FlashStore::new(flash::sector())) {
             Ok(s) => s,
             Err(e) => defmt::panic!("settings: {}", e.message()),
@@ -178,49 +95,25 @@ mod app {
         // context's handle.
         let status = rt::status::split_static();
         let frame = start.frame(status.frame);
-        let (table, refused) = (start.table, start.refused);
+        let cycles = FrameCycles::new(&mut core.DCB, &mut core.DWT, status.cycles);
+        let (mut table, refused) = (start.table, start.refused);
         // Under QEMU: no DMA model, so no ADC samples: the AC is off ($250=0).
-        #[cfg(feature = "qemu")]
-        let table = {
-            let mut table = table;
+        if cfg!(feature = "qemu") {
             table.settings = table.settings.with_ac_enabled(false);
-            table
-        };
+        }
         if let Some(e) = refused {
             defmt::warn!("settings record refused: {}; defaults loaded", e.message());
         }
-        let settings = table.settings.nc;
-        let (producer, consumer) = cx.local.queue.split();
+        let (blocks, consumer) = cx.local.queue.split();
         F446::init(start.reloads.feed, start.pulse);
-
-        // The AC, when enabled by the settings ($250); the sampler runs always (it feeds the
-        // watchdog).
-        let ac_settings = table.settings.ac();
         let (alarm_tx, ac_alarms) = cx.local.alarms.split();
-        if ac_settings.chatter_threshold > 0.0 {
-            defmt::warn!("$266: this board has no sound channel; chatter detection is off");
-        }
-        // The breakage monitor when the settings turn it on ($268), on the force channels;
-        // chatter ($266) needs a sound channel this board does not have: a threshold set here is
-        // ignored (said once at start). The settings come validated from the start, so the AC
-        // tasks take them as they are.
-        let (sampler, ac) = if table.settings.ac_enabled {
-            let (s, t) = actask::start(
-                status.ac,
-                status.sampler,
-                settings,
-                &ac_settings,
-                true,
-                TripleAdc::new(),
-                DefmtLog,
-                cx.local.samples.split(),
-                alarm_tx,
-            );
-            (Some(s), Some(t))
-        } else {
-            (None, None)
-        };
-        board::sample_start(board::sample_reload(ac_settings.sample_hz));
+        let adaptive::Adaptive { sampler, ac } = adaptive::start(
+            &table.settings,
+            cx.local.samples,
+            alarm_tx,
+            status.ac,
+            status.sampler,
+        );
 
         let (uart_rx, rx) = cx.local.serial_rx.split();
         let mut proto = Protocol::new(rx, (QUEUE - 1) as u16);
@@ -232,11 +125,12 @@ mod app {
         let (tx, uart_tx) = cx.local.serial_tx.split();
 
         F446::watchdog_start();
+        let nc = table.settings.nc;
         defmt::info!(
             "millac on Nucleo-F446RE: W0 {} Hz, rapid {} Hz, pulse {} ns, AC {}{}",
-            settings.frame_hz,
-            settings.rapid_hz,
-            settings.pulse_width_ns,
+            nc.frame_hz,
+            nc.rapid_hz,
+            nc.pulse_width_ns,
             if ac.is_some() { "on" } else { "off" },
             if watchdog_reset {
                 "; reset by the watchdog"
@@ -244,61 +138,31 @@ mod app {
                 ""
             }
         );
-
-        // The inputs are sampled at ~1 kHz (every `input_every`-th sample tick) and debounced over
-        // 10 of those samples.
-        let input_every = (ac_settings.sample_hz / 1000).max(1);
-        (
-            Shared {
-                inputs: Debouncer::new(millac::inputs::DEBOUNCE_SAMPLES),
-            },
-            Local {
-                frame,
-                consumer,
-                producer,
-                table,
-                cycles: FrameCycles {
-                    min: u32::MAX,
-                    max: 0,
-                    status: status.cycles,
-                },
-                pulse_status: status.pulse,
-                loader_status: status.loader,
-                sampler,
-                ac,
-                frames_seen: 0,
-                pins,
-                input_every,
-                spindle,
-                uart_rx,
-                uart_tx,
-                proto,
-                tx,
-                ac_alarms,
-            },
-        )
+        let tick = Tick::new(pins, table.settings.ac.sample_hz);
+        let loader = Ends {
+            blocks,
+            table,
+            proto,
+            tx,
+            ac_alarms,
+            spindle,
+            status: status.loader,
+        };
+        let inputs = Debouncer::new(millac::inputs::DEBOUNCE_SAMPLES);
+        let pulse_status = status.pulse;
+        #[rustfmt::skip]
+        let local = Local { frame, consumer, cycles, pulse_status, sampler, ac, tick, uart_rx, uart_tx, loader };
+        (Shared { inputs }, local)
     }
 
     /// The frame ISR: highest priority (3). No locks, logging, allocation or panics. Measures its
     /// own cycles with the DWT counter.
     #[task(binds = TIM2, priority = 3, local = [frame, consumer, cycles])]
     fn frame(cx: frame::Context) {
-        let t0 = DWT::cycle_count();
-        let local = cx.local;
-        local
-            .frame
-            .run(&mut F446, &mut F446, &mut F446, local.consumer);
-        FRAMES.store(FRAMES.load(Relaxed).wrapping_add(1), Relaxed);
-        let dt = DWT::cycle_count().wrapping_sub(t0);
-        let c = local.cycles;
-        if dt < c.min {
-            c.min = dt;
-            c.status.set_min(dt);
-        }
-        if dt > c.max {
-            c.max = dt;
-            c.status.set_max(dt);
-        }
+        let (frame, consumer) = (cx.local.frame, cx.local.consumer);
+        cx.local
+            .cycles
+            .measure(|| frame.run(&mut F446, &mut F446, &mut F446, consumer));
     }
 
     /// The pulse-end ISR: same priority as the frame.
@@ -318,43 +182,14 @@ mod app {
         }
     }
 
-    /// The sampler (TIM3 update, `sample_hz`): one conversion of the triple ADC, the AC period
-    /// spawned every N samples; feeds the watchdog while the frame runs. Priority 2.
-    #[task(
-        binds = TIM3,
-        priority = 2,
-        local = [sampler, frames_seen, pins, input_every, input_tick: u32 = 0],
-        shared = [inputs]
-    )]
+    /// The sampler (TIM3 update, `sample_hz`): the watchdog, the operator inputs, one
+    /// conversion of the triple ADC, the AC period spawned every N samples. Priority 2.
+    #[task(binds = TIM3, priority = 2, local = [sampler, tick], shared = [inputs])]
     fn sample(mut cx: sample::Context) {
-        SampleClock::ack(&mut F446);
-        let frames = FRAMES.load(Relaxed);
-        if frames != *cx.local.frames_seen {
-            *cx.local.frames_seen = frames;
-            F446::watchdog_feed();
-        }
-        // Under QEMU the GPIO inputs read 0 (no GPIO model), which would be every switch active:
-        // they read as released instead.
-        let raw = if cfg!(feature = "qemu") {
-            millac::ports::Inputs::default()
-        } else {
-            cx.local.pins.read()
-        };
-        // The inputs at ~1 kHz whatever the sample rate (10 samples: ~10 ms of debounce).
-        *cx.local.input_tick += 1;
-        if *cx.local.input_tick >= *cx.local.input_every {
-            *cx.local.input_tick = 0;
-            cx.shared.inputs.lock(|d| {
-                d.sample(raw);
-            });
-        }
-        let Some(s) = cx.local.sampler.as_mut() else {
-            return;
-        };
-        let due = s.sample().due;
-        if let Some(due) = due {
+        let sampler = cx.local.sampler;
+        if let Some(due) = cx.local.tick.run(&mut cx.shared.inputs, sampler) {
             if ac_period::spawn(due).is_err() {
-                s.missed_period();
+                sampler.as_ref().map(Sampler::missed_period);
             }
         }
     }
@@ -362,60 +197,16 @@ mod app {
     /// The AC period: priority 1.
     #[task(priority = 1, local = [ac])]
     async fn ac_period(cx: ac_period::Context, due: u32) {
-        let Some(task) = cx.local.ac.as_mut() else {
-            return;
-        };
         // The hold is reported by the loader (`[MSG:AC hold: ...]`): no log here, where the axes
         // may still move (defmt's RTT logger masks interrupts while it formats).
-        let _ = task.run(due);
+        if let Some(task) = cx.local.ac.as_mut() {
+            let _ = task.run(due);
+        }
     }
 
-    /// The loader: the grbl protocol on USART2, forever.
-    #[idle(
-        local = [
-            producer, table, proto, tx, ac_alarms, spindle, loader_status,
-            replan: Option<Replan<RECORD>> = None
-        ],
-        shared = [inputs]
-    )]
+    /// The loader: the grbl protocol on USART2, for ever.
+    #[idle(local = [loader, replan: Option<Replan<RECORD>> = None], shared = [inputs])]
     fn idle(cx: idle::Context) -> ! {
-        let (enable, direction) = cx.local.spindle;
-        let mut board = Nucleo {
-            inputs: cx.shared.inputs,
-            enable,
-            direction,
-            frame_limit: F446::frame_limit_cycles(&cx.local.table.settings.nc).unwrap_or(u32::MAX),
-        };
-        let ceiling = cx
-            .local
-            .table
-            .settings
-            .ac_enabled
-            .then_some(cx.local.table.settings.ac.ceiling);
-        // The loader's record of the queued blocks (chatter suppression, `$276`; this board has no
-        // sound channel, so it never re-plans, but the loader is the same).
-        let settings = &cx.local.table.settings;
-        let replan = cx
-            .local
-            .replan
-            .insert(Replan::new(settings.nc, &settings.ac, [0; 3]));
-        let nc = settings.nc;
-        let mut console = Serial::new(cx.local.proto, cx.local.tx, kick, &nc);
-        millac::rt::loader::run(
-            millac::rt::loader::Parts {
-                blocks: cx.local.producer,
-                replan,
-                table: cx.local.table,
-                ceiling,
-                console: &mut console,
-                ac_alarms: cx.local.ac_alarms,
-                status: cx.local.loader_status,
-            },
-            &mut board,
-        );
-        // Never reached: the board's loader runs for ever.
-        loop {
-            cortex_m::asm::nop();
-        }
+        crate::loader::run(cx.local.loader, cx.local.replan, cx.shared.inputs)
     }
 }
