@@ -30,10 +30,6 @@ pub mod plaus;
 pub mod settings;
 #[cfg(test)]
 mod tests;
-#[cfg(test)]
-mod tests_faults;
-#[cfg(test)]
-mod tests_plan;
 
 pub use drr::{Drr, Measured, Sensor, SensorFault, CODE_MAX};
 pub use ecr::Errors;

@@ -20,14 +20,6 @@ pub mod words;
 
 #[cfg(test)]
 mod tests;
-#[cfg(test)]
-mod tests_arc;
-#[cfg(test)]
-mod tests_err;
-#[cfg(test)]
-mod tests_incr;
-#[cfg(test)]
-mod tests_prop;
 
 use crate::nc::{Block, Plane};
 use crate::settings::Settings;

@@ -7,8 +7,6 @@ pub mod operator;
 pub mod sim;
 #[cfg(test)]
 mod tests;
-#[cfg(test)]
-mod tests_ops;
 
 pub use block::*;
 pub use frame::{Frame, FrameConfig, Pulses, Rate};

@@ -54,15 +54,7 @@ pub mod rx;
 pub mod settings;
 
 #[cfg(test)]
-mod tests_cmd;
-#[cfg(test)]
-mod tests_lines;
-#[cfg(test)]
-mod tests_report;
-#[cfg(test)]
-mod tests_rx;
-#[cfg(test)]
-mod tests_util;
+mod tests;
 
 use crate::gcode::number::parse_decimal;
 use crate::gcode::{Decimal, Modes};

@@ -19,7 +19,7 @@ pub mod replan;
 pub mod start;
 pub mod status;
 #[cfg(test)]
-mod tests_loader;
+mod tests;
 
 pub use isr::{pulse_end, FrameTask, Reloads};
 pub use status::Status;

@@ -2,9 +2,9 @@
 //! error numbers from the real parser, exactly one answer per line, alarm lock, check mode.
 
 extern crate std;
-use super::rx::byte;
-use super::tests_util::{Ev, Rig};
-use super::*;
+use super::super::rx::byte;
+use super::super::*;
+use super::util::{Ev, Rig};
 use std::string::String;
 use std::vec::Vec;
 

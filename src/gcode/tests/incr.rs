@@ -6,8 +6,8 @@ use std::format;
 use std::string::String;
 use std::vec::Vec;
 
-use super::tests::parser;
-use super::*;
+use super::super::*;
+use super::parser;
 use crate::nc::Motion;
 use proptest::prelude::*;
 

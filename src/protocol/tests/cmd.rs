@@ -2,8 +2,8 @@
 //! commands, state checks, and `$J=` jogging (parse, errors, plan without changing the parser).
 
 extern crate std;
-use super::tests_util::{Ev, Rig};
-use super::*;
+use super::super::*;
+use super::util::{Ev, Rig};
 use crate::gcode::number::parse_decimal;
 use crate::gcode::{Distance, Units};
 use std::string::String;

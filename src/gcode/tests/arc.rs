@@ -4,8 +4,8 @@ extern crate std;
 use std::format;
 use std::string::String;
 
-use super::tests::{assert_rejected, block, motion, parser};
-use super::*;
+use super::super::*;
+use super::{assert_rejected, block, motion, parser};
 use crate::nc::{Arc, Motion, Plane};
 
 pub(super) const PLANES: [Plane; 3] = [Plane::XY, Plane::ZX, Plane::YZ];

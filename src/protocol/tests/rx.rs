@@ -3,9 +3,9 @@
 //! line, override arithmetic.
 
 extern crate std;
-use super::rx::byte;
-use super::tests_util::{Ev, Rig};
-use super::*;
+use super::super::rx::byte;
+use super::super::*;
+use super::util::{Ev, Rig};
 use proptest::prelude::*;
 use std::string::String;
 use std::vec::Vec;

@@ -1,6 +1,10 @@
 //! Host tests of the AC program (host tests): the FRC curve of Fig. 7 point by point, the feed
 //! update, clamps and dead zone, DRR calibration and window pick, ECR, overload and sensor holds
 //! with resume, settings validation, and the closed loop on a toy static process F = k * f.
+
+mod faults;
+mod plan;
+
 use super::frc::{dead_zone, fdot, next_feed};
 use super::*;
 use proptest::prelude::*;

@@ -2,7 +2,7 @@
 //! settings table ($10, $13 and a free map), and the real G-code parser answering lines.
 
 extern crate std;
-use super::*;
+use super::super::*;
 use crate::gcode::{Parsed, Parser};
 use std::boxed::Box;
 use std::collections::BTreeMap;

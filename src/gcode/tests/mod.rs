@@ -1,5 +1,10 @@
 //! Host tests of the G-code parser: words, modes, units, feed, blocks, the look-ahead rule.
 //! look-ahead rule.
+
+mod arc;
+mod err;
+mod incr;
+mod prop;
 extern crate std;
 use std::format;
 use std::string::ToString;

@@ -1,8 +1,8 @@
 //! Host tests of the AC program's fault detectors (host tests): a real load step against a lone
 //! spike (issue 6, D4), a frozen sensor while the axes feed (D6), and the force/torque plausibility
 //! check that catches a gain fault (G).
-use super::tests::{codes, ctl, MID};
-use super::*;
+use super::super::*;
+use super::{codes, ctl, MID};
 
 /// A live transducer's codes: `k` plus a small deterministic dither (+-2 codes, period 4), as noise.
 fn live(k: [u16; 3], i: usize) -> [u16; 3] {
@@ -148,7 +148,7 @@ fn force_spike_on(base: [u16; 3]) {
         "{f} N {t} N*m"
     );
     let mut c = ctl(s);
-    super::tests::ease_in(&mut c, base);
+    super::ease_in(&mut c, base);
     feed_live(&mut c, base, 0, 10);
     let before = c.period();
     assert_eq!(

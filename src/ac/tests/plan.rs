@@ -1,8 +1,8 @@
 //! Host tests of the AC under the plan (`FeedCeiling::Plan`, issue 11): the plan ratio k's
 //! first contact, lowering, raising, memory across air and its bounds, on a toy process whose
 //! load is the plan's error x k x the plan's own profile (host tests).
-use super::tests::codes;
-use super::*;
+use super::super::*;
+use super::codes;
 use crate::ports::PLAN_ONE;
 
 fn plan() -> AcSettings {

@@ -6,9 +6,9 @@ use std::format;
 use std::string::String;
 use std::vec::Vec;
 
-use super::tests::parser;
-use super::tests_arc::{inch, run_arc, PLANES};
-use super::*;
+use super::super::*;
+use super::arc::{inch, run_arc, PLANES};
+use super::parser;
 use crate::nc::{Arc, Motion};
 use core::f64::consts::PI;
 use proptest::prelude::*;
@@ -64,7 +64,8 @@ fn check_segments(a: &Arc, p0: [i64; 2], p1: [i64; 2], sweep: f64) -> Result<(),
     }
     // The last segment may step back by the radius tolerance (an end a BLU or so outside the
     // start's circle, past a crossing); see `arc::plan`.
-    let tol = (libm::ceil(super::arc::tolerance(&Settings::default(), r as f64)) as i64).max(1);
+    let tol =
+        (libm::ceil(super::super::arc::tolerance(&Settings::default(), r as f64)) as i64).max(1);
     let mut prev = p0;
     for (k, &q) in t.iter().enumerate() {
         let (da, db) = (q[0] - prev[0], q[1] - prev[1]);

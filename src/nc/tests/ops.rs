@@ -1,10 +1,10 @@
 //! Host tests of the frame's acceleration ramps and the operator's word (host): ramps at the
 //! configured acceleration per axis, feed hold and resume in lines, arcs, rapids and dwells, feed
 //! and rapid overrides, the AC cap ramped, abort (soft reset). Position exact in every case.
-use super::block::*;
-use super::frame::{Frame, FrameConfig};
-use super::isqrt;
-use super::operator::{self, RUN};
+use super::super::block::*;
+use super::super::frame::{Frame, FrameConfig};
+use super::super::isqrt;
+use super::super::operator::{self, RUN};
 use crate::settings::Settings;
 use std::collections::VecDeque;
 use std::vec::Vec;
@@ -212,7 +212,7 @@ fn chained_lines_keep_their_speed_at_the_junction() {
             )
         })
         .collect();
-    let commands = super::tests::line_commands(&blocks);
+    let commands = super::line_commands(&blocks);
     let mut rig = Rig::new(c, &blocks);
     rig.finish(u32::MAX, RUN, 1 << 20);
     let ramp_frames = 3000.0 / accel_feed_per_frame(settings().accel_blu_s2[0]);

@@ -2,8 +2,8 @@
 //! that the parser state is unchanged afterwards.
 extern crate std;
 
-use super::tests::{assert_rejected, block, motion, parser};
-use super::*;
+use super::super::*;
+use super::{assert_rejected, block, motion, parser};
 use crate::nc::Motion;
 
 /// A parser in a non-power-up state: mm, incremental, feed set, G1, moved.

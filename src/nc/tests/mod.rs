@@ -1,5 +1,8 @@
 //! Host tests of the frame (host): exact end points, path deviation, pulse rate, PTP steps and
 //! deceleration, against blocks built here from geometry (the parser has its own tests).
+
+mod ops;
+
 use super::block::*;
 use super::frame::{Frame, FrameConfig, Rate};
 use super::isqrt;

@@ -2,9 +2,9 @@
 //! field, fixed-point rounding, alarm and message formatting, the alarm numbers of AC holds.
 
 extern crate std;
-use super::report::*;
-use super::tests_util::Rig;
-use super::*;
+use super::super::report::*;
+use super::super::*;
+use super::util::Rig;
 use crate::ac::{Alarm, Sensor, SensorFault};
 use std::string::String;
 
