@@ -47,10 +47,10 @@
 //! no axis moves, and a watchdog must allow for it. `load` reads up to the whole sector (one
 //! 256-byte slot at a time, from the end); `store` needs ~0.8 KiB of stack.
 //!
-//! [`LoadStatus::Missing`]: crate::protocol::settings::record::LoadStatus::Missing
+//! [`LoadStatus::Missing`]: crate::protocol::table::record::LoadStatus::Missing
 
 use crate::ports::SettingsStorage;
-use crate::protocol::settings::record::{crc32, RECORD_LEN};
+use crate::protocol::table::record::{crc32, RECORD_LEN};
 
 /// Bytes in a slot.
 pub const SLOT_LEN: usize = 256;

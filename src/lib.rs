@@ -21,7 +21,7 @@
 //! - [`inputs`]: debouncing of the operator's inputs, the feed hold / cycle start edges and the
 //!   e-stop / limit alarm latch (board's periodic input task, loader task).
 //! - [`settings`]: the machine settings and their validation (init, loader, host).
-//! - [`protocol`]: the operator's line protocol (loader task); `protocol::settings` is the `$$`
+//! - [`protocol`]: the operator's line protocol (loader task); `protocol::table` is the `$$`
 //!   table and the persistent settings record (init loads it).
 #![cfg_attr(not(test), no_std)]
 #[cfg(all(feature = "std", not(test)))]

@@ -2,7 +2,7 @@
 //! and their validation for a board's limits and measured ISR times ([`Settings::validate`] with a
 //! [`BoardLimits`]; [`BoardLimits::GENERIC`] for the QEMU board and the host tools). Read by the host tool, the G-code parser
 //! (task) and, once validated, by the frame (ISR) through [`crate::nc::FrameConfig`]; listed and
-//! set through [`crate::protocol::settings`].
+//! set through [`crate::protocol::table`].
 //!
 //! Settings that passed their checks are a type of their own, [`Valid`]: they are checked once,
 //! where they are made (a stored record's decode, `$N=value`, a host tool's input), and whatever is

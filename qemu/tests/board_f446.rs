@@ -5,7 +5,7 @@
 //! protocol gets its `ok`s, ends `Idle` at the right MPos, and the GPIOC BSRR stores carry exactly
 //! the host core's pulses; the frame's worst case (a line that decelerates into the next one) runs
 //! within the board's stated instruction bound.
-use millac::protocol::settings::MachineSettings;
+use millac::protocol::table::MachineSettings;
 use millac_qemu::emulator::firmware::{
     build_board, build_board_in, linker_of, workspace, NUCLEO_F446RE, NUCLEO_F446RE_QEMU,
 };

@@ -329,7 +329,7 @@ fn fits_its_flash_and_ram_budgets() {
 /// the same record intact it runs the program on the record's settings (step pulse 7 us).
 #[test]
 fn program_mode_refuses_a_corrupt_settings_record_and_runs_on_a_valid_one() {
-    use millac::protocol::settings::{record, MachineSettings};
+    use millac::protocol::table::{record, MachineSettings};
     use millac_qemu::emulator::capture::{run_capture, CaptureSpec};
     let out = out_dir("settings-record");
     std::fs::create_dir_all(&out).unwrap();

@@ -635,7 +635,7 @@ fn listing(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> Vec<String> {
 }
 
 /// `$$` of `m` as the core's table lists it.
-fn expected_listing(m: &millac::protocol::settings::MachineSettings) -> Vec<String> {
+fn expected_listing(m: &millac::protocol::table::MachineSettings) -> Vec<String> {
     let mut s = String::new();
     m.list(&mut s).unwrap();
     s.lines().map(str::to_string).collect()
@@ -658,7 +658,7 @@ fn state(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> String {
 /// pulses are 7 us wide, 5 us by default).
 #[test]
 fn a_setting_persists_into_the_next_session() {
-    use millac::protocol::settings::{record, MachineSettings};
+    use millac::protocol::table::{record, MachineSettings};
     let settings = fresh("state").join("settings.bin");
     let mut want = MachineSettings::default();
     want.set_line("$0=7").unwrap();
@@ -713,7 +713,7 @@ fn a_setting_persists_into_the_next_session() {
 #[test]
 fn a_corrupt_settings_record_starts_locked_on_the_defaults() {
     use millac::protocol::codes::alarm::SETTINGS_DEFAULTS;
-    use millac::protocol::settings::{record, MachineSettings};
+    use millac::protocol::table::{record, MachineSettings};
     let out = fresh("corrupt");
     std::fs::create_dir_all(&out).unwrap();
     let mut m = MachineSettings::default();

@@ -10,8 +10,8 @@ use std::vec::Vec;
 use proptest::prelude::*;
 
 use super::*;
-use crate::protocol::settings::record::LoadStatus;
-use crate::protocol::settings::{parse_assignment, MachineSettings, Persistent};
+use crate::protocol::table::record::LoadStatus;
+use crate::protocol::table::{parse_assignment, MachineSettings, Persistent};
 use crate::protocol::SettingsTable;
 
 /// The F446's sector 7.

@@ -51,7 +51,7 @@ pub mod codes;
 pub mod jog;
 pub mod report;
 pub mod rx;
-pub mod settings;
+pub mod table;
 
 #[cfg(test)]
 mod tests;
@@ -158,7 +158,7 @@ pub struct Protocol<'a> {
     alarm: Option<u8>,
     /// Why the stored settings were refused at start-up ([`Protocol::settings_refused`]); told
     /// after every banner until `$X`.
-    settings_refused: Option<settings::record::RecordError>,
+    settings_refused: Option<table::record::RecordError>,
     /// Status reports until the next `WCO:` field (0: in the next one).
     wco_countdown: u8,
     queue_blocks: u16,
@@ -205,7 +205,7 @@ impl<'a> Protocol<'a> {
     /// nothing moves on settings the operator did not choose. Every banner until then (the first
     /// one, and those of soft resets, which a sender connecting late sees) is followed by
     /// `ALARM:120` and `[MSG:<why>; defaults loaded]`.
-    pub fn settings_refused(&mut self, why: settings::record::RecordError) {
+    pub fn settings_refused(&mut self, why: table::record::RecordError) {
         self.alarm = Some(codes::alarm::SETTINGS_DEFAULTS);
         self.settings_refused = Some(why);
     }

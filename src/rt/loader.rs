@@ -46,7 +46,7 @@ use crate::ports::{Board, SettingsStorage};
 use crate::protocol::codes::{ac_alarm, alarm, GrblError};
 use crate::protocol::report::{feed_blu_per_min, AcReport, AcState, State, StatusData};
 use crate::protocol::rx::{Overrides, Pending};
-use crate::protocol::settings::Persistent;
+use crate::protocol::table::Persistent;
 use crate::protocol::{Context, Event, SettingsTable};
 use crate::rt::ac::AC_RUN;
 use crate::rt::console::{trip_alarm, Console, News, Refused};

@@ -3,8 +3,8 @@
 //! reloads and the pulse one-shot's reload they give. Both boards' apps begin here.
 use crate::nc::{Frame, FrameConfig};
 use crate::ports::{Board, SettingsStorage};
-use crate::protocol::settings::record::{LoadStatus, RecordError};
-use crate::protocol::settings::{Invalid, Persistent};
+use crate::protocol::table::record::{LoadStatus, RecordError};
+use crate::protocol::table::{Invalid, Persistent};
 use crate::rt::status::{FrameWriter, Home};
 use crate::rt::{clocks_for_ns, FrameTask, Reloads};
 

@@ -28,7 +28,7 @@ use crate::nc::{Frame, FrameConfig, Sealed};
 use crate::ports::{FrameTimer, PulseTimer, SettingsStorage, StepPort};
 use crate::protocol::rx::RxIsr;
 use crate::protocol::rx::RxShared;
-use crate::protocol::settings::Persistent;
+use crate::protocol::table::Persistent;
 use crate::protocol::Protocol;
 
 std::thread_local! {

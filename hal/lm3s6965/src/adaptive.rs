@@ -8,7 +8,7 @@ use heapless::spsc::{Producer, Queue};
 use millac::ac::{Alarm, FeedCeiling};
 use millac::monitor::chatter::Spectrum;
 use millac::ports::{Board, Codes};
-use millac::protocol::settings::MachineSettings;
+use millac::protocol::table::MachineSettings;
 use millac::rt::actask::{
     self, AcTask, MonitorTask, Sampler, Sound, ALARM_QUEUE, SAMPLE_QUEUE, SOUND_QUEUE,
     VERDICT_QUEUE,

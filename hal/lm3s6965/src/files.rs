@@ -11,7 +11,7 @@ pub const REQ_FILE: &str = "adc.req\0";
 pub const RESP_FILE: &str = "adc.resp\0";
 /// The AC log the firmware writes in the run directory.
 pub const AC_LOG_FILE: &str = "ac.log\0";
-/// The persistent settings record (`millac::protocol::settings::record`) in QEMU's working
+/// The persistent settings record (`millac::protocol::table::record`) in QEMU's working
 /// directory: init loads it, the serial loader stores it after every accepted `$N=value`. The host
 /// (`serve --settings FILE`) links it to the operator's file.
 pub const SETTINGS_FILE: &str = "settings.bin\0";

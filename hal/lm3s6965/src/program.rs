@@ -6,7 +6,7 @@
 use core::fmt;
 
 use cortex_m_semihosting::nr;
-use millac::protocol::settings::record::RecordError;
+use millac::protocol::table::record::RecordError;
 use millac::rt::loader::Finished;
 use millac::rt::program::{Program, ProgramFile, Said};
 

@@ -1,7 +1,7 @@
 //! The QEMU board's settings storage: the persistent settings record
-//! (`millac::protocol::settings::record`) in a host file, [`crate::files::SETTINGS_FILE`] in QEMU's working
+//! (`millac::protocol::table::record`) in a host file, [`crate::files::SETTINGS_FILE`] in QEMU's working
 //! directory, reached through semihosting. Init loads it; the loader task (serial mode) stores it
-//! after every accepted `$N=value` (through `millac::protocol::settings::Persistent`).
+//! after every accepted `$N=value` (through `millac::protocol::table::Persistent`).
 //!
 //! The host (`millac-qemu serve --settings FILE`) makes that name a link to the operator's file,
 //! so the firmware reads and writes the real file. A store truncates the file and writes the whole

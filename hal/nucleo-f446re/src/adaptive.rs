@@ -7,7 +7,7 @@ use heapless::spsc::{Producer, Queue};
 use millac::ac::Alarm;
 use millac::inputs::Debouncer;
 use millac::ports::{Codes, Inputs, OperatorInputs, SampleClock};
-use millac::protocol::settings::MachineSettings;
+use millac::protocol::table::MachineSettings;
 use millac::rt::actask::{self, AcTask, Sampler, ALARM_QUEUE, SAMPLE_QUEUE};
 use millac::rt::status::{AcWriter, SamplerWriter};
 use millac::settings::Valid;

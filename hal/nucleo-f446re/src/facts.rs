@@ -89,7 +89,7 @@ mod tests {
     /// had (the Nucleo's frame budget has no room for it).
     #[test]
     fn the_nucleo_refuses_the_plan_ratio() {
-        use millac::protocol::settings::{parse_assignment, Invalid, MachineSettings, SetError};
+        use millac::protocol::table::{parse_assignment, Invalid, MachineSettings, SetError};
         let mut f = MachineSettings::default();
         let before = f.ac.ceiling;
         let (n, v) = parse_assignment("$263=2").unwrap();

@@ -9,7 +9,7 @@ use millac::gcode::Spindle;
 use millac::inputs::{Debouncer, Events, Trip};
 use millac::nc::Sealed;
 use millac::ports::Board;
-use millac::protocol::settings::Persistent;
+use millac::protocol::table::Persistent;
 use millac::protocol::Protocol;
 use millac::rt::actask::{LogSink, ALARM_QUEUE};
 use millac::rt::console::Serial;

@@ -131,7 +131,7 @@ pub fn print_worst(
             frames.len(),
             ms(t)
         );
-        let settings = millac::protocol::settings::MachineSettings::default().nc;
+        let settings = millac::protocol::table::MachineSettings::default().nc;
         if let Ok(prog) = millac_qemu::analysis::load_program(program, &settings) {
             let report = millac_qemu::analysis::analyse(&prog, &settings, 0, pins);
             let text = |line: u32| program.lines().nth(line as usize - 1).unwrap_or("");

@@ -126,7 +126,7 @@ impl RunSettings {
         };
         acs.validate()
             .map_err(|e| anyhow::anyhow!("AC settings: {}", e.message()))?;
-        let record = millac::protocol::settings::record::encode(&run_record(acs));
+        let record = millac::protocol::table::record::encode(&run_record(acs));
         let path = out.join(crate::lm3s_files::SETTINGS_NAME);
         std::fs::write(&path, record).with_context(|| format!("writing {}", path.display()))?;
         Ok(RunSettings(Some(path)))
@@ -142,8 +142,8 @@ impl Drop for RunSettings {
 }
 
 /// The settings a run gives the firmware: the defaults with the run's AC settings.
-pub fn run_record(acs: &millac::ac::AcSettings) -> millac::protocol::settings::MachineSettings {
-    millac::protocol::settings::MachineSettings {
+pub fn run_record(acs: &millac::ac::AcSettings) -> millac::protocol::table::MachineSettings {
+    millac::protocol::table::MachineSettings {
         ac: *acs,
         ..Default::default()
     }

@@ -89,7 +89,7 @@ pub fn link_settings(out: &Path, settings: &Path) -> Result<()> {
 /// when that name is a link to another settings file (a session with `--settings`: set `$251`
 /// there) or holds a record the firmware would refuse (it is never overwritten).
 pub fn store_strategy(out: &Path, strategy: millac::ac::law::Strategy) -> Result<()> {
-    use millac::protocol::settings::{record, MachineSettings};
+    use millac::protocol::table::{record, MachineSettings};
     let path = default_settings(out);
     let mut s = match std::fs::symlink_metadata(&path) {
         Ok(m) if m.file_type().is_symlink() => anyhow::bail!(
@@ -148,7 +148,7 @@ pub fn serve(
     let stored = std::fs::read(settings)
         .ok()
         .and_then(|b| {
-            millac::protocol::settings::record::decode(&b, &millac::settings::BoardLimits::GENERIC)
+            millac::protocol::table::record::decode(&b, &millac::settings::BoardLimits::GENERIC)
                 .ok()
                 .map(millac::settings::Valid::get)
         })
@@ -340,7 +340,7 @@ mod tests {
     #[test]
     fn store_strategy_writes_only_the_sessions_own_record() {
         use millac::ac::law::Strategy;
-        use millac::protocol::settings::{record, MachineSettings};
+        use millac::protocol::table::{record, MachineSettings};
         let out = dir("strategy");
         let path = default_settings(&out);
         store_strategy(&out, Strategy::Mrac).unwrap();

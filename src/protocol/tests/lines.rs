@@ -174,7 +174,7 @@ fn alarm_lock() {
 /// `$X` unlocks and the reason is not told again.
 #[test]
 fn a_refused_settings_record_locks_until_unlocked() {
-    use crate::protocol::settings::record::RecordError;
+    use crate::protocol::table::record::RecordError;
     let mut r = Rig::new();
     r.p.settings_refused(RecordError::Checksum);
     r.p.start(&mut r.out);

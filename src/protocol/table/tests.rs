@@ -777,7 +777,7 @@ fn the_persistent_table_stores_each_set_before_its_ok() {
 /// record loads back only where the board can run it.
 #[test]
 fn a_board_table_validates_sets_and_loads_for_its_limits() {
-    use crate::protocol::settings::persistent::Persistent;
+    use crate::protocol::table::persistent::Persistent;
     use crate::protocol::SettingsTable;
     use crate::settings::BoardLimits;
     let fast = BoardLimits {

@@ -18,15 +18,15 @@ use crate::ac::settings::{AcSettings, AcSettingsError};
 use crate::gcode::number::{parse_decimal, Decimal, NumError};
 use crate::settings::{Blu, BoardLimits, Settings, SettingsError, Valid};
 
+mod entries;
 mod persistent;
 pub mod record;
-mod table;
 #[cfg(test)]
 mod tests;
 
+pub use entries::{entry, Entry, TABLE};
+use entries::{Kind, Unit};
 pub use persistent::Persistent;
-pub use table::{entry, Entry, TABLE};
-use table::{Kind, Unit};
 
 /// Report settings (grbl's `$10`, `$13`), kept for the status reports of the protocol.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
