@@ -28,6 +28,7 @@ fn main() {
         Some(Cmd::Demo(a)) => cli::demo::command(a),
         Some(Cmd::Host(a)) => cli::host::command(a),
         Some(Cmd::Analyse(a)) => cli::analyse::command(a),
+        Some(Cmd::Check(a)) => cli::check::command(a),
         Some(Cmd::Optimise(a)) => cli::optimise::command(a),
         Some(Cmd::Calibrate(a)) => cli::calibrate::command(a),
         Some(Cmd::Serve(a)) => cli::serve::command(a),

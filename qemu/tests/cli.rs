@@ -356,3 +356,66 @@ fn a_stock_outside_the_machines_travel_is_refused_with_its_line() {
         assert!(!out.exists(), "{cmd} wrote {}", out.display());
     }
 }
+
+/// `check` reads a program as a serial session streams it: every refused line is reported with
+/// its number and the reading goes on; M2 ends it (the line after it is not read); the blocks and
+/// the end point are those of the lines it accepted (the same program without the refused lines,
+/// read whole by the firmware's tape); the time is the frame's (a 1 in move at 30 in/min: 2 s
+/// plus the start and stop ramps). Exits 1 when a line is refused, 0 when none is.
+#[test]
+fn check_lists_every_refusal_and_reports_the_accepted_program() {
+    let dir = scratch("check");
+    let good = [
+        "G20 G90",
+        "G0 X0.5 Y0.25",
+        "G1 Z-0.1 F30",
+        "G2 X1.0 Y0.25 I0.25 J0",
+        "G1 X0 Y0",
+        "M2",
+    ];
+    // Two refused lines among them (a tool change, a cutter-compensation cancel), and a line
+    // after the program's end.
+    let mut lines: Vec<&str> = good.to_vec();
+    lines.insert(1, "T1 M6");
+    lines.insert(4, "G40");
+    lines.push("G1 X9");
+    let prog = dir.join("p.nc");
+    std::fs::write(&prog, lines.join("\n")).unwrap();
+    let o = millac(&["check".as_ref(), prog.as_os_str(), "--json".as_ref()]);
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let refused: Vec<u64> = v["refused"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["line"].as_u64().unwrap())
+        .collect();
+    assert_eq!(refused, [2, 5], "{v}");
+    assert_eq!(v["error"]["line"], 2);
+    assert!(v["refused"][0]["message"]
+        .as_str()
+        .unwrap()
+        .contains("T words"));
+    assert_eq!(v["lines"], lines.len() as u64 - 1, "M2 ends the reading");
+    let settings = millac::Settings::default();
+    let whole = millac_qemu::analysis::load_program(&good.join("\n"), &settings).unwrap();
+    assert_eq!(v["blocks"], whole.len() as u64);
+    let end = whole.last().unwrap().end;
+    assert_eq!(v["final_position_blu"], serde_json::json!(end));
+    // The same program without the refused lines: accepted, exit 0.
+    std::fs::write(&prog, good.join("\n")).unwrap();
+    let o = millac(&["check".as_ref(), prog.as_os_str()]);
+    assert_eq!(o.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("every line accepted"));
+    // The time of one straight inch at 30 in/min is the frame's: 2 s and its ramps (under 5 %).
+    std::fs::write(&prog, "G20 G90 G1 X1 F30\n").unwrap();
+    let o = millac(&["check".as_ref(), prog.as_os_str(), "--json".as_ref()]);
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let t = v["estimated_time_s"].as_f64().unwrap();
+    assert!((2.0..2.1).contains(&t), "{t}");
+}

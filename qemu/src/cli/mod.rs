@@ -5,6 +5,7 @@
 pub(crate) mod analyse;
 pub(crate) mod args;
 pub(crate) mod calibrate;
+pub(crate) mod check;
 pub(crate) mod demo;
 pub(crate) mod host;
 pub(crate) mod optimise;
@@ -40,6 +41,10 @@ pub(crate) enum Cmd {
     Host(host::HostArgs),
     /// Check a VCD capture against a program (no QEMU); writes a summary to stdout.
     Analyse(analyse::AnalyseArgs),
+    /// Validate a program without running it (no QEMU): blocks, bounding box, end point, feeds,
+    /// the estimated time, and every refused line with its number; `--json` for one object.
+    /// Exits 1 when a line is refused.
+    Check(check::CheckArgs),
     /// Optimise a program's feeds offline by virtual machining (no QEMU, no sensor): split its
     /// feed blocks where the cut changes and give each piece the largest feed that keeps the
     /// simulated force within F0 and the torque within T0. Writes OUT (G-code with a header

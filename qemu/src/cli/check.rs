@@ -1,0 +1,195 @@
+//! `millac-qemu check PROGRAM [--json]`: validates a program without running it and says what a
+//! machinist asks before pressing start (host: the CLI calls it from `main`). Every line goes
+//! through the firmware's own line splitter and tape reader (`millac::gcode`) as a serial session
+//! would stream it: a refused line is reported with its number and the reading goes on (the
+//! parser as it was before the line), so one check lists every refusal; the program's end (M2 or
+//! M30) ends the reading. The accepted blocks then run through the core's frame (`millac::nc::sim`)
+//! for the time estimate: the frame's own arithmetic at the settings' W0 and rapid rate, the
+//! feeds as programmed (no adaptive control, 100 % override).
+use anyhow::{Context, Result};
+use millac::gcode::lines::Lines;
+use millac::gcode::tape::Tape;
+use millac::gcode::Parsed;
+use millac::nc::sim::Sim;
+use millac::nc::{Frame, FrameConfig, Motion, Sealed};
+use millac::Settings;
+use millac_qemu::analysis::program_of_blocks;
+use millac_qemu::host::acsim;
+use serde_json::json;
+use std::path::PathBuf;
+
+/// `check`'s options.
+#[derive(clap::Args)]
+pub(crate) struct CheckArgs {
+    /// The G-code program.
+    pub(crate) program: PathBuf,
+    /// One JSON object instead of the text (the key names of `run`'s summary.json where they
+    /// apply: `blocks`, `final_position_blu`, `error`).
+    #[arg(long)]
+    pub(crate) json: bool,
+}
+
+/// A refused line (`message` as `run`'s summary.json words it: `line N: why`).
+struct Refusal {
+    line: u32,
+    message: String,
+}
+
+/// What a check found.
+struct Report {
+    lines: u32,
+    blocks: Vec<Sealed>,
+    refused: Vec<Refusal>,
+}
+
+/// Reads `text` as the firmware's loader does, line by line, going on after a refusal.
+fn read(text: &[u8], settings: &Settings) -> Report {
+    let mut tape = Tape::new(*settings);
+    let mut blocks = Vec::new();
+    let mut refused = Vec::new();
+    let mut ended = false;
+    let mut lines = Lines::new();
+    let mut line = |n: u32, l: Result<&str, millac::gcode::lines::LineError>| -> bool {
+        match l {
+            Err(e) => refused.push(Refusal {
+                line: n,
+                message: format!("line {n}: {}", e.message()),
+            }),
+            Ok(l) => {
+                // The program's end: parsed on a copy to know it is the end (M2/M30).
+                ended = matches!(tape.parser().clone().line(n, l), Ok(Parsed::End));
+                if let Err(e) = tape.line(n, l, |b| blocks.push(b)) {
+                    refused.push(Refusal {
+                        line: e.line(),
+                        message: e.to_string(),
+                    });
+                }
+            }
+        }
+        !ended
+    };
+    if lines.feed(text, &mut line) {
+        lines.finish(&mut line);
+    }
+    tape.flush(|b| blocks.push(b));
+    Report {
+        lines: lines.line_no(),
+        blocks,
+        refused,
+    }
+}
+
+/// `check`: prints the report; false when a line was refused.
+pub(crate) fn command(args: CheckArgs) -> Result<bool> {
+    let text = std::fs::read(&args.program)
+        .with_context(|| format!("reading {}", args.program.display()))?;
+    let settings = Settings::default();
+    let report = read(&text, &settings);
+    let prog = program_of_blocks(report.blocks.clone());
+    let (num, den) = settings.blu.per_mm();
+    let mm = |blu: i32| blu as f64 * den as f64 / num as f64;
+    // The bounding box of every block's start and end (arcs: their end points; an arc's bulge
+    // beyond them is not counted), in machine coordinates (no work offsets yet: the same).
+    let mut lo = [0i32; 3];
+    let mut hi = [0i32; 3];
+    for b in &prog {
+        for k in 0..3 {
+            lo[k] = lo[k].min(b.start[k]).min(b.end[k]);
+            hi[k] = hi[k].max(b.start[k]).max(b.end[k]);
+        }
+    }
+    let end = prog.last().map_or([0; 3], |b| b.end);
+    let feeds: Vec<f64> = report
+        .blocks
+        .iter()
+        .filter(|b| matches!(b.motion, Motion::Linear(_) | Motion::Arc(_)))
+        .map(|b| acsim::programmed_ipm(&settings, b))
+        .collect();
+    let slowest = feeds.iter().copied().fold(f64::INFINITY, f64::min);
+    let fastest = feeds.iter().copied().fold(0.0, f64::max);
+    let count = |f: fn(&Motion) -> bool| report.blocks.iter().filter(|b| f(&b.motion)).count();
+    let rapids = count(|m| matches!(m, Motion::Rapid(_)));
+    let lines = count(|m| matches!(m, Motion::Linear(_)));
+    let arcs = count(|m| matches!(m, Motion::Arc(_)));
+    // The time: the frame's own frames over the blocks, each at the rate it ran at.
+    let mut frame = Frame::new(FrameConfig::from_settings(&settings));
+    let ns: u64 = Sim::new(
+        &mut frame,
+        report.blocks.iter().copied(),
+        u32::MAX,
+        u64::MAX,
+    )
+    .map(|f| acsim::period_ns(&settings, f.rate))
+    .sum();
+    let seconds = ns as f64 * 1e-9;
+    let first = report.refused.first();
+    if args.json {
+        let v = json!({
+            "program": args.program.display().to_string(),
+            "lines": report.lines,
+            "blocks": report.blocks.len(),
+            "rapids": rapids,
+            "linear": lines,
+            "arcs": arcs,
+            "tools": [],
+            "final_position_blu": end,
+            "bounds_blu": { "min": lo, "max": hi },
+            "estimated_time_s": seconds,
+            "feed_min_ipm": (!feeds.is_empty()).then_some(slowest),
+            "feed_max_ipm": (!feeds.is_empty()).then_some(fastest),
+            "refused": report.refused.iter()
+                .map(|r| json!({ "line": r.line, "message": r.message }))
+                .collect::<Vec<_>>(),
+            "error": first.map(|r| json!({ "line": r.line, "message": r.message })),
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        println!(
+            "{}: {} lines read, {} blocks ({rapids} rapids, {lines} lines, {arcs} arcs)",
+            args.program.display(),
+            report.lines,
+            report.blocks.len()
+        );
+        println!("tools: none named (T words are not read yet)");
+        let axis = ["X", "Y", "Z"];
+        for k in 0..3 {
+            println!(
+                "{}: {:.4} .. {:.4} mm ({} .. {} BLU)",
+                axis[k],
+                mm(lo[k]),
+                mm(hi[k]),
+                lo[k],
+                hi[k]
+            );
+        }
+        println!(
+            "ends at X {:.4} Y {:.4} Z {:.4} mm",
+            mm(end[0]),
+            mm(end[1]),
+            mm(end[2])
+        );
+        if feeds.is_empty() {
+            println!("feeds: no feed moves");
+        } else {
+            println!(
+                "feeds: {:.2} .. {:.2} in/min ({:.0} .. {:.0} mm/min)",
+                slowest,
+                fastest,
+                slowest * 25.4,
+                fastest * 25.4
+            );
+        }
+        println!(
+            "estimated time: {seconds:.3} s (the frame at W0 {} Hz and {} Hz rapids, feeds as \
+             programmed, no adaptive control)",
+            settings.frame_hz, settings.rapid_hz
+        );
+        for r in &report.refused {
+            println!("refused: {}", r.message);
+        }
+        if report.refused.is_empty() {
+            println!("every line accepted");
+        }
+    }
+    Ok(report.refused.is_empty())
+}
