@@ -434,10 +434,10 @@ impl<H: Home> FrameWriter<H> {
     pub fn count_overrun(&self) {
         self.frame_overruns.bump()
     }
-    /// Host simulations that run the frame themselves: everything the frame publishes, after
-    /// every frame (the ISR publishes it in the frames without pulses, which is where the host's
-    /// readers look).
-    pub fn publish_all(&self, frame: &crate::nc::Frame) {
+    /// Tests that run the frame themselves: everything the frame publishes, after every frame
+    /// (the ISR publishes it in the frames without pulses, which is where the tests look).
+    #[cfg(test)]
+    pub(crate) fn publish_all(&self, frame: &crate::nc::Frame) {
         self.publish(frame);
         self.set_idle(frame.idle());
     }
@@ -454,8 +454,9 @@ impl<H: Home> PulseWriter<H> {
             e.set(e.get().wrapping_add(d));
         }
     }
-    /// Host simulations and tests that move the axes without pins: the encoder counts.
-    pub fn set_encoder(&self, counts: [i32; 3]) {
+    /// Tests that move the axes without pins: the encoder counts.
+    #[cfg(test)]
+    pub(crate) fn set_encoder(&self, counts: [i32; 3]) {
         for (e, c) in self.encoder.iter().zip(counts) {
             e.set(c);
         }

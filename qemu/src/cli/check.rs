@@ -85,7 +85,7 @@ pub(crate) fn command(args: CheckArgs) -> Result<bool> {
         .with_context(|| format!("reading {}", args.program.display()))?;
     let settings = Settings::default();
     let report = read(&text, &settings);
-    let prog = program_of_blocks(report.blocks.clone());
+    let prog = program_of_blocks(report.blocks);
     let (num, den) = settings.blu.per_mm();
     let mm = |blu: i32| blu as f64 * den as f64 / num as f64;
     // The bounding box of every block's start and end (arcs: their end points; an arc's bulge
@@ -99,35 +99,29 @@ pub(crate) fn command(args: CheckArgs) -> Result<bool> {
         }
     }
     let end = prog.last().map_or([0; 3], |b| b.end);
-    let feeds: Vec<f64> = report
-        .blocks
+    let feeds: Vec<f64> = prog
         .iter()
-        .filter(|b| matches!(b.motion, Motion::Linear(_) | Motion::Arc(_)))
-        .map(|b| acsim::programmed_ipm(&settings, b))
+        .filter(|b| matches!(b.block.motion, Motion::Linear(_) | Motion::Arc(_)))
+        .map(|b| acsim::programmed_ipm(&settings, &b.block))
         .collect();
     let slowest = feeds.iter().copied().fold(f64::INFINITY, f64::min);
     let fastest = feeds.iter().copied().fold(0.0, f64::max);
-    let count = |f: fn(&Motion) -> bool| report.blocks.iter().filter(|b| f(&b.motion)).count();
+    let count = |f: fn(&Motion) -> bool| prog.iter().filter(|b| f(&b.block.motion)).count();
     let rapids = count(|m| matches!(m, Motion::Rapid(_)));
     let lines = count(|m| matches!(m, Motion::Linear(_)));
     let arcs = count(|m| matches!(m, Motion::Arc(_)));
     // The time: the frame's own frames over the blocks, each at the rate it ran at.
     let mut frame = Frame::new(FrameConfig::from_settings(&settings));
-    let ns: u64 = Sim::new(
-        &mut frame,
-        report.blocks.iter().copied(),
-        u32::MAX,
-        u64::MAX,
-    )
-    .map(|f| acsim::period_ns(&settings, f.rate))
-    .sum();
+    let ns: u64 = Sim::new(&mut frame, prog.iter().map(|b| b.block), u32::MAX, u64::MAX)
+        .map(|f| acsim::period_ns(&settings, f.rate))
+        .sum();
     let seconds = ns as f64 * 1e-9;
     let first = report.refused.first();
     if args.json {
         let v = json!({
             "program": args.program.display().to_string(),
             "lines": report.lines,
-            "blocks": report.blocks.len(),
+            "blocks": prog.len(),
             "rapids": rapids,
             "linear": lines,
             "arcs": arcs,
@@ -148,7 +142,7 @@ pub(crate) fn command(args: CheckArgs) -> Result<bool> {
             "{}: {} lines read, {} blocks ({rapids} rapids, {lines} lines, {arcs} arcs)",
             args.program.display(),
             report.lines,
-            report.blocks.len()
+            prog.len()
         );
         println!("tools: none named (T words are not read yet)");
         let axis = ["X", "Y", "Z"];
