@@ -2,7 +2,50 @@
 //! allocation. Built by the G-code parser (loader task), displayed by the host tool and the tests.
 
 use super::number::Decimal;
+use super::words::Code;
 use core::fmt;
+
+/// Writes a code in tenths as G-code writes it: `G43.1`, `M6`.
+pub fn write_code(f: &mut dyn fmt::Write, letter: char, code: Code) -> fmt::Result {
+    match code % 10 {
+        0 => write!(f, "{letter}{}", code / 10),
+        t => write!(f, "{letter}{}.{t}", code / 10),
+    }
+}
+
+/// A construct of LinuxCNC's (or another control's) G-code that is outside millac's grbl dialect;
+/// the error names it so that the machinist knows what to change in the CAM post.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Construct {
+    /// `#` numbered or named parameters.
+    Parameter,
+    /// `[...]` expressions.
+    Expression,
+    /// O-words: subroutines and flow control.
+    OWord,
+    /// G41/G42 (and G41.1/G42.1): cutter radius compensation.
+    CutterCompensation,
+    /// G59.1, G59.2, G59.3: coordinate systems beyond grbl's six.
+    G59Extended,
+    /// G38.x probing moves (the set-up work adds probing).
+    Probe,
+    /// G10 L1/L10/L11 forms other than millac's tool table form, or an L that is not 1, 2, 20.
+    G10Form,
+}
+
+impl Construct {
+    pub const fn describe(self) -> &'static str {
+        match self {
+            Construct::Parameter => "parameters (#) are not supported: LinuxCNC's macro language is outside the grbl dialect; post the program without variables",
+            Construct::Expression => "expressions ([...]) are not supported: LinuxCNC's macro language is outside the grbl dialect; post the program with plain numbers",
+            Construct::OWord => "O-words (subroutines, loops, conditions) are not supported: LinuxCNC's macro language is outside the grbl dialect; post the program without them",
+            Construct::CutterCompensation => "cutter radius compensation (G41/G42) is not supported: let the CAM program the tool centre path (compensation 'in computer') and use G40",
+            Construct::G59Extended => "G59.1-G59.3 are not supported: grbl has the six coordinate systems G54-G59",
+            Construct::Probe => "probing (G38.x) is not supported yet",
+            Construct::G10Form => "this G10 form is not supported: G10 L2 / L20 P0-P6 set a coordinate system, G10 L1 P<tool> Z<length> R<radius> a tool",
+        }
+    }
+}
 
 /// Axis letter of an axis index (X, Y, Z).
 pub const fn axis_name(axis: usize) -> char {
@@ -36,8 +79,34 @@ pub enum ErrorKind {
     UnsupportedM(Decimal),
     /// The same letter (not G/M) twice on one line.
     RepeatedWord(char),
-    /// Two G or M codes of the same modal group on one line (e.g. two motion modes).
-    ModalConflict { letter: char, first: u8, second: u8 },
+    /// Two G or M codes of the same modal group on one line (e.g. two motion modes), in tenths.
+    ModalConflict {
+        letter: char,
+        first: Code,
+        second: Code,
+    },
+    /// A construct of another dialect (LinuxCNC's macros, cutter compensation, ...).
+    NotInDialect(Construct),
+    /// A word that must be a whole number (P of G10, L, H, T) is not.
+    NotInteger(char),
+    /// Two commands on one line that both use the axis words (e.g. G92 with G1).
+    AxisCommandConflict,
+    /// A command that needs axis words has none (G10, G92, G43.1).
+    NoAxisWords { code: Code },
+    /// A command needs a word that is missing (G10 without L or P, a cycle without R).
+    MissingWord { code: Code, letter: char },
+    /// G10's P or G54..: a coordinate system that is not P0..P6.
+    CoordinateSystem,
+    /// G53 outside G0/G1, or in G91.
+    G53Motion,
+    /// Axis words on a line whose command does not take them (G80, G28.1, ...).
+    AxisWordsUnused { code: Code },
+    /// G43.1 with an X or Y word (the tool length is along Z).
+    ToolLengthAxis,
+    /// T, H or G10 L1's P names no tool of the table (1..=`MAX_TOOLS`; T0 is no tool).
+    ToolNumber { value: u32 },
+    /// G93 (inverse time) motion without its F on the line.
+    InverseTimeNeedsF,
     /// F, S or P below zero.
     NegativeValue(char),
     /// G1/G2/G3 with no feed rate programmed, or F0.
@@ -49,8 +118,8 @@ pub enum ErrorKind {
     /// A word the line's command does not use (I/J/K/R outside G2/G3, P outside G4, an offset of
     /// the axis normal to the plane).
     UnusedWord(char),
-    /// M2/M30 on a line that also moves or dwells.
-    EndWithMotion,
+    /// M0, M1, M2, M30 or M6 on a line that also moves or dwells (the code, in tenths).
+    StopWithMotion { code: Code },
     /// The target of an axis does not fit i32 BLU.
     TargetOverflow { axis: char },
     /// The length of a line does not fit the 32-bit DDA (q = L).
@@ -103,7 +172,18 @@ impl ErrorKind {
             ErrorKind::DwellNeedsP => "G4 without P",
             ErrorKind::DwellWithAxes => "G4 with axis words",
             ErrorKind::UnusedWord(_) => "unused word",
-            ErrorKind::EndWithMotion => "M2/M30 with motion",
+            ErrorKind::StopWithMotion { .. } => "stop or tool change with motion",
+            ErrorKind::NotInDialect(_) => "outside the dialect",
+            ErrorKind::NotInteger(_) => "value not an integer",
+            ErrorKind::AxisCommandConflict => "two commands use the axis words",
+            ErrorKind::NoAxisWords { .. } => "no axis words",
+            ErrorKind::MissingWord { .. } => "value word missing",
+            ErrorKind::CoordinateSystem => "unsupported coordinate system",
+            ErrorKind::G53Motion => "G53 needs G0 or G1 in G90",
+            ErrorKind::AxisWordsUnused { .. } => "axis words not used",
+            ErrorKind::ToolLengthAxis => "G43.1 takes only Z",
+            ErrorKind::ToolNumber { .. } => "no such tool",
+            ErrorKind::InverseTimeNeedsF => "G93 motion without F",
             ErrorKind::TargetOverflow { .. } => "overflow",
             ErrorKind::MoveTooLong => "move too long",
             ErrorKind::SoftLimit { .. } => "soft limit",
@@ -140,14 +220,54 @@ impl fmt::Display for ErrorKind {
             ErrorKind::UnsupportedM(d) => write!(f, "M{d} is not supported"),
             ErrorKind::RepeatedWord(c) => write!(f, "the word {c} is given twice"),
             ErrorKind::ModalConflict { letter, first, second } if first == second => {
-                write!(f, "{letter}{first} is given twice")
+                write_code(f, letter, first)?;
+                f.write_str(" is given twice")
             }
             ErrorKind::ModalConflict { letter, first, second } => {
-                if letter == 'G' && first <= 3 && second <= 3 {
-                    write!(f, "two motion commands on one line (G{first} and G{second})")
+                let motion = |c: Code| c <= 30;
+                if letter == 'G' && motion(first) && motion(second) {
+                    f.write_str("two motion commands on one line (")?;
                 } else {
-                    write!(f, "{letter}{first} and {letter}{second} cannot be on one line (same modal group)")
+                    f.write_str("codes of one modal group on one line (")?;
                 }
+                write_code(f, letter, first)?;
+                f.write_str(" and ")?;
+                write_code(f, letter, second)?;
+                f.write_str(")")
+            }
+            ErrorKind::NotInDialect(c) => f.write_str(c.describe()),
+            ErrorKind::NotInteger(c) => write!(f, "the number after {c} must be a whole number"),
+            ErrorKind::AxisCommandConflict => f.write_str(
+                "two commands on one line use the axis words (a motion with G10, G28, G30 or G92)",
+            ),
+            ErrorKind::NoAxisWords { code } => {
+                write_code(f, 'G', code)?;
+                f.write_str(" needs at least one axis word")
+            }
+            ErrorKind::MissingWord { code, letter } => {
+                write_code(f, 'G', code)?;
+                write!(f, " needs the word {letter}")
+            }
+            ErrorKind::CoordinateSystem => {
+                f.write_str("the coordinate system must be P0 (the one in use) or P1-P6 (G54-G59)")
+            }
+            ErrorKind::G53Motion => {
+                f.write_str("G53 moves only with G0 or G1 in absolute distance mode (G90)")
+            }
+            ErrorKind::AxisWordsUnused { code } => {
+                write_code(f, 'G', code)?;
+                f.write_str(" takes no axis words")
+            }
+            ErrorKind::ToolLengthAxis => {
+                f.write_str("G43.1 sets the tool length along Z: X and Y are not allowed")
+            }
+            ErrorKind::ToolNumber { value } => write!(
+                f,
+                "tool {value} is not in the tool table (T0 is no tool, T1-T{} are the table's)",
+                super::tools::MAX_TOOLS
+            ),
+            ErrorKind::InverseTimeNeedsF => {
+                f.write_str("in inverse time mode (G93) every G1, G2 and G3 needs its own F")
             }
             ErrorKind::NegativeValue(c) => write!(f, "{c} must not be negative"),
             ErrorKind::NoFeed { code } => write!(f, "G{code} needs a feed rate (F) greater than zero"),
@@ -157,7 +277,10 @@ impl fmt::Display for ErrorKind {
                 f,
                 "the word {c} is not used by this line (I/J/K/R only with G2/G3 in their plane, P only with G4)"
             ),
-            ErrorKind::EndWithMotion => f.write_str("M2/M30 must not be on a line that moves or dwells"),
+            ErrorKind::StopWithMotion { code } => {
+                write_code(f, 'M', code)?;
+                f.write_str(" must be on a line that neither moves nor dwells")
+            }
             ErrorKind::TargetOverflow { axis } => {
                 write!(f, "the target of axis {axis} overflows the 32-bit position (overflow)")
             }

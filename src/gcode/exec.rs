@@ -1,13 +1,26 @@
-//! The semantics of one G-code line (loader task; host tests): modal words, unit conversion,
-//! targets, soft limits and the block it produces. Runs on copies of the parser state.
+//! The semantics of one G-code line (loader task; host tests): modal words, unit conversion, work
+//! offsets and tools, targets, soft limits and the blocks it produces. Runs on copies of the parser
+//! state.
+//!
+//! The order within a line is RS274/NGC's (and grbl's): feed mode, F, S, T; the tool change M6;
+//! the spindle and coolant; the dwell; plane, units, cutter compensation (G40 only), tool length
+//! offset, coordinate system, path control, distance and return modes; the non-modal commands
+//! G10, G28, G30, G92; the motion (G53 modifies it); the stop M0, M1, M2, M30. The axis words
+//! belong to one command of the line: a motion, G10, G28/G30, G92 or G43.1.
 
 use super::arc::{self, Centre};
-use super::error::{axis_name, ErrorKind};
+use super::error::{axis_name, Construct, ErrorKind};
+use super::offsets::{fine_of_pm, pm_of_fine, Offsets, MAX_PM};
+use super::tools::{Tool, ToolTable, MAX_TOOLS};
 use super::words::{
-    self, Words, AXES, F, G_DISTANCE, G_DWELL, G_MOTION, G_PLANE, G_UNITS, M_SPINDLE, M_STOP,
-    OFFSETS, P, R, S,
+    self, Code, Words, AXES, F, G_COORD, G_CUTTER, G_DISTANCE, G_FEED_MODE, G_MOTION, G_NON_MODAL,
+    G_PATH, G_PLANE, G_RETURN, G_TOOL_LENGTH, G_UNITS, H, L, M_COOLANT, M_SPINDLE, M_STOP, M_TOOL,
+    N, OFFSETS, P, Q, R, S, T,
 };
-use super::{feed_number, Distance, Modes, MotionMode, Parsed, Spindle, Units};
+use super::{
+    feed_number, Distance, FeedMode, Modes, MotionMode, Parsed, PathMode, Retract, Spindle, Stop,
+    ToolLength, Units,
+};
 use crate::nc::{isqrt, Block, Dwell, Linear, Motion, Plane, Rapid, Q_MAX};
 use crate::settings::Settings;
 
@@ -39,6 +52,7 @@ pub struct Position<'a> {
 }
 
 /// Fine units of `v` program units (`per_fine`: fine units per unit), exact; None on overflow.
+#[inline(never)]
 fn to_fine(v: super::Decimal, per_fine: i128) -> Option<i128> {
     let scale = super::number::pow10(v.scale as u32)?;
     v.mantissa.checked_mul(per_fine.checked_div(scale)?)
@@ -46,6 +60,7 @@ fn to_fine(v: super::Decimal, per_fine: i128) -> Option<i128> {
 
 /// The machine coordinate of a fine position: BLU, rounded half away from zero (the same rounding
 /// as a word converted directly), or None when it does not fit i32.
+#[inline(never)]
 fn fine_to_blu(st: &Settings, fine: i128) -> Option<i32> {
     let (num, den) = st.blu.per_mm();
     let n = fine.checked_mul(num as i128)?;
@@ -78,18 +93,27 @@ fn check_soft(st: &Settings, target: [i32; 3]) -> Result<(), ErrorKind> {
     Ok(())
 }
 
-fn reject_words(w: &Words, list: &[usize]) -> Result<(), ErrorKind> {
-    for &i in list {
-        if w.value(i).is_some() {
-            return Err(ErrorKind::UnusedWord(
-                words::LETTERS.get(i).copied().unwrap_or('?'),
-            ));
-        }
-    }
-    Ok(())
-}
+/// The value words a line's commands take: the rest are an error (grbl's rule, error 36).
+#[derive(Clone, Copy, Default)]
+struct Used(u32);
 
-const ARC_WORDS: [usize; 4] = [R, OFFSETS, OFFSETS + 1, OFFSETS + 2];
+impl Used {
+    fn take(&mut self, i: usize) {
+        self.0 |= 1 << i;
+    }
+
+    /// The first value word of the line that no command took.
+    fn check(self, w: &Words) -> Result<(), ErrorKind> {
+        for (i, v) in w.values.iter().enumerate() {
+            if v.is_some() && self.0 & (1 << i) == 0 {
+                return Err(ErrorKind::UnusedWord(
+                    words::LETTERS.get(i).copied().unwrap_or('?'),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
 
 /// How the line's length words convert: BLU per program unit (a ratio) and fine units per
 /// program unit.
@@ -99,19 +123,88 @@ struct Scale {
     fine: i128,
 }
 
-/// The semantics of one line on the parser's state: modal words, feed and spindle, then end,
-/// dwell or motion. `m` and `position` are the caller's copies (committed only on `Ok`).
-pub fn execute(
-    st: &Settings,
-    m: &mut Modes,
-    position: Position,
-    line_no: u32,
-    text: &str,
-) -> Result<Parsed, ErrorKind> {
-    let w = words::lex(text)?;
+/// The parser state one line may change: the caller's copies, committed only on `Ok`. The tool
+/// table is read only: a G10 L1 leaves its entry in `tool_set` for the caller to commit.
+pub struct State<'a> {
+    pub modes: &'a mut Modes,
+    pub pos: Position<'a>,
+    pub offsets: &'a mut Offsets,
+    /// The tool in the spindle (the last M6's; 0 = none).
+    pub loaded: &'a mut u8,
+    pub tools: &'a ToolTable,
+    pub tool_set: &'a mut Option<(u32, Tool)>,
+}
 
-    // Modal words first: they apply to the whole line, wherever they stand.
-    modal_words(&w, m);
+/// Which command of the line the axis words belong to.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum AxisCommand {
+    None,
+    Motion,
+    /// G10 L2/L20/L1.
+    Set,
+    /// G28 / G30 (the intermediate point).
+    Home(bool),
+    /// G92.
+    Origin,
+    /// G43.1.
+    ToolLength,
+}
+
+/// The semantics of one line on the parser's state (see the module's order). Returns what the
+/// line produced; the state is the caller's copy.
+pub fn execute(st: &Settings, s: State, line_no: u32, text: &str) -> Result<Parsed, ErrorKind> {
+    let w = words::lex(text)?;
+    let State {
+        modes: m,
+        pos,
+        offsets,
+        loaded,
+        tools,
+        tool_set,
+    } = s;
+    let mut used = Used::default();
+    used.take(N);
+    let non_modal = w.g[G_NON_MODAL];
+
+    // The axis words' command, and the conflicts between the commands that take them.
+    let axis_command = match (non_modal, w.g[G_TOOL_LENGTH]) {
+        (Some(100), _) => AxisCommand::Set,
+        (Some(280), _) => AxisCommand::Home(false),
+        (Some(300), _) => AxisCommand::Home(true),
+        (Some(920), _) => AxisCommand::Origin,
+        (_, Some(431)) => AxisCommand::ToolLength,
+        _ if w.has_axes() || w.g[G_MOTION].is_some() => AxisCommand::Motion,
+        _ => AxisCommand::None,
+    };
+    let explicit_motion = w.g[G_MOTION].is_some();
+    let two_axis_users = (non_modal.is_some_and(|g| matches!(g, 100 | 280 | 300 | 920))
+        && w.g[G_TOOL_LENGTH] == Some(431))
+        || (axis_command != AxisCommand::Motion
+            && axis_command != AxisCommand::None
+            && explicit_motion);
+    if two_axis_users {
+        return Err(ErrorKind::AxisCommandConflict);
+    }
+    // The axis words' command takes them (and refuses those it cannot use with its own error).
+    for k in 0..3 {
+        used.take(AXES + k);
+    }
+
+    // Feed mode first (F is read in it), then F, S, T.
+    match w.g[G_FEED_MODE] {
+        Some(930) if m.feed_mode != FeedMode::InverseTime => {
+            m.feed_mode = FeedMode::InverseTime;
+            m.feed = 0;
+        }
+        Some(940) if m.feed_mode != FeedMode::PerMinute => {
+            // Back to units per minute: the feed is undefined until the next F (grbl, LinuxCNC).
+            m.feed_mode = FeedMode::PerMinute;
+            m.feed = 0;
+        }
+        _ => {}
+    }
+    // Modal words apply to the whole line, wherever they stand: the units before F.
+    modal_words(&w, m, &mut used)?;
     let scale = match m.units {
         Units::Inch => Scale {
             per: st.blu.per_inch(),
@@ -122,88 +215,526 @@ pub fn execute(
             fine: FINE_PER_MM,
         },
     };
-    feed_and_spindle(st, &w, m, scale)?;
-    let motion_word = motion_mode(&w, m);
-
-    let mut has_axes = false;
+    // Every axis word fits the machine's BLU range, whatever command takes it.
     for k in 0..3 {
-        has_axes |= length(&w, AXES + k, scale.per)?.is_some();
+        length(&w, AXES + k, scale.per)?;
     }
-    let dwell = w.g[G_DWELL].is_some();
+    feed_and_spindle(st, &w, m, scale, &mut used)?;
+    if let Some(t) = w.value(T) {
+        used.take(T);
+        m.tool = tool_number(t, 'T')?;
+    }
+    let tool_change = w.m[M_TOOL].is_some();
+    if tool_change {
+        *loaded = m.tool;
+    }
+    tool_length(&w, m, *loaded, tools, scale, &mut used)?;
+    if let Some(code) = w.m[M_COOLANT] {
+        m.coolant = match code {
+            70 => super::Coolant {
+                mist: true,
+                ..m.coolant
+            },
+            80 => super::Coolant {
+                flood: true,
+                ..m.coolant
+            },
+            _ => super::Coolant::OFF,
+        };
+    }
 
-    if w.m[M_STOP].is_some() {
-        return end(&w, has_axes || dwell);
+    let motion_word = motion_mode(&w, m);
+    let dwell = non_modal == Some(40);
+    let moves = dwell
+        || matches!(axis_command, AxisCommand::Motion | AxisCommand::Home(_))
+            && (w.has_axes() || matches!(axis_command, AxisCommand::Home(_)));
+    // M0, M2, M30 and M6 stand on a line without motion (M1 is ignored, as grbl ignores it: no
+    // optional-stop switch).
+    let stop_code = w.m[M_STOP]
+        .filter(|&c| c != 10)
+        .or(tool_change.then_some(60));
+    if let Some(code) = stop_code.filter(|_| moves) {
+        return Err(ErrorKind::StopWithMotion { code });
     }
-    if dwell {
-        return dwell_block(st, &w, has_axes, line_no);
-    }
-    reject_words(&w, &[P])?;
+    let stop = match (w.m[M_STOP], tool_change) {
+        (Some(20 | 300), _) => Some(Parsed::End),
+        (_, true) => Some(Parsed::Stop(Stop::ToolChange { tool: *loaded })),
+        (Some(0), _) => Some(Parsed::Stop(Stop::Pause)),
+        _ => None,
+    };
 
+    let parsed = if dwell {
+        dwell_block(st, &w, line_no, &mut used)?
+    } else {
+        match axis_command {
+            AxisCommand::Set => {
+                set_offsets(st, &w, m, &pos, offsets, tools, tool_set, scale, &mut used)?;
+                Parsed::Nothing
+            }
+            AxisCommand::Origin => {
+                set_g92(st, &w, m, &pos, offsets, scale)?;
+                Parsed::Nothing
+            }
+            AxisCommand::Home(g30) => home(st, &w, m, pos, offsets, scale, g30, line_no)?,
+            AxisCommand::ToolLength | AxisCommand::None => {
+                stored_positions(&w, non_modal, &pos, offsets)?;
+                Parsed::Nothing
+            }
+            AxisCommand::Motion => {
+                stored_positions(&w, non_modal, &pos, offsets)?;
+                motion(
+                    st,
+                    &w,
+                    m,
+                    pos,
+                    offsets,
+                    scale,
+                    motion_word,
+                    line_no,
+                    &mut used,
+                )?
+            }
+        }
+    };
+    used.check(&w)?;
+    if let Some((n, _)) = tool_set {
+        // Only G10 L1 sets a tool; the table itself is committed by the caller.
+        debug_assert!(*n as usize <= MAX_TOOLS);
+    }
+    Ok(match stop {
+        Some(stop) => stop,
+        None => parsed,
+    })
+}
+
+/// G28.1 / G30.1 (store the machine position), G92.1 / G92.2 / G92.3; G53 alone is nothing.
+fn stored_positions(
+    w: &Words,
+    non_modal: Option<Code>,
+    pos: &Position,
+    offsets: &mut Offsets,
+) -> Result<(), ErrorKind> {
+    let code = match non_modal {
+        Some(code @ (281 | 301 | 921 | 922 | 923)) => code,
+        _ => return Ok(()),
+    };
+    if w.has_axes() {
+        return Err(ErrorKind::AxisWordsUnused { code });
+    }
+    match code {
+        281 => offsets.g28 = here_pm(pos)?,
+        301 => offsets.g30 = here_pm(pos)?,
+        921 => {
+            offsets.g92 = [0; 3];
+            offsets.g92_on = false;
+        }
+        922 => offsets.g92_on = false,
+        _ => offsets.g92_on = true,
+    }
+    Ok(())
+}
+
+/// T, H and G10 L1's P: a whole tool number of the table (T0/H0: no tool).
+fn tool_number(v: super::Decimal, letter: char) -> Result<u8, ErrorKind> {
+    let n = v.as_integer().ok_or(ErrorKind::NotInteger(letter))?;
+    match u8::try_from(n) {
+        Ok(t) if (t as usize) <= MAX_TOOLS => Ok(t),
+        _ => Err(ErrorKind::ToolNumber {
+            value: u32::try_from(n.max(0)).unwrap_or(u32::MAX),
+        }),
+    }
+}
+
+/// G43 H (the table's length; without H the loaded tool's), G43.1 Z (a length given), G49.
+fn tool_length(
+    w: &Words,
+    m: &mut Modes,
+    loaded: u8,
+    tools: &ToolTable,
+    scale: Scale,
+    used: &mut Used,
+) -> Result<(), ErrorKind> {
+    match w.g[G_TOOL_LENGTH] {
+        Some(430) => {
+            used.take(H);
+            let h = match w.value(H) {
+                Some(h) => tool_number(h, 'H')?,
+                None => loaded,
+            };
+            m.tlo_pm = tools.get(h as u32).map_or(0, |t| t.length_pm);
+            m.tool_length = ToolLength::Table(h);
+        }
+        Some(431) => {
+            if w.value(AXES).is_some() || w.value(AXES + 1).is_some() {
+                return Err(ErrorKind::ToolLengthAxis);
+            }
+            let z = w
+                .value(AXES + 2)
+                .ok_or(ErrorKind::NoAxisWords { code: 431 })?;
+            m.tlo_pm = offset_pm(z, scale, 'Z')?;
+            m.tool_length = ToolLength::Dynamic;
+        }
+        Some(_) => {
+            m.tlo_pm = 0;
+            m.tool_length = ToolLength::Off;
+        }
+        None => {}
+    }
+    Ok(())
+}
+
+/// A length word as an offset in picometres (exact to 1 pm), within +-[`MAX_PM`].
+#[inline(never)]
+fn offset_pm(v: super::Decimal, scale: Scale, letter: char) -> Result<i64, ErrorKind> {
+    to_fine(v, scale.fine)
+        .and_then(pm_of_fine)
+        .filter(|p| p.unsigned_abs() <= MAX_PM as u64)
+        .ok_or(ErrorKind::NumberTooLarge(letter))
+}
+
+/// The machine position in picometres.
+#[inline(never)]
+fn here_pm(pos: &Position) -> Result<[i64; 3], ErrorKind> {
+    let mut p = [0i64; 3];
+    for (k, v) in p.iter_mut().enumerate() {
+        *v = pm_of_fine(pos.fine[k]).ok_or(ErrorKind::TargetOverflow { axis: axis_name(k) })?;
+    }
+    Ok(p)
+}
+
+/// G10 L2 Pn (a system's offset is the words), G10 L20 Pn (the offset that makes the machine's
+/// position the words in that system), G10 L1 Pt Z R (tool t's length and radius). P0 is the
+/// system in use. Absolute values whatever G90/G91 (grbl).
+#[allow(clippy::too_many_arguments)]
+fn set_offsets(
+    st: &Settings,
+    w: &Words,
+    m: &Modes,
+    pos: &Position,
+    offsets: &mut Offsets,
+    tools: &ToolTable,
+    tool_set: &mut Option<(u32, Tool)>,
+    scale: Scale,
+    used: &mut Used,
+) -> Result<(), ErrorKind> {
+    let _ = st;
+    used.take(L);
+    used.take(P);
+    let l = w
+        .value(L)
+        .ok_or(ErrorKind::MissingWord {
+            code: 100,
+            letter: 'L',
+        })?
+        .as_integer()
+        .ok_or(ErrorKind::NotInteger('L'))?;
+    let p = w
+        .value(P)
+        .ok_or(ErrorKind::MissingWord {
+            code: 100,
+            letter: 'P',
+        })?
+        .as_integer()
+        .ok_or(ErrorKind::NotInteger('P'))?;
+    if l == 1 {
+        // The tool table: Z is the length, R the radius (LinuxCNC's and grblHAL's form).
+        used.take(R);
+        if w.value(AXES).is_some() || w.value(AXES + 1).is_some() {
+            return Err(ErrorKind::NotInDialect(Construct::G10Form));
+        }
+        let n = tool_number(super::Decimal::int(p as i64), 'P')?;
+        if n == 0 {
+            return Err(ErrorKind::ToolNumber { value: 0 });
+        }
+        let mut tool = tools.get(n as u32).copied().unwrap_or_default();
+        if let Some(z) = w.value(AXES + 2) {
+            tool.length_pm = offset_pm(z, scale, 'Z')?;
+        }
+        if let Some(r) = w.value(R) {
+            if r.is_negative() {
+                return Err(ErrorKind::NegativeValue('R'));
+            }
+            tool.diameter_pm = offset_pm(r, scale, 'R')?
+                .checked_mul(2)
+                .ok_or(ErrorKind::NumberTooLarge('R'))?;
+        }
+        *tool_set = Some((n as u32, tool));
+        return Ok(());
+    }
+    if l != 2 && l != 20 {
+        return Err(ErrorKind::NotInDialect(Construct::G10Form));
+    }
+    let system = match p {
+        0 => m.coord as usize,
+        1..=6 => p as usize - 1,
+        _ => return Err(ErrorKind::CoordinateSystem),
+    };
+    if !w.has_axes() {
+        return Err(ErrorKind::NoAxisWords { code: 100 });
+    }
+    let here = here_pm(pos)?;
+    let g92 = offsets.g92_applied();
+    let Some(sys) = offsets.systems.get_mut(system) else {
+        return Err(ErrorKind::CoordinateSystem);
+    };
+    for k in 0..3 {
+        let Some(v) = w.value(AXES + k) else { continue };
+        let v = offset_pm(v, scale, axis_name(k))?;
+        sys[k] = if l == 2 {
+            v
+        } else {
+            let tlo = if k == 2 { m.tlo_pm } else { 0 };
+            let o = here[k] - g92[k] - tlo - v;
+            if o.unsigned_abs() > MAX_PM as u64 {
+                return Err(ErrorKind::NumberTooLarge(axis_name(k)));
+            }
+            o
+        };
+    }
+    Ok(())
+}
+
+/// G92: the offset that makes the machine's position the words in the system in use (the axes
+/// without a word keep theirs).
+fn set_g92(
+    st: &Settings,
+    w: &Words,
+    m: &Modes,
+    pos: &Position,
+    offsets: &mut Offsets,
+    scale: Scale,
+) -> Result<(), ErrorKind> {
+    let _ = st;
+    if !w.has_axes() {
+        return Err(ErrorKind::NoAxisWords { code: 920 });
+    }
+    let here = here_pm(pos)?;
+    let mut g92 = offsets.g92_applied();
+    let sys = offsets
+        .systems
+        .get(m.coord as usize)
+        .copied()
+        .unwrap_or([0; 3]);
+    for k in 0..3 {
+        let Some(v) = w.value(AXES + k) else { continue };
+        let v = offset_pm(v, scale, axis_name(k))?;
+        let tlo = if k == 2 { m.tlo_pm } else { 0 };
+        let o = here[k] - sys[k] - tlo - v;
+        if o.unsigned_abs() > MAX_PM as u64 {
+            return Err(ErrorKind::NumberTooLarge(axis_name(k)));
+        }
+        g92[k] = o;
+    }
+    offsets.g92 = g92;
+    offsets.g92_on = true;
+    Ok(())
+}
+
+/// The origin of the program coordinates (machine, fine units) for this line: none for G53.
+fn origin_fine(m: &Modes, offsets: &Offsets, machine: bool) -> [i128; 3] {
+    if machine {
+        return [0; 3];
+    }
+    offsets.origin(m.coord, m.tlo_pm).map(fine_of_pm)
+}
+
+/// G28 / G30: a rapid to the intermediate point of the axis words (if any, in program
+/// coordinates, G90/G91 as in force), then a rapid to the stored position, of the axes named
+/// (all axes when none is).
+#[allow(clippy::too_many_arguments)]
+fn home(
+    st: &Settings,
+    w: &Words,
+    m: &Modes,
+    pos: Position,
+    offsets: &Offsets,
+    scale: Scale,
+    g30: bool,
+    line_no: u32,
+) -> Result<Parsed, ErrorKind> {
+    let origin = origin_fine(m, offsets, false);
+    let (mid, mid_fine) = targets(st, w, m.distance, &pos, scale, origin)?;
+    check_soft(st, mid)?;
+    let stored = if g30 { offsets.g30 } else { offsets.g28 };
+    let mut end_fine = mid_fine;
+    for k in 0..3 {
+        if !w.has_axes() || w.value(AXES + k).is_some() {
+            end_fine[k] = fine_of_pm(stored[k]);
+        }
+    }
+    let mut end = [0i32; 3];
+    for k in 0..3 {
+        end[k] =
+            fine_to_blu(st, end_fine[k]).ok_or(ErrorKind::TargetOverflow { axis: axis_name(k) })?;
+    }
+    check_soft(st, end)?;
+    let rapid = |from: [i32; 3], to: [i32; 3]| {
+        let (steps, signs) =
+            crate::nc::steps_and_signs([0, 1, 2].map(|k| to[k] as i64 - from[k] as i64));
+        (steps != [0; 3]).then_some(Block {
+            line: line_no,
+            motion: Motion::Rapid(Rapid { steps, signs }),
+        })
+    };
+    let first = rapid(*pos.blu, mid);
+    let second = rapid(mid, end);
+    *pos.blu = end;
+    *pos.fine = end_fine;
+    Ok(match (first, second) {
+        (Some(a), Some(b)) => Parsed::Two(a, b),
+        (Some(b), None) | (None, Some(b)) => Parsed::Block(b),
+        (None, None) => Parsed::Nothing,
+    })
+}
+
+/// A motion line: G0/G1/G2/G3 in the mode in force (G53: machine coordinates, G0/G1 in G90).
+#[allow(clippy::too_many_arguments)]
+fn motion(
+    st: &Settings,
+    w: &Words,
+    m: &Modes,
+    pos: Position,
+    offsets: &Offsets,
+    scale: Scale,
+    motion_word: Option<Code>,
+    line_no: u32,
+    used: &mut Used,
+) -> Result<Parsed, ErrorKind> {
+    let machine = w.g[G_NON_MODAL] == Some(530);
+    if machine
+        && (m.distance != Distance::Absolute
+            || !matches!(m.motion, MotionMode::Rapid | MotionMode::Linear))
+    {
+        return Err(ErrorKind::G53Motion);
+    }
     // A motion runs when the line has axis words or names a motion mode (grbl).
-    if !has_axes && motion_word.is_none() {
-        reject_words(&w, &ARC_WORDS)?;
+    if !w.has_axes() && motion_word.is_none() {
         return Ok(Parsed::Nothing);
     }
     let code = motion_code(m.motion);
-    if code != 0 && m.feed == 0 {
-        return Err(ErrorKind::NoFeed { code });
+    if m.motion == MotionMode::None {
+        if w.has_axes() {
+            return Err(ErrorKind::AxisWordsUnused { code: 800 });
+        }
+        return Ok(Parsed::Nothing);
+    }
+    let inverse = m.feed_mode == FeedMode::InverseTime && m.motion != MotionMode::Rapid;
+    if inverse {
+        if w.value(F).is_none() {
+            return Err(ErrorKind::InverseTimeNeedsF);
+        }
+    } else if code != 0 && m.feed == 0 {
+        return Err(ErrorKind::NoFeed { code: code as u8 });
     }
 
-    let (target, target_fine) = targets(st, &w, m.distance, &position, scale)?;
-    let motion = match m.motion {
-        MotionMode::Rapid | MotionMode::Linear => {
-            match line_motion(st, m, &w, *position.blu, target)? {
-                Some(motion) => motion,
-                None => {
-                    // No machine motion, but the programmed position moves (an increment below
-                    // a BLU).
-                    *position.fine = target_fine;
-                    return Ok(Parsed::Nothing);
-                }
+    let origin = origin_fine(m, offsets, machine);
+    let (target, target_fine) = targets(st, w, m.distance, &pos, scale, origin)?;
+    let mut motion = match m.motion {
+        MotionMode::ArcCw | MotionMode::ArcCcw => arc_motion(st, m, w, &pos, target, scale, used)?,
+        _ => match line_motion(st, m, *pos.blu, target)? {
+            Some(motion) => motion,
+            None => {
+                // No machine motion, but the programmed position moves (an increment below
+                // a BLU).
+                *pos.fine = target_fine;
+                return Ok(Parsed::Nothing);
             }
-        }
-        MotionMode::ArcCw | MotionMode::ArcCcw => arc_motion(st, m, &w, &position, target, scale)?,
+        },
     };
-    *position.blu = target;
-    *position.fine = target_fine;
+    if inverse {
+        let f = w.value(F).unwrap_or(super::Decimal::int(0));
+        match &mut motion {
+            Motion::Linear(l) => l.f = inverse_time_feed(st, f, l.q)?,
+            Motion::Arc(a) => a.f = inverse_time_feed(st, f, a.length)?,
+            _ => {}
+        }
+    }
+    *pos.blu = target;
+    *pos.fine = target_fine;
     Ok(Parsed::Block(Block {
         line: line_no,
         motion,
     }))
 }
 
-/// G20/G21, G17/G18/G19, G90/G91. (G94, feed per minute, is the only feed mode: nothing to do.)
-fn modal_words(w: &Words, m: &mut Modes) {
+/// G93: the feed number that runs `length` BLU in 1/F minutes: f = round(L F q0 / (W0 60)),
+/// clamped to 1..=q0 like every feed.
+fn inverse_time_feed(st: &Settings, f: super::Decimal, length: u32) -> Result<u32, ErrorKind> {
+    if f.is_negative() {
+        return Err(ErrorKind::NegativeValue('F'));
+    }
+    if f.is_zero() {
+        return Err(ErrorKind::NoFeed { code: 93 });
+    }
+    let num = length as i128 * st.q0 as i128;
+    let den = st.frame_hz as i128 * 60;
+    let v = f
+        .mul_ratio_round(num, den)
+        .ok_or(ErrorKind::NumberTooLarge('F'))?;
+    Ok(v.clamp(1, st.q0 as i128) as u32)
+}
+
+/// G20/G21, G17/G18/G19, G90/G91, G40, G54..G59, G61/G61.1/G64 (G64's P and Q, LinuxCNC's
+/// blending tolerances, are accepted and not used: the frame runs every block exactly),
+/// G98/G99.
+fn modal_words(w: &Words, m: &mut Modes, used: &mut Used) -> Result<(), ErrorKind> {
     match w.g[G_UNITS] {
-        Some(20) => m.units = Units::Inch,
-        Some(21) => m.units = Units::Mm,
+        Some(200) => m.units = Units::Inch,
+        Some(210) => m.units = Units::Mm,
         _ => {}
     }
     match w.g[G_PLANE] {
-        Some(17) => m.plane = Plane::XY,
-        Some(18) => m.plane = Plane::ZX,
-        Some(19) => m.plane = Plane::YZ,
+        Some(170) => m.plane = Plane::XY,
+        Some(180) => m.plane = Plane::ZX,
+        Some(190) => m.plane = Plane::YZ,
         _ => {}
     }
     match w.g[G_DISTANCE] {
-        Some(90) => m.distance = Distance::Absolute,
-        Some(91) => m.distance = Distance::Incremental,
+        Some(900) => m.distance = Distance::Absolute,
+        Some(910) => m.distance = Distance::Incremental,
         _ => {}
     }
+    if let Some(410 | 420) = w.g[G_CUTTER] {
+        return Err(ErrorKind::NotInDialect(Construct::CutterCompensation));
+    }
+    if let Some(g) = w.g[G_COORD] {
+        m.coord = ((g - 540) / 10) as u8;
+    }
+    match w.g[G_PATH] {
+        Some(610) => m.path = PathMode::ExactPath,
+        Some(611) => m.path = PathMode::ExactStop,
+        Some(640) => {
+            used.take(P);
+            used.take(Q);
+            m.path = PathMode::Blend;
+        }
+        _ => {}
+    }
+    match w.g[G_RETURN] {
+        Some(980) => m.retract = Retract::Initial,
+        Some(990) => m.retract = Retract::RPlane,
+        _ => {}
+    }
+    Ok(())
 }
 
-/// F (to the feed number, in the line's units), S (rpm) and M3/M4/M5.
+/// F (to the feed number, in the line's units; in G93 the line's own F), S (rpm) and M3/M4/M5.
 fn feed_and_spindle(
     st: &Settings,
     w: &Words,
     m: &mut Modes,
     scale: Scale,
+    used: &mut Used,
 ) -> Result<(), ErrorKind> {
+    used.take(F);
+    used.take(S);
     if let Some(fv) = w.value(F) {
         if fv.is_negative() {
             return Err(ErrorKind::NegativeValue('F'));
         }
-        m.feed = feed_number(st, fv, scale.per).ok_or(ErrorKind::NumberTooLarge('F'))?;
+        if m.feed_mode == FeedMode::PerMinute {
+            m.feed = feed_number(st, fv, scale.per).ok_or(ErrorKind::NumberTooLarge('F'))?;
+        }
     }
     if let Some(sv) = w.value(S) {
         if sv.is_negative() {
@@ -215,57 +746,50 @@ fn feed_and_spindle(
         };
     }
     match w.m[M_SPINDLE] {
-        Some(3) => m.spindle = Spindle::Cw,
-        Some(4) => m.spindle = Spindle::Ccw,
-        Some(5) => m.spindle = Spindle::Off,
+        Some(30) => m.spindle = Spindle::Cw,
+        Some(40) => m.spindle = Spindle::Ccw,
+        Some(50) => m.spindle = Spindle::Off,
         _ => {}
     }
     Ok(())
 }
 
-/// G0..G3: sets the motion mode; returns the motion word of the line, if any.
-fn motion_mode(w: &Words, m: &mut Modes) -> Option<u8> {
+/// G0..G3, G80: sets the motion mode; returns the motion word of the line, if any.
+fn motion_mode(w: &Words, m: &mut Modes) -> Option<Code> {
     let word = w.g[G_MOTION];
     match word {
         Some(0) => m.motion = MotionMode::Rapid,
-        Some(1) => m.motion = MotionMode::Linear,
-        Some(2) => m.motion = MotionMode::ArcCw,
-        Some(3) => m.motion = MotionMode::ArcCcw,
+        Some(10) => m.motion = MotionMode::Linear,
+        Some(20) => m.motion = MotionMode::ArcCw,
+        Some(30) => m.motion = MotionMode::ArcCcw,
+        Some(800) => m.motion = MotionMode::None,
         _ => {}
     }
     word
 }
 
-/// The G code number of a motion mode (for the error messages).
-const fn motion_code(mode: MotionMode) -> u8 {
+/// The G code number of a motion mode (for the error messages and `$G`).
+pub const fn motion_code(mode: MotionMode) -> u16 {
     match mode {
         MotionMode::Rapid => 0,
         MotionMode::Linear => 1,
         MotionMode::ArcCw => 2,
         MotionMode::ArcCcw => 3,
+        MotionMode::None => 80,
     }
-}
-
-/// M2/M30: the end of the program, on a line without motion.
-fn end(w: &Words, moves: bool) -> Result<Parsed, ErrorKind> {
-    if moves {
-        return Err(ErrorKind::EndWithMotion);
-    }
-    reject_words(w, &[P, R, OFFSETS, OFFSETS + 1, OFFSETS + 2])?;
-    Ok(Parsed::End)
 }
 
 /// G4 P<seconds>: a dwell of P * W0 frames (none for zero frames).
 fn dwell_block(
     st: &Settings,
     w: &Words,
-    has_axes: bool,
     line_no: u32,
+    used: &mut Used,
 ) -> Result<Parsed, ErrorKind> {
-    if has_axes {
+    if w.has_axes() {
         return Err(ErrorKind::DwellWithAxes);
     }
-    reject_words(w, &ARC_WORDS)?;
+    used.take(P);
     let pv = w.value(P).ok_or(ErrorKind::DwellNeedsP)?;
     if pv.is_negative() {
         return Err(ErrorKind::NegativeValue('P'));
@@ -288,13 +812,15 @@ fn dwell_block(
 }
 
 /// The programmed target, exact, and the machine target, its rounding (an axis without a word
-/// stays where the machine is).
+/// stays where the machine is). An absolute word is a program coordinate: the machine's is the
+/// word plus `origin` (fine units).
 fn targets(
     st: &Settings,
     w: &Words,
     distance: Distance,
     position: &Position,
     scale: Scale,
+    origin: [i128; 3],
 ) -> Result<([i32; 3], [i128; 3]), ErrorKind> {
     let mut target = *position.blu;
     let mut target_fine = *position.fine;
@@ -303,7 +829,7 @@ fn targets(
         let overflow = ErrorKind::TargetOverflow { axis: axis_name(k) };
         let v = to_fine(v, scale.fine).ok_or(overflow)?;
         let t = match distance {
-            Distance::Absolute => v,
+            Distance::Absolute => v.checked_add(origin[k]).ok_or(overflow)?,
             Distance::Incremental => target_fine[k].checked_add(v).ok_or(overflow)?,
         };
         target_fine[k] = t;
@@ -316,11 +842,9 @@ fn targets(
 fn line_motion(
     st: &Settings,
     m: &Modes,
-    w: &Words,
     pos: [i32; 3],
     target: [i32; 3],
 ) -> Result<Option<Motion>, ErrorKind> {
-    reject_words(w, &ARC_WORDS)?;
     check_soft(st, target)?;
     let (steps, signs) =
         crate::nc::steps_and_signs([0, 1, 2].map(|k| target[k] as i64 - pos[k] as i64));
@@ -350,7 +874,10 @@ fn line_motion(
 }
 
 /// G2/G3 from the position to `target` in the plane in force: the centre (R, or I/J/K from the
-/// exact programmed start, rounded once), then the planned arc within the soft limits.
+/// exact programmed start, rounded once), then the planned arc within the soft limits. The offset
+/// along the axis normal to the plane must be absent or zero (FreeCAD's grbl post writes `K0` on
+/// every G17 arc; grbl ignores any K there, LinuxCNC refuses every K: millac takes the zero, which
+/// says nothing, and refuses another value, which would mean a centre off the plane).
 fn arc_motion(
     st: &Settings,
     m: &Modes,
@@ -358,11 +885,22 @@ fn arc_motion(
     position: &Position,
     target: [i32; 3],
     scale: Scale,
+    used: &mut Used,
 ) -> Result<Motion, ErrorKind> {
     let pos = *position.blu;
     let (ia, ib) = m.plane.axes();
     let third = 3 - ia - ib;
-    reject_words(w, &[OFFSETS + third])?;
+    for i in [R, OFFSETS + ia, OFFSETS + ib] {
+        used.take(i);
+    }
+    match w.value(OFFSETS + third) {
+        Some(v) if !v.is_zero() => {
+            return Err(ErrorKind::UnusedWord(
+                words::LETTERS.get(OFFSETS + third).copied().unwrap_or('?'),
+            ))
+        }
+        _ => used.take(OFFSETS + third),
+    }
     let has_offsets = w.value(OFFSETS + ia).is_some() || w.value(OFFSETS + ib).is_some();
     let centre = match (w.value(R).is_some(), has_offsets) {
         (true, true) => return Err(ErrorKind::ArcRadiusAndOffsets),
@@ -386,7 +924,7 @@ fn arc_motion(
         }
         (false, false) => {
             return Err(ErrorKind::ArcNeedsCentre {
-                code: motion_code(m.motion),
+                code: motion_code(m.motion) as u8,
             })
         }
     };

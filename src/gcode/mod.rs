@@ -1,13 +1,18 @@
 //! G-code lines -> validated blocks (loader task). This is the only place where the program is
 //! validated: the frame interrupt trusts every [`Block`] it gets.
 //!
-//! Supported words: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 G90 G91 G94, M2 M30 (end), M3 M4 M5
-//! (the spindle's modal state, [`Spindle`]: no NC effect, a board with a spindle output applies
-//! it), M8 M9 (accepted, no effect), N (ignored), F S X Y Z I J K R P. Comments `( )` and `;`, any case,
-//! whitespace anywhere. Power-up modes as grbl: G0, G17, G90, G94, but G20 (inch) and no feed.
+//! The dialect is grbl 1.1's with grblHAL's tool table: G0 G1 G2 G3 G4 G10 (L1, L2, L20) G17 G18
+//! G19 G20 G21 G28 G28.1 G30 G30.1 G40 G43 G43.1 G49 G53 G54-G59 G61 G61.1 G64 G80 G90 G91
+//! G92 G92.1 G92.2 G92.3 G93 G94 G98 G99, M0 M1 M2 M30 M3 M4 M5 M6 M7 M8 M9, `%` lines, words
+//! F S T N X Y Z I J K R P Q L H. Comments `( )` and `;`, any case, whitespace anywhere.
+//! Power-up modes as grbl: G0, G17, G54, G90, G94, G49, G40, but G20 (inch) and no feed.
+//! LinuxCNC's macro language (`#`, `[...]`, O-words) and cutter compensation (G41/G42) are
+//! refused with an error naming the construct ([`error::Construct`]). docs/user/gcode.md lists
+//! every code with its behaviour and its error.
 //!
 //! Files: [`number`] exact decimals, [`words`] the lexer, `exec` the line semantics,
-//! [`arc`] arc planning, [`lookahead`] the deceleration rule, [`error`] the reasons.
+//! [`offsets`] work coordinates, [`tools`] the tool table, [`arc`] arc planning, [`lookahead`]
+//! the deceleration rule, [`error`] the reasons.
 
 pub mod arc;
 pub mod error;
@@ -15,7 +20,9 @@ mod exec;
 pub mod lines;
 pub mod lookahead;
 pub mod number;
+pub mod offsets;
 pub mod tape;
+pub mod tools;
 pub mod words;
 
 #[cfg(test)]
@@ -25,8 +32,11 @@ use crate::nc::{Block, Plane};
 use crate::settings::Settings;
 
 pub use error::ErrorKind;
+pub use exec::motion_code;
 pub use lookahead::Lookahead;
 pub use number::Decimal;
+pub use offsets::Offsets;
+pub use tools::{Tool, ToolKind, ToolTable};
 
 /// What one accepted line produced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -35,8 +45,21 @@ pub enum Parsed {
     Nothing,
     /// One validated block for the queue.
     Block(Block),
+    /// Two blocks, in order (G28/G30 through an intermediate point).
+    Two(Block, Block),
     /// M2 / M30: end of program.
     End,
+    /// M0 or M6: the machine stops once the motion before it has run and waits for cycle start.
+    Stop(Stop),
+}
+
+/// Why a program stops and waits for the operator's cycle start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stop {
+    /// M0: program pause.
+    Pause,
+    /// M6: fit tool `tool` (the last T word; 0 = take the tool out).
+    ToolChange { tool: u8 },
 }
 
 /// A rejected line: its number and the reason. Display: "line N: reason".
@@ -63,6 +86,55 @@ pub enum MotionMode {
     ArcCw,
     /// G3
     ArcCcw,
+    /// G80: no motion mode (axis words alone are an error).
+    None,
+}
+
+/// G93 inverse time / G94 units per minute.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FeedMode {
+    PerMinute,
+    InverseTime,
+}
+
+/// G61 exact path, G61.1 exact stop, G64 blending: accepted; the frame runs every block
+/// exactly (see `exec::modal_words`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathMode {
+    ExactPath,
+    ExactStop,
+    Blend,
+}
+
+/// G98 / G99: the canned cycles' return level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Retract {
+    /// G98: back to the Z where the cycle began.
+    Initial,
+    /// G99: back to the R plane.
+    RPlane,
+}
+
+/// G49 / G43 Hn / G43.1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ToolLength {
+    Off,
+    Table(u8),
+    Dynamic,
+}
+
+/// M7 (mist) and M8 (flood); M9 both off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Coolant {
+    pub mist: bool,
+    pub flood: bool,
+}
+
+impl Coolant {
+    pub const OFF: Coolant = Coolant {
+        mist: false,
+        flood: false,
+    };
 }
 
 /// Units of lengths and feeds in the program (G20 / G21).
@@ -93,6 +165,17 @@ pub struct Modes {
     /// M3 / M4 / M5. The frame does not see it: a board with a spindle output applies it when
     /// the motion queued before the line has finished (see `crate::rt::loader`).
     pub spindle: Spindle,
+    /// G54..G59 as 0..5.
+    pub coord: u8,
+    pub feed_mode: FeedMode,
+    /// The tool length offset in force (Z, picometres) and how it was set.
+    pub tlo_pm: i64,
+    pub tool_length: ToolLength,
+    pub retract: Retract,
+    pub path: PathMode,
+    pub coolant: Coolant,
+    /// The last T word (the tool the next M6 fits).
+    pub tool: u8,
 }
 
 /// The spindle's modal state.
@@ -116,6 +199,14 @@ impl Modes {
         feed: 0,
         spindle_rpm: 0,
         spindle: Spindle::Off,
+        coord: 0,
+        feed_mode: FeedMode::PerMinute,
+        tlo_pm: 0,
+        tool_length: ToolLength::Off,
+        retract: Retract::Initial,
+        path: PathMode::ExactPath,
+        coolant: Coolant::OFF,
+        tool: 0,
     };
 }
 
@@ -155,6 +246,11 @@ pub struct Parser {
     modes: Modes,
     /// The SIGN lines as they stand after the last accepted block (bit k set = axis k positive).
     signs: u8,
+    /// Work coordinate systems, G28/G30 positions and G92.
+    offsets: Offsets,
+    tools: ToolTable,
+    /// The tool in the spindle (the last M6's).
+    loaded: u8,
 }
 
 impl Parser {
@@ -165,6 +261,9 @@ impl Parser {
             programmed: [0; 3],
             modes: Modes::POWER_UP,
             signs: 0,
+            offsets: Offsets::default(),
+            tools: ToolTable::default(),
+            loaded: 0,
         }
     }
 
@@ -174,17 +273,37 @@ impl Parser {
         let mut modes = self.modes;
         let mut position = self.position;
         let mut programmed = self.programmed;
-        let pos = exec::Position {
-            blu: &mut position,
-            fine: &mut programmed,
+        let mut offsets = self.offsets;
+        let mut loaded = self.loaded;
+        let mut tool_set = None;
+        let state = exec::State {
+            modes: &mut modes,
+            pos: exec::Position {
+                blu: &mut position,
+                fine: &mut programmed,
+            },
+            offsets: &mut offsets,
+            loaded: &mut loaded,
+            tools: &self.tools,
+            tool_set: &mut tool_set,
         };
-        match exec::execute(&self.settings, &mut modes, pos, line_no, text) {
+        match exec::execute(&self.settings, state, line_no, text) {
             Ok(mut p) => {
                 self.modes = modes;
                 self.position = position;
                 self.programmed = programmed;
-                if let Parsed::Block(b) = &mut p {
-                    self.signs = carry_signs(&mut b.motion, self.signs);
+                self.offsets = offsets;
+                self.loaded = loaded;
+                if let Some((n, tool)) = tool_set {
+                    self.tools.set(n, tool);
+                }
+                match &mut p {
+                    Parsed::Block(b) => self.signs = carry_signs(&mut b.motion, self.signs),
+                    Parsed::Two(a, b) => {
+                        self.signs = carry_signs(&mut a.motion, self.signs);
+                        self.signs = carry_signs(&mut b.motion, self.signs);
+                    }
+                    _ => {}
                 }
                 Ok(p)
             }
@@ -196,24 +315,30 @@ impl Parser {
     }
 
     /// Program end (M2/M30): the modes the NIST RS274/NGC program-end rules name return to their
-    /// defaults, as grbl 1.1 resets them: motion G1, plane G17, distance G90, spindle M5. The
-    /// units (G20/G21), the feed F and the speed S stay, and so do the position (machine and
-    /// programmed) and the SIGN lines. A sender that shows the units from `$G` keeps showing the
-    /// program's.
+    /// defaults, as grbl 1.1 resets them: motion G1, plane G17, distance G90, feed mode G94,
+    /// coordinate system G54, spindle M5, coolant M9. The units (G20/G21), the feed F, the speed
+    /// S, the tool length offset and G92 stay, and so do the position (machine and programmed)
+    /// and the SIGN lines. A sender that shows the units from `$G` keeps showing the program's.
     pub fn end_program(&mut self) {
         self.modes = Modes {
             motion: MotionMode::Linear,
             plane: Plane::XY,
             distance: Distance::Absolute,
+            feed_mode: FeedMode::PerMinute,
+            coord: 0,
             spindle: Spindle::Off,
+            coolant: Coolant::OFF,
             ..self.modes
         };
     }
 
-    /// Soft reset: every mode returns to power-up (grbl re-initialises its parser state); the
-    /// position and the SIGN lines stay.
+    /// Soft reset: every mode returns to power-up (grbl re-initialises its parser state: G54,
+    /// G49, and the G92 offset cleared); the position, the SIGN lines, the stored offsets, the
+    /// tool table and the tool in the spindle stay.
     pub fn reset_modes(&mut self) {
         self.modes = Modes::POWER_UP;
+        self.offsets.g92 = [0; 3];
+        self.offsets.g92_on = false;
     }
 
     /// A jog (grbl's `$J=`, planned on a copy of this parser) moved the machine to `end` (BLU):
@@ -244,6 +369,37 @@ impl Parser {
     /// Spindle speed of the last S word in rpm (0 before any S).
     pub fn spindle_rpm(&self) -> u32 {
         self.modes.spindle_rpm
+    }
+
+    /// Work coordinate systems, G28/G30 positions and G92.
+    pub fn offsets(&self) -> &Offsets {
+        &self.offsets
+    }
+
+    /// Sets the stored offsets (restored from the settings record at start).
+    pub fn set_offsets(&mut self, offsets: Offsets) {
+        self.offsets = offsets;
+    }
+
+    /// The tool table.
+    pub fn tools(&self) -> &ToolTable {
+        &self.tools
+    }
+
+    /// Sets the tool table (restored from the settings record at start).
+    pub fn set_tools(&mut self, tools: ToolTable) {
+        self.tools = tools;
+    }
+
+    /// The tool in the spindle (the last M6's; 0 = none).
+    pub fn loaded_tool(&self) -> u8 {
+        self.loaded
+    }
+
+    /// The origin of the program coordinates in machine coordinates, picometres (the active
+    /// system, G92 and the tool length offset): the work coordinate offset, `WCO`.
+    pub fn work_origin_pm(&self) -> [i64; 3] {
+        self.offsets.origin(self.modes.coord, self.modes.tlo_pm)
     }
 
     /// The settings the parser validates against.

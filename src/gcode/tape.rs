@@ -150,19 +150,9 @@ impl Tape {
     ) -> Result<(), TapeError> {
         let finish = self.finish;
         let mut emit = |b: Block| emit(finish.block(b));
-        match self.parser.line(n, text).map_err(TapeError::Gcode)? {
-            Parsed::Nothing => {}
-            Parsed::Block(b) => {
-                if let Some(prev) = self.lookahead.push(b) {
-                    emit(prev);
-                }
-            }
-            Parsed::End => {
-                if let Some(b) = self.lookahead.flush() {
-                    emit(b);
-                }
-                self.parser.end_program();
-            }
+        let parsed = self.parser.line(n, text).map_err(TapeError::Gcode)?;
+        if take(parsed, &mut self.lookahead, &mut emit) {
+            self.parser.end_program();
         }
         Ok(())
     }
@@ -231,21 +221,46 @@ fn step(
         Err(error) => Err(TapeError::Line { line: n, error }),
     };
     match parsed {
-        Ok(Parsed::Nothing) => true,
-        Ok(Parsed::Block(b)) => {
-            if let Some(prev) = lookahead.push(b) {
-                emit(prev);
+        Ok(p) => {
+            if take(p, lookahead, emit) {
+                *done = true;
+                return false;
             }
             true
-        }
-        Ok(Parsed::End) => {
-            *done = true;
-            false
         }
         Err(e) => {
             *result = Err(e);
             *done = true;
             false
+        }
+    }
+}
+
+/// Hands an accepted line's blocks to the look-ahead (the block it held is emitted when a new
+/// one comes); a stop (M0, M6) or the end (M2/M30) emits the held block, which decelerates, as
+/// the machine stops there. True at the program's end.
+fn take(parsed: Parsed, lookahead: &mut Lookahead, emit: &mut impl FnMut(Block)) -> bool {
+    let mut push = |b: Block| {
+        if let Some(prev) = lookahead.push(b) {
+            emit(prev);
+        }
+    };
+    match parsed {
+        Parsed::Nothing => false,
+        Parsed::Block(b) => {
+            push(b);
+            false
+        }
+        Parsed::Two(a, b) => {
+            push(a);
+            push(b);
+            false
+        }
+        Parsed::Stop(_) | Parsed::End => {
+            if let Some(b) = lookahead.flush() {
+                emit(b);
+            }
+            matches!(parsed, Parsed::End)
         }
     }
 }

@@ -15,16 +15,23 @@
 //! | line longer than [`super::LINE_MAX`] bytes, or damaged by a receive overflow | 11 | line overflow |
 //! | `SoftLimit` (G-code and jog; the line is refused before anything moves, no alarm) | 15 | travel exceeded |
 //! | `$J=` with a G/M code other than G20/G21/G90/G91, or a word other than X Y Z F N | 16 | invalid jog command |
-//! | `UnclosedComment`, `UnsupportedLetter`, `UnsupportedG`, `UnsupportedM`, `EndWithMotion`, `HelicalArc` | 20 | unsupported command |
+//! | `UnclosedComment`, `UnsupportedLetter`, `UnsupportedG`, `UnsupportedM`, `StopWithMotion`, `NotInDialect`, `HelicalArc` | 20 | unsupported command |
 //! | `ModalConflict` | 21 | modal group violation |
 //! | `NoFeed`, `$J=` without F | 22 | feed rate undefined |
+//! | `NotInteger` | 23 | command value not an integer |
+//! | `AxisCommandConflict` | 24 | axis command conflict |
 //! | `RepeatedWord` | 25 | word repeated |
-//! | `$J=` without an axis word | 26 | no axis words |
-//! | `DwellNeedsP` | 28 | value word missing |
+//! | `NoAxisWords`, `$J=` without an axis word | 26 | no axis words |
+//! | `DwellNeedsP`, `MissingWord`, `InverseTimeNeedsF` | 28 | value word missing |
+//! | `CoordinateSystem` | 29 | unsupported coordinate system |
+//! | `G53Motion` | 30 | G53 invalid motion mode |
+//! | `AxisWordsUnused` | 31 | axis words exist |
 //! | `TargetOverflow`, `MoveTooLong`, `ArcFullCircleRadius`, `ArcZeroRadius`, `ArcEndNotOnCircle`, `ArcEndUnreachable`, `ArcTooLarge` | 33 | invalid target |
 //! | `ArcRadiusTooSmall` | 34 | arc radius error |
 //! | `ArcNeedsCentre` | 35 | no offsets in plane |
 //! | `DwellWithAxes`, `UnusedWord`, `ArcRadiusAndOffsets` | 36 | unused words |
+//! | `ToolLengthAxis` | 37 | G43.1 dynamic axis error |
+//! | `ToolNumber` | 38 | (grblHAL) illegal tool table entry |
 //!
 //! Alarms (`ALARM:N`): [`alarm`].
 
@@ -51,13 +58,21 @@ impl GrblError {
     pub const UNSUPPORTED_COMMAND: GrblError = GrblError(20);
     pub const MODAL_GROUP: GrblError = GrblError(21);
     pub const UNDEFINED_FEED: GrblError = GrblError(22);
+    pub const COMMAND_VALUE_NOT_INTEGER: GrblError = GrblError(23);
+    pub const AXIS_COMMAND_CONFLICT: GrblError = GrblError(24);
     pub const WORD_REPEATED: GrblError = GrblError(25);
     pub const NO_AXIS_WORDS: GrblError = GrblError(26);
     pub const VALUE_WORD_MISSING: GrblError = GrblError(28);
+    pub const UNSUPPORTED_COORD_SYS: GrblError = GrblError(29);
+    pub const G53_INVALID_MOTION_MODE: GrblError = GrblError(30);
+    pub const AXIS_WORDS_EXIST: GrblError = GrblError(31);
     pub const INVALID_TARGET: GrblError = GrblError(33);
     pub const ARC_RADIUS: GrblError = GrblError(34);
     pub const NO_OFFSETS_IN_PLANE: GrblError = GrblError(35);
     pub const UNUSED_WORDS: GrblError = GrblError(36);
+    pub const G43_DYNAMIC_AXIS: GrblError = GrblError(37);
+    /// grblHAL's: a T or H beyond the tool table.
+    pub const ILLEGAL_TOOL: GrblError = GrblError(38);
 }
 
 /// The grbl error number of a parser error (the table above).
@@ -74,9 +89,19 @@ pub const fn gcode_error(kind: &ErrorKind) -> GrblError {
         | K::UnsupportedLetter(_)
         | K::UnsupportedG(_)
         | K::UnsupportedM(_)
-        | K::EndWithMotion
+        | K::StopWithMotion { .. }
+        | K::NotInDialect(_)
         | K::HelicalArc => GrblError::UNSUPPORTED_COMMAND,
         K::ModalConflict { .. } => GrblError::MODAL_GROUP,
+        K::NotInteger(_) => GrblError::COMMAND_VALUE_NOT_INTEGER,
+        K::AxisCommandConflict => GrblError::AXIS_COMMAND_CONFLICT,
+        K::NoAxisWords { .. } => GrblError::NO_AXIS_WORDS,
+        K::MissingWord { .. } | K::InverseTimeNeedsF => GrblError::VALUE_WORD_MISSING,
+        K::CoordinateSystem => GrblError::UNSUPPORTED_COORD_SYS,
+        K::G53Motion => GrblError::G53_INVALID_MOTION_MODE,
+        K::AxisWordsUnused { .. } => GrblError::AXIS_WORDS_EXIST,
+        K::ToolLengthAxis => GrblError::G43_DYNAMIC_AXIS,
+        K::ToolNumber { .. } => GrblError::ILLEGAL_TOOL,
         K::NoFeed { .. } => GrblError::UNDEFINED_FEED,
         K::RepeatedWord(_) => GrblError::WORD_REPEATED,
         K::DwellNeedsP => GrblError::VALUE_WORD_MISSING,

@@ -20,6 +20,9 @@ pub struct JogRequest {
     pub units: Option<Units>,
     /// G90 / G91 on the jog line.
     pub distance: Option<Distance>,
+    /// G53 on the jog line: the targets are machine coordinates (else the work coordinates in
+    /// force, as any program line).
+    pub machine: bool,
 }
 
 /// A validated jog: the block to queue (after `gcode::tape::finish_block`, like every block) and
@@ -35,11 +38,16 @@ impl JogRequest {
     /// Parses the text after `$J=` (any case, spaces and comments allowed).
     pub fn parse(text: &str) -> Result<JogRequest, GrblError> {
         let w: Words = words::lex(text).map_err(|e| GrblError::from(&e))?;
-        let allowed = |group: usize| group == words::G_UNITS || group == words::G_DISTANCE;
+        let machine = w.g[words::G_NON_MODAL] == Some(530);
+        let allowed = |group: usize, g: u16| {
+            group == words::G_UNITS
+                || group == words::G_DISTANCE
+                || (group == words::G_NON_MODAL && g == 530)
+        };
         let other_g =
             w.g.iter()
                 .enumerate()
-                .any(|(group, g)| g.is_some() && !allowed(group));
+                .any(|(group, g)| g.is_some_and(|g| !allowed(group, g)));
         if other_g || w.m.iter().any(Option::is_some) {
             return Err(GrblError::INVALID_JOG);
         }
@@ -62,9 +70,9 @@ impl JogRequest {
         if target.iter().all(Option::is_none) {
             return Err(GrblError::NO_AXIS_WORDS);
         }
-        let units = w.g[words::G_UNITS].map(|g| if g == 20 { Units::Inch } else { Units::Mm });
+        let units = w.g[words::G_UNITS].map(|g| if g == 200 { Units::Inch } else { Units::Mm });
         let distance = w.g[words::G_DISTANCE].map(|g| {
-            if g == 91 {
+            if g == 910 {
                 Distance::Incremental
             } else {
                 Distance::Absolute
@@ -75,12 +83,17 @@ impl JogRequest {
             feed,
             units,
             distance,
+            machine,
         })
     }
 
-    /// The equivalent G-code line, e.g. `G1 G91 G21 X1 F100`.
+    /// The equivalent G-code line, e.g. `G1 G94 G91 G21 X1 F100` (G94: a jog's F is a feed
+    /// per minute whatever the program's feed mode; G53 when the jog has it).
     pub fn write_gcode(&self, out: &mut dyn Write) -> fmt::Result {
-        out.write_str("G1")?;
+        out.write_str("G1 G94")?;
+        if self.machine {
+            out.write_str(" G53")?;
+        }
         match self.distance {
             Some(Distance::Incremental) => out.write_str(" G91")?,
             Some(Distance::Absolute) => out.write_str(" G90")?,

@@ -98,6 +98,8 @@ pub struct Context<'a, T: SettingsTable + ?Sized> {
     pub table: &'a mut T,
     /// The parser's modal state (`$G`).
     pub modes: Modes,
+    /// The parser's offsets (`$#`).
+    pub offsets: report::OffsetsReport,
     /// The machine settings (BLU, feed DDA for rates in `$G`).
     pub machine: &'a Settings,
     /// What the machine is doing (Idle, Run, Hold, Jog; Alarm and Check are the protocol's own).
@@ -161,6 +163,8 @@ pub struct Protocol<'a> {
     settings_refused: Option<table::record::RecordError>,
     /// Status reports until the next `WCO:` field (0: in the next one).
     wco_countdown: u8,
+    /// The work coordinate offset of the last status report (a change is reported at once).
+    last_wco: [i64; 3],
     queue_blocks: u16,
     /// The CPU clock in Hz for the `$I` frame budget (0: not known), [`Protocol::set_core_hz`].
     core_hz: u32,
@@ -182,6 +186,7 @@ impl<'a> Protocol<'a> {
             alarm: None,
             settings_refused: None,
             wco_countdown: 0,
+            last_wco: [0; 3],
             queue_blocks,
             core_hz: 0,
             lost_after_reset: 0,
@@ -283,7 +288,8 @@ impl<'a> Protocol<'a> {
         out: &mut dyn Write,
     ) {
         let state = self.state(data.state);
-        let wco = self.wco_countdown == 0;
+        let wco = self.wco_countdown == 0 || data.wco_pm != self.last_wco;
+        self.last_wco = data.wco_pm;
         self.wco_countdown = match (wco, state) {
             (false, _) => self.wco_countdown.saturating_sub(1),
             (true, State::Run | State::Hold { .. } | State::Jog) => 9,
@@ -530,7 +536,7 @@ impl<'a> Protocol<'a> {
                 }
             }
             _ if !idle_or_alarm => Err(GrblError::IDLE_ERROR),
-            "$#" => sent(report::write_offsets(out, unit, opts.inches)),
+            "$#" => sent(report::write_offsets(out, &cx.offsets, unit, opts.inches)),
             "$I" => {
                 let frame = cx.frame_cycles.map(|(min, max)| FrameCycles {
                     min,

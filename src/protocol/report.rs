@@ -14,7 +14,7 @@
 
 use super::rx::Overrides;
 use crate::gcode::number::div_round;
-use crate::gcode::{Distance, Modes, MotionMode, Spindle, Units};
+use crate::gcode::{Distance, FeedMode, Modes, PathMode, Retract, Spindle, ToolLength, Units};
 use crate::nc::Plane;
 use crate::settings::{Blu, Settings};
 use core::fmt::{self, Write};
@@ -134,6 +134,9 @@ pub struct StatusData {
     /// The frame ISR's (fewest, most) CPU cycles for the `FC:` field, when the board measures
     /// them ([`crate::rt::Status::frame_cycles`]).
     pub frame_cycles: Option<(u32, u32)>,
+    /// The work coordinate offset (the parser's program origin in machine coordinates,
+    /// picometres): `WCO:`, and WPos = MPos - WCO.
+    pub wco_pm: [i64; 3],
 }
 
 /// The feed of feed number `f` in BLU per minute: f * W0 * 60 / q0, rounded.
@@ -208,7 +211,8 @@ pub struct StatusContext {
     pub overrides: Overrides,
     /// Free bytes in the receive ring.
     pub rx_free: usize,
-    /// Include `WCO:` (first report after a reset, then every 10th while busy / 30th idle).
+    /// Include `WCO:` (first report after a reset or a change of the offset, then every 10th
+    /// while busy / 30th idle).
     pub wco: bool,
 }
 
@@ -217,14 +221,19 @@ pub struct StatusContext {
 pub fn write_status(out: &mut dyn Write, d: &StatusData, cx: &StatusContext) -> fmt::Result {
     let inches = cx.options.inches;
     write!(out, "<{}", d.state.name())?;
-    // millac has no work offsets: WPos = MPos, so only the label follows $10.
-    let label = if cx.options.status_mask & 1 != 0 {
-        "MPos"
+    if cx.options.status_mask & 1 != 0 {
+        out.write_str("|MPos:")?;
+        write_axes(out, d.position, cx.unit, inches)?;
     } else {
-        "WPos"
-    };
-    write!(out, "|{label}:")?;
-    write_axes(out, d.position, cx.unit, inches)?;
+        // WPos = MPos - WCO, exact in picometres, rounded once for the report.
+        let pm = pm_per_blu(cx.unit);
+        out.write_str("|WPos:")?;
+        write_pm_axes(
+            out,
+            [0, 1, 2].map(|k| d.position[k] as i64 * pm - d.wco_pm[k]),
+            inches,
+        )?;
+    }
     if cx.options.status_mask & 2 != 0 {
         write!(out, "|Bf:{},{}", d.blocks_free, cx.rx_free)?;
     }
@@ -233,7 +242,7 @@ pub fn write_status(out: &mut dyn Write, d: &StatusData, cx: &StatusContext) -> 
     write!(out, ",{}", d.spindle_rpm)?;
     if cx.wco {
         out.write_str("|WCO:")?;
-        write_axes(out, [0; 3], cx.unit, inches)?;
+        write_pm_axes(out, d.wco_pm, inches)?;
     }
     let o = cx.overrides;
     write!(out, "|Ov:{},{},{}", o.feed, o.rapid, o.spindle)?;
@@ -253,22 +262,17 @@ pub fn write_status(out: &mut dyn Write, d: &StatusData, cx: &StatusContext) -> 
     out.write_str(">\r\n")
 }
 
-/// `$G`: `[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]`. M3/M4/M5 as the parser stands; the
-/// parser does not keep the coolant words (accepted, no effect), so M9 always; T0 (no tool
-/// changer); F is the
-/// modal feed as the machine runs it (the feed number, so clamped to FRM) in `$13` units.
+/// `$G`: every modal group as the parser stands, in grbl's order with grblHAL's additions:
+/// `[GC:G0 G54 G17 G21 G90 G94 G40 G49 G98 G61 M5 M9 T0 F0 S0]` (motion, coordinate system,
+/// plane, units, distance, feed mode, cutter compensation, tool length offset (G43 with H, G43.1
+/// or G49), return level, path control, spindle, coolant (M7, M8, both, or M9), the last T, the
+/// modal feed as the machine runs it (the feed number, so clamped to FRM) in `$13` units, S).
 pub fn write_modes(
     out: &mut dyn Write,
     m: &Modes,
     machine: &Settings,
     inches: bool,
 ) -> fmt::Result {
-    let motion = match m.motion {
-        MotionMode::Rapid => 0,
-        MotionMode::Linear => 1,
-        MotionMode::ArcCw => 2,
-        MotionMode::ArcCcw => 3,
-    };
     let plane = match m.plane {
         Plane::XY => 17,
         Plane::ZX => 18,
@@ -282,34 +286,111 @@ pub fn write_modes(
         Distance::Absolute => 90,
         Distance::Incremental => 91,
     };
+    let feed_mode = match m.feed_mode {
+        FeedMode::PerMinute => 94,
+        FeedMode::InverseTime => 93,
+    };
     let spindle = match m.spindle {
         Spindle::Off => 5,
         Spindle::Cw => 3,
         Spindle::Ccw => 4,
     };
+    let tool_length = match m.tool_length {
+        ToolLength::Off => "G49",
+        ToolLength::Table(_) => "G43",
+        ToolLength::Dynamic => "G43.1",
+    };
+    let retract = match m.retract {
+        Retract::Initial => 98,
+        Retract::RPlane => 99,
+    };
+    let path = match m.path {
+        PathMode::ExactPath => "G61",
+        PathMode::ExactStop => "G61.1",
+        PathMode::Blend => "G64",
+    };
+    let coolant = match (m.coolant.mist, m.coolant.flood) {
+        (true, true) => "M7 M8",
+        (true, false) => "M7",
+        (false, true) => "M8",
+        (false, false) => "M9",
+    };
     write!(
         out,
-        "[GC:G{motion} G54 G{plane} G{units} G{distance} G94 M{spindle} M9 T0 F"
+        "[GC:G{} G{} G{plane} G{units} G{distance} G{feed_mode} G40 {tool_length} G{retract} \
+         {path} M{spindle} {coolant} T{} F",
+        crate::gcode::motion_code(m.motion),
+        54 + m.coord as u32,
+        m.tool
     )?;
     write_rate(out, feed_blu_per_min(machine, m.feed), machine.blu, inches)?;
     write!(out, " S{}]\r\n", m.spindle_rpm)
 }
 
-/// `$#`: every offset is zero, because millac has no work offsets, G28/G30 positions, G92 or tool
-/// length offsets yet (and no probe).
-pub fn write_offsets(out: &mut dyn Write, unit: Blu, inches: bool) -> fmt::Result {
-    for name in [
-        "G54", "G55", "G56", "G57", "G58", "G59", "G28", "G30", "G92",
-    ] {
+/// What `$#` reports: the offsets in picometres of machine coordinates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct OffsetsReport {
+    pub offsets: crate::gcode::Offsets,
+    /// The tool length offset in force (Z).
+    pub tlo_pm: i64,
+}
+
+/// `$#`: the six coordinate systems, G28, G30, G92 (as applied), the tool length offset, and the
+/// probe (none yet: zero, not successful), in `$13` units like every position.
+pub fn write_offsets(
+    out: &mut dyn Write,
+    r: &OffsetsReport,
+    unit: Blu,
+    inches: bool,
+) -> fmt::Result {
+    let o = &r.offsets;
+    let mut row = |name: &str, p: [i64; 3]| -> fmt::Result {
         write!(out, "[{name}:")?;
-        write_axes(out, [0; 3], unit, inches)?;
-        out.write_str("]\r\n")?;
+        write_pm_axes(out, p, inches)?;
+        out.write_str("]\r\n")
+    };
+    for (name, p) in ["G54", "G55", "G56", "G57", "G58", "G59"]
+        .iter()
+        .zip(o.systems.iter())
+    {
+        row(name, *p)?;
     }
+    row("G28", o.g28)?;
+    row("G30", o.g30)?;
+    row("G92", o.g92_applied())?;
     out.write_str("[TLO:")?;
-    write_length(out, 0, unit, inches)?;
+    write_pm(out, r.tlo_pm, inches)?;
     out.write_str("]\r\n[PRB:")?;
     write_axes(out, [0; 3], unit, inches)?;
     out.write_str(":0]\r\n")
+}
+
+/// Picometres per BLU (exact: 2 540 000 or 1 000 000).
+pub const fn pm_per_blu(unit: Blu) -> i64 {
+    let (num, den) = unit.per_mm();
+    1_000_000_000 * den / num
+}
+
+/// A length in picometres in mm (3 decimals) or inches (4), rounded half away from zero.
+fn write_pm(out: &mut dyn Write, pm: i64, inches: bool) -> fmt::Result {
+    let (den, decimals) = if inches {
+        (2_540_000u64, 4)
+    } else {
+        (1_000_000u64, 3)
+    };
+    let q = (pm.unsigned_abs() + den / 2) / den;
+    let v = if pm < 0 { -(q as i64) } else { q as i64 };
+    write_fixed(out, v, decimals)
+}
+
+fn write_pm_axes(out: &mut dyn Write, p: [i64; 3], inches: bool) -> fmt::Result {
+    for (k, v) in p.iter().enumerate() {
+        if k > 0 {
+            out.write_char(',')?;
+        }
+        write_pm(out, *v, inches)?;
+    }
+    Ok(())
 }
 
 /// The frame ISR's measured cost for `$I`, in CPU cycles.

@@ -10,6 +10,7 @@ use heapless::spsc::Producer;
 
 use crate::ac::Alarm;
 use crate::gcode::tape::TapeError;
+use crate::gcode::Stop;
 use crate::inputs::Trip;
 use crate::protocol::codes::{alarm, GrblError};
 use crate::protocol::report::{ReportOptions, StatusData};
@@ -70,6 +71,8 @@ pub enum News<'a> {
     RxOverflow { lost: u32 },
     /// The program's end (M2/M30) has run.
     ProgramEnd,
+    /// M0 or M6 on line `line`: the machine stands (and, attended, holds until cycle start).
+    Stop { stop: Stop, line: u32 },
 }
 
 /// What the loader needs of its line source and its voice. Loader task.
@@ -255,6 +258,16 @@ impl<const T: usize> Console for Serial<'_, T> {
             News::RxOverflow { lost } => self.proto.rx_overflow(lost, &mut self.out),
             // A sender's next program starts on the same line.
             News::ProgramEnd => {}
+            News::Stop {
+                stop: Stop::Pause,
+                line,
+            } => self.message(format_args!("Pause (M0, line {line}): cycle start resumes")),
+            News::Stop {
+                stop: Stop::ToolChange { tool },
+                line,
+            } => self.message(format_args!(
+                "Tool change (M6, line {line}): fit T{tool}, then cycle start"
+            )),
         }
     }
 

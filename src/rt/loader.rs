@@ -55,14 +55,14 @@ use crate::rt::status::LoaderWriter;
 use crate::settings::Settings;
 use heapless::spsc::{Consumer, Producer};
 
-use crate::gcode::{Parsed, Spindle};
+use crate::gcode::{Parsed, Spindle, Stop};
 use crate::inputs::{Events, Trip};
 use crate::protocol::jog::JogRequest;
 use crate::protocol::LINE_MAX;
 
 /// Free queue slots a line needs before the loader takes it: the look-ahead's held block and the
-/// line's own (a line emits at most two blocks).
-const ROOM_PER_LINE: usize = 2;
+/// line's own (at most two: G28/G30 through an intermediate point).
+const ROOM_PER_LINE: usize = 3;
 
 /// What the loader needs of a board: its serial line (in serial mode), and optionally a session
 /// log, a spindle output and operator inputs (the defaults: none). Loader task.
@@ -129,15 +129,25 @@ pub trait LoaderBoard {
 }
 
 /// A line that waits for the machine to stop: one that changes the spindle (see
-/// [`LoaderBoard::SPINDLE`]) or ends the program (M2/M30, as grbl syncs its buffer there).
+/// [`LoaderBoard::SPINDLE`]), ends the program (M2/M30, as grbl syncs its buffer there) or stops
+/// it (M0, M6).
 struct Deferred {
     line: heapless::String<LINE_MAX>,
     no: u32,
+    sync: Sync,
+}
+
+/// Why a line waits for the machine (see [`sync_line`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Sync {
+    /// The spindle output the line asks for.
     spindle: Spindle,
     rpm: u32,
     /// The program's end: once it has run, the AC starts the next job afresh
     /// (`Status::ac_new_job`).
     end: bool,
+    /// M0 or M6: once the machine stands, it holds (a serial line: `~` resumes) and says why.
+    stop: Option<Stop>,
 }
 
 /// What the loader works with, from the board's init: the block queue's producer, the re-plan's
@@ -484,6 +494,10 @@ where
             let mut cx: Context<'_, dyn SettingsTable + '_> = Context {
                 table: &mut *self.table,
                 modes: self.tape.parser().modes(),
+                offsets: crate::protocol::report::OffsetsReport {
+                    offsets: *self.tape.parser().offsets(),
+                    tlo_pm: self.tape.parser().modes().tlo_pm,
+                },
                 machine: &self.settings,
                 state,
                 frame_cycles: status.frame_cycles(),
@@ -655,22 +669,33 @@ where
         let Some(d) = self.deferred.take() else {
             return;
         };
-        if B::Board::SPINDLE && (d.spindle, d.rpm) != self.spindle {
+        let sync = d.sync;
+        if B::Board::SPINDLE && (sync.spindle, sync.rpm) != self.spindle {
             self.board
-                .spindle(d.spindle, d.rpm, self.table.settings.spindle_max_rpm);
-            self.spindle = (d.spindle, d.rpm);
-            if d.rpm != 0 {
-                self.status.set_spindle_rpm(d.rpm);
+                .spindle(sync.spindle, sync.rpm, self.table.settings.spindle_max_rpm);
+            self.spindle = (sync.spindle, sync.rpm);
+            if sync.rpm != 0 {
+                self.status.set_spindle_rpm(sync.rpm);
             }
         }
         let result = self.queue_line(d.no, &d.line);
-        let end = d.end && result.is_ok();
+        let ok = result.is_ok();
+        let end = sync.end && ok;
         if end {
             self.status.ask_new_job();
         }
         self.console.reply(result);
         if end {
             self.console.say(News::ProgramEnd);
+        }
+        if let Some(stop) = sync.stop.filter(|_| ok) {
+            // An operator presses cycle start (the hold is grbl's M0 feed hold); a program run
+            // unattended has nobody to: the stop is told and the run goes on.
+            if self.console.attended() {
+                self.hold = true;
+                self.publish();
+            }
+            self.console.say(News::Stop { stop, line: d.no });
         }
     }
 
@@ -705,9 +730,7 @@ where
                 .map(|_| ())
                 .map_err(|e| Refused::Tape(TapeError::Gcode(e)));
             self.console.reply(result);
-        } else if let Some((state, rpm, end)) =
-            sync_line::<B>(&self.tape, line_no, line, self.spindle)
-        {
+        } else if let Some(sync) = sync_line::<B>(&self.tape, line_no, line, self.spindle) {
             // Wait for the machine (the `ok` comes when the line has run).
             let mut text = heapless::String::new();
             if text.push_str(line).is_ok() {
@@ -715,9 +738,7 @@ where
                 self.deferred = Some(Deferred {
                     line: text,
                     no: line_no,
-                    spindle: state,
-                    rpm,
-                    end,
+                    sync,
                 });
             } else {
                 self.console.reply(Err(Refused::Grbl(GrblError::OVERFLOW)));
@@ -822,6 +843,7 @@ where
             spindle_rpm: self.tape.parser().spindle_rpm(),
             blocks_free: (Q - 1 - self.blocks.len()) as u16,
             ac,
+            wco_pm: self.tape.parser().work_origin_pm(),
             frame_cycles: status.frame_cycles(),
         };
         self.console
@@ -900,29 +922,36 @@ where
 }
 
 /// Whether a G-code line waits for the machine to stop before it runs: it ends the program
-/// (M2/M30, on every board) or, on a board with a spindle, changes the spindle output. Returns the
-/// spindle output it asks for and whether it is the program's end (parsed on a copy of the
-/// parser; a line the parser refuses waits for nothing and gets its error from the tape as
-/// usual). M2/M30 stops the spindle. Loader task.
+/// (M2/M30, on every board), stops it (M0, M6) or, on a board with a spindle, changes the spindle
+/// output. Returns the spindle output it asks for, whether it is the program's end and its stop
+/// (parsed on a copy of the parser; a line the parser refuses waits for nothing and gets its
+/// error from the tape as usual). M2/M30 stops the spindle. Loader task.
 fn sync_line<B: LoaderBoard>(
     tape: &Tape,
     line_no: u32,
     line: &str,
     applied: (Spindle, u32),
-) -> Option<(Spindle, u32, bool)> {
+) -> Option<Sync> {
     if !line.bytes().any(|b| matches!(b, b'M' | b'm' | b'S' | b's')) {
         return None;
     }
     let mut probe = tape.parser().clone();
-    let (out, end) = match probe.line(line_no, line) {
-        Ok(Parsed::End) => ((Spindle::Off, 0), true),
-        Ok(_) => match probe.modes().spindle {
-            Spindle::Off => ((Spindle::Off, 0), false),
-            s => ((s, probe.spindle_rpm()), false),
-        },
-        Err(_) => return None,
+    let parsed = probe.line(line_no, line).ok()?;
+    let (spindle, rpm) = match (parsed, probe.modes().spindle) {
+        (Parsed::End, _) | (_, Spindle::Off) => (Spindle::Off, 0),
+        (_, s) => (s, probe.spindle_rpm()),
     };
-    (end || (B::Board::SPINDLE && out != applied)).then_some((out.0, out.1, end))
+    let sync = Sync {
+        spindle,
+        rpm,
+        end: parsed == Parsed::End,
+        stop: match parsed {
+            Parsed::Stop(s) => Some(s),
+            _ => None,
+        },
+    };
+    (sync.end || sync.stop.is_some() || (B::Board::SPINDLE && (spindle, rpm) != applied))
+        .then_some(sync)
 }
 
 /// Soft reset or jog cancel: the frame stops at once and drops every queued block (the abort

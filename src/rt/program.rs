@@ -9,6 +9,7 @@ use core::fmt;
 
 use crate::gcode::lines::{Ended, Lines};
 use crate::gcode::tape::TapeError;
+use crate::gcode::Stop;
 use crate::protocol::report::{ReportOptions, StatusData};
 use crate::protocol::rx::Overrides;
 use crate::protocol::{Context, Event, SettingsTable};
@@ -27,6 +28,8 @@ pub enum Said {
     Alarm,
     /// `chatter: <reaction>`: a re-plan, a spindle speed, or why there was none.
     Chatter,
+    /// `stop: <what>`: M0 or M6 (unattended, the run goes on).
+    Stop,
 }
 
 impl Said {
@@ -36,6 +39,7 @@ impl Said {
             Said::Error => "error",
             Said::Alarm => "alarm",
             Said::Chatter => "chatter",
+            Said::Stop => "stop",
         }
     }
 }
@@ -186,6 +190,17 @@ impl<F: ProgramFile> Console for Program<F> {
                 ),
             ),
             News::ProgramEnd => self.ended = true,
+            News::Stop {
+                stop: Stop::Pause,
+                line,
+            } => f.result(Said::Stop, format_args!("pause (M0) at line {line}")),
+            News::Stop {
+                stop: Stop::ToolChange { tool },
+                line,
+            } => f.result(
+                Said::Stop,
+                format_args!("tool change (M6) at line {line}: T{tool}"),
+            ),
             // The AC task writes its own holds (`alarm: ...`) as they come; no operator, no
             // trips, no serial line.
             News::AcHold { .. }

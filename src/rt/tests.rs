@@ -764,6 +764,92 @@ fn an_estop_stops_at_once_latches_alarm_10_and_needs_release_and_unlock() {
     assert_eq!(b.status.position(), b.status.encoder());
 }
 
+/// M0 and M6 wait for the motion before them, then the machine holds (`Hold:0`) with a message
+/// naming the stop (the tool to fit) until cycle start; the lines sent meanwhile queue and run
+/// after `~`. Unattended (a program file) the stop is told and the run goes on.
+#[test]
+fn m0_and_m6_stop_after_the_motion_before_them_and_wait_for_cycle_start() {
+    let b = session(
+        &[
+            (
+                1,
+                "G91 G1 F30 X0.01
+T2 M6
+G1 X0.01
+",
+            ),
+            (600, "?"),
+            (700, "~"),
+            (
+                1000,
+                "M0
+G1 X0.01
+",
+            ),
+            (1600, "?"),
+            (1700, "~"),
+        ],
+        &[],
+        None,
+        4000,
+    );
+    assert!(
+        b.out
+            .contains("[MSG:Tool change (M6, line 2): fit T2, then cycle start]"),
+        "{}",
+        b.out
+    );
+    assert!(
+        b.out
+            .contains("[MSG:Pause (M0, line 4): cycle start resumes]"),
+        "{}",
+        b.out
+    );
+    // Held at frames 600 and 1600: stopped after the first and the second move.
+    assert_eq!(b.out.matches("<Hold:0|").count(), 2, "{}", b.out);
+    assert_eq!(oks(&b.out), 5, "{}", b.out);
+    assert_eq!(
+        b.status.encoder(),
+        [300, 0, 0],
+        "every move ran after cycle start"
+    );
+    // Without cycle start the machine stays after the first move.
+    let b = session(
+        &[(
+            1,
+            "G91 G1 F30 X0.01
+T2 M6
+G1 X0.01
+",
+        )],
+        &[],
+        None,
+        3000,
+    );
+    assert_eq!(b.status.encoder(), [100, 0, 0]);
+    // Unattended: told, and the run goes on to its end.
+    let (finished, ok, results, b) = program_run(
+        "G91 G1 F30 X0.01
+T3 M6
+G1 X0.01
+M0
+G1 X0.01
+",
+        256,
+        40_000,
+        None,
+    );
+    assert_eq!((finished, ok), (Some(Finished::Done), true), "{results:?}");
+    assert_eq!(
+        results,
+        [
+            "stop: tool change (M6) at line 2: T3",
+            "stop: pause (M0) at line 4"
+        ]
+    );
+    assert_eq!(b.status.encoder(), [300, 0, 0]);
+}
+
 #[test]
 fn feed_hold_and_cycle_start_buttons_hold_and_resume() {
     let hold = Events {

@@ -45,6 +45,7 @@ impl ProgramFile for SemihostProgram {
             Said::Error => {
                 let _ = self.errors.push(t);
             }
+            Said::Stop => defmt::info!("{=str}: {=str}", kind.word(), t.as_str()),
             Said::Alarm | Said::Chatter => defmt::warn!("{=str}: {=str}", kind.word(), t.as_str()),
         }
     }

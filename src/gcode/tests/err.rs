@@ -23,9 +23,9 @@ fn wide() -> Settings {
 
 #[test]
 fn err_unexpected_character() {
-    assert_rejected(&mut busy(), "G1 X1 #", ErrorKind::UnexpectedCharacter('#'));
+    assert_rejected(&mut busy(), "G1 X1 $", ErrorKind::UnexpectedCharacter('$'));
     assert_rejected(&mut busy(), "X1 )", ErrorKind::UnexpectedCharacter(')'));
-    assert_rejected(&mut busy(), "X#1", ErrorKind::UnexpectedCharacter('#'));
+    assert_rejected(&mut busy(), "X1 % 2", ErrorKind::UnexpectedCharacter('%'));
     assert_rejected(&mut busy(), "X1 é", ErrorKind::UnexpectedCharacter('é'));
 }
 
@@ -37,7 +37,7 @@ fn err_unclosed_comment() {
 #[test]
 fn err_unsupported_letter() {
     assert_rejected(&mut busy(), "X1 A5", ErrorKind::UnsupportedLetter('A'));
-    assert_rejected(&mut busy(), "t1", ErrorKind::UnsupportedLetter('T'));
+    assert_rejected(&mut busy(), "e1", ErrorKind::UnsupportedLetter('E'));
 }
 
 #[test]
@@ -95,12 +95,25 @@ fn err_unsupported_g() {
     assert_rejected(&mut busy(), "G1.5", g("1.5"));
     assert_rejected(&mut busy(), "G-1", g("-1"));
     assert_rejected(&mut busy(), "G300", g("300"));
-    assert_rejected(&mut busy(), "G28", g("28"));
+    assert_rejected(&mut busy(), "G33 Z-1 K1", g("33"));
+    assert_rejected(&mut busy(), "G95", g("95"));
+    assert_rejected(&mut busy(), "G43.2", g("43.2"));
+    // Canned cycles are not in the dialect yet.
+    assert_rejected(&mut busy(), "G81 X1 Z-1 R1", g("81"));
 }
 
 #[test]
 fn err_unsupported_m() {
-    assert_rejected(&mut busy(), "M6", ErrorKind::UnsupportedM(Decimal::int(6)));
+    assert_rejected(
+        &mut busy(),
+        "M60",
+        ErrorKind::UnsupportedM(Decimal::int(60)),
+    );
+    assert_rejected(
+        &mut busy(),
+        "M62 P1",
+        ErrorKind::UnsupportedM(Decimal::int(62)),
+    );
 }
 
 #[test]
@@ -118,7 +131,7 @@ fn err_modal_conflict() {
         ErrorKind::ModalConflict {
             letter: 'G',
             first: 0,
-            second: 1,
+            second: 10,
         },
     );
     assert_rejected(
@@ -126,8 +139,8 @@ fn err_modal_conflict() {
         "G2 G3 X1 I1",
         ErrorKind::ModalConflict {
             letter: 'G',
-            first: 2,
-            second: 3,
+            first: 20,
+            second: 30,
         },
     );
     assert_rejected(
@@ -135,8 +148,8 @@ fn err_modal_conflict() {
         "G1 G01 X1",
         ErrorKind::ModalConflict {
             letter: 'G',
-            first: 1,
-            second: 1,
+            first: 10,
+            second: 10,
         },
     );
     assert_rejected(
@@ -144,8 +157,8 @@ fn err_modal_conflict() {
         "G20 G21",
         ErrorKind::ModalConflict {
             letter: 'G',
-            first: 20,
-            second: 21,
+            first: 200,
+            second: 210,
         },
     );
     assert_rejected(
@@ -153,8 +166,8 @@ fn err_modal_conflict() {
         "M3 M5",
         ErrorKind::ModalConflict {
             letter: 'M',
-            first: 3,
-            second: 5,
+            first: 30,
+            second: 50,
         },
     );
 }
@@ -202,8 +215,16 @@ fn err_unused_word() {
 
 #[test]
 fn err_end_with_motion() {
-    assert_rejected(&mut busy(), "G0 X1 M2", ErrorKind::EndWithMotion);
-    assert_rejected(&mut busy(), "G4 P1 M30", ErrorKind::EndWithMotion);
+    assert_rejected(
+        &mut busy(),
+        "G0 X1 M2",
+        ErrorKind::StopWithMotion { code: 20 },
+    );
+    assert_rejected(
+        &mut busy(),
+        "G4 P1 M30",
+        ErrorKind::StopWithMotion { code: 300 },
+    );
 }
 
 #[test]

@@ -2,6 +2,7 @@
 //! look-ahead rule.
 
 mod arc;
+mod dialect;
 mod err;
 mod incr;
 mod prop;
@@ -51,6 +52,13 @@ pub(super) fn assert_rejected(p: &mut Parser, bad: &str, kind: ErrorKind) {
     assert!(e.to_string().starts_with("line 42: "));
     assert_eq!(p.position(), before.position(), "{bad:?} moved");
     assert_eq!(p.modes(), before.modes(), "{bad:?} changed modes");
+    assert_eq!(p.offsets(), before.offsets(), "{bad:?} changed offsets");
+    assert_eq!(p.tools(), before.tools(), "{bad:?} changed the tool table");
+    assert_eq!(
+        p.loaded_tool(),
+        before.loaded_tool(),
+        "{bad:?} changed the tool"
+    );
     let mut reference = before;
     for follow in ["X0.05 Y0.025", "G91 G1 X0.01 F1", "Y-0.02"] {
         assert_eq!(

@@ -149,6 +149,7 @@ proptest! {
                 | (before_signs & !moving);
             match got {
                 Parsed::Nothing => prop_assert_eq!(d, [0, 0, 0]),
+                Parsed::Two(..) | Parsed::Stop(_) | Parsed::End => prop_assert!(false, "{got:?}"),
                 Parsed::Block(b) => {
                     prop_assert_eq!(b.line, 5);
                     match b.motion {
@@ -166,7 +167,6 @@ proptest! {
                         m => prop_assert!(false, "{:?}", m),
                     }
                 }
-                Parsed::End => prop_assert!(false),
             }
             prop_assert_eq!(p.position(), [t[0] as i32, t[1] as i32, t[2] as i32]);
             signs_before = p.signs();

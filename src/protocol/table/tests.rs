@@ -706,6 +706,7 @@ fn over_the_protocol(table: &mut Persistent<MemStorage>, line: &str) -> String {
     let mut cx = Context {
         table,
         modes: crate::gcode::Parser::new(machine).modes(),
+        offsets: Default::default(),
         machine: &machine,
         state: State::Idle,
         frame_cycles: None,

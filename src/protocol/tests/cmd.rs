@@ -74,7 +74,7 @@ fn parser_state_offsets_and_build_info() {
     let mut r = Rig::new();
     assert_eq!(
         answer(&mut r, "$G"),
-        "[GC:G0 G54 G17 G20 G90 G94 M5 M9 T0 F0 S0]\r\nok\r\n"
+        "[GC:G0 G54 G17 G20 G90 G94 G40 G49 G98 G61 M5 M9 T0 F0 S0]\r\nok\r\n"
     );
     // F100 mm/min is feed number 394 (3.94 ipm at 0.01 ipm), which runs at 39400 BLU/min:
     // 100.076 mm/min -> 100; in inches 3.94 -> 3.9.
@@ -82,7 +82,7 @@ fn parser_state_offsets_and_build_info() {
     assert_eq!(r.responses(), ["ok", "ok"]);
     assert_eq!(
         answer(&mut r, "$G"),
-        "[GC:G1 G54 G18 G21 G91 G94 M5 M9 T0 F100 S600]\r\nok\r\n"
+        "[GC:G1 G54 G18 G21 G91 G94 G40 G49 G98 G61 M5 M9 T0 F100 S600]\r\nok\r\n"
     );
     // The spindle word as the parser stands.
     r.feed(b"M4\n");
@@ -96,7 +96,7 @@ fn parser_state_offsets_and_build_info() {
     r.table.inches = true;
     assert_eq!(
         answer(&mut r, "$g"),
-        "[GC:G1 G54 G18 G21 G91 G94 M5 M9 T0 F3.9 S600]\r\nok\r\n"
+        "[GC:G1 G54 G18 G21 G91 G94 G40 G49 G98 G61 M5 M9 T0 F3.9 S600]\r\nok\r\n"
     );
     assert_eq!(
         answer(&mut r, "$#"),
@@ -108,6 +108,20 @@ fn parser_state_offsets_and_build_info() {
     );
     r.table.inches = false;
     assert!(answer(&mut r, "$#").starts_with("[G54:0.000,0.000,0.000]\r\n"));
+    // The offsets as the parser holds them: G55 at (1 in, 2 mm, -3 mm), G28 where the machine
+    // stood (0.5 in, in X), G92 X0 there (G54 in force), a tool 12.5 mm long by G43.1.
+    r.feed(
+        b"G20 G10 L2 P2 X1\nG21 G10 L2 P2 Y2 Z-3\nG20 G90 G0 X0.5\nG28.1\nG92 X0\nG21 G43.1 Z12.5\n",
+    );
+    assert_eq!(r.responses(), ["ok"; 6]);
+    assert_eq!(
+        answer(&mut r, "$#"),
+        "[G54:0.000,0.000,0.000]\r\n[G55:25.400,2.000,-3.000]\r\n\
+         [G56:0.000,0.000,0.000]\r\n[G57:0.000,0.000,0.000]\r\n\
+         [G58:0.000,0.000,0.000]\r\n[G59:0.000,0.000,0.000]\r\n\
+         [G28:12.700,0.000,0.000]\r\n[G30:0.000,0.000,0.000]\r\n\
+         [G92:12.700,0.000,0.000]\r\n[TLO:12.500]\r\n[PRB:0.000,0.000,0.000:0]\r\nok\r\n"
+    );
     assert_eq!(
         answer(&mut r, "$I"),
         "[VER:1.1h.millac:]\r\n[OPT:V,15,128]\r\nok\r\n"
@@ -148,6 +162,24 @@ fn banner_names_millac_and_its_version() {
     );
 }
 
+/// A jog's absolute targets are work coordinates, as any line's (grbl); with G53 machine
+/// coordinates; its F is per minute even when the program runs in inverse time (G93).
+#[test]
+fn jogs_go_to_work_or_machine_coordinates() {
+    let mut r = Rig::new();
+    for l in ["G20 G10 L2 P2 X1", "G55 G93"] {
+        r.parser.line(1, l).unwrap();
+    }
+    let jog = |text: &str| JogRequest::parse(text).unwrap();
+    assert_eq!(jog("X0 F10").plan(&r.parser).unwrap().end, [10_000, 0, 0]);
+    assert_eq!(
+        jog("G53 X0.5 F10").plan(&r.parser).unwrap().end,
+        [5_000, 0, 0]
+    );
+    assert!(jog("G53 X0.5 F10").machine);
+    assert_eq!(JogRequest::parse("G54 X0 F10"), Err(GrblError::INVALID_JOG));
+}
+
 #[test]
 fn jog_is_parsed_planned_and_leaves_the_parser_alone() {
     let mut r = Rig::new();
@@ -157,12 +189,13 @@ fn jog_is_parsed_planned_and_leaves_the_parser_alone() {
         feed: dec("100"),
         units: None,
         distance: Some(Distance::Incremental),
+        machine: false,
     };
     assert_eq!(ev, [Ev::Jog(want)]);
     assert_eq!(r.responses(), ["ok"]);
     let mut g = String::new();
     want.write_gcode(&mut g).unwrap();
-    assert_eq!(g, "G1 G91 X1 F100");
+    assert_eq!(g, "G1 G94 G91 X1 F100");
     let plan = want.plan(&r.parser).unwrap();
     assert_eq!(plan.end, [10_000, 0, 0]);
     assert!(plan.block.is_some());
@@ -200,7 +233,8 @@ fn bad_jogs_get_grbl_errors() {
         ("$J=G91 F10", "error:26"),
         ("$J=X1 X2 F10", "error:25"),
         ("$J=X1 F1..0", "error:2"),
-        ("$J=X1 F10 Q", "error:20"),
+        ("$J=X1 F10 Q", "error:2"),
+        ("$J=X1 F10 A1", "error:20"),
         ("$J X1 F10", "error:3"),
         ("$J=G20 G21 X1 F10", "error:21"),
         ("$J=N5 G91 X0.1 F10", "ok"),

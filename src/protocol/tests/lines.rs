@@ -79,8 +79,25 @@ fn non_utf8_lines() {
 /// Refused words answer grbl's error numbers (the table in `codes`), through the real parser.
 #[test]
 fn bad_words_give_grbl_numbers() {
-    let cases: [(&str, &str); 16] = [
-        ("G0 X1 Q1", "error:20"),
+    let cases: &[(&str, &str)] = &[
+        ("G0 X1 Q1", "error:36"),
+        ("G0 X1 A1", "error:20"),
+        ("#1=2", "error:20"),
+        ("O100 sub", "error:20"),
+        ("G41 D1", "error:20"),
+        ("G1 X1 M0 F10", "error:20"),
+        ("G10 L2.5 P1 X1", "error:23"),
+        ("G92 G0 X1", "error:24"),
+        ("G92", "error:26"),
+        ("G10 L2 X1", "error:28"),
+        ("G93 G1 X1", "error:28"),
+        ("G10 L2 P7 X1", "error:29"),
+        ("G53 G2 X1 I1", "error:30"),
+        ("G80 X1", "error:31"),
+        ("G28.1 X1", "error:31"),
+        ("G43.1 X1", "error:37"),
+        ("T17", "error:38"),
+        ("G43 H99", "error:38"),
         ("G1 X1", "error:22"),
         ("G0 G1 X1", "error:21"),
         ("G0 X1 X2", "error:25"),
@@ -97,7 +114,7 @@ fn bad_words_give_grbl_numbers() {
         ("G2 X0.5 Y0 I0.1 J0 F10", "error:33"),
         ("G0 X0.1 Y0.1", "ok"),
     ];
-    for (line, want) in cases {
+    for &(line, want) in cases {
         let mut r = Rig::new();
         r.feed(std::format!("{line}\n").as_bytes());
         assert_eq!(r.responses(), [want], "{line}");
@@ -113,6 +130,7 @@ fn exactly_one_answer_per_line() {
     let mut cx = Context {
         table: &mut r.table,
         modes: r.parser.modes(),
+        offsets: Default::default(),
         machine: &r.machine,
         state: State::Idle,
         frame_cycles: None,

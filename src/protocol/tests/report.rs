@@ -17,6 +17,7 @@ fn data() -> StatusData {
         blocks_free: 15,
         ac: None,
         frame_cycles: None,
+        wco_pm: [0; 3],
     }
 }
 
@@ -62,6 +63,19 @@ fn status_report_mm_inch_wpos_buffer_and_wco() {
     r.run();
     r.take();
     assert!(status(&mut r, &d).contains("|WCO:0.000,0.000,0.000|"));
+    // A work offset (G55 at X 1 in, Z -2.5 mm): WPos is MPos minus it, and a changed offset is
+    // reported at once (then not again until the cadence).
+    let d = StatusData {
+        wco_pm: [25_400_000_000, 0, -2_500_000_000],
+        ..data()
+    };
+    assert_eq!(
+        status(&mut r, &d),
+        "<Idle|WPos:5.956,-0.003,2.500|Bf:15,128|FS:0,0|WCO:25.400,0.000,-2.500|Ov:100,100,100>\r\n"
+    );
+    assert!(!status(&mut r, &d).contains("WCO:"));
+    r.table.inches = true;
+    assert!(status(&mut r, &d).starts_with("<Idle|WPos:0.2345,-0.0001,0.0984|"));
 }
 
 #[test]

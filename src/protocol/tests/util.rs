@@ -3,7 +3,7 @@
 
 extern crate std;
 use super::super::*;
-use crate::gcode::{Parsed, Parser};
+use crate::gcode::Parser;
 use std::boxed::Box;
 use std::collections::BTreeMap;
 use std::string::{String, ToString};
@@ -106,6 +106,10 @@ impl Rig {
         let mut cx = Context {
             table: &mut self.table,
             modes: self.parser.modes(),
+            offsets: crate::protocol::report::OffsetsReport {
+                offsets: *self.parser.offsets(),
+                tlo_pm: self.parser.modes().tlo_pm,
+            },
             machine: &self.machine,
             state: self.state,
             frame_cycles: self.frame_cycles,
@@ -127,7 +131,7 @@ impl Rig {
             Ev::Gcode(line, _) => {
                 self.line_no += 1;
                 let r = match self.parser.line(self.line_no, line) {
-                    Ok(Parsed::Nothing | Parsed::Block(_) | Parsed::End) => Ok(()),
+                    Ok(_) => Ok(()),
                     Err(e) => Err(GrblError::from(e)),
                 };
                 assert!(self.p.reply(r, &mut self.out));
