@@ -13,6 +13,33 @@ pub fn write_code(f: &mut dyn fmt::Write, letter: char, code: Code) -> fmt::Resu
     }
 }
 
+/// Why a canned cycle line was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CycleError {
+    /// A cycle outside G17.
+    NotXy,
+    /// A cycle in G93.
+    InverseTime,
+    /// R below the bottom Z.
+    RBelowZ,
+    /// L not 1 or more.
+    Repeats,
+    /// Q not above zero.
+    Peck,
+}
+
+impl CycleError {
+    pub const fn describe(self) -> &'static str {
+        match self {
+            CycleError::NotXy => "canned cycles run in the XY plane only (G17)",
+            CycleError::InverseTime => "canned cycles cannot run in inverse time (G93): use G94",
+            CycleError::RBelowZ => "the cycle's R plane is below its bottom Z",
+            CycleError::Repeats => "the cycle's repeat count L must be 1 or more",
+            CycleError::Peck => "the peck depth Q must be greater than zero",
+        }
+    }
+}
+
 /// A construct of LinuxCNC's (or another control's) G-code that is outside millac's grbl dialect;
 /// the error names it so that the machinist knows what to change in the CAM post.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -107,6 +134,8 @@ pub enum ErrorKind {
     ToolNumber { value: u32 },
     /// G93 (inverse time) motion without its F on the line.
     InverseTimeNeedsF,
+    /// A canned cycle's words or state do not allow it.
+    Cycle(CycleError),
     /// F, S or P below zero.
     NegativeValue(char),
     /// G1/G2/G3 with no feed rate programmed, or F0.
@@ -184,6 +213,7 @@ impl ErrorKind {
             ErrorKind::ToolLengthAxis => "G43.1 takes only Z",
             ErrorKind::ToolNumber { .. } => "no such tool",
             ErrorKind::InverseTimeNeedsF => "G93 motion without F",
+            ErrorKind::Cycle(_) => "canned cycle refused",
             ErrorKind::TargetOverflow { .. } => "overflow",
             ErrorKind::MoveTooLong => "move too long",
             ErrorKind::SoftLimit { .. } => "soft limit",
@@ -269,6 +299,7 @@ impl fmt::Display for ErrorKind {
             ErrorKind::InverseTimeNeedsF => {
                 f.write_str("in inverse time mode (G93) every G1, G2 and G3 needs its own F")
             }
+            ErrorKind::Cycle(c) => f.write_str(c.describe()),
             ErrorKind::NegativeValue(c) => write!(f, "{c} must not be negative"),
             ErrorKind::NoFeed { code } => write!(f, "G{code} needs a feed rate (F) greater than zero"),
             ErrorKind::DwellNeedsP => f.write_str("G4 needs a dwell time P (seconds)"),

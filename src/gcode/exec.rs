@@ -9,7 +9,8 @@
 //! belong to one command of the line: a motion, G10, G28/G30, G92 or G43.1.
 
 use super::arc::{self, Centre};
-use super::error::{axis_name, Construct, ErrorKind};
+use super::cycles::{Cycle, CycleKind};
+use super::error::{axis_name, Construct, CycleError, ErrorKind};
 use super::offsets::{fine_of_pm, pm_of_fine, Offsets, MAX_PM};
 use super::tools::{Tool, ToolTable, MAX_TOOLS};
 use super::words::{
@@ -61,7 +62,7 @@ fn to_fine(v: super::Decimal, per_fine: i128) -> Option<i128> {
 /// The machine coordinate of a fine position: BLU, rounded half away from zero (the same rounding
 /// as a word converted directly), or None when it does not fit i32.
 #[inline(never)]
-fn fine_to_blu(st: &Settings, fine: i128) -> Option<i32> {
+pub(super) fn fine_to_blu(st: &Settings, fine: i128) -> Option<i32> {
     let (num, den) = st.blu.per_mm();
     let n = fine.checked_mul(num as i128)?;
     let d = (den as i128).checked_mul(FINE_PER_MM)?;
@@ -243,6 +244,7 @@ pub fn execute(st: &Settings, s: State, line_no: u32, text: &str) -> Result<Pars
         };
     }
 
+    let before = m.motion;
     let motion_word = motion_mode(&w, m);
     let dwell = non_modal == Some(40);
     let moves = dwell
@@ -282,17 +284,28 @@ pub fn execute(st: &Settings, s: State, line_no: u32, text: &str) -> Result<Pars
             }
             AxisCommand::Motion => {
                 stored_positions(&w, non_modal, &pos, offsets)?;
-                motion(
-                    st,
-                    &w,
-                    m,
-                    pos,
-                    offsets,
-                    scale,
-                    motion_word,
-                    line_no,
-                    &mut used,
-                )?
+                if let MotionMode::Cycle(kind) = m.motion {
+                    let series = before == m.motion;
+                    if w.has_axes() || motion_word.is_some() {
+                        cycle(
+                            st, &w, m, pos, offsets, scale, kind, series, line_no, &mut used,
+                        )?
+                    } else {
+                        Parsed::Nothing
+                    }
+                } else {
+                    motion(
+                        st,
+                        &w,
+                        m,
+                        pos,
+                        offsets,
+                        scale,
+                        motion_word,
+                        line_no,
+                        &mut used,
+                    )?
+                }
             }
         }
     };
@@ -587,6 +600,172 @@ fn home(
     })
 }
 
+/// A canned cycle line (see [`super::cycles`]): the words (sticky within a series of the same
+/// cycle), the levels and holes in machine coordinates, validated whole (soft limits at every
+/// hole and level, the feed within the DDA); the parser then stands over the last hole at the
+/// clear level.
+#[allow(clippy::too_many_arguments)]
+fn cycle(
+    st: &Settings,
+    w: &Words,
+    m: &mut Modes,
+    pos: Position,
+    offsets: &Offsets,
+    scale: Scale,
+    kind: CycleKind,
+    series: bool,
+    line_no: u32,
+    used: &mut Used,
+) -> Result<Parsed, ErrorKind> {
+    let code = kind.code() * 10;
+    if m.plane != Plane::XY {
+        return Err(ErrorKind::Cycle(CycleError::NotXy));
+    }
+    if m.feed_mode == FeedMode::InverseTime {
+        return Err(ErrorKind::Cycle(CycleError::InverseTime));
+    }
+    if m.feed == 0 {
+        return Err(ErrorKind::NoFeed {
+            code: kind.code() as u8,
+        });
+    }
+    used.take(R);
+    used.take(L);
+    let word = |i: usize, sticky: i128| -> Result<i128, ErrorKind> {
+        let letter = words::LETTERS.get(i).copied().unwrap_or('?');
+        match w.value(i) {
+            Some(v) => to_fine(v, scale.fine).ok_or(ErrorKind::NumberTooLarge(letter)),
+            None if series => Ok(sticky),
+            None => Err(ErrorKind::MissingWord { code, letter }),
+        }
+    };
+    let r_word = word(R, m.cycle.r)?;
+    let z_word = word(AXES + 2, m.cycle.z)?;
+    let mut q = m.cycle.q;
+    if kind.pecks() {
+        used.take(Q);
+        q = word(Q, m.cycle.q)?;
+        if q <= 0 {
+            return Err(ErrorKind::Cycle(CycleError::Peck));
+        }
+    }
+    let mut dwell_frames = m.cycle.dwell_frames;
+    if kind.dwells() {
+        used.take(P);
+        dwell_frames = match w.value(P) {
+            Some(pv) if pv.is_negative() => return Err(ErrorKind::NegativeValue('P')),
+            Some(pv) => match pv
+                .mul_ratio_round(st.frame_hz as i128, 1)
+                .map(u32::try_from)
+            {
+                Some(Ok(v)) => v,
+                _ => return Err(ErrorKind::NumberTooLarge('P')),
+            },
+            None if series => m.cycle.dwell_frames,
+            None => return Err(ErrorKind::MissingWord { code, letter: 'P' }),
+        };
+    }
+    let repeats = match w.value(L) {
+        None => 1,
+        Some(l) => match l.as_integer().map(u32::try_from) {
+            Some(Ok(n)) if n >= 1 => n,
+            Some(_) => return Err(ErrorKind::Cycle(CycleError::Repeats)),
+            None => return Err(ErrorKind::NotInteger('L')),
+        },
+    };
+
+    // The levels and holes, machine fine units.
+    let here = *pos.fine;
+    let old_cc = m.cycle.il.unwrap_or(here[2]);
+    let origin = origin_fine(m, offsets, false);
+    let overflow = |k: usize| ErrorKind::TargetOverflow { axis: axis_name(k) };
+    let add = |a: i128, b: i128, k: usize| a.checked_add(b).ok_or(overflow(k));
+    let (first, step, r, bottom) = match m.distance {
+        Distance::Absolute => {
+            let mut first = [here[0], here[1]];
+            for (k, f) in first.iter_mut().enumerate() {
+                if let Some(v) = w.value(AXES + k) {
+                    *f = add(to_fine(v, scale.fine).ok_or(overflow(k))?, origin[k], k)?;
+                }
+            }
+            (
+                first,
+                [0, 0],
+                add(r_word, origin[2], 2)?,
+                add(z_word, origin[2], 2)?,
+            )
+        }
+        Distance::Incremental => {
+            let mut step = [0i128; 2];
+            for (k, s) in step.iter_mut().enumerate() {
+                if let Some(v) = w.value(AXES + k) {
+                    *s = to_fine(v, scale.fine).ok_or(overflow(k))?;
+                }
+            }
+            let first = [add(here[0], step[0], 0)?, add(here[1], step[1], 1)?];
+            let r = add(r_word, old_cc, 2)?;
+            (first, step, r, add(r, z_word, 2)?)
+        }
+    };
+    if r < bottom {
+        return Err(ErrorKind::Cycle(CycleError::RBelowZ));
+    }
+    let clear = if m.retract == Retract::RPlane {
+        r
+    } else {
+        old_cc.max(r)
+    };
+    let last = [0, 1].map(|k| {
+        step[k]
+            .checked_mul(repeats as i128 - 1)
+            .and_then(|d| first[k].checked_add(d))
+    });
+    let [Some(lx), Some(ly)] = last else {
+        return Err(ErrorKind::TargetOverflow { axis: 'X' });
+    };
+    // Every hole lies between the first and the last; every level between the top and the bottom.
+    let top = here[2].max(r).max(clear);
+    for (x, y) in [(first[0], first[1]), (lx, ly)] {
+        for z in [top, bottom] {
+            let mut t = [0i32; 3];
+            for (k, f) in [x, y, z].into_iter().enumerate() {
+                t[k] = fine_to_blu(st, f).ok_or(overflow(k))?;
+            }
+            check_soft(st, t)?;
+        }
+    }
+    let depth =
+        fine_to_blu(st, top).unwrap_or(0) as i64 - fine_to_blu(st, bottom).unwrap_or(0) as i64;
+    if depth > Q_MAX as i64 {
+        return Err(ErrorKind::MoveTooLong);
+    }
+
+    m.cycle.r = r_word;
+    m.cycle.z = z_word;
+    m.cycle.q = q;
+    m.cycle.dwell_frames = dwell_frames;
+    m.cycle.il = Some(old_cc);
+    let c = Cycle::new(
+        kind,
+        line_no,
+        first,
+        step,
+        repeats,
+        [r, bottom, clear],
+        q,
+        dwell_frames,
+        m.feed,
+        here,
+        *pos.blu,
+    );
+    let end = [lx, ly, clear];
+    for (k, (b, f)) in pos.blu.iter_mut().zip(end).enumerate() {
+        *b = fine_to_blu(st, f).ok_or(overflow(k))?;
+    }
+    *pos.fine = end;
+    Ok(Parsed::Cycle(c))
+}
+
 /// A motion line: G0/G1/G2/G3 in the mode in force (G53: machine coordinates, G0/G1 in G90).
 #[allow(clippy::too_many_arguments)]
 fn motion(
@@ -763,7 +942,16 @@ fn motion_mode(w: &Words, m: &mut Modes) -> Option<Code> {
         Some(20) => m.motion = MotionMode::ArcCw,
         Some(30) => m.motion = MotionMode::ArcCcw,
         Some(800) => m.motion = MotionMode::None,
-        _ => {}
+        Some(c) => {
+            if let Some(k) = CycleKind::of_code(c) {
+                m.motion = MotionMode::Cycle(k);
+            }
+        }
+        None => {}
+    }
+    // A series of cycles ends with the cycle mode: its initial level is forgotten.
+    if !matches!(m.motion, MotionMode::Cycle(_)) {
+        m.cycle.il = None;
     }
     word
 }
@@ -776,6 +964,7 @@ pub const fn motion_code(mode: MotionMode) -> u16 {
         MotionMode::ArcCw => 2,
         MotionMode::ArcCcw => 3,
         MotionMode::None => 80,
+        MotionMode::Cycle(k) => k.code(),
     }
 }
 

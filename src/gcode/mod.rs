@@ -15,6 +15,7 @@
 //! the deceleration rule, [`error`] the reasons.
 
 pub mod arc;
+pub mod cycles;
 pub mod error;
 mod exec;
 pub mod lines;
@@ -47,6 +48,8 @@ pub enum Parsed {
     Block(Block),
     /// Two blocks, in order (G28/G30 through an intermediate point).
     Two(Block, Block),
+    /// A canned cycle: its blocks come from [`cycles::Cycle::next_block`].
+    Cycle(cycles::Cycle),
     /// M2 / M30: end of program.
     End,
     /// M0 or M6: the machine stops once the motion before it has run and waits for cycle start.
@@ -88,6 +91,8 @@ pub enum MotionMode {
     ArcCcw,
     /// G80: no motion mode (axis words alone are an error).
     None,
+    /// G73, G81, G82, G83, G85, G89.
+    Cycle(cycles::CycleKind),
 }
 
 /// G93 inverse time / G94 units per minute.
@@ -176,6 +181,8 @@ pub struct Modes {
     pub coolant: Coolant,
     /// The last T word (the tool the next M6 fits).
     pub tool: u8,
+    /// The canned cycle's sticky words.
+    pub cycle: cycles::CycleWords,
 }
 
 /// The spindle's modal state.
@@ -207,6 +214,13 @@ impl Modes {
         path: PathMode::ExactPath,
         coolant: Coolant::OFF,
         tool: 0,
+        cycle: cycles::CycleWords {
+            r: 0,
+            z: 0,
+            q: 0,
+            dwell_frames: 0,
+            il: None,
+        },
     };
 }
 
@@ -299,6 +313,13 @@ impl Parser {
                 }
                 match &mut p {
                     Parsed::Block(b) => self.signs = carry_signs(&mut b.motion, self.signs),
+                    Parsed::Cycle(c) => {
+                        // The SIGN lines after the cycle: its blocks run through once here.
+                        let mut c = *c;
+                        while let Some(mut b) = c.next_block(&self.settings) {
+                            self.signs = carry_signs(&mut b.motion, self.signs);
+                        }
+                    }
                     Parsed::Two(a, b) => {
                         self.signs = carry_signs(&mut a.motion, self.signs);
                         self.signs = carry_signs(&mut b.motion, self.signs);

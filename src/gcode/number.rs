@@ -42,6 +42,51 @@ impl Decimal {
         }
     }
 
+    /// The f32 nearest the decimal, ties to even (as core's parser gives it), by exact integer
+    /// arithmetic: q = m 2^k / 10^s scaled into [2^23, 2^24), rounded, times 2^-k. None outside
+    /// the normal f32 range. (core's `f32::from_str` would bring its 10 KiB power table into the
+    /// firmware.)
+    pub fn to_f32(self) -> Option<f32> {
+        let m = self.mantissa.unsigned_abs();
+        if m == 0 {
+            return Some(0.0);
+        }
+        let d = 10u128.checked_pow(self.scale as u32)?;
+        let bits = |v: u128| 128 - v.leading_zeros() as i32;
+        // m 2^k / d lands within a factor of 2 of 2^23 for this k; the loop settles it.
+        let mut k = 24 - bits(m) + bits(d);
+        for _ in 0..4 {
+            let (num, den) = if k >= 0 {
+                (m.checked_shl(k as u32).filter(|n| n >> k == m)?, d)
+            } else {
+                (m, d.checked_shl((-k) as u32).filter(|n| n >> -k == d)?)
+            };
+            let q = num / den;
+            if q >= 1 << 24 {
+                k -= 1;
+                continue;
+            }
+            if q < 1 << 23 {
+                k += 1;
+                continue;
+            }
+            let r = num % den;
+            let q = if 2 * r > den || (2 * r == den && q & 1 == 1) {
+                q + 1
+            } else {
+                q
+            };
+            // 2^-k exactly, in the normal range.
+            let e = 127 - k;
+            if !(1..=254).contains(&e) {
+                return None;
+            }
+            let v = q as f32 * f32::from_bits((e as u32) << 23);
+            return Some(if self.mantissa < 0 { -v } else { v });
+        }
+        None
+    }
+
     /// round(self * num / den), half away from zero; `None` on overflow or den <= 0.
     pub fn mul_ratio_round(self, num: i128, den: i128) -> Option<i128> {
         let n = self.mantissa.checked_mul(num)?;

@@ -1,8 +1,9 @@
 //! The program "tape" (the paper's tape reader): bytes in chunks -> numbered lines -> parser ->
 //! look-ahead -> validated blocks. One piece of code for the firmware loader (idle task) and the
 //! host tool's pre-check, so both accept and reject exactly the same programs.
+use super::cycles::Cycle;
 use super::lines::{LineError, Lines};
-use super::{GcodeError, Lookahead, Parsed, Parser};
+use super::{carry_signs, GcodeError, Lookahead, Parsed, Parser};
 use crate::ac::{apply_ceiling, FeedCeiling};
 use crate::nc::{Block, FrameConfig, Sealed};
 use crate::settings::Settings;
@@ -39,10 +40,60 @@ impl core::fmt::Display for TapeError {
 /// image). After an error or M2/M30 the tape ignores the rest.
 pub struct Tape {
     lines: Lines,
-    parser: Parser,
-    lookahead: Lookahead,
+    reader: Reader,
     done: bool,
     finish: Finish,
+}
+
+/// The parser, the look-ahead and a canned cycle still being expanded.
+struct Reader {
+    parser: Parser,
+    lookahead: Lookahead,
+    /// A cycle whose blocks are not all emitted yet, and the SIGN lines after the last one that was.
+    pending: Option<(Cycle, u8)>,
+}
+
+impl Reader {
+    /// One line through the parser; its blocks to the look-ahead (at most `room` emitted; a
+    /// cycle's remaining blocks stay pending). True at the program's end.
+    fn line(
+        &mut self,
+        n: u32,
+        text: &str,
+        room: usize,
+        emit: &mut impl FnMut(Block),
+    ) -> Result<bool, TapeError> {
+        let signs = self.parser.signs();
+        let parsed = self.parser.line(n, text).map_err(TapeError::Gcode)?;
+        if let Parsed::Cycle(c) = parsed {
+            self.pending = Some((c, signs));
+            self.pump(room, emit);
+            return Ok(false);
+        }
+        Ok(take(parsed, &mut self.lookahead, emit))
+    }
+
+    /// Emits a pending cycle's next blocks through the look-ahead, at most `room` of them.
+    fn pump(&mut self, room: usize, emit: &mut impl FnMut(Block)) {
+        let Some((mut c, mut signs)) = self.pending.take() else {
+            return;
+        };
+        let settings = *self.parser.settings();
+        let mut emitted = 0;
+        while emitted < room {
+            let Some(mut b) = c.next_block(&settings) else {
+                return;
+            };
+            signs = carry_signs(&mut b.motion, signs);
+            if let Some(prev) = self.lookahead.push(b) {
+                emit(prev);
+                emitted += 1;
+            }
+        }
+        if !c.done() {
+            self.pending = Some((c, signs));
+        }
+    }
 }
 
 /// What the tape does to every block before it emits it.
@@ -78,8 +129,11 @@ impl Tape {
     pub fn new(settings: Settings) -> Self {
         Tape {
             lines: Lines::new(),
-            parser: Parser::new(settings),
-            lookahead: Lookahead::new(),
+            reader: Reader {
+                parser: Parser::new(settings),
+                lookahead: Lookahead::new(),
+                pending: None,
+            },
             done: false,
             finish: Finish {
                 cfg: FrameConfig::from_settings(&settings),
@@ -99,7 +153,21 @@ impl Tape {
 
     /// The parser (modes, programmed position after the last accepted block).
     pub fn parser(&self) -> &Parser {
-        &self.parser
+        &self.reader.parser
+    }
+
+    /// True while a canned cycle's blocks are still to be emitted ([`Tape::pump`]).
+    pub fn pending(&self) -> bool {
+        self.reader.pending.is_some()
+    }
+
+    /// Emits at most `room` more blocks of a pending canned cycle. Loader task: a streamed cycle
+    /// fills the queue as it empties, so that a cycle of any number of pecks never waits for
+    /// room inside the loader.
+    pub fn pump(&mut self, room: usize, mut emit: impl FnMut(Sealed)) {
+        let finish = self.finish;
+        let mut emit = |b: Block| emit(finish.block(b));
+        self.reader.pump(room, &mut emit);
     }
 
     /// True after M2/M30 or an error: nothing more is read.
@@ -116,9 +184,9 @@ impl Tape {
         let finish = self.finish;
         let mut emit = |b: Block| emit(finish.block(b));
         let mut result = Ok(());
-        let (parser, lookahead, done) = (&mut self.parser, &mut self.lookahead, &mut self.done);
+        let (reader, done) = (&mut self.reader, &mut self.done);
         self.lines.feed(bytes, |n, text| {
-            step(parser, lookahead, done, &mut result, &mut emit, n, text)
+            step(reader, done, &mut result, &mut emit, n, text)
         });
         self.settle(result, emit)
     }
@@ -129,9 +197,9 @@ impl Tape {
         let mut emit = |b: Block| emit(finish.block(b));
         let mut result = Ok(());
         if !self.done {
-            let (parser, lookahead, done) = (&mut self.parser, &mut self.lookahead, &mut self.done);
+            let (reader, done) = (&mut self.reader, &mut self.done);
             self.lines
-                .finish(|n, text| step(parser, lookahead, done, &mut result, &mut emit, n, text));
+                .finish(|n, text| step(reader, done, &mut result, &mut emit, n, text));
         }
         self.done = true;
         self.settle(result, emit)
@@ -150,9 +218,25 @@ impl Tape {
     ) -> Result<(), TapeError> {
         let finish = self.finish;
         let mut emit = |b: Block| emit(finish.block(b));
-        let parsed = self.parser.line(n, text).map_err(TapeError::Gcode)?;
-        if take(parsed, &mut self.lookahead, &mut emit) {
-            self.parser.end_program();
+        if self.reader.line(n, text, usize::MAX, &mut emit)? {
+            self.reader.parser.end_program();
+        }
+        Ok(())
+    }
+
+    /// [`Tape::line`] emitting at most `room` blocks: the rest of a canned cycle stays pending
+    /// ([`Tape::pump`]). Loader task.
+    pub fn line_within(
+        &mut self,
+        n: u32,
+        text: &str,
+        room: usize,
+        mut emit: impl FnMut(Sealed),
+    ) -> Result<(), TapeError> {
+        let finish = self.finish;
+        let mut emit = |b: Block| emit(finish.block(b));
+        if self.reader.line(n, text, room, &mut emit)? {
+            self.reader.parser.end_program();
         }
         Ok(())
     }
@@ -161,8 +245,13 @@ impl Tape {
     /// program whose next line has not arrived while the machine would otherwise stop (a lone
     /// line from a sender runs at once). Loader task.
     pub fn flush(&mut self, mut emit: impl FnMut(Sealed)) {
-        if let Some(b) = self.lookahead.flush() {
-            emit(self.finish.block(b));
+        let finish = self.finish;
+        let mut emit = |b: Block| emit(finish.block(b));
+        // A pending cycle's blocks come before the held one (the loader never flushes while a
+        // cycle is pending; a host reading does not leave one).
+        self.reader.pump(usize::MAX, &mut emit);
+        if let Some(b) = self.reader.lookahead.flush() {
+            emit(b);
         }
     }
 
@@ -170,27 +259,28 @@ impl Tape {
     /// run as well) and the modes return to power-up; the position stays. Loader task.
     pub fn reset(&mut self, emit: impl FnMut(Sealed)) {
         self.flush(emit);
-        self.parser.reset_modes();
+        self.reader.parser.reset_modes();
     }
 
     /// Soft reset during motion: the frame stopped at `at` (BLU) with the SIGN lines `signs` and
     /// dropped the queued blocks; the held block is dropped too, the modes return to power-up and
     /// the parser stands where the machine stands. Loader task.
     pub fn abort(&mut self, at: [i32; 3], signs: u8) {
+        self.reader.pending = None;
         self.flush(|_| {});
-        self.parser.reset_modes();
-        self.parser.jogged_to(at, signs);
+        self.reader.parser.reset_modes();
+        self.reader.parser.jogged_to(at, signs);
     }
 
     /// A jog planned on a copy of the parser ran to `end` with the SIGN lines `signs`: the
     /// parser follows it (see `Parser::jogged_to`). Loader task.
     pub fn jogged_to(&mut self, end: [i32; 3], signs: u8) {
-        self.parser.jogged_to(end, signs);
+        self.reader.parser.jogged_to(end, signs);
     }
 
     /// True when a block is held by the look-ahead (see [`Tape::flush`]).
     pub fn holds_a_block(&self) -> bool {
-        self.lookahead.holds()
+        self.reader.lookahead.holds()
     }
 
     fn settle(
@@ -199,7 +289,8 @@ impl Tape {
         mut emit: impl FnMut(Block),
     ) -> Result<(), TapeError> {
         if self.done {
-            if let Some(b) = self.lookahead.flush() {
+            self.reader.pump(usize::MAX, &mut emit);
+            if let Some(b) = self.reader.lookahead.flush() {
                 emit(b);
             }
         }
@@ -208,8 +299,7 @@ impl Tape {
 }
 
 fn step(
-    parser: &mut Parser,
-    lookahead: &mut Lookahead,
+    reader: &mut Reader,
     done: &mut bool,
     result: &mut Result<(), TapeError>,
     emit: &mut impl FnMut(Block),
@@ -217,16 +307,15 @@ fn step(
     text: Result<&str, LineError>,
 ) -> bool {
     let parsed = match text {
-        Ok(t) => parser.line(n, t).map_err(TapeError::Gcode),
+        Ok(t) => reader.line(n, t, usize::MAX, emit),
         Err(error) => Err(TapeError::Line { line: n, error }),
     };
     match parsed {
-        Ok(p) => {
-            if take(p, lookahead, emit) {
+        Ok(end) => {
+            if end {
                 *done = true;
-                return false;
             }
-            true
+            !end
         }
         Err(e) => {
             *result = Err(e);
@@ -256,6 +345,8 @@ fn take(parsed: Parsed, lookahead: &mut Lookahead, emit: &mut impl FnMut(Block))
             push(b);
             false
         }
+        // A cycle is expanded by the reader (it never comes here).
+        Parsed::Cycle(_) => false,
         Parsed::Stop(_) | Parsed::End => {
             if let Some(b) = lookahead.flush() {
                 emit(b);

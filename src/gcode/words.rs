@@ -35,7 +35,7 @@ pub const fn code(whole: u16, tenth: u16) -> Code {
 /// G modal groups (indices into [`Words::g`]), as RS274/NGC and grbl number them.
 /// Group 0, non-modal: G4 G10 G28 G28.1 G30 G30.1 G53 G92 G92.1 G92.2 G92.3.
 pub const G_NON_MODAL: usize = 0;
-/// Motion: G0 G1 G2 G3, G80 (cancel).
+/// Motion: G0 G1 G2 G3, G80 (cancel) and the canned cycles G73 G81 G82 G83 G85 G89.
 pub const G_MOTION: usize = 1;
 pub const G_PLANE: usize = 2;
 pub const G_DISTANCE: usize = 3;
@@ -68,7 +68,7 @@ const M_GROUPS: usize = 4;
 const fn g_group(c: Code) -> Option<usize> {
     Some(match c {
         40 | 100 | 280 | 281 | 300 | 301 | 530 | 920..=923 => G_NON_MODAL,
-        0 | 10 | 20 | 30 | 800 => G_MOTION,
+        0 | 10 | 20 | 30 | 730 | 800 | 810 | 820 | 830 | 850 | 890 => G_MOTION,
         170 | 180 | 190 => G_PLANE,
         900 | 910 => G_DISTANCE,
         930 | 940 => G_FEED_MODE,

@@ -32,10 +32,14 @@
 //! | `DwellWithAxes`, `UnusedWord`, `ArcRadiusAndOffsets` | 36 | unused words |
 //! | `ToolLengthAxis` | 37 | G43.1 dynamic axis error |
 //! | `ToolNumber` | 38 | (grblHAL) illegal tool table entry |
+//! | `Cycle`: not XY, in G93 | 20 | unsupported command |
+//! | `Cycle`: R below Z | 33 | invalid target |
+//! | `Cycle`: L < 1, Q <= 0 | 39 | (grblHAL) value out of range |
 //!
 //! Alarms (`ALARM:N`): [`alarm`].
 
 use crate::ac::{Alarm, SensorFault};
+use crate::gcode::error::CycleError;
 use crate::gcode::lines::LineError;
 use crate::gcode::tape::TapeError;
 use crate::gcode::{ErrorKind, GcodeError};
@@ -73,6 +77,8 @@ impl GrblError {
     pub const G43_DYNAMIC_AXIS: GrblError = GrblError(37);
     /// grblHAL's: a T or H beyond the tool table.
     pub const ILLEGAL_TOOL: GrblError = GrblError(38);
+    /// grblHAL's: a value out of its range (a cycle's L or Q).
+    pub const VALUE_OUT_OF_RANGE: GrblError = GrblError(39);
 }
 
 /// The grbl error number of a parser error (the table above).
@@ -102,6 +108,9 @@ pub const fn gcode_error(kind: &ErrorKind) -> GrblError {
         K::AxisWordsUnused { .. } => GrblError::AXIS_WORDS_EXIST,
         K::ToolLengthAxis => GrblError::G43_DYNAMIC_AXIS,
         K::ToolNumber { .. } => GrblError::ILLEGAL_TOOL,
+        K::Cycle(CycleError::NotXy | CycleError::InverseTime) => GrblError::UNSUPPORTED_COMMAND,
+        K::Cycle(CycleError::RBelowZ) => GrblError::INVALID_TARGET,
+        K::Cycle(CycleError::Repeats | CycleError::Peck) => GrblError::VALUE_OUT_OF_RANGE,
         K::NoFeed { .. } => GrblError::UNDEFINED_FEED,
         K::RepeatedWord(_) => GrblError::WORD_REPEATED,
         K::DwellNeedsP => GrblError::VALUE_WORD_MISSING,

@@ -200,13 +200,9 @@ impl Write for LineBuf {
     }
 }
 
-/// The f32 nearest a decimal (core's parser rounds correctly).
+/// The f32 nearest a decimal (correctly rounded, see [`Decimal::to_f32`]).
 fn to_f32(value: Decimal) -> Option<f32> {
-    let mut b = LineBuf::new();
-    write!(b, "{value}").ok()?;
-    let v: f32 = b.as_str().parse().ok()?;
-    // -0 reads as 0.
-    Some(v + 0.0)
+    value.to_f32()
 }
 
 /// Length settings in BLU converted to another BLU: `round(v x from / to)`, toward zero when

@@ -384,6 +384,7 @@ where
         let status = self.status;
         if self.ended
             && self.deferred.is_none()
+            && !self.tape.pending()
             && !self.tape.holds_a_block()
             && self.blocks.len() == 0
             && status.idle.get()
@@ -484,8 +485,22 @@ where
             state,
             ac_held,
         };
+        // A canned cycle still expanding fills the queue as it empties; no line is taken until
+        // it is done.
+        if self.tape.pending() && !self.replan.pending() {
+            let room = Q - 1 - self.blocks.len();
+            let (blocks, replan, status, last_feed) = (
+                &mut *self.blocks,
+                &mut *self.replan,
+                self.status,
+                &mut self.last_feed,
+            );
+            self.tape
+                .pump(room, |b| enqueue(blocks, replan, status, b, last_feed));
+        }
         let room = Q - 1 - self.blocks.len() >= ROOM_PER_LINE
             && self.deferred.is_none()
+            && !self.tape.pending()
             && !self.replan.pending();
         // The line source's news. A G-code line is copied out of the protocol's buffer (the
         // protocol answers it after the step).
@@ -707,9 +722,13 @@ where
             self.status,
             &mut self.last_feed,
         );
+        // A canned cycle emits what the queue has room for; the rest is pumped turn by turn.
+        let room = Q - 1 - blocks.len();
         let result = self
             .tape
-            .line(no, line, |b| enqueue(blocks, replan, status, b, last_feed))
+            .line_within(no, line, room, |b| {
+                enqueue(blocks, replan, status, b, last_feed)
+            })
             .map_err(Refused::Tape);
         if result.is_ok() {
             self.board.log_gcode(line);

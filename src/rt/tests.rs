@@ -24,7 +24,7 @@ use super::{FrameTask, Reloads, Status};
 use crate::ac::Alarm;
 use crate::gcode::Spindle;
 use crate::inputs::{Events, Trip};
-use crate::nc::{Frame, FrameConfig, Sealed};
+use crate::nc::{Frame, FrameConfig, Motion, Sealed};
 use crate::ports::{FrameTimer, PulseTimer, SettingsStorage, StepPort};
 use crate::protocol::rx::RxIsr;
 use crate::protocol::rx::RxShared;
@@ -63,10 +63,15 @@ impl SettingsStorage for NoStorage {
 #[derive(Default)]
 struct Pins {
     levels: u8,
+    /// PULSE rises per axis.
+    rises: [u32; 3],
 }
 
 impl StepPort for Pins {
     fn write_steps(&mut self, steps: u8) {
+        for (k, r) in self.rises.iter_mut().enumerate() {
+            *r += (steps >> k) as u32 & 1;
+        }
         self.levels = (self.levels & !0b111) | (steps & 0b111);
     }
     fn write_signs(&mut self, signs: u8) {
@@ -848,6 +853,49 @@ G1 X0.01
         ]
     );
     assert_eq!(b.status.encoder(), [300, 0, 0]);
+}
+
+/// A peck cycle of many more blocks than the queue holds streams through it: the line's `ok`
+/// comes at once, the loader pumps the rest as the queue empties (answering `?` and `!`
+/// meanwhile), and the machine ends over the hole at R with every peck run.
+#[test]
+fn a_long_canned_cycle_streams_through_a_short_queue() {
+    // 0.07 in from R 0.01 in to Z -0.06 in pecks of 0.004 in: 18 pecks, 54 blocks, queue of 16.
+    let program = "G20 G0 X0 Y0 Z0.01 F30\nG99 G83 X0.01 Z-0.06 R0.01 Q0.004\nG80\nG0 X0\n";
+    let hold = Events {
+        feed_hold: true,
+        ..Events::default()
+    };
+    let start = Events {
+        cycle_start: true,
+        ..Events::default()
+    };
+    let b = session(
+        &[(1, program), (600, "?")],
+        &[(500, hold), (900, start)],
+        None,
+        80_000,
+    );
+    assert_eq!(oks(&b.out), 4, "{}", b.out);
+    assert!(b.out.contains("<Hold:"), "held mid-cycle: {}", b.out);
+    assert_eq!(b.status.encoder(), [0, 0, 100]);
+    // Every block of the cycle ran: the Z pulses are those of the program's blocks.
+    let mut tape = crate::gcode::tape::Tape::new(crate::Settings::default());
+    let mut blocks = Vec::new();
+    for (n, l) in program.lines().enumerate() {
+        tape.line(n as u32 + 1, l, |b| blocks.push(b)).unwrap();
+    }
+    tape.flush(|b| blocks.push(b));
+    let z: u32 = blocks
+        .iter()
+        .map(|b| match b.motion {
+            Motion::Rapid(r) => r.steps[2],
+            Motion::Linear(l) => l.steps[2],
+            _ => 0,
+        })
+        .sum();
+    assert!(blocks.len() > 3 * Q, "{} blocks", blocks.len());
+    assert_eq!(b.pins.rises[2], z);
 }
 
 #[test]

@@ -98,8 +98,9 @@ fn err_unsupported_g() {
     assert_rejected(&mut busy(), "G33 Z-1 K1", g("33"));
     assert_rejected(&mut busy(), "G95", g("95"));
     assert_rejected(&mut busy(), "G43.2", g("43.2"));
-    // Canned cycles are not in the dialect yet.
-    assert_rejected(&mut busy(), "G81 X1 Z-1 R1", g("81"));
+    // Tapping and back boring are not among the canned cycles.
+    assert_rejected(&mut busy(), "G84 X1 Z-1 R1", g("84"));
+    assert_rejected(&mut busy(), "G87 X1 Z-1 R1", g("87"));
 }
 
 #[test]

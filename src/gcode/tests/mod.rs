@@ -2,6 +2,7 @@
 //! look-ahead rule.
 
 mod arc;
+mod cycles;
 mod dialect;
 mod err;
 mod incr;

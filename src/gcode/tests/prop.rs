@@ -149,7 +149,9 @@ proptest! {
                 | (before_signs & !moving);
             match got {
                 Parsed::Nothing => prop_assert_eq!(d, [0, 0, 0]),
-                Parsed::Two(..) | Parsed::Stop(_) | Parsed::End => prop_assert!(false, "{got:?}"),
+                Parsed::Two(..) | Parsed::Cycle(_) | Parsed::Stop(_) | Parsed::End => {
+                    prop_assert!(false, "{got:?}")
+                }
                 Parsed::Block(b) => {
                     prop_assert_eq!(b.line, 5);
                     match b.motion {
@@ -283,6 +285,22 @@ proptest! {
         // Same value: d.mantissa / 10^d.scale == m / 10^scale.
         prop_assert_eq!(d.mantissa * 10i128.pow(scale as u32), m as i128 * 10i128.pow(d.scale as u32));
         prop_assert_eq!(format!("{d}").parse::<f64>().unwrap(), text.parse::<f64>().unwrap());
+    }
+
+    /// The integer conversion to f32 is core's correctly rounded one (halfway cases: 2^24 + 1
+    /// and + 3 are ties, to even; 0.1 and 1e-18 and 3.4e38 the usual ones), for any mantissa and scale
+    /// (and the halfway cases core rounds to even).
+    #[test]
+    fn decimals_convert_to_the_nearest_f32(m in any::<i64>(), scale in 0u8..=18, wide in any::<bool>()) {
+        let m = if wide { m as i128 * 1_000_003 } else { m as i128 };
+        let d = Decimal { mantissa: m, scale };
+        let want: f32 = format!("{d}").parse().unwrap();
+        prop_assert_eq!(d.to_f32().map(f32::to_bits), Some((want + 0.0).to_bits()), "{}", d);
+        for (m, s) in [(16_777_217i128, 0u8), (16_777_219, 0), (-16_777_217, 0), (1, 1), (1, 18), (34, 0)] {
+            let d = Decimal { mantissa: m, scale: s };
+            let want: f32 = format!("{d}").parse().unwrap();
+            prop_assert_eq!(d.to_f32(), Some(want), "{}", d);
+        }
     }
 
     #[test]
