@@ -13,7 +13,8 @@
 //!   defmt log, [`emulator::f446`] runs the Nucleo-F446RE firmware on QEMU's netduinoplus2.
 //! - [`host`]: the simulation without QEMU. [`host::acsim`] runs the core's frame and AC
 //!   controller natively against the plant; [`host::fault`] injects sensor faults into the
-//!   transducer codes (for both the host and the emulator's ADC).
+//!   transducer codes (for both the host and the emulator's ADC); [`host::rs274`] runs LinuxCNC's
+//!   interpreter rs274 as a reference reading of G-code (qemu/tests/rs274.rs compares millac's).
 //! - [`analysis`]: checks of a capture against its program (end points, path deviation, feed),
 //!   [`analysis::vcd`] writes and reads VCD files, [`analysis::sigrok`] cross-checks the step
 //!   counts with sigrok's `stepper_motor` decoder.

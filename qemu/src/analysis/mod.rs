@@ -7,7 +7,9 @@ pub mod vcd;
 
 use crate::analysis::vcd::AXES;
 use anyhow::Result;
+use millac::gcode::lines::Lines;
 use millac::gcode::tape::{Tape, TapeError};
+use millac::gcode::Parsed;
 use millac::nc::{sim::Sim, Frame, FrameConfig, Motion, Sealed};
 use millac::Settings;
 use std::collections::VecDeque;
@@ -30,6 +32,61 @@ pub fn load_program(text: &str, settings: &Settings) -> Result<Vec<ProgBlock>, T
     tape.feed(text.as_bytes(), &mut push)?;
     tape.finish(&mut push)?;
     Ok(program_of_blocks(blocks))
+}
+
+/// A line [`read_lines`] refused (`message` as `run`'s summary.json words it: `line N: why`).
+#[derive(Clone, Debug)]
+pub struct Refusal {
+    pub line: u32,
+    pub message: String,
+}
+
+/// What [`read_lines`] read: the lines read, the accepted blocks in order, the refused lines.
+#[derive(Debug)]
+pub struct Reading {
+    pub lines: u32,
+    pub blocks: Vec<Sealed>,
+    pub refused: Vec<Refusal>,
+}
+
+/// Reads `text` as the firmware's loader does, line by line (the firmware's line splitter and
+/// tape), going on after a refused line (the parser as it was before it), so every refusal is
+/// listed; the program's end (M2/M30) ends the reading. `check` and the rs274 comparison read
+/// programs with it.
+pub fn read_lines(text: &[u8], settings: &Settings) -> Reading {
+    let mut tape = Tape::new(*settings);
+    let mut blocks = Vec::new();
+    let mut refused = Vec::new();
+    let mut ended = false;
+    let mut lines = Lines::new();
+    let mut line = |n: u32, l: Result<&str, millac::gcode::lines::LineError>| -> bool {
+        match l {
+            Err(e) => refused.push(Refusal {
+                line: n,
+                message: format!("line {n}: {}", e.message()),
+            }),
+            Ok(l) => {
+                // The program's end: parsed on a copy to know it is the end (M2/M30).
+                ended = matches!(tape.parser().clone().line(n, l), Ok(Parsed::End));
+                if let Err(e) = tape.line(n, l, |b| blocks.push(b)) {
+                    refused.push(Refusal {
+                        line: e.line(),
+                        message: e.to_string(),
+                    });
+                }
+            }
+        }
+        !ended
+    };
+    if lines.feed(text, &mut line) {
+        lines.finish(&mut line);
+    }
+    tape.flush(|b| blocks.push(b));
+    Reading {
+        lines: lines.line_no(),
+        blocks,
+        refused,
+    }
 }
 
 /// The blocks in the order the frame runs them, each with its start, end and pulses, from the

@@ -1,19 +1,17 @@
 //! `millac-qemu check PROGRAM [--json]`: validates a program without running it and says what a
 //! machinist asks before pressing start (host: the CLI calls it from `main`). Every line goes
-//! through the firmware's own line splitter and tape reader (`millac::gcode`) as a serial session
-//! would stream it: a refused line is reported with its number and the reading goes on (the
-//! parser as it was before the line), so one check lists every refusal; the program's end (M2 or
-//! M30) ends the reading. The accepted blocks then run through the core's frame (`millac::nc::sim`)
-//! for the time estimate: the frame's own arithmetic at the settings' W0 and rapid rate, the
-//! feeds as programmed (no adaptive control, 100 % override).
+//! through the firmware's own line splitter and tape reader (`millac::gcode`, read by
+//! `millac_qemu::analysis::read_lines`) as a serial session would stream it: a refused line is
+//! reported with its number and the reading goes on (the parser as it was before the line), so
+//! one check lists every refusal; the program's end (M2 or M30) ends the reading. The accepted
+//! blocks then run through the core's frame (`millac::nc::sim`) for the time estimate: the
+//! frame's own arithmetic at the settings' W0 and rapid rate, the feeds as programmed (no adaptive
+//! control, 100 % override).
 use anyhow::{Context, Result};
-use millac::gcode::lines::Lines;
-use millac::gcode::tape::Tape;
-use millac::gcode::Parsed;
 use millac::nc::sim::Sim;
-use millac::nc::{Frame, FrameConfig, Motion, Sealed};
+use millac::nc::{Frame, FrameConfig, Motion};
 use millac::Settings;
-use millac_qemu::analysis::program_of_blocks;
+use millac_qemu::analysis::{program_of_blocks, read_lines};
 use millac_qemu::host::acsim;
 use serde_json::json;
 use std::path::PathBuf;
@@ -29,62 +27,12 @@ pub(crate) struct CheckArgs {
     pub(crate) json: bool,
 }
 
-/// A refused line (`message` as `run`'s summary.json words it: `line N: why`).
-struct Refusal {
-    line: u32,
-    message: String,
-}
-
-/// What a check found.
-struct Report {
-    lines: u32,
-    blocks: Vec<Sealed>,
-    refused: Vec<Refusal>,
-}
-
-/// Reads `text` as the firmware's loader does, line by line, going on after a refusal.
-fn read(text: &[u8], settings: &Settings) -> Report {
-    let mut tape = Tape::new(*settings);
-    let mut blocks = Vec::new();
-    let mut refused = Vec::new();
-    let mut ended = false;
-    let mut lines = Lines::new();
-    let mut line = |n: u32, l: Result<&str, millac::gcode::lines::LineError>| -> bool {
-        match l {
-            Err(e) => refused.push(Refusal {
-                line: n,
-                message: format!("line {n}: {}", e.message()),
-            }),
-            Ok(l) => {
-                // The program's end: parsed on a copy to know it is the end (M2/M30).
-                ended = matches!(tape.parser().clone().line(n, l), Ok(Parsed::End));
-                if let Err(e) = tape.line(n, l, |b| blocks.push(b)) {
-                    refused.push(Refusal {
-                        line: e.line(),
-                        message: e.to_string(),
-                    });
-                }
-            }
-        }
-        !ended
-    };
-    if lines.feed(text, &mut line) {
-        lines.finish(&mut line);
-    }
-    tape.flush(|b| blocks.push(b));
-    Report {
-        lines: lines.line_no(),
-        blocks,
-        refused,
-    }
-}
-
 /// `check`: prints the report; false when a line was refused.
 pub(crate) fn command(args: CheckArgs) -> Result<bool> {
     let text = std::fs::read(&args.program)
         .with_context(|| format!("reading {}", args.program.display()))?;
     let settings = Settings::default();
-    let report = read(&text, &settings);
+    let report = read_lines(&text, &settings);
     let prog = program_of_blocks(report.blocks);
     let (num, den) = settings.blu.per_mm();
     let mm = |blu: i32| blu as f64 * den as f64 / num as f64;

@@ -2,7 +2,8 @@
 //! the firmware, the boards' linker wrapper flip-link) and the third-party senders its tests drive
 //! (pygrbl-streamer, bCNC): find them and install the missing ones (apt-get when running as root;
 //! `rustup target add` for a Rust target; `cargo install` for a program from crates.io; a Python
-//! virtual environment and pip for a sender) (host).
+//! virtual environment and pip for a sender), and LinuxCNC's standalone interpreter rs274 (two
+//! Debian packages downloaded and unpacked under the workspace's `target/`, not installed) (host).
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -388,6 +389,121 @@ fn python_env(dir: &Path, label: &str, check: &str, steps: &[&[&str]]) -> Result
         );
     }
     Ok(python)
+}
+
+/// LinuxCNC's standalone G-code interpreter `rs274` (it prints a program's canonical machining
+/// calls), extracted from Debian packages, not installed: run [`Rs274::program`] with
+/// `LD_LIBRARY_PATH` set to [`Rs274::library_path`].
+#[derive(Clone, Debug)]
+pub struct Rs274 {
+    /// The `rs274` executable (`usr/bin/rs274` of the extracted tree).
+    pub program: PathBuf,
+    /// `LD_LIBRARY_PATH` for it: the extracted tree's `usr/lib` and `usr/lib/x86_64-linux-gnu`.
+    pub library_path: std::ffi::OsString,
+    /// The extracted tree's root (`usr/share/linuxcnc/ncfiles` holds LinuxCNC's example programs).
+    pub root: PathBuf,
+}
+
+/// The Debian packages [`ensure_rs274`] extracts: the interpreter and the one library it needs that
+/// a plain Debian 12 lacks.
+pub const RS274_PACKAGES: [&str; 2] = ["linuxcnc-uspace", "libboost-python1.74.0"];
+
+/// Returns a runnable `rs274` extracted under `dir` (the workspace's `target/rs274`). When `dir`
+/// has no extracted tree yet, downloads [`RS274_PACKAGES`] there with `apt-get download` (no
+/// install, root not needed; as root, `apt-get update` first when the download fails) and unpacks
+/// them with `dpkg-deb -x` into `dir/lcnc`. Once per process (tests run in parallel).
+pub fn ensure_rs274(dir: &Path) -> Result<Rs274> {
+    let root = dir.join("lcnc");
+    let rs274 = Rs274 {
+        program: root.join("usr/bin/rs274"),
+        library_path: std::env::join_paths([
+            root.join("usr/lib"),
+            root.join("usr/lib/x86_64-linux-gnu"),
+        ])
+        .context("LD_LIBRARY_PATH for rs274")?,
+        root: root.clone(),
+    };
+    // The tree is complete when this marker exists (written after both packages are unpacked).
+    let done = dir.join("extracted");
+    static EXTRACT: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = EXTRACT.lock().unwrap_or_else(|e| e.into_inner());
+    if done.is_file() && rs274.program.is_file() {
+        return Ok(rs274);
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let packages = RS274_PACKAGES.join(" ");
+    let what = format!(
+        "`cd {} && apt-get download {packages}` (then `apt-get update` and again if the package \
+         lists are missing)",
+        dir.display()
+    );
+    let debs = |dir: &Path| -> Vec<PathBuf> {
+        RS274_PACKAGES
+            .iter()
+            .filter_map(|p| {
+                std::fs::read_dir(dir)
+                    .ok()?
+                    .flatten()
+                    .map(|e| e.path())
+                    .find(|f| {
+                        f.file_name()
+                            .and_then(|n| n.to_str())
+                            .is_some_and(|n| n.starts_with(&format!("{p}_")) && n.ends_with(".deb"))
+                    })
+            })
+            .collect()
+    };
+    if debs(dir).len() < RS274_PACKAGES.len() {
+        eprintln!(
+            "millac: LinuxCNC's rs274 is missing, running `apt-get download {packages}` in {}",
+            dir.display()
+        );
+        let download = || {
+            Command::new("apt-get")
+                .arg("download")
+                .args(RS274_PACKAGES)
+                .current_dir(dir)
+                .status()
+                .map(|s| s.success())
+                .unwrap_or(false)
+        };
+        let mut ok = download();
+        if !ok && is_root() {
+            let updated = Command::new("apt-get")
+                .args(["-o", "DPkg::Lock::Timeout=300", "update"])
+                .status();
+            ok = matches!(updated, Ok(s) if s.success()) && download();
+        }
+        if !ok || debs(dir).len() < RS274_PACKAGES.len() {
+            bail!(
+                "LinuxCNC's rs274 is missing and `apt-get download {packages}` failed: run {what}"
+            );
+        }
+    }
+    for deb in debs(dir) {
+        let status = Command::new("dpkg-deb")
+            .arg("-x")
+            .arg(&deb)
+            .arg(&root)
+            .status()
+            .with_context(|| format!("running `dpkg-deb -x {}` (Debian: dpkg)", deb.display()))?;
+        if !status.success() {
+            bail!(
+                "`dpkg-deb -x {} {}` failed ({status})",
+                deb.display(),
+                root.display()
+            );
+        }
+    }
+    if !rs274.program.is_file() {
+        bail!(
+            "unpacked {packages} into {} but {} is missing",
+            root.display(),
+            rs274.program.display()
+        );
+    }
+    std::fs::write(&done, b"").with_context(|| format!("writing {}", done.display()))?;
+    Ok(rs274)
 }
 
 #[cfg(test)]
