@@ -20,28 +20,15 @@ use std::path::{Path, PathBuf};
 /// with the programs that use them. The list shrinks as the dialect grows: remove an entry when
 /// millac accepts the construct.
 const KNOWN_REFUSALS: &[&str] = &[
-    // cam/freecad (both), cam/linuxcnc/skeleton.ngc
-    "G54 is not supported",
-    // cam/freecad/pocket.nc: the K0.000 FreeCAD's grbl post writes on G17 arcs
-    "the word K is not used by this line",
-    // cam/linuxcnc/arcspiral.ngc
-    "G64 is not supported",
-    // cam/linuxcnc/cds.ngc
-    "G43 is not supported",
-    // cam/linuxcnc/hole-circle.ngc
-    "G81 is not supported",
-    // cam/linuxcnc/skeleton.ngc
-    "G40 is not supported",
-    "G49 is not supported",
-    "G53 is not supported",
-    "M0 is not supported",
-    "T words are not supported",
+    // cam/linuxcnc/skeleton.ngc: `G4 P...` on a line with an axis move
     "G4 cannot be combined with an axis move",
+    // cam/linuxcnc/hole-circle.ngc: `^60` (LinuxCNC's polar coordinates)
+    "polar coordinates (@ radius, ^ angle) are not supported",
 ];
 
 /// The tool table rs274 reads (its format; values in inches even for mm programs): tools 1 to 20
-/// of length 0, so that a program's `T1 M6 G43 H1` runs in rs274 and moves nothing (millac has no
-/// tool length offsets: machine coordinates agree only with zero lengths).
+/// of length 0, as millac's table starts (a program's `T1 M6 G43 H1` moves nothing in either; a
+/// program that sets lengths with G10 L1 sets them in both).
 fn tool_table() -> String {
     (1..=20)
         .map(|t| format!("T{t} P{t} Z0 D0.125 ;length 0\n"))

@@ -9,12 +9,20 @@ use crate::nc::{Arc, Plane, MAX_SEGMENTS};
 use crate::settings::Settings;
 
 /// How the centre was programmed, in BLU in the plane's (a, b) axes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Centre {
     /// Offsets of the centre from the start point (I/J/K, always incremental).
     Offsets([i64; 2]),
-    /// Signed radius: positive = the arc of at most 180 degrees, negative = the larger one.
-    Radius(i64),
+    /// R form, exact: the signed radius (positive = the arc of at most 180 degrees, negative =
+    /// the larger one), the chord from the programmed start to the programmed end, and the
+    /// programmed start's offset from the machine's start point, all in BLU as floats (the
+    /// programmed values are not rounded to the lattice before the centre is found: rounding the
+    /// ends first moves the centre of a short chord on a long radius by many BLU).
+    Radius {
+        r: f64,
+        chord: [f64; 2],
+        start_off: [f64; 2],
+    },
 }
 
 /// The axis-crossing points (relative to the centre) in counter-clockwise order from +a.
@@ -94,49 +102,44 @@ fn check_soft(st: &Settings, axis: usize, value: i64) -> Result<(), ErrorKind> {
     Ok(())
 }
 
-/// R form: the centre relative to the start, as grbl computes it, rounded to BLU.
+/// R form: the centre relative to the exact start, as grbl computes it (h = sqrt(4 r^2 - d^2)
+/// along the chord's normal), not rounded. `chord` and `radius` in BLU.
 fn centre_from_radius(
     st: &Settings,
     ccw: bool,
-    d: [i64; 2],
-    radius: i64,
-) -> Result<[i64; 2], ErrorKind> {
-    let [x, y] = d;
-    if x == 0 && y == 0 {
-        return Err(ErrorKind::ArcFullCircleRadius);
-    }
-    let r = radius.unsigned_abs() as f64;
-    if radius == 0 {
+    chord: [f64; 2],
+    radius: f64,
+) -> Result<[f64; 2], ErrorKind> {
+    let [x, y] = chord;
+    let r = libm::fabs(radius);
+    if libm::round(r) == 0.0 {
         return Err(ErrorKind::ArcZeroRadius);
     }
-    let d2 = x as i128 * x as i128 + y as i128 * y as i128;
-    let r2 = radius as i128 * radius as i128;
-    let chord = libm::sqrt(d2 as f64);
-    let mut disc = 4 * r2 - d2;
-    if disc < 0 {
-        if chord / 2.0 - r > tolerance(st, r) {
+    let d2 = x * x + y * y;
+    let chord_len = libm::sqrt(d2);
+    let mut disc = 4.0 * r * r - d2;
+    if disc < 0.0 {
+        if chord_len / 2.0 - r > tolerance(st, r) {
             return Err(ErrorKind::ArcRadiusTooSmall {
-                radius: radius.unsigned_abs() as i64,
-                half_chord: libm::round(chord / 2.0) as i64,
+                radius: libm::round(r) as i64,
+                half_chord: libm::round(chord_len / 2.0) as i64,
             });
         }
-        disc = 0;
+        disc = 0.0;
     }
     // grbl: h_x2_div_d = -sqrt(4 r^2 - d^2) / d, negated for CCW and for negative R.
-    let mut k = -libm::sqrt(disc as f64) / chord;
+    let mut k = -libm::sqrt(disc) / chord_len;
     if ccw {
         k = -k;
     }
-    if radius < 0 {
+    if radius < 0.0 {
         k = -k;
     }
-    let (xf, yf) = (x as f64, y as f64);
-    let i = libm::round(0.5 * (xf - yf * k));
-    let j = libm::round(0.5 * (yf + xf * k));
-    if !(i.abs() < 1e15 && j.abs() < 1e15) {
+    let o = [0.5 * (x - y * k), 0.5 * (y + x * k)];
+    if !(o[0].abs() < 1e15 && o[1].abs() < 1e15) {
         return Err(ErrorKind::ArcTooLarge);
     }
-    Ok([i as i64, j as i64])
+    Ok(o)
 }
 
 /// Plans one arc from `start` to `end` (machine BLU) and returns the block (decel false).
@@ -159,7 +162,18 @@ pub fn plan(
     let e = [get(end, ia), get(end, ib)];
     let off = match centre {
         Centre::Offsets(o) => o,
-        Centre::Radius(r) => centre_from_radius(st, ccw, [e[0] - s[0], e[1] - s[1]], r)?,
+        Centre::Radius {
+            r,
+            chord,
+            start_off,
+        } => {
+            if e == s {
+                return Err(ErrorKind::ArcFullCircleRadius);
+            }
+            let o = centre_from_radius(st, ccw, chord, r)?;
+            // The centre rounded once to the lattice, relative to the machine's start.
+            [0, 1].map(|k| libm::round(start_off[k] + o[k]) as i64)
+        }
     };
     let c = [s[0] + off[0], s[1] + off[1]];
     let p0 = [s[0] - c[0], s[1] - c[1]];

@@ -50,6 +50,8 @@ pub enum Construct {
     Expression,
     /// O-words: subroutines and flow control.
     OWord,
+    /// `@` and `^`: LinuxCNC's polar coordinates.
+    Polar,
     /// G41/G42 (and G41.1/G42.1): cutter radius compensation.
     CutterCompensation,
     /// G59.1, G59.2, G59.3: coordinate systems beyond grbl's six.
@@ -66,6 +68,7 @@ impl Construct {
             Construct::Parameter => "parameters (#) are not supported: LinuxCNC's macro language is outside the grbl dialect; post the program without variables",
             Construct::Expression => "expressions ([...]) are not supported: LinuxCNC's macro language is outside the grbl dialect; post the program with plain numbers",
             Construct::OWord => "O-words (subroutines, loops, conditions) are not supported: LinuxCNC's macro language is outside the grbl dialect; post the program without them",
+            Construct::Polar => "polar coordinates (@ radius, ^ angle) are not supported: post the program with X and Y",
             Construct::CutterCompensation => "cutter radius compensation (G41/G42) is not supported: let the CAM program the tool centre path (compensation 'in computer') and use G40",
             Construct::G59Extended => "G59.1-G59.3 are not supported: grbl has the six coordinate systems G54-G59",
             Construct::Probe => "probing (G38.x) is not supported yet",

@@ -809,7 +809,9 @@ fn motion(
     let origin = origin_fine(m, offsets, machine);
     let (target, target_fine) = targets(st, w, m.distance, &pos, scale, origin)?;
     let mut motion = match m.motion {
-        MotionMode::ArcCw | MotionMode::ArcCcw => arc_motion(st, m, w, &pos, target, scale, used)?,
+        MotionMode::ArcCw | MotionMode::ArcCcw => {
+            arc_motion(st, m, w, &pos, (target, target_fine), scale, used)?
+        }
         _ => match line_motion(st, m, *pos.blu, target)? {
             Some(motion) => motion,
             None => {
@@ -1072,7 +1074,7 @@ fn arc_motion(
     m: &Modes,
     w: &Words,
     position: &Position,
-    target: [i32; 3],
+    (target, end_fine): ([i32; 3], [i128; 3]),
     scale: Scale,
     used: &mut Used,
 ) -> Result<Motion, ErrorKind> {
@@ -1093,7 +1095,21 @@ fn arc_motion(
     let has_offsets = w.value(OFFSETS + ia).is_some() || w.value(OFFSETS + ib).is_some();
     let centre = match (w.value(R).is_some(), has_offsets) {
         (true, true) => return Err(ErrorKind::ArcRadiusAndOffsets),
-        (true, false) => Centre::Radius(length(w, R, scale.per)?.unwrap_or(0)),
+        (true, false) => {
+            // The exact programmed start, end and radius, in BLU as floats.
+            length(w, R, scale.per)?;
+            let per_blu = fine_of_blu(st, 1) as f64;
+            let blu = |f: i128| f as f64 / per_blu;
+            let r = w.value(R).and_then(|v| to_fine(v, scale.fine)).unwrap_or(0);
+            Centre::Radius {
+                r: blu(r),
+                chord: [ia, ib].map(|k| blu(end_fine[k] - position.fine[k])),
+                start_off: [0, 1].map(|i| {
+                    let k = [ia, ib][i];
+                    blu(position.fine[k] - fine_of_blu(st, pos[k]))
+                }),
+            }
+        }
         (false, true) => {
             // The centre is the programmed start plus I, J, K, exact, rounded once.
             let mut off = [0i64; 2];

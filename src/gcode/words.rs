@@ -253,6 +253,7 @@ pub fn lex(text: &str) -> Result<Words, ErrorKind> {
             '#' => Some(Construct::Parameter),
             '[' => Some(Construct::Expression),
             'o' | 'O' => Some(Construct::OWord),
+            '@' | '^' => Some(Construct::Polar),
             _ => None,
         };
         if let Some(c) = construct {
