@@ -420,6 +420,61 @@ fn check_lists_every_refusal_and_reports_the_accepted_program() {
     assert!((2.0..2.1).contains(&t), "{t}");
 }
 
+/// `check` names each tool change (line, tool, its size when the program describes it with
+/// G10 L1) and gives the box in work coordinates as well as in machine ones: a part programmed in
+/// G55 at (10, 20) mm with a 50 mm tool under G43 spans 0..5 mm in work X and 10..15 in machine X.
+#[test]
+fn check_names_the_tool_changes_and_the_work_box() {
+    let dir = scratch("check-tools");
+    let prog = dir.join("p.nc");
+    std::fs::write(
+        &prog,
+        "G21 G90\nG10 L2 P2 X10 Y20\nG10 L1 P3 Z50 R1.5\nG55 G0 X0 Y0 Z60\nT3 M6\nG43 H3\n\
+         G0 Z5\nG1 Z-1 F100\nX5\nT4 M6\nM30\n",
+    )
+    .unwrap();
+    let o = millac(&["check".as_ref(), prog.as_os_str(), "--json".as_ref()]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let tools = v["tools"].as_array().unwrap();
+    assert_eq!(tools.len(), 2, "{v}");
+    assert_eq!(
+        (&tools[0]["tool"], &tools[0]["line"]),
+        (&3.into(), &5.into())
+    );
+    assert!((tools[0]["diameter_mm"].as_f64().unwrap() - 3.0).abs() < 1e-9);
+    assert!((tools[0]["length_mm"].as_f64().unwrap() - 50.0).abs() < 1e-9);
+    assert_eq!(
+        (&tools[1]["tool"], &tools[1]["line"]),
+        (&4.into(), &10.into())
+    );
+    assert_eq!(tools[1]["length_mm"], 0.0, "T4 is not described");
+    // BLU of mm at the default 0.0001 in.
+    let blu = |mm: f64| (mm / 0.00254).round() as i64;
+    let at = |key: &str, end: &str, k: usize| v[key][end][k].as_i64().unwrap();
+    // After the first move (from the machine origin) every block is in G55 with the tool's
+    // length: machine X reaches 15 mm, work X 5 mm; work Z goes down to -1 mm (machine 49).
+    assert_eq!(at("bounds_blu", "max", 0), blu(15.0));
+    assert_eq!(at("bounds_work_blu", "max", 0), blu(5.0));
+    assert_eq!(at("bounds_work_blu", "max", 2), blu(60.0));
+    assert_eq!(v["final_position_blu"][2].as_i64().unwrap(), blu(49.0));
+    let text = millac(&["check".as_ref(), prog.as_os_str()]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains("tool change at line 5: T3 (diameter 3.000 mm, length 50.000 mm)"),
+        "{text}"
+    );
+    assert!(
+        text.contains("T4 (not described in the tool table)"),
+        "{text}"
+    );
+}
+
 /// The programs FreeCAD's CAM wrote (qemu/programs/cam/freecad) are accepted whole: every line,
 /// `G54` and the `K0.000` its grbl post writes on G17 arcs included (`check` exits 0).
 #[test]

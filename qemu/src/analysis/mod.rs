@@ -41,12 +41,38 @@ pub struct Refusal {
     pub message: String,
 }
 
-/// What [`read_lines`] read: the lines read, the accepted blocks in order, the refused lines.
+/// A tool change (M6) a program asks for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToolChange {
+    pub line: u32,
+    /// The tool to fit (0: none).
+    pub tool: u8,
+    /// How many blocks run before it.
+    pub after_blocks: usize,
+    /// The tool's entry in the table as the program left it at that line (G10 L1 sets it).
+    pub entry: Option<millac::gcode::Tool>,
+}
+
+/// What [`read_lines`] read: the lines read, the accepted blocks in order, the refused lines, the
+/// tool changes, and the work coordinate origin (picometres of machine coordinates) from each
+/// line on where it changes (the first entry is line 0: the machine origin).
 #[derive(Debug)]
 pub struct Reading {
     pub lines: u32,
     pub blocks: Vec<Sealed>,
     pub refused: Vec<Refusal>,
+    pub tool_changes: Vec<ToolChange>,
+    pub origins: Vec<(u32, [i64; 3])>,
+}
+
+impl Reading {
+    /// The work coordinate origin (picometres) in force for a block of line `line`.
+    pub fn origin_of_line(&self, line: u32) -> [i64; 3] {
+        let i = self.origins.partition_point(|(l, _)| *l <= line);
+        self.origins
+            .get(i.saturating_sub(1))
+            .map_or([0; 3], |o| o.1)
+    }
 }
 
 /// Reads `text` as the firmware's loader does, line by line (the firmware's line splitter and
@@ -57,6 +83,8 @@ pub fn read_lines(text: &[u8], settings: &Settings) -> Reading {
     let mut tape = Tape::new(*settings);
     let mut blocks = Vec::new();
     let mut refused = Vec::new();
+    let mut tool_changes = Vec::new();
+    let mut origins = vec![(0, [0i64; 3])];
     let mut ended = false;
     let mut lines = Lines::new();
     let mut line = |n: u32, l: Result<&str, millac::gcode::lines::LineError>| -> bool {
@@ -66,13 +94,29 @@ pub fn read_lines(text: &[u8], settings: &Settings) -> Reading {
                 message: format!("line {n}: {}", e.message()),
             }),
             Ok(l) => {
-                // The program's end: parsed on a copy to know it is the end (M2/M30).
-                ended = matches!(tape.parser().clone().line(n, l), Ok(Parsed::End));
-                if let Err(e) = tape.line(n, l, |b| blocks.push(b)) {
-                    refused.push(Refusal {
+                // The program's end and its tool changes: parsed on a copy to know what the line is.
+                let mut probe = tape.parser().clone();
+                let parsed = probe.line(n, l);
+                ended = matches!(parsed, Ok(Parsed::End));
+                if let Ok(Parsed::Stop(millac::gcode::Stop::ToolChange { tool })) = parsed {
+                    tool_changes.push(ToolChange {
+                        line: n,
+                        tool,
+                        after_blocks: blocks.len() + usize::from(tape.holds_a_block()),
+                        entry: probe.tools().get(tool as u32).copied(),
+                    });
+                }
+                match tape.line(n, l, |b| blocks.push(b)) {
+                    Err(e) => refused.push(Refusal {
                         line: e.line(),
                         message: e.to_string(),
-                    });
+                    }),
+                    Ok(()) => {
+                        let o = tape.parser().work_origin_pm();
+                        if origins.last().map(|l| l.1) != Some(o) {
+                            origins.push((n, o));
+                        }
+                    }
                 }
             }
         }
@@ -86,6 +130,8 @@ pub fn read_lines(text: &[u8], settings: &Settings) -> Reading {
         lines: lines.line_no(),
         blocks,
         refused,
+        tool_changes,
+        origins,
     }
 }
 

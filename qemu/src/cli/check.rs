@@ -1,5 +1,7 @@
 //! `millac-qemu check PROGRAM [--json]`: validates a program without running it and says what a
-//! machinist asks before pressing start (host: the CLI calls it from `main`). Every line goes
+//! machinist asks before pressing start (host: the CLI calls it from `main`): blocks, the tool
+//! changes (line, tool, its table entry), the bounding box in machine and work coordinates, the
+//! end point, the feeds, the time, and every refused line. Every line goes
 //! through the firmware's own line splitter and tape reader (`millac::gcode`, read by
 //! `millac_qemu::analysis::read_lines`) as a serial session would stream it: a refused line is
 //! reported with its number and the reading goes on (the parser as it was before the line), so
@@ -32,20 +34,45 @@ pub(crate) fn command(args: CheckArgs) -> Result<bool> {
     let text = std::fs::read(&args.program)
         .with_context(|| format!("reading {}", args.program.display()))?;
     let settings = Settings::default();
-    let report = read_lines(&text, &settings);
-    let prog = program_of_blocks(report.blocks);
+    let mut report = read_lines(&text, &settings);
+    let blocks = std::mem::take(&mut report.blocks);
+    let prog = program_of_blocks(blocks);
     let (num, den) = settings.blu.per_mm();
     let mm = |blu: i32| blu as f64 * den as f64 / num as f64;
     // The bounding box of every block's start and end (arcs: their end points; an arc's bulge
-    // beyond them is not counted), in machine coordinates (no work offsets yet: the same).
+    // beyond them is not counted), in machine coordinates and in the work coordinates in force
+    // for each block (machine minus the origin of its line: system, G92, tool length).
+    let pm_per_blu = 1e9 * den as f64 / num as f64;
     let mut lo = [0i32; 3];
     let mut hi = [0i32; 3];
+    let mut wlo = [i32::MAX; 3];
+    let mut whi = [i32::MIN; 3];
     for b in &prog {
+        let o = report.origin_of_line(b.block.line);
         for k in 0..3 {
             lo[k] = lo[k].min(b.start[k]).min(b.end[k]);
             hi[k] = hi[k].max(b.start[k]).max(b.end[k]);
+            let shift = (o[k] as f64 / pm_per_blu).round() as i32;
+            wlo[k] = wlo[k].min(b.start[k] - shift).min(b.end[k] - shift);
+            whi[k] = whi[k].max(b.start[k] - shift).max(b.end[k] - shift);
         }
     }
+    if prog.is_empty() {
+        (wlo, whi) = ([0; 3], [0; 3]);
+    }
+    let tools: Vec<serde_json::Value> = report
+        .tool_changes
+        .iter()
+        .map(|t| {
+            json!({
+                "tool": t.tool,
+                "line": t.line,
+                "after_blocks": t.after_blocks,
+                "diameter_mm": t.entry.map(|e| e.diameter_pm as f64 * 1e-9),
+                "length_mm": t.entry.map(|e| e.length_pm as f64 * 1e-9),
+            })
+        })
+        .collect();
     let end = prog.last().map_or([0; 3], |b| b.end);
     let feeds: Vec<f64> = prog
         .iter()
@@ -73,9 +100,10 @@ pub(crate) fn command(args: CheckArgs) -> Result<bool> {
             "rapids": rapids,
             "linear": lines,
             "arcs": arcs,
-            "tools": [],
+            "tools": tools,
             "final_position_blu": end,
             "bounds_blu": { "min": lo, "max": hi },
+            "bounds_work_blu": { "min": wlo, "max": whi },
             "estimated_time_s": seconds,
             "feed_min_ipm": (!feeds.is_empty()).then_some(slowest),
             "feed_max_ipm": (!feeds.is_empty()).then_some(fastest),
@@ -92,16 +120,36 @@ pub(crate) fn command(args: CheckArgs) -> Result<bool> {
             report.lines,
             prog.len()
         );
-        println!("tools: none named (T words are not read yet)");
+        if report.tool_changes.is_empty() {
+            println!("tools: no tool change (M6) in the program");
+        }
+        for t in &report.tool_changes {
+            let size = t
+                .entry
+                .filter(|e| e.diameter_pm != 0 || e.length_pm != 0)
+                .map_or(String::from("not described in the tool table"), |e| {
+                    format!(
+                        "diameter {:.3} mm, length {:.3} mm",
+                        e.diameter_pm as f64 * 1e-9,
+                        e.length_pm as f64 * 1e-9
+                    )
+                });
+            println!(
+                "tool change at line {}: T{} ({size}), after {} blocks",
+                t.line, t.tool, t.after_blocks
+            );
+        }
         let axis = ["X", "Y", "Z"];
         for k in 0..3 {
             println!(
-                "{}: {:.4} .. {:.4} mm ({} .. {} BLU)",
+                "{}: {:.4} .. {:.4} mm machine ({} .. {} BLU), {:.4} .. {:.4} mm work",
                 axis[k],
                 mm(lo[k]),
                 mm(hi[k]),
                 lo[k],
-                hi[k]
+                hi[k],
+                mm(wlo[k]),
+                mm(whi[k])
             );
         }
         println!(
