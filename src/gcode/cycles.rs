@@ -18,7 +18,7 @@
 //! current position, R an increment from the Z where the series began, Z an increment from R.
 //! R, Z, Q and P are sticky while the same cycle stays in force; L is per line.
 
-use super::exec::FINE_PER_MM;
+use super::fine::{fine_to_blu, FINE_PER_MM};
 use crate::nc::{steps_and_signs, Block, Dwell, Linear, Motion, Rapid};
 use crate::settings::Settings;
 
@@ -305,7 +305,7 @@ impl Cycle {
                 Move::Feed(t) => (t, true),
             };
             self.at = target;
-            let blu = target.map(|f| super::exec::fine_to_blu(st, f).unwrap_or(0));
+            let blu = target.map(|f| fine_to_blu(st, f).unwrap_or(0));
             let d = [0, 1, 2].map(|k| blu[k] as i64 - self.blu[k] as i64);
             self.blu = blu;
             let (steps, signs) = steps_and_signs(d);

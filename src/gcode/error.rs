@@ -2,8 +2,10 @@
 //! allocation. Built by the G-code parser (loader task), displayed by the host tool and the tests.
 
 use super::number::Decimal;
-use super::words::Code;
 use core::fmt;
+
+/// A G or M code in tenths: G1 = 10, G43.1 = 431, G92.3 = 923.
+pub type Code = u16;
 
 /// Writes a code in tenths as G-code writes it: `G43.1`, `M6`.
 pub fn write_code(f: &mut dyn fmt::Write, letter: char, code: Code) -> fmt::Result {

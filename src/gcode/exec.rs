@@ -11,7 +11,10 @@
 use super::arc::{self, Centre};
 use super::cycles::{Cycle, CycleKind};
 use super::error::{axis_name, Construct, CycleError, ErrorKind};
-use super::offsets::{fine_of_pm, pm_of_fine, Offsets, MAX_PM};
+use super::fine::{
+    fine_of_blu, fine_of_pm, fine_to_blu, pm_of_fine, to_fine, FINE_PER_INCH, FINE_PER_MM,
+};
+use super::offsets::{Offsets, MAX_PM};
 use super::tools::{Tool, ToolTable, MAX_TOOLS};
 use super::words::{
     self, Code, Words, AXES, F, G_COORD, G_CUTTER, G_DISTANCE, G_FEED_MODE, G_MOTION, G_NON_MODAL,
@@ -40,39 +43,10 @@ fn length(w: &Words, i: usize, per: (i64, i64)) -> Result<Option<i64>, ErrorKind
     }
 }
 
-/// Fine units per millimetre: 10^-19 mm is an exact common unit of every length word, in mm or in
-/// inches (a word has at most 18 decimals, [`super::number::MAX_DECIMALS`], and an inch is 25.4 mm).
-pub const FINE_PER_MM: i128 = 10_000_000_000_000_000_000;
-/// Fine units per inch (25.4 mm).
-pub const FINE_PER_INCH: i128 = 254 * 1_000_000_000_000_000_000;
-
 /// The parser's position: the machine's in BLU and the programmed one, exact, in fine units.
 pub struct Position<'a> {
     pub blu: &'a mut [i32; 3],
     pub fine: &'a mut [i128; 3],
-}
-
-/// Fine units of `v` program units (`per_fine`: fine units per unit), exact; None on overflow.
-#[inline(never)]
-fn to_fine(v: super::Decimal, per_fine: i128) -> Option<i128> {
-    let scale = super::number::pow10(v.scale as u32)?;
-    v.mantissa.checked_mul(per_fine.checked_div(scale)?)
-}
-
-/// The machine coordinate of a fine position: BLU, rounded half away from zero (the same rounding
-/// as a word converted directly), or None when it does not fit i32.
-#[inline(never)]
-pub(super) fn fine_to_blu(st: &Settings, fine: i128) -> Option<i32> {
-    let (num, den) = st.blu.per_mm();
-    let n = fine.checked_mul(num as i128)?;
-    let d = (den as i128).checked_mul(FINE_PER_MM)?;
-    i32::try_from(super::number::div_round(n, d)?).ok()
-}
-
-/// The fine position of a machine coordinate: exact (1 BLU = 2.54e16 or 1e16 fine units).
-pub fn fine_of_blu(st: &Settings, blu: i32) -> i128 {
-    let (num, den) = st.blu.per_mm();
-    blu as i128 * FINE_PER_MM * den as i128 / num as i128
 }
 
 fn check_soft(st: &Settings, target: [i32; 3]) -> Result<(), ErrorKind> {

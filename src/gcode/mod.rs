@@ -18,6 +18,7 @@ pub mod arc;
 pub mod cycles;
 pub mod error;
 mod exec;
+pub mod fine;
 pub mod lines;
 pub mod lookahead;
 pub mod number;
@@ -253,7 +254,7 @@ pub struct Parser {
     settings: Settings,
     /// Machine position after the last accepted block, BLU: the rounded `programmed` position.
     position: [i32; 3],
-    /// The programmed position, exact, in fine units (see [`exec::FINE_PER_MM`]): G91 increments
+    /// The programmed position, exact, in fine units (see [`fine::FINE_PER_MM`]): G91 increments
     /// and G20/G21 switches add up exactly, and only the machine target is rounded to a BLU, so N
     /// increments end where one move of their sum would.
     programmed: [i128; 3],
@@ -368,7 +369,7 @@ impl Parser {
     /// follow `signs`, the jog block's. Loader task.
     pub fn jogged_to(&mut self, end: [i32; 3], signs: u8) {
         self.position = end;
-        self.programmed = end.map(|b| exec::fine_of_blu(&self.settings, b));
+        self.programmed = end.map(|b| fine::fine_of_blu(&self.settings, b));
         self.signs = signs;
     }
 

@@ -8,24 +8,8 @@
 //! for a word of up to 9 decimals in mm or 8 in inches and for any machine position in BLU, so a
 //! program moves by exactly what its words say, rounded once to a BLU at the target.
 
-use super::exec::FINE_PER_MM;
-
 /// The largest offset magnitude, picometres (1 km): three of them add up within i64.
 pub const MAX_PM: i64 = 1_000_000_000_000_000_000;
-
-/// Fine units (see `exec::FINE_PER_MM`) per picometre.
-pub const FINE_PER_PM: i128 = FINE_PER_MM / 1_000_000_000;
-
-/// Picometres of a fine length, rounded half away from zero; None when it does not fit i64.
-#[inline(never)]
-pub fn pm_of_fine(fine: i128) -> Option<i64> {
-    i64::try_from(super::number::div_round(fine, FINE_PER_PM)?).ok()
-}
-
-/// The fine length of picometres (exact).
-pub const fn fine_of_pm(pm: i64) -> i128 {
-    pm as i128 * FINE_PER_PM
-}
 
 /// The persistent offsets (grbl's: the six systems and the two stored positions) and the G92
 /// offset (volatile, as grbl's: a soft reset clears it).

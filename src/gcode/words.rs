@@ -24,8 +24,7 @@ pub const L: usize = 13;
 pub const H: usize = 14;
 pub const D: usize = 15;
 
-/// A G or M code in tenths: G1 = 10, G43.1 = 431, G92.3 = 923.
-pub type Code = u16;
+pub use super::error::Code;
 
 /// The tenths of a code: `G43.1` is `code(43, 1)`.
 pub const fn code(whole: u16, tenth: u16) -> Code {

@@ -119,7 +119,7 @@ fn below_r_the_tool_rises_first() {
 fn g83_pecks_out_to_r_and_g73_backs_off() {
     let mut p = parser();
     run(&mut p, "G20 G0 X0 Y0 Z0.1 F10");
-    let c = PECK_CLEARANCE / (crate::gcode::exec::FINE_PER_INCH / 10_000);
+    let c = PECK_CLEARANCE / (crate::gcode::fine::FINE_PER_INCH / 10_000);
     assert_eq!(c, 100, "0.010 in");
     // Pecks of 0.2 from R 0.1 to -0.45: feeds to -0.1, -0.3, then the bottom.
     let z = |v: f64| b(1.0, 0.0, v);
