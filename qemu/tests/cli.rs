@@ -499,5 +499,5 @@ fn the_cam_corpus_is_accepted_whole() {
         assert_eq!(o.status.code(), Some(0), "{}", p.display());
         checked += 1;
     }
-    assert_eq!(checked, 2, "pocket.nc and adaptive.nc");
+    assert_eq!(checked, 5, "pocket, adaptive, drill, surface, multitool");
 }

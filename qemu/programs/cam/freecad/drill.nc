@@ -1,0 +1,88 @@
+(Begin preamble)
+G17 G90
+G21
+(Begin operation: G54)
+(Path: G54)
+G54
+G0 Z15.000
+(Finish operation: G54)
+(Begin operation: TC: 5mm Drill)
+(Path: TC: 5mm Drill)
+(TC: 5mm Drill)
+(Begin toolchange)
+( M6 T2 )
+M3 S3000
+(Finish operation: TC: 5mm Drill)
+(Begin operation: Drilling)
+(Path: Drilling)
+(Drilling)
+(Begin Drilling)
+G0 Z15.000
+G90
+G98
+G0 X5.000 Y5.000
+G0 Z13.000
+G81 X5.000 Y5.000 Z2.000 F100.000 R13.000
+G0 X5.000 Y35.000
+G0 Z13.000
+G81 X5.000 Y35.000 Z2.000 F100.000 R13.000
+G0 X55.000 Y35.000
+G0 Z13.000
+G81 X55.000 Y35.000 Z2.000 F100.000 R13.000
+G0 X55.000 Y5.000
+G0 Z13.000
+G81 X55.000 Y5.000 Z2.000 F100.000 R13.000
+G80
+G0 Z13.000
+G0 Z15.000
+(Finish operation: Drilling)
+(Begin operation: DwellDrilling)
+(Path: DwellDrilling)
+(DwellDrilling)
+(Begin Drilling)
+G0 Z15.000
+G90
+G98
+G0 X5.000 Y5.000
+G0 Z13.000
+G82 X5.000 Y5.000 Z2.000 F100.000 R13.000 P0.5
+G0 X5.000 Y35.000
+G0 Z13.000
+G82 X5.000 Y35.000 Z2.000 F100.000 R13.000 P0.5
+G0 X55.000 Y35.000
+G0 Z13.000
+G82 X55.000 Y35.000 Z2.000 F100.000 R13.000 P0.5
+G0 X55.000 Y5.000
+G0 Z13.000
+G82 X55.000 Y5.000 Z2.000 F100.000 R13.000 P0.5
+G80
+G0 Z13.000
+G0 Z15.000
+(Finish operation: DwellDrilling)
+(Begin operation: PeckDrilling)
+(Path: PeckDrilling)
+(PeckDrilling)
+(Begin Drilling)
+G0 Z15.000
+G90
+G98
+G0 X5.000 Y5.000
+G0 Z13.000
+G83 X5.000 Y5.000 Z2.000 F100.000 Q2.000 R13.000
+G0 X5.000 Y35.000
+G0 Z13.000
+G83 X5.000 Y35.000 Z2.000 F100.000 Q2.000 R13.000
+G0 X55.000 Y35.000
+G0 Z13.000
+G83 X55.000 Y35.000 Z2.000 F100.000 Q2.000 R13.000
+G0 X55.000 Y5.000
+G0 Z13.000
+G83 X55.000 Y5.000 Z2.000 F100.000 Q2.000 R13.000
+G80
+G0 Z13.000
+G0 Z15.000
+(Finish operation: PeckDrilling)
+(Begin postamble)
+M5
+G17 G90
+M2
