@@ -1,0 +1,52 @@
+//! A program a CAM wrote runs on the firmware under QEMU (host; the built `millac-qemu` binary and
+//! QEMU, NC only): FreeCAD's drilling job, whose canned cycles (G81, G82 with its dwell, G83 pecks)
+//! the firmware's loader expands line by line into its block queue. Every block runs, each ends
+//! exactly where the host's reading of the program says (the analyser's end points from the
+//! capture), and the machine ends where `check` says.
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn scratch(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("corpus-{name}"));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn freecads_drilling_job_runs_under_qemu_block_for_block() {
+    let prog = Path::new(env!("CARGO_MANIFEST_DIR")).join("programs/cam/freecad/drill.nc");
+    let text = std::fs::read(&prog).unwrap();
+    let settings = millac::Settings::default();
+    let reading = millac_qemu::analysis::read_lines(&text, &settings);
+    assert!(reading.refused.is_empty(), "{:?}", reading.refused);
+    let want = millac_qemu::analysis::program_of_blocks(reading.blocks);
+    let cycles = String::from_utf8_lossy(&text);
+    for code in ["G81", "G82", "G83"] {
+        assert!(cycles.contains(code), "the job has {code}");
+    }
+    let out = scratch("drill").join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_millac-qemu"))
+        .args(["run", "--nc-only", "--out"])
+        .arg(&out)
+        .arg(&prog)
+        .output()
+        .unwrap();
+    let s: Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("summary.json")).unwrap_or_else(|e| {
+            panic!("{e}: {}", String::from_utf8_lossy(&o.stderr));
+        }),
+    )
+    .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{s:#}");
+    assert_eq!(s["completed"], true, "{s:#}");
+    assert_eq!(s["blocks"], want.len(), "{s:#}");
+    assert_eq!(s["end_points_exact"], true, "{s:#}");
+    let end = want.last().unwrap().end;
+    let p = &s["final_position_blu"];
+    assert_eq!(
+        ["x", "y", "z"].map(|k| p[k].as_i64().unwrap()),
+        end.map(i64::from)
+    );
+}
