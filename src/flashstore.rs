@@ -4,10 +4,12 @@
 //! takes only in Idle or Alarm); host tests with a RAM sector that enforces the flash rules
 //! (`flashstore/tests.rs`).
 //!
-//! Meant for the STM32F446RE's last sector (sector 7, 128 KiB at 0x0806_0000): 512 slots of
-//! [`SLOT_LEN`] bytes, so a sector erase (~1-2 s, reads stall meanwhile) comes once every 512
-//! stores, and 10 000 erase cycles last 5 million stores. A store programs `(8 + n) / 4` rounded up
-//! words plus two (a 195-byte settings record: 53 words, ~1 ms at ~16 us a word).
+//! Meant for the STM32F446RE's last sector (sector 7, 128 KiB at 0x0806_0000): 128 slots of
+//! [`SLOT_LEN`] bytes (1 KiB: the settings record with the work offsets and the tool table is 828
+//! bytes), so a sector erase (~1-2 s, reads stall meanwhile) comes once every 128 stores, and
+//! 10 000 erase cycles last 1.28 million stores (a store per `$N=value`, `$RST=`, G10 or
+//! G28.1/G30.1). A store programs `(8 + n) / 4` rounded up words plus two (the 828-byte record:
+//! 211 words, ~3.4 ms at ~16 us a word).
 //!
 //! Slot layout (little-endian words, as a Cortex-M stores them), slot `k` at sector offset
 //! `k * SLOT_LEN`:
@@ -19,8 +21,8 @@
 //! | 6 | 2 | slot format ([`SLOT_FORMAT`]) | 1st |
 //! | 8 | n | the image; the bytes after it up to the next word are 0xFF | 1st |
 //! | 8 + n .. [`CRC_AT`] | | erased (never programmed) | |
-//! | [`CRC_AT`] = 248 | 4 | CRC-32 ([`crc32`], as the record's) of bytes 0 .. 8 + n | 2nd |
-//! | [`COMMIT_AT`] = 252 | 4 | commit word [`COMMIT`] (`DONE`) | 3rd, last |
+//! | [`CRC_AT`] = 1016 | 4 | CRC-32 ([`crc32`], as the record's) of bytes 0 .. 8 + n | 2nd |
+//! | [`COMMIT_AT`] = 1020 | 4 | commit word [`COMMIT`] (`DONE`) | 3rd, last |
 //!
 //! The rules:
 //! - A slot is *erased* when all its bytes are 0xFF, *committed* when its commit word is
@@ -36,7 +38,7 @@
 //! - When no erased slot is left, `store` erases the sector and writes slot 0. A power loss between
 //!   the erase and the commit of slot 0 loses the stored settings: the sector is then erased, `load`
 //!   gives None, and `record::load` reports [`LoadStatus::Missing`] (defaults, and no alarm: erased
-//!   flash looks like a new board). The window is the erase plus ~1 ms, once every 512 stores;
+//!   flash looks like a new board). The window is the erase plus ~4 ms, once every 128 stores;
 //!   closing it needs a second sector (copy the newest slot there before erasing), 128 KiB more on
 //!   the F446, which we do not spend. An erase cut by a power loss leaves the sector undefined; a
 //!   slot that survives it whole is loaded, and may be older than the last store.
@@ -45,7 +47,7 @@
 //! The board's part: the erase stalls every fetch from flash (the F446 has one bank), so the frame,
 //! pulse and sampler ISRs stall with it for 1-2 s; the protocol stores only in Idle or Alarm, when
 //! no axis moves, and a watchdog must allow for it. `load` reads up to the whole sector (one
-//! 256-byte slot at a time, from the end); `store` needs ~0.8 KiB of stack.
+//! 1 KiB slot at a time, from the end); `store` needs ~3 KiB of stack.
 //!
 //! [`LoadStatus::Missing`]: crate::protocol::table::record::LoadStatus::Missing
 
@@ -53,11 +55,11 @@ use crate::ports::SettingsStorage;
 use crate::protocol::table::record::{crc32, RECORD_LEN};
 
 /// Bytes in a slot.
-pub const SLOT_LEN: usize = 256;
+pub const SLOT_LEN: usize = 1024;
 /// The first word of every slot.
 pub const SLOT_MAGIC: [u8; 4] = *b"MLSL";
 /// The slot format (offset 6); any change of the layout bumps it.
-pub const SLOT_FORMAT: u16 = 1;
+pub const SLOT_FORMAT: u16 = 2;
 /// Bytes before the image: magic, length, format.
 pub const SLOT_HEADER_LEN: usize = 8;
 /// Offset of the slot's CRC-32 in the slot.

@@ -162,7 +162,7 @@ fn slot_of(img: &[u8]) -> Vec<u8> {
 fn an_erased_sector_loads_nothing() {
     assert_eq!(
         FlashStore::<Ram<SECTOR7>>::SLOTS,
-        512,
+        128,
         "the module doc's count"
     );
     let mut ram = Ram::<SECTOR7>::erased();
@@ -216,11 +216,11 @@ fn the_layout_is_the_documented_one() {
     assert_eq!(u16::from_le_bytes([s[6], s[7]]), SLOT_FORMAT);
     assert_eq!(&s[8..end], &img[..]);
     assert!(
-        s[end..248].iter().all(|&b| b == 0xFF),
+        s[end..CRC_AT].iter().all(|&b| b == 0xFF),
         "padding stays erased"
     );
-    assert_eq!(ram.word(248), crc32(&s[..end]));
-    assert_eq!(&s[252..256], b"DONE");
+    assert_eq!(ram.word(CRC_AT), crc32(&s[..end]));
+    assert_eq!(&s[COMMIT_AT..SLOT_LEN], b"DONE");
     assert!(ram.mem[SLOT_LEN..].iter().all(|&b| b == 0xFF));
     assert!(FlashStore::new(&mut ram).store(&img));
     assert_eq!(ram.slot(1), &s[..], "the next store takes the next slot");
@@ -337,7 +337,7 @@ fn garbage_slots_are_skipped_never_programmed_over() {
     let mut too_long = slot_of(&b);
     too_long[4..6].copy_from_slice(&(MAX_IMAGE as u16 + 1).to_le_bytes());
     let mut other_format = slot_of(&b);
-    other_format[6] = 2;
+    other_format[6] = SLOT_FORMAT as u8 + 1;
     let crc = crc32(&other_format[..SLOT_HEADER_LEN + b.len()]);
     other_format[CRC_AT..CRC_AT + 4].copy_from_slice(&crc.to_le_bytes());
     let mut half_commit = slot_of(&b);
@@ -397,7 +397,7 @@ fn an_image_longer_than_a_slot_is_refused() {
     let mut ram = Ram::<SMALL>::erased();
     let mut st = FlashStore::new(&mut ram);
     assert!(!st.store(&image(1, MAX_IMAGE + 1)));
-    assert!(!st.store(&[0; 1000]));
+    assert!(!st.store(&[0; SLOT_LEN]));
     assert_eq!(load(&mut st), None);
     assert_eq!((ram.words, ram.erases), (0, 0), "nothing written");
     // Full sector: a refused image does not erase it.

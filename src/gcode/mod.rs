@@ -37,7 +37,7 @@ pub use error::ErrorKind;
 pub use exec::motion_code;
 pub use lookahead::Lookahead;
 pub use number::Decimal;
-pub use offsets::Offsets;
+pub use offsets::{Offsets, Work};
 pub use tools::{Tool, ToolKind, ToolTable};
 
 /// What one accepted line produced.
@@ -266,6 +266,8 @@ pub struct Parser {
     tools: ToolTable,
     /// The tool in the spindle (the last M6's).
     loaded: u8,
+    /// A line changed what the settings record keeps ([`Work`]) since [`Parser::take_work_changed`].
+    work_changed: bool,
 }
 
 impl Parser {
@@ -279,6 +281,7 @@ impl Parser {
             offsets: Offsets::default(),
             tools: ToolTable::default(),
             loaded: 0,
+            work_changed: false,
         }
     }
 
@@ -304,6 +307,12 @@ impl Parser {
         };
         match exec::execute(&self.settings, state, line_no, text) {
             Ok(mut p) => {
+                let o = &self.offsets;
+                if tool_set.is_some()
+                    || (o.systems, o.g28, o.g30) != (offsets.systems, offsets.g28, offsets.g30)
+                {
+                    self.work_changed = true;
+                }
                 self.modes = modes;
                 self.position = position;
                 self.programmed = programmed;
@@ -411,6 +420,32 @@ impl Parser {
     /// Sets the tool table (restored from the settings record at start).
     pub fn set_tools(&mut self, tools: ToolTable) {
         self.tools = tools;
+    }
+
+    /// What the settings record keeps: the systems, G28/G30 and the tool table.
+    pub fn work(&self) -> Work {
+        let o = &self.offsets;
+        Work {
+            systems: o.systems,
+            g28: o.g28,
+            g30: o.g30,
+            tools: self.tools,
+        }
+    }
+
+    /// Restores what the settings record kept (at start, and after `$RST=#` or `$RST=*`); G92
+    /// stays as it is.
+    pub fn set_work(&mut self, w: &Work) {
+        self.offsets.systems = w.systems;
+        self.offsets.g28 = w.g28;
+        self.offsets.g30 = w.g30;
+        self.tools = w.tools;
+    }
+
+    /// Whether a line changed [`Parser::work`] since the last call (G10, G28.1, G30.1): the
+    /// loader then stores it, as grbl writes its EEPROM.
+    pub fn take_work_changed(&mut self) -> bool {
+        core::mem::replace(&mut self.work_changed, false)
     }
 
     /// The tool in the spindle (the last M6's; 0 = none).

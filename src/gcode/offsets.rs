@@ -8,6 +8,43 @@
 //! for a word of up to 9 decimals in mm or 8 in inches and for any machine position in BLU, so a
 //! program moves by exactly what its words say, rounded once to a BLU at the target.
 
+use super::tools::{ToolKind, ToolTable};
+
+/// What the settings record keeps of the parser (grbl keeps the first three in EEPROM): the six
+/// coordinate systems, the G28 and G30 positions, and the tool table. G92 is not kept (grbl's
+/// G92 does not survive a reset either).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Work {
+    pub systems: [[i64; 3]; 6],
+    pub g28: [i64; 3],
+    pub g30: [i64; 3],
+    pub tools: ToolTable,
+}
+
+impl Work {
+    /// Every offset and length within +-[`MAX_PM`], diameters not negative, the limits finite and
+    /// not negative: what the parser can make, and what a record may hold.
+    pub fn valid(&self) -> bool {
+        let ok = |v: i64| v.unsigned_abs() <= MAX_PM as u64;
+        let lengths = self
+            .systems
+            .iter()
+            .chain([&self.g28, &self.g30])
+            .flatten()
+            .all(|&v| ok(v));
+        let limit = |v: f32| v.is_finite() && v >= 0.0;
+        lengths
+            && self.tools.iter().all(|(_, t)| {
+                ok(t.length_pm)
+                    && ok(t.diameter_pm)
+                    && t.diameter_pm >= 0
+                    && limit(t.force_limit_n)
+                    && limit(t.torque_limit_nm)
+                    && matches!(t.kind, ToolKind::Flat | ToolKind::Ball | ToolKind::Drill)
+            })
+    }
+}
+
 /// The largest offset magnitude, picometres (1 km): three of them add up within i64.
 pub const MAX_PM: i64 = 1_000_000_000_000_000_000;
 

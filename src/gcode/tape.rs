@@ -156,6 +156,17 @@ impl Tape {
         &self.reader.parser
     }
 
+    /// Restores the work offsets and the tool table the settings record kept (see
+    /// [`Parser::set_work`]).
+    pub fn set_work(&mut self, w: &super::Work) {
+        self.reader.parser.set_work(w);
+    }
+
+    /// Whether a line changed what the settings record keeps (see [`Parser::take_work_changed`]).
+    pub fn take_work_changed(&mut self) -> bool {
+        self.reader.parser.take_work_changed()
+    }
+
     /// True while a canned cycle's blocks are still to be emitted ([`Tape::pump`]).
     pub fn pending(&self) -> bool {
         self.reader.pending.is_some()

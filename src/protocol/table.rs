@@ -61,6 +61,9 @@ pub struct MachineSettings {
     /// `$30`: the spindle speed (rpm) of full PWM duty on a board with a spindle output (grbl's
     /// max spindle speed; S above it runs at full duty). Default 1000, as grbl's.
     pub spindle_max_rpm: u32,
+    /// The work offsets, G28/G30 positions and tool table the parser keeps (set by G10, G28.1,
+    /// G30.1; stored when a line changes them, as grbl writes its EEPROM; `$RST=#` clears them).
+    pub work: crate::gcode::Work,
 }
 
 impl Default for MachineSettings {
@@ -71,6 +74,7 @@ impl Default for MachineSettings {
             ac_enabled: true,
             report: ReportSettings::default(),
             spindle_max_rpm: 1000,
+            work: crate::gcode::Work::default(),
         }
     }
 }
@@ -88,6 +92,8 @@ pub enum Invalid {
     /// `$263=2` (the plan) on a board whose frame does not apply the plan ratio
     /// (`BoardLimits::plan_ratio`).
     PlanNotOnThisBoard,
+    /// A work offset or tool table value out of range (`Work::valid`).
+    Work,
 }
 
 impl Invalid {
@@ -99,6 +105,7 @@ impl Invalid {
             Invalid::PlanNotOnThisBoard => {
                 "feed ceiling 2 (the plan) needs a frame that applies the plan ratio: not on this board"
             }
+            Invalid::Work => "a work offset or tool table value is out of range",
         }
     }
 }
@@ -249,6 +256,9 @@ impl MachineSettings {
         }
         if self.report.status_mask > 3 || !(1..=1_000_000).contains(&self.spindle_max_rpm) {
             return Err(Invalid::Range);
+        }
+        if !self.work.valid() {
+            return Err(Invalid::Work);
         }
         for e in TABLE.iter() {
             if let Kind::Real { get, .. } = e.kind {

@@ -219,6 +219,8 @@ pub struct Loader<
     blocks: &'r mut Producer<'static, Sealed, Q>,
     replan: &'r mut Replan<R>,
     table: &'r mut Persistent<S>,
+    /// [`Persistent::work_epoch`] as the parser last took the table's work offsets.
+    work_epoch: u32,
     console: &'r mut dyn Console,
     ac_alarms: &'r mut Consumer<'static, Alarm, A>,
     status: &'r LoaderWriter<'r>,
@@ -327,12 +329,16 @@ where
         if !ac_enabled {
             replan.without_reactions();
         }
-        let tape = match ceiling {
+        let mut tape = match ceiling {
             Some(c) => Tape::with_ac_ceiling(settings, c),
             None => Tape::new(settings),
         };
+        // The work offsets, G28/G30 and the tool table the settings record kept.
+        tape.set_work(&table.settings.work);
+        let work_epoch = table.work_epoch;
         let overrides = console.overrides();
         let loader = Loader {
+            work_epoch,
             blocks,
             replan,
             ac_settings: table.settings.ac,
@@ -402,6 +408,11 @@ where
     /// One turn of the loader's loop: the news in order, each a [`Step`].
     pub fn turn(&mut self) {
         let status = self.status;
+        // `$RST=#` or `$RST=*` (answered by the protocol last turn) cleared the work offsets.
+        if self.table.work_epoch != self.work_epoch {
+            self.work_epoch = self.table.work_epoch;
+            self.tape.set_work(&self.table.settings.work);
+        }
         if (status.feed_cap.get() == 0) != self.ac_hold_published {
             self.ac_hold_published = !self.ac_hold_published;
             self.publish();
@@ -732,6 +743,16 @@ where
             .map_err(Refused::Tape);
         if result.is_ok() {
             self.board.log_gcode(line);
+            // G10, G28.1, G30.1 changed what the settings record keeps: stored at once, as grbl
+            // writes its EEPROM (a refused store: error:7, the line has taken effect).
+            if self.tape.take_work_changed() {
+                let work = self.tape.parser().work();
+                if let Err(e) = self.table.set_work(work) {
+                    self.work_epoch = self.table.work_epoch;
+                    return Err(Refused::Grbl(GrblError(e.code())));
+                }
+                self.work_epoch = self.table.work_epoch;
+            }
         }
         result
     }

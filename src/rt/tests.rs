@@ -41,20 +41,37 @@ std::thread_local! {
     /// `ceiling`: `Some` when the AC is enabled (the boards pass it so), None measure-only.
     static AC_TASK: core::cell::Cell<Option<Option<crate::ac::FeedCeiling>>> =
         const { core::cell::Cell::new(None) };
+    /// The settings record the sessions of this thread share when set (`Some`): a session loads
+    /// it and stores into it, so a second session starts from what the first stored. None (the
+    /// default): no record, the defaults, and stores go nowhere.
+    static RECORD: core::cell::RefCell<Option<Vec<u8>>> = const { core::cell::RefCell::new(None) };
 }
 
 const Q: usize = 16;
 const T: usize = 1024;
 const A: usize = 4;
 
-/// No stored settings: the defaults (5 kHz, 0.0001 in, F30 = FRM).
+/// The bench's settings storage: the thread's [`RECORD`] when a test keeps one, else none (the
+/// defaults: 5 kHz, 0.0001 in, F30 = FRM).
 struct NoStorage;
 
 impl SettingsStorage for NoStorage {
-    fn load(&mut self, _: &mut [u8]) -> Option<usize> {
-        None
+    fn load(&mut self, buf: &mut [u8]) -> Option<usize> {
+        RECORD.with(|r| {
+            let r = r.borrow();
+            let img = r.as_ref().filter(|i| !i.is_empty())?;
+            let n = img.len().min(buf.len());
+            buf.get_mut(..n)?.copy_from_slice(img.get(..n)?);
+            Some(n)
+        })
     }
-    fn store(&mut self, _: &[u8]) -> bool {
+    fn store(&mut self, image: &[u8]) -> bool {
+        RECORD.with(|r| {
+            if let Some(v) = r.borrow_mut().as_mut() {
+                v.clear();
+                v.extend_from_slice(image);
+            }
+        });
         true
     }
 }
@@ -896,6 +913,51 @@ fn a_long_canned_cycle_streams_through_a_short_queue() {
         .sum();
     assert!(blocks.len() > 3 * Q, "{} blocks", blocks.len());
     assert_eq!(b.pins.rises[2], z);
+}
+
+/// Work offsets and the tool table survive a restart: G10 L2 / L1 are stored with the settings
+/// at once, and the next start's parser has them (G55 X0 goes to the stored origin); `$RST=#`
+/// clears them, for the running parser too.
+#[test]
+fn work_offsets_and_tools_are_stored_and_come_back_at_the_next_start() {
+    RECORD.with(|r| *r.borrow_mut() = Some(Vec::new()));
+    let b = session(
+        &[(1, "G21 G10 L2 P2 X2.54 Y-1.27\nG10 L1 P3 Z5 R1.5\n")],
+        &[],
+        None,
+        200,
+    );
+    assert_eq!(oks(&b.out), 2, "{}", b.out);
+    let stored = RECORD.with(|r| r.borrow().clone()).unwrap();
+    let work =
+        crate::protocol::table::record::decode(&stored, &crate::settings::BoardLimits::GENERIC)
+            .unwrap()
+            .work;
+    assert_eq!(work.systems[1], [2_540_000_000, -1_270_000_000, 0]);
+    assert_eq!(work.tools.get(3).unwrap().length_pm, 5_000_000_000);
+    // The next start: G55's origin and tool 3's length are there.
+    let b = session(
+        &[
+            (1, "G21 G55 G0 X0 Y0\nT3 M6\nG43 H3 Z0\n"),
+            (15_000, "$#\n"),
+        ],
+        &[(
+            8_000,
+            Events {
+                cycle_start: true,
+                ..Events::default()
+            },
+        )],
+        None,
+        20_000,
+    );
+    assert_eq!(b.status.encoder(), [1_000, -500, 1_969], "{}", b.out);
+    assert!(b.out.contains("[G55:2.540,-1.270,0.000]"), "{}", b.out);
+    // `$RST=#` clears them, in the record and in the running parser.
+    let b = session(&[(1, "$RST=#\nG21 G55 G0 X1\n")], &[], None, 5000);
+    assert_eq!(oks(&b.out), 2, "{}", b.out);
+    assert_eq!(b.status.encoder(), [394, 0, 0]);
+    RECORD.with(|r| *r.borrow_mut() = None);
 }
 
 #[test]

@@ -26,6 +26,9 @@ pub struct Persistent<S> {
     pub storage: S,
     /// The board's limits every set is validated for.
     pub board: BoardLimits,
+    /// Counts the changes of `settings.work` made here (`$RST=#`, `$RST=*`, [`Persistent::set_work`]):
+    /// the loader gives the parser the table's work offsets when it moves.
+    pub work_epoch: u32,
 }
 
 impl<S: SettingsStorage> Persistent<S> {
@@ -41,9 +44,27 @@ impl<S: SettingsStorage> Persistent<S> {
                 settings: loaded.settings,
                 storage,
                 board,
+                work_epoch: 0,
             },
             loaded.status,
         ))
+    }
+}
+
+impl<S: SettingsStorage> Persistent<S> {
+    /// The parser's work offsets and tool table, stored (a G10, G28.1 or G30.1 changed them):
+    /// validated, stored, and only then taken; [`SetError::Storage`] when the storage refused.
+    pub fn set_work(&mut self, work: crate::gcode::Work) -> Result<(), SetError> {
+        let new = MachineSettings {
+            work,
+            ..*self.settings
+        }
+        .validated(&self.board)
+        .map_err(SetError::Invalid)?;
+        record::store(&mut self.storage, &new)?;
+        self.settings = new;
+        self.work_epoch = self.work_epoch.wrapping_add(1);
+        Ok(())
     }
 }
 
@@ -63,21 +84,33 @@ impl<S: SettingsStorage> SettingsTable for Persistent<S> {
         SettingsTable::get(&*self.settings, n, out)
     }
 
-    /// `$RST=$` and `$RST=*`: the defaults, stored (this also replaces a refused record, so the
-    /// start-up alarm does not come back). `$RST=#` (millac has no coordinate offsets) and
-    /// anything else: `error:3`.
+    /// `$RST=$`: the default settings, the work offsets and tool table kept; `$RST=#`: the work
+    /// offsets, G28/G30 and the tool table cleared, the settings kept; `$RST=*`: both. Stored (this
+    /// also replaces a refused record, so the start-up alarm does not come back). Anything else:
+    /// `error:3`.
     fn restore(&mut self, what: u8) -> Result<(), u8> {
-        match what {
-            b'$' | b'*' => {
-                let defaults = MachineSettings::default()
-                    .validated(&self.board)
-                    .map_err(|e| SetError::Invalid(e).code())?;
-                record::store(&mut self.storage, &defaults).map_err(|e| e.code())?;
-                self.settings = defaults;
-                Ok(())
-            }
-            _ => Err(GrblError::INVALID_STATEMENT.0),
+        let defaults = MachineSettings::default();
+        let new = match what {
+            b'$' => MachineSettings {
+                work: self.settings.work,
+                ..defaults
+            },
+            b'#' => MachineSettings {
+                work: crate::gcode::Work::default(),
+                ..*self.settings
+            },
+            b'*' => defaults,
+            _ => return Err(GrblError::INVALID_STATEMENT.0),
+        };
+        let new = new
+            .validated(&self.board)
+            .map_err(|e| SetError::Invalid(e).code())?;
+        record::store(&mut self.storage, &new).map_err(|e| e.code())?;
+        if new.work != self.settings.work {
+            self.work_epoch = self.work_epoch.wrapping_add(1);
         }
+        self.settings = new;
+        Ok(())
     }
 
     fn report_options(&self) -> ReportOptions {

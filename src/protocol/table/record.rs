@@ -9,11 +9,11 @@
 //! | 0 | 4 | magic `MLST` |
 //! | 4 | 2 | version ([`VERSION`]) |
 //! | 6 | 2 | payload length ([`PAYLOAD_LEN`]) |
-//! | 8 | [`PAYLOAD_LEN`] | the settings, field by field in declaration order: integers as themselves, f32 as their bits, enums and bools as one byte |
+//! | 8 | [`PAYLOAD_LEN`] | the settings, field by field in declaration order: integers as themselves, f32 as their bits, enums and bools as one byte; then the work offsets (G54..G59, G28, G30: i64 picometres) and the tool table (per tool: length and diameter i64 picometres, flutes, kind, force and torque limits f32) |
 //! | 8 + len | 4 | CRC-32 (IEEE 802.3, reflected 0xEDB88320, as zlib's) of everything before it |
 //!
-//! Any change of the payload bumps [`VERSION`]; a record of another version loads as defaults with
-//! [`RecordError::Version`] (no migration yet). The CRC is computed bit by bit ([`crc32`]): the
+//! Any change of the payload bumps [`VERSION`] (6: the work offsets and tool table added); a record
+//! of another version loads as defaults with [`RecordError::Version`] (no migration yet). The CRC is computed bit by bit ([`crc32`]): the
 //! record is about 200 bytes and checked once at start-up and once per store, so a table (1 KiB of
 //! flash, or 16 KiB for the sliced tables of crc32fast) buys nothing, and 10 lines need no new
 //! dependency. CRC-32 detects every error burst up to 32 bits, so every single-bit flip; the exact
@@ -22,13 +22,15 @@
 use super::{AcStrategy, Invalid, MachineSettings, ReportSettings, SetError};
 use crate::ac::settings::{AcSettings, Calibration, FeedCeiling, Pick};
 use crate::gcode::number::Decimal;
+use crate::gcode::{Tool, ToolKind, Work};
 use crate::ports::SettingsStorage;
 use crate::settings::{Blu, BoardLimits, Settings, Valid};
 
 pub const MAGIC: [u8; 4] = *b"MLST";
-pub const VERSION: u16 = 5;
+pub const VERSION: u16 = 6;
 pub const HEADER_LEN: usize = 8;
-pub const PAYLOAD_LEN: usize = 208;
+/// 208 bytes of settings, then the work offsets (24 x i64) and the tool table (16 x 26 bytes).
+pub const PAYLOAD_LEN: usize = 208 + 24 * 8 + 16 * 26;
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF): the
@@ -128,6 +130,9 @@ impl Put<'_> {
     fn i32(&mut self, v: i32) {
         self.bytes(v.to_le_bytes());
     }
+    fn i64(&mut self, v: i64) {
+        self.bytes(v.to_le_bytes());
+    }
     fn f32(&mut self, v: f32) {
         self.u32(v.to_bits());
     }
@@ -159,6 +164,9 @@ impl Take<'_> {
     }
     fn i32(&mut self) -> Option<i32> {
         Some(i32::from_le_bytes(self.bytes()?))
+    }
+    fn i64(&mut self) -> Option<i64> {
+        Some(i64::from_le_bytes(self.bytes()?))
     }
     fn f32(&mut self) -> Option<f32> {
         Some(f32::from_bits(self.u32()?))
@@ -252,6 +260,22 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     p.u8(s.ac.breakage as u8);
     p.f32(s.ac.chatter_step_mm);
     p.u32(s.ac.chatter_max_rpm);
+    let w = &s.work;
+    for v in w.systems.iter().chain([&w.g28, &w.g30]).flatten() {
+        p.i64(*v);
+    }
+    for (_, t) in w.tools.iter() {
+        p.i64(t.length_pm);
+        p.i64(t.diameter_pm);
+        p.u8(t.flutes);
+        p.u8(match t.kind {
+            ToolKind::Flat => 0,
+            ToolKind::Ball => 1,
+            ToolKind::Drill => 2,
+        });
+        p.f32(t.force_limit_n);
+        p.f32(t.torque_limit_nm);
+    }
     let end = p.pos;
     let crc = crc32(img.get(..end).unwrap_or(&[]));
     let mut p = Put {
@@ -358,7 +382,44 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let breakage = t.bool()?;
     let chatter_step_mm = t.f32()?;
     let chatter_max_rpm = t.u32()?;
+    let mut work = Work::default();
+    for v in work
+        .systems
+        .iter_mut()
+        .chain([&mut work.g28, &mut work.g30])
+        .flatten()
+    {
+        *v = t.i64()?;
+    }
+    let mut kinds_known = true;
+    for n in 1..=crate::gcode::tools::MAX_TOOLS as u32 {
+        let (length_pm, diameter_pm, flutes) = (t.i64()?, t.i64()?, t.u8()?);
+        let kind = match t.u8()? {
+            0 => ToolKind::Flat,
+            1 => ToolKind::Ball,
+            2 => ToolKind::Drill,
+            _ => {
+                kinds_known = false;
+                ToolKind::Flat
+            }
+        };
+        let (force_limit_n, torque_limit_nm) = (t.f32()?, t.f32()?);
+        work.tools.set(
+            n,
+            Tool {
+                length_pm,
+                diameter_pm,
+                flutes,
+                kind,
+                force_limit_n,
+                torque_limit_nm,
+            },
+        );
+    }
     let build = || {
+        if !kinds_known {
+            return None;
+        }
         Some(MachineSettings {
             nc: Settings {
                 blu: blu?,
@@ -412,6 +473,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
                 inches: inches?,
             },
             spindle_max_rpm,
+            work,
         })
     };
     Some(build())

@@ -19,18 +19,32 @@ $255=80\r\n$256=0.9\r\n$257=75000\r\n$258=100\r\n$259=3000\r\n$260=-0.1\r\n$261=
 $263=0\r\n$264=1500\r\n$265=10\r\n$266=0\r\n$267=4\r\n$268=0\r\n$269=600\r\n$270=0.05\r\n$271=2.5\r\n$272=2.5\r\n$273=2048\r\n$274=2048\r\n$275=2048\r\n$276=1\r\n$277=0\r\n$280=20\r\n\
 $281=1500\r\n$282=1\r\n$283=50\r\n$284=6.35\r\n$285=0.6\r\n$286=1.4\r\n$287=5\r\n$288=5\r\n";
 
-/// The record of the defaults, version 5 (its acceleration 250 000 BLU/s^2 since the ramps came,
+/// The record of the defaults, version 6 (its acceleration 250 000 BLU/s^2 since the ramps came,
 /// issue 7; `$30` max spindle speed, `$264` the AC's nominal feed and `$265` the GPC weight appended in version 2, issues
 /// 8 and 9; GPC (`$251=3`, `$265=10`) the default feed law since issue 9; version 3 appends the process
 /// monitors' `$267` flutes, `$269` spindle speed, `$266` chatter threshold and `$268` breakage (issue 10); version 4
 /// appends `$276` the chatter depth step and its payload grows to 204 bytes, version 5 `$277` the chatter spindle speed
-/// limit, 208 bytes (issue 10); the CRC checked here with
-/// Python's zlib.crc32): a change of the layout must bump the version.
-const DEFAULT_IMAGE: &str = "4d4c53540500d0000088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
+/// limit, 208 bytes (issue 10); version 6 appends the work offsets and the tool table (all zero in
+/// the defaults), 816 bytes; the CRC checked here with Python's zlib.crc32): a change of the
+/// layout must bump the version.
+const DEFAULT_IMAGE: &str = "4d4c5354060030030088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
 feff6079feffc063ffffa0860100a0860100409c000090d0030090d0030090d003000103e80300000a000000cdcc4c\
 3d00000045000020400000004500002040000000450000007a450000a0426666663ff824010064000000b80b0000cd\
 ccccbd14000000dc050100320000003333cb409a99193f3333b33f0000a0400500000003000000000100e8030000dc\
-05000000002041040000005802000000000000000000803f0000000023efbbe4";
+05000000002041040000005802000000000000000000803f0000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
+00000000000000000000000000000000000000000000000000211439cd";
 
 fn listing(m: &MachineSettings) -> String {
     let mut s = String::new();
@@ -406,7 +420,29 @@ prop_compose! {
             ac_enabled: on,
             report: ReportSettings { status_mask: mask, inches },
             spindle_max_rpm: rpm,
+            work: crate::gcode::Work::default(),
         }
+    }
+}
+
+prop_compose! {
+    /// Work offsets and a tool table as the parser can make them (within +-1 km, diameters not
+    /// negative, limits finite).
+    fn arb_work()(systems in prop::array::uniform6(prop::array::uniform3(-crate::gcode::offsets::MAX_PM..=crate::gcode::offsets::MAX_PM)),
+                  homes in prop::array::uniform2(prop::array::uniform3(-1_000_000_000_000i64..=1_000_000_000_000)),
+                  tools in prop::collection::vec((-1_000_000_000_000i64..=1_000_000_000_000, 0i64..=100_000_000_000, any::<u8>(), 0u8..3, 0.0f32..1e6, 0.0f32..1e4), 16)) -> crate::gcode::Work {
+        let mut w = crate::gcode::Work { systems, g28: homes[0], g30: homes[1], ..Default::default() };
+        for (n, t) in tools.into_iter().enumerate() {
+            w.tools.set(n as u32 + 1, crate::gcode::Tool {
+                length_pm: t.0,
+                diameter_pm: t.1,
+                flutes: t.2,
+                kind: [crate::gcode::ToolKind::Flat, crate::gcode::ToolKind::Ball, crate::gcode::ToolKind::Drill][t.3 as usize],
+                force_limit_n: t.4,
+                torque_limit_nm: t.5,
+            });
+        }
+        w
     }
 }
 
@@ -449,9 +485,11 @@ proptest! {
         prop_assert_eq!(m, s);
     }
 
-    /// The record round-trips, and a random bit flip in it is refused.
+    /// The record round-trips, work offsets and tool table included, and a random bit flip in it
+    /// is refused.
     #[test]
-    fn record_round_trips_and_flips_are_refused(s in arb_settings(), bit in 0usize..RECORD_LEN * 8) {
+    fn record_round_trips_and_flips_are_refused(s in arb_settings(), w in arb_work(), bit in 0usize..RECORD_LEN * 8) {
+        let s = MachineSettings { work: w, ..s };
         prop_assume!(s.validate(&crate::settings::BoardLimits::GENERIC).is_ok());
         let img = record::encode(&s);
         prop_assert_eq!(record::decode(&img, &crate::settings::BoardLimits::GENERIC).map(crate::settings::Valid::get), Ok(s));
@@ -749,8 +787,26 @@ fn the_persistent_table_stores_each_set_before_its_ok() {
     assert_eq!(over_the_protocol(&mut t, "$RST=*"), "error:7\r\n");
     assert_eq!((t.settings, t.storage.image.clone()), before);
     t.storage.refuse = false;
-    assert_eq!(over_the_protocol(&mut t, "$RST=#"), "error:3\r\n");
+    assert_eq!(over_the_protocol(&mut t, "$RST=x"), "error:3\r\n");
+    // Work offsets (a G10's): stored with the settings; `$RST=$` keeps them, `$RST=#` clears
+    // them and keeps the settings; each change of them moves the epoch the loader watches.
+    let mut w = crate::gcode::Work::default();
+    w.systems[1] = [25_400_000_000, 0, -1_000_000_000];
+    let epoch = t.work_epoch;
+    t.set_work(w).unwrap();
+    assert_eq!(t.work_epoch, epoch.wrapping_add(1));
+    let stored = record::decode(
+        t.storage.image.as_ref().unwrap(),
+        &crate::settings::BoardLimits::GENERIC,
+    );
+    assert_eq!(stored.map(|s| s.work), Ok(w));
     assert_eq!(over_the_protocol(&mut t, "$RST=$"), "ok\r\n");
+    assert_eq!(
+        (t.settings.work, t.settings.nc),
+        (w, MachineSettings::default().nc)
+    );
+    assert_eq!(over_the_protocol(&mut t, "$RST=#"), "ok\r\n");
+    assert_eq!(t.work_epoch, epoch.wrapping_add(2));
     assert_eq!(t.settings.get(), MachineSettings::default());
     let stored = t.storage.image.clone().unwrap();
     assert_eq!(
