@@ -962,21 +962,25 @@ where
 }
 
 /// Whether a G-code line waits for the machine to stop before it runs: it ends the program
-/// (M2/M30, on every board), stops it (M0, M6) or, on a board with a spindle, changes the spindle
-/// output. Returns the spindle output it asks for, whether it is the program's end and its stop
-/// (parsed on a copy of the parser; a line the parser refuses waits for nothing and gets its
-/// error from the tape as usual). M2/M30 stops the spindle. Loader task.
+/// (M2/M30, on every board), stops it (M0, M6), changes what the settings record keeps (G10,
+/// G28.1, G30.1: stored once the machine stands, as grbl syncs its buffer before writing its
+/// EEPROM; a flash store stalls the F446's interrupts) or, on a board with a spindle, changes the
+/// spindle output. Returns the spindle output it asks for, whether it is the program's end and
+/// its stop (parsed on a copy of the parser; a line the parser refuses waits for nothing and gets
+/// its error from the tape as usual). M2/M30 stops the spindle. Loader task.
 fn sync_line<B: LoaderBoard>(
     tape: &Tape,
     line_no: u32,
     line: &str,
     applied: (Spindle, u32),
 ) -> Option<Sync> {
-    if !line.bytes().any(|b| matches!(b, b'M' | b'm' | b'S' | b's')) {
+    let letters = line.bytes().any(|b| matches!(b, b'M' | b'm' | b'S' | b's'));
+    if !letters && !may_store(line) {
         return None;
     }
     let mut probe = tape.parser().clone();
     let parsed = probe.line(line_no, line).ok()?;
+    let stores = probe.take_work_changed();
     let (spindle, rpm) = match (parsed, probe.modes().spindle) {
         (Parsed::End, _) | (_, Spindle::Off) => (Spindle::Off, 0),
         (_, s) => (s, probe.spindle_rpm()),
@@ -990,8 +994,26 @@ fn sync_line<B: LoaderBoard>(
             _ => None,
         },
     };
-    (sync.end || sync.stop.is_some() || (B::Board::SPINDLE && (spindle, rpm) != applied))
+    (sync.end || sync.stop.is_some() || stores || (B::Board::SPINDLE && (spindle, rpm) != applied))
         .then_some(sync)
+}
+
+/// Whether a line may hold G10, G28.1 or G30.1 (its digits "10", "28.1" or "30.1", spaces
+/// ignored as the parser ignores them): only such lines are parsed on a copy to find out.
+fn may_store(line: &str) -> bool {
+    let mut last = [0u8; 3];
+    for b in line.bytes().filter(|b| !b.is_ascii_whitespace()) {
+        let hit = matches!((last, b), ([_, b'1', b'0'], _) if b != b'.' && !b.is_ascii_digit())
+            || matches!(
+                (last, b),
+                ([b'2', b'8', b'.'], b'1') | ([b'3', b'0', b'.'], b'1')
+            );
+        if hit {
+            return true;
+        }
+        last = [last[1], last[2], b];
+    }
+    last[1..] == *b"10"
 }
 
 /// Soft reset or jog cancel: the frame stops at once and drops every queued block (the abort

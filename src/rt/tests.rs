@@ -957,6 +957,16 @@ fn work_offsets_and_tools_are_stored_and_come_back_at_the_next_start() {
     let b = session(&[(1, "$RST=#\nG21 G55 G0 X1\n")], &[], None, 5000);
     assert_eq!(oks(&b.out), 2, "{}", b.out);
     assert_eq!(b.status.encoder(), [394, 0, 0]);
+    // A G10 waits for the motion before it (the store must not come while the machine moves: a
+    // flash store stalls the F446's interrupts), as grbl syncs its buffer there.
+    let b = session(
+        &[(1, "G20 G91 G1 F30 X0.01\nG1 0 L2 P2 X1\n")],
+        &[],
+        None,
+        2000,
+    );
+    assert_eq!(oks(&b.out), 2, "{}", b.out);
+    assert!(b.oks_at[0] < 10 && b.oks_at[1] > 100, "{:?}", b.oks_at);
     RECORD.with(|r| *r.borrow_mut() = None);
 }
 

@@ -7,7 +7,7 @@
 //! Registers (RM0390 section 3): KEYR, SR (BSY, the error flags), CR (PG, SER, SNB, PSIZE, STRT,
 //! LOCK), ACR (data cache enable and reset). Programming is 32 bits at a time (PSIZE = x32, valid
 //! from 2.7 V, the Nucleo's 3.3 V). While the flash is busy every fetch from it stalls, interrupts
-//! included: a word takes ~16 us (a record ~1 ms), the sector erase 1-2 s (once every 512 stores).
+//! included: a word takes ~16 us (a record ~3.4 ms), the sector erase 1-2 s (once every 128 stores).
 //! The erase therefore stretches the watchdog to ~8 s around itself and restores it after (and is
 //! refused if the stretch did not take). The frame interrupt is paused around every operation
 //! (the machine stands): a frame stalled by the flash would show as a frame overrun in the DWT
