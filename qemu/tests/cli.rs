@@ -501,3 +501,46 @@ fn the_cam_corpus_is_accepted_whole() {
     }
     assert_eq!(checked, 5, "pocket, adaptive, drill, surface, multitool");
 }
+
+/// LinuxCNC's example programs of the corpus (qemu/programs/cam/linuxcnc): `check --json` reads
+/// each; a program is accepted whole unless it uses a construct outside the dialect, and then
+/// every refusal names that construct (the two of the corpus: LinuxCNC's polar coordinates in
+/// hole-circle, a dwell on a line that moves in skeleton).
+#[test]
+fn linuxcncs_programs_are_accepted_or_refused_by_name() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("programs/cam/linuxcnc");
+    let named = [
+        (
+            "hole-circle.ngc",
+            "polar coordinates (@ radius, ^ angle) are not supported",
+        ),
+        ("skeleton.ngc", "G4 cannot be combined with an axis move"),
+    ];
+    let mut checked = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let p = entry.unwrap().path();
+        if p.extension().and_then(|e| e.to_str()) != Some("ngc") {
+            continue;
+        }
+        let name = p.file_name().unwrap().to_string_lossy().to_string();
+        let o = millac(&["check".as_ref(), p.as_os_str(), "--json".as_ref()]);
+        let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+        let refused = v["refused"].as_array().unwrap();
+        match named.iter().find(|(n, _)| *n == name) {
+            None => {
+                assert!(refused.is_empty(), "{name}: {v}");
+                assert_eq!(o.status.code(), Some(0), "{name}");
+            }
+            Some((_, why)) => {
+                assert!(!refused.is_empty(), "{name}");
+                for r in refused {
+                    let m = r["message"].as_str().unwrap();
+                    assert!(m.contains(why), "{name}: {m}");
+                }
+                assert_eq!(o.status.code(), Some(1), "{name}");
+            }
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, 5, "3dtest, arcspiral, cds, hole-circle, skeleton");
+}
