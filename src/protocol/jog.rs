@@ -87,10 +87,10 @@ impl JogRequest {
         })
     }
 
-    /// The equivalent G-code line, e.g. `G1 G94 G91 G21 X1 F100` (G94: a jog's F is a feed
-    /// per minute whatever the program's feed mode; G53 when the jog has it).
+    /// The equivalent G-code line, e.g. `G1 G91 G21 X1 F100` (G53 when the jog has it); the
+    /// session log writes the words after `G1` as the jog's `$J=` words.
     pub fn write_gcode(&self, out: &mut dyn Write) -> fmt::Result {
-        out.write_str("G1 G94")?;
+        out.write_str("G1")?;
         if self.machine {
             out.write_str(" G53")?;
         }
@@ -116,7 +116,9 @@ impl JogRequest {
     /// without changing it. A jog past the soft limits is `error:15`, as in grbl.
     pub fn plan(&self, parser: &Parser) -> Result<JogPlan, GrblError> {
         let mut line: heapless::String<256> = heapless::String::new();
-        // Four numbers of at most 40 characters and six codes fit in 256 bytes.
+        // Four numbers of at most 40 characters and seven codes fit in 256 bytes. G94: a jog's F
+        // is a feed per minute whatever the program's feed mode.
+        line.push_str("G94 ").map_err(|_| GrblError::OVERFLOW)?;
         self.write_gcode(&mut line)
             .map_err(|_| GrblError::OVERFLOW)?;
         let mut p = parser.clone();
