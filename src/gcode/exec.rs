@@ -244,11 +244,11 @@ pub fn execute(st: &Settings, s: State, line_no: u32, text: &str) -> Result<Pars
     } else {
         match axis_command {
             AxisCommand::Set => {
-                set_offsets(st, &w, m, &pos, offsets, tools, tool_set, scale, &mut used)?;
+                set_offsets(&w, m, &pos, offsets, tools, tool_set, scale, &mut used)?;
                 Parsed::Nothing
             }
             AxisCommand::Origin => {
-                set_g92(st, &w, m, &pos, offsets, scale)?;
+                set_g92(&w, m, &pos, offsets, scale)?;
                 Parsed::Nothing
             }
             AxisCommand::Home(g30) => home(st, &w, m, pos, offsets, scale, g30, line_no)?,
@@ -284,10 +284,6 @@ pub fn execute(st: &Settings, s: State, line_no: u32, text: &str) -> Result<Pars
         }
     };
     used.check(&w)?;
-    if let Some((n, _)) = tool_set {
-        // Only G10 L1 sets a tool; the table itself is committed by the caller.
-        debug_assert!(*n as usize <= MAX_TOOLS);
-    }
     Ok(match stop {
         Some(stop) => stop,
         None => parsed,
@@ -394,7 +390,6 @@ fn here_pm(pos: &Position) -> Result<[i64; 3], ErrorKind> {
 /// system in use. Absolute values whatever G90/G91 (grbl).
 #[allow(clippy::too_many_arguments)]
 fn set_offsets(
-    st: &Settings,
     w: &Words,
     m: &Modes,
     pos: &Position,
@@ -404,25 +399,17 @@ fn set_offsets(
     scale: Scale,
     used: &mut Used,
 ) -> Result<(), ErrorKind> {
-    let _ = st;
     used.take(L);
     used.take(P);
-    let l = w
-        .value(L)
-        .ok_or(ErrorKind::MissingWord {
-            code: 100,
-            letter: 'L',
-        })?
-        .as_integer()
-        .ok_or(ErrorKind::NotInteger('L'))?;
-    let p = w
-        .value(P)
-        .ok_or(ErrorKind::MissingWord {
-            code: 100,
-            letter: 'P',
-        })?
-        .as_integer()
-        .ok_or(ErrorKind::NotInteger('P'))?;
+    // L and P: whole numbers, both required.
+    let whole = |i: usize, letter: char| {
+        w.value(i)
+            .ok_or(ErrorKind::MissingWord { code: 100, letter })?
+            .as_integer()
+            .ok_or(ErrorKind::NotInteger(letter))
+    };
+    let l = whole(L, 'L')?;
+    let p = whole(P, 'P')?;
     if l == 1 {
         // The tool table: Z is the length, R the radius (LinuxCNC's and grblHAL's form).
         used.take(R);
@@ -484,14 +471,12 @@ fn set_offsets(
 /// G92: the offset that makes the machine's position the words in the system in use (the axes
 /// without a word keep theirs).
 fn set_g92(
-    st: &Settings,
     w: &Words,
     m: &Modes,
     pos: &Position,
     offsets: &mut Offsets,
     scale: Scale,
 ) -> Result<(), ErrorKind> {
-    let _ = st;
     if !w.has_axes() {
         return Err(ErrorKind::NoAxisWords { code: 920 });
     }

@@ -207,11 +207,6 @@ impl Write for LineBuf {
     }
 }
 
-/// The f32 nearest a decimal (correctly rounded, see [`Decimal::to_f32`]).
-fn to_f32(value: Decimal) -> Option<f32> {
-    value.to_f32()
-}
-
 /// Length settings in BLU converted to another BLU: `round(v x from / to)`, toward zero when
 /// `inward` (soft limits stay inside the old ones).
 fn rescale(v: i64, from: Blu, to: Blu, inward: bool) -> Option<i64> {
@@ -330,7 +325,8 @@ impl MachineSettings {
                 if value.is_negative() && !signed {
                     return Err(SetError::Negative);
                 }
-                let v = to_f32(value).filter(|v| representable(*v)).ok_or(range)?;
+                // The f32 nearest the decimal (correctly rounded, `Decimal::to_f32`).
+                let v = value.to_f32().filter(|v| representable(*v)).ok_or(range)?;
                 set(self, v).ok_or(range)
             }
             Kind::Blu => {
