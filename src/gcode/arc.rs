@@ -5,7 +5,7 @@
 
 use super::error::{axis_name, ErrorKind};
 use super::number::round_sqrt;
-use crate::nc::{Arc, Plane, MAX_SEGMENTS};
+use crate::nc::{Arc, Plane, MAX_SEGMENTS, Q_MAX, R_MAX};
 use crate::settings::Settings;
 
 /// How the centre was programmed, in BLU in the plane's (a, b) axes.
@@ -155,9 +155,8 @@ pub fn plan(
     let (ia, ib) = plane.axes();
     let third = 3 - ia - ib;
     let get = |p: [i32; 3], k: usize| p.get(k).copied().unwrap_or(0) as i64;
-    if get(start, third) != get(end, third) {
-        return Err(ErrorKind::HelicalArc);
-    }
+    // A helix: the third axis moves in proportion to the angle.
+    let helix = get(end, third) - get(start, third);
     let s = [get(start, ia), get(start, ib)];
     let e = [get(end, ia), get(end, ib)];
     let off = match centre {
@@ -191,7 +190,9 @@ pub fn plan(
     if r == 0 {
         return Err(ErrorKind::ArcZeroRadius);
     }
-    if r > i32::MAX as i64 {
+    // The frame keeps e = i^2 + j^2 - r0^2 in 32 bits: |e| stays below a few R plus the end's
+    // distance from the start's circle (see `nc::Arc`).
+    if r > R_MAX as i64 || n1.abs_diff(n0) >= 1 << 30 {
         return Err(ErrorKind::ArcTooLarge);
     }
     let rs = libm::sqrt(n0 as f64);
@@ -275,15 +276,31 @@ pub fn plan(
             a
         }
     };
-    let length = libm::round(r as f64 * sweep).max(1.0);
-    if length > u32::MAX as f64 {
+    // The commands the arc takes, one BLU of path each: a helix's path is sqrt(plane^2 + helix^2),
+    // and the DDA's modulus q = R x path / plane slows the plane to its share. The plane takes q x
+    // sweep commands (q / max(|i|, |j|) per pulse of the faster axis), so the third axis's DDA
+    // runs over that many: the two end together whatever q's rounding.
+    let plane_len = r as f64 * sweep;
+    let q = if helix == 0 {
+        r as f64
+    } else {
+        let path = libm::sqrt(plane_len * plane_len + (helix * helix) as f64);
+        libm::round(r as f64 * path / plane_len.max(1.0)).max(r as f64)
+    };
+    let length = libm::round(q * sweep)
+        .max(helix.unsigned_abs() as f64)
+        .max(1.0);
+    if length > u32::MAX as f64 || q > Q_MAX as f64 {
         return Err(ErrorKind::ArcTooLarge);
     }
+    let helix = i32::try_from(helix).map_err(|_| ErrorKind::ArcTooLarge)?;
     Ok(Arc {
         plane,
         ccw,
         start: [p0[0] as i32, p0[1] as i32],
         r: r as u32,
+        q: q as u32,
+        helix,
         targets,
         n_targets: (n_cross + 1) as u8,
         f,

@@ -169,8 +169,6 @@ pub enum ErrorKind {
     ArcNeedsCentre { code: u8 },
     /// R together with I/J/K.
     ArcRadiusAndOffsets,
-    /// G2/G3 moving the axis normal to the plane.
-    HelicalArc,
     /// R-form arc whose end point equals its start point.
     ArcFullCircleRadius,
     /// Arc radius (start radius or R) of zero.
@@ -224,7 +222,6 @@ impl ErrorKind {
             ErrorKind::SoftLimit { .. } => "soft limit",
             ErrorKind::ArcNeedsCentre { .. } => "arc without centre or radius",
             ErrorKind::ArcRadiusAndOffsets => "arc with both R and I/J/K",
-            ErrorKind::HelicalArc => "helical arcs are not supported",
             ErrorKind::ArcFullCircleRadius => "R-form full circle",
             ErrorKind::ArcZeroRadius => "arc radius zero",
             ErrorKind::ArcRadiusTooSmall { .. } => "arc radius too small",
@@ -329,7 +326,6 @@ impl fmt::Display for ErrorKind {
                 write!(f, "G{code} needs a centre (I, J, K) or a radius (R)")
             }
             ErrorKind::ArcRadiusAndOffsets => f.write_str("an arc takes either R or I/J/K, not both"),
-            ErrorKind::HelicalArc => f.write_str("helical arcs are not supported"),
             ErrorKind::ArcFullCircleRadius => {
                 f.write_str("an R-form arc cannot be a full circle (end point equals start point); use I/J/K")
             }

@@ -46,7 +46,14 @@ fn tangents(b: &Block) -> Option<([i64; 3], [i64; 3])> {
                 .get((a.n_targets as usize).wrapping_sub(1))
                 .copied()
                 .unwrap_or(a.start);
-            Some((tangent(a.start), tangent(last)))
+            // A helix's third axis: its travel per radian, helix / sweep = helix q / length, beside
+            // the plane tangent's R per radian.
+            let rise = a.helix as i64 * a.q as i64 / a.length.max(1) as i64;
+            let (mut t0, mut t1) = (tangent(a.start), tangent(last));
+            if let (Some(x), Some(y)) = (t0.get_mut(3 - ia - ib), t1.get_mut(3 - ia - ib)) {
+                (*x, *y) = (rise, rise);
+            }
+            Some((t0, t1))
         }
         Motion::Rapid(_) | Motion::Dwell(_) => None,
     }

@@ -495,6 +495,13 @@ pub fn carry_signs(motion: &mut crate::nc::Motion, current: u8) -> u8 {
                 }
                 p = *t;
             }
+            // A helix's third axis: set once, at the block's start (see `Frame::initiate`).
+            let z = 1u8 << (3 - a - b);
+            if c.helix > 0 {
+                s |= z;
+            } else if c.helix < 0 {
+                s &= !z;
+            }
             s
         }
         Motion::Dwell(_) => current,

@@ -102,10 +102,22 @@ pub fn centripetal_feed(accel_q8: u32, r: u32, q0_q8: u32) -> u32 {
 /// Most quadrant segments an arc can have (a full circle from a point off the axes).
 pub const MAX_SEGMENTS: usize = 5;
 
-/// Circular interpolation (G2/G3) as a full DDA: registers i = a - a_c, j = b - b_c, q = R.
-/// The arc is cut at axis crossings into segments; inside a segment both axes move
-/// monotonically, so the position counters of a segment are |delta a| and |delta b| and its signs
-/// are constant. The last target is the programmed end point (relative to the centre).
+/// Largest radius of an arc in BLU: the frame keeps the radius error i^2 + j^2 - R^2 in 32 bits
+/// (see [`Arc`]), so the registers stay below 2^28 (268 m at 1 um per BLU).
+pub const R_MAX: u32 = 1 << 28;
+
+/// Circular interpolation (G2/G3) as a DDA with radius-error correction: registers i = a - a_c,
+/// j = b - b_c, modulus q. The arc is cut at axis crossings into segments; inside a segment both
+/// axes move monotonically, so the position counters of a segment are |delta a| and |delta b| and
+/// its signs are constant. The last target is the programmed end point (relative to the centre).
+///
+/// Per interpolation command the faster axis of the two (a when |j| >= |i|) runs the DDA,
+/// r += max(|i|, |j|), overflow past q = a pulse; when it pulses, the slower axis pulses too if
+/// that brings the point nearer the start's circle (|e| smaller, e = i^2 + j^2 - i0^2 - j0^2, kept
+/// exact per pulse): the slower axis is the lattice point nearest the circle, the radial error at
+/// most half a BLU. A helix moves the third axis by `helix` BLU along the arc: a linear DDA of
+/// |helix| over `length` commands, the plane's modulus q = R x length / (R x sweep) so that the
+/// path (not its projection) runs at the feed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Arc {
     pub plane: Plane,
@@ -113,14 +125,20 @@ pub struct Arc {
     pub ccw: bool,
     /// Start point relative to the centre (i, j) in BLU.
     pub start: [i32; 2],
-    /// q = R = round(sqrt(i^2 + j^2)) of the start point, at least 1.
+    /// R = round(sqrt(i^2 + j^2)) of the start point, 1..=[`R_MAX`].
     pub r: u32,
+    /// The DDA's modulus: R for a plane arc, R x length / (R x sweep) for a helix (the plane
+    /// moves less than one BLU per command), at most [`Q_MAX`].
+    pub q: u32,
+    /// Signed travel of the third axis (0 for a plane arc), |helix| <= length.
+    pub helix: i32,
     /// Segment end points relative to the centre; the first `n_targets` are used.
     pub targets: [[i32; 2]; MAX_SEGMENTS],
     pub n_targets: u8,
     pub f: u32,
     pub decel: bool,
-    /// Path length in BLU (number of interpolation commands the arc takes), for deceleration.
+    /// Path length in BLU (number of interpolation commands the arc takes, along the helix for a
+    /// helix), for deceleration and the third axis's DDA. At least 1.
     pub length: u32,
     /// Derived from f and decel by [`Block::seal`]: the deceleration floor and threshold.
     pub f_floor: u32,
@@ -200,10 +218,17 @@ impl Block {
             }
             Motion::Arc(c) => {
                 let (x, y) = c.plane.axes();
-                let a_arc = a[x].min(a[y]);
-                c.f = c.f.min(centripetal_feed(a_arc, c.r, cfg.q0_q8));
+                let mut a_arc = a[x].min(a[y]) as u64;
+                if c.helix != 0 {
+                    // The third axis moves |helix| / length of the path.
+                    let z = a[3 - x - y] as u64 * c.length as u64 / c.helix.unsigned_abs() as u64;
+                    a_arc = a_arc.min(z);
+                }
+                let a_arc = a_arc.clamp(1, RAMP_MAX as u64) as u32;
+                // The plane's speed is R / q of the path's: the centripetal cap on q is safe.
+                c.f = c.f.min(centripetal_feed(a_arc, c.q.max(c.r), cfg.q0_q8));
                 (c.f_floor, c.decel_below) = regs(c.f, c.decel);
-                c.ramp = a_arc.clamp(1, RAMP_MAX);
+                c.ramp = a_arc;
             }
             Motion::Rapid(_) | Motion::Dwell(_) => {}
         }

@@ -20,10 +20,15 @@
 //!   min(f, K * remaining / 256)): velocity proportional to the remaining path, i.e. an
 //!   exponential approach to 20 % of f (the paper's rule, not ramped).
 //! - Interpolator: per command one DDA cycle. Linear: r_k += |d_k|, overflow past q = L -> pulse.
-//!   Circular: r_a += |j|, r_b += |i|, overflow past q = R -> pulse, and the pulse moves i or j
-//!   (the registers are incremented as the other axis steps). The arc runs segment by segment
-//!   (axis crossings, see [`super::block::Arc`]); an axis whose segment counter is zero gets no
-//!   more pulses, and when one axis of a segment is done the other pulses once per command.
+//!   Circular (the paper's DDA with a radius-error correction beyond it): the faster axis of the
+//!   plane runs the DDA, r += max(|i|, |j|), overflow past q -> pulse; with it the slower axis
+//!   pulses when that brings the point nearer the circle (the radius error e = i^2 + j^2 - R0^2
+//!   follows every pulse exactly), so the path stays within half a BLU of the circle; every pulse
+//!   moves i or j. A helix's third axis runs a linear DDA of |helix| over the arc's length. The
+//!   arc runs segment by segment (axis crossings, see [`super::block::Arc`]); an axis whose
+//!   segment counter is zero gets no more pulses, when one axis of a segment is done the other
+//!   pulses at the DDA's rate, and a helix's third axis finishes once per command after the
+//!   plane.
 //! - Output and Position: the pulses with the current signs; counters decremented per pulse,
 //!   absolute position updated. A line is done in the frame of its q-th command, a dwell in its
 //!   last frame, a PTP block or an arc in the frame after its last pulse (which does nothing
@@ -145,18 +150,27 @@ pub struct Frame {
     count: [u32; 3],
     /// PTP frame counter; dwell frames left.
     ticks: u32,
-    /// Arc state: axis bits of a and b, register values i, j (position relative to the centre),
-    /// segment counters of a and b, unit steps of i and j (+1 or -1), segments.
+    /// Arc state: axis bits of a, b and the third axis, the registers i, j (position relative to
+    /// the centre) times their unit steps, ti = da i and tj = db j (a pulse adds 1 to them, and
+    /// |ti| = |i|), the radius error e = i^2 + j^2 - (i0^2 + j0^2) (|e| < 2^31: the parser keeps R
+    /// within [`super::block::R_MAX`]), segment counters of a and b, unit steps da, db of i and j
+    /// (+1 or -1), segments; a helix's third axis: |helix| (0 for a plane arc), the arc's length
+    /// (its DDA modulus), pulses left.
     bit_a: u8,
     bit_b: u8,
-    i: i32,
-    j: i32,
+    bit_z: u8,
+    ti: i32,
+    tj: i32,
+    e: i32,
     ca: u32,
     cb: u32,
     da: i32,
     db: i32,
     seg: u8,
     n_seg: u8,
+    hz: u32,
+    hq: u32,
+    cz: u32,
 }
 
 impl Frame {
@@ -187,14 +201,19 @@ impl Frame {
             ticks: 0,
             bit_a: 1,
             bit_b: 2,
-            i: 0,
-            j: 0,
+            bit_z: 4,
+            ti: 0,
+            tj: 0,
+            e: 0,
             ca: 0,
             cb: 0,
             da: 1,
             db: 1,
             seg: 0,
             n_seg: 0,
+            hz: 0,
+            hq: 1,
+            cz: 0,
         }
     }
 
@@ -294,15 +313,14 @@ impl Frame {
                 return Pulses { steps, signs };
             }
             Mode::Arc => {
-                if self.ca | self.cb == 0 {
+                let plane_done = self.ca | self.cb == 0;
+                if plane_done && self.seg.wrapping_add(1) < self.n_seg {
                     // The previous frame finished a segment (or the block started with an empty
                     // one): load the next one.
-                    if self.seg.wrapping_add(1) < self.n_seg {
-                        self.seg = self.seg.wrapping_add(1);
-                        self.load_segment(src);
-                    } else {
-                        self.done(src);
-                    }
+                    self.seg = self.seg.wrapping_add(1);
+                    self.load_segment(src);
+                } else if plane_done && self.cz == 0 {
+                    self.done(src);
                 } else if self.feed(
                     feed_cap.feed_cap(),
                     feed_cap.planned(self.regs.f),
@@ -414,10 +432,27 @@ impl Frame {
                 let (a, b) = c.plane.axes();
                 self.bit_a = 1 << a;
                 self.bit_b = 1 << b;
-                self.i = c.start[0];
-                self.j = c.start[1];
-                // r >= 1 (parser); f_floor and decel_below come sealed (see `Block::seal`).
-                self.regs.q = c.r;
+                // Unit steps +1 until the first segment sets them: ti = i, tj = j.
+                self.da = 1;
+                self.db = 1;
+                self.ti = c.start[0];
+                self.tj = c.start[1];
+                self.bit_z = 7 & !(self.bit_a | self.bit_b);
+                // q >= 1 (parser); f_floor and decel_below come sealed (see `Block::seal`).
+                self.regs.q = c.q;
+                self.e = 0;
+                // The third axis: its sign line now (segments change only a and b), its DDA over
+                // the whole arc.
+                self.hz = c.helix.unsigned_abs();
+                self.cz = self.hz;
+                self.hq = c.length;
+                self.acc[0] = c.q / 2;
+                self.acc[2] = c.length / 2;
+                if c.helix > 0 {
+                    self.signs |= self.bit_z;
+                } else if c.helix < 0 {
+                    self.signs &= !self.bit_z;
+                }
                 self.regs.f = c.f;
                 self.regs.f_floor = c.f_floor;
                 self.remaining = c.length;
@@ -479,24 +514,25 @@ impl Frame {
         }
     }
 
-    /// Counters and signs of segment `self.seg` of `c`: |target - (i, j)| per axis.
+    /// Counters, unit steps and signs of segment `self.seg` of `c`: |target - (i, j)| per axis.
     #[inline(always)]
     fn load_arc_segment(&mut self, c: &super::block::Arc) {
+        let i = self.da.wrapping_mul(self.ti);
+        let j = self.db.wrapping_mul(self.tj);
         let t = match c.targets.get(self.seg as usize) {
             Some(t) => *t,
-            None => [self.i, self.j],
+            None => [i, j],
         };
-        let da = t[0].wrapping_sub(self.i);
-        let db = t[1].wrapping_sub(self.j);
+        let da = t[0].wrapping_sub(i);
+        let db = t[1].wrapping_sub(j);
         self.ca = da.unsigned_abs();
         self.cb = db.unsigned_abs();
         self.da = if da > 0 { 1 } else { -1 };
         self.db = if db > 0 { 1 } else { -1 };
-        // Each segment starts on an axis crossing (or the block start): the DDA remainders restart
-        // at one half, which rounds each axis to the nearest BLU (measured: smaller deviation than
-        // carrying the remainders over the crossing).
-        let half = self.regs.q / 2;
-        self.acc = [half, half, half];
+        self.ti = self.da.wrapping_mul(i);
+        self.tj = self.db.wrapping_mul(j);
+        // The DDA's remainders run on over the crossings (set once, at the block's start): the
+        // plane's commands add up to q x sweep, so that the third axis keeps in step.
         // Only the axes that move in this segment change their sign line.
         let (bit_a, bit_b) = (self.bit_a, self.bit_b);
         let mut mask = 0u8;
@@ -591,41 +627,74 @@ impl Frame {
         steps
     }
 
-    /// Circular DDA cycle in the plane (a, b); i, j follow every pulse.
+    /// Circular DDA cycle in the plane (a, b) with the radius-error correction, and a helix's third
+    /// axis; ti, tj and e follow every pulse. While both axes of the segment have pulses left, the
+    /// faster axis (a when |j| >= |i|: it moves at |j| / q per command, b at |i| / q) runs the DDA
+    /// and the slower one pulses with it when that makes |e| smaller: |e + 2 t + 1| < |e| with t
+    /// its register times its unit step, which is the midpoint rule (the slower axis is the
+    /// lattice point nearest the circle). When one axis of the segment is done the other pulses at
+    /// the DDA's rate. When the plane is done and the third axis is not, it pulses once per
+    /// command.
     #[inline(always)]
     fn circular(&mut self) -> u8 {
         let (ca, cb) = (self.ca, self.cb);
-        let (step_a, step_b);
-        if ca != 0 && cb != 0 {
+        let mut steps = 0u8;
+        if ca | cb == 0 {
+            // The plane is done (the frame runs commands only while the third axis is not): it
+            // pulses once per command.
+            self.acc[2] = self.hq;
+        } else {
+            let ai = self.ti.unsigned_abs();
+            let aj = self.tj.unsigned_abs();
+            let a_major = aj >= ai;
             let q = self.regs.q;
-            let r = self.acc[0].wrapping_add(self.j.unsigned_abs());
-            step_a = r >= q;
-            if step_a {
+            let r = self.acc[0].wrapping_add(if a_major { aj } else { ai });
+            if r >= q {
                 self.acc[0] = r - q;
-                self.i = self.i.wrapping_add(self.da);
+                // a pulses when it is the faster axis, or when b's segment is done (then a
+                // finishes at its own rate); b likewise. A pulse adds 1 to ti (or tj), and to e
+                // (ti + 1)^2 - ti^2 = 2 ti + 1: the slower axis pulses when that makes |e| smaller.
+                if (a_major && ca != 0) || cb == 0 {
+                    let ti = self.ti.wrapping_add(1);
+                    self.ti = ti;
+                    let e = self.e.wrapping_add(ti.wrapping_mul(2).wrapping_sub(1));
+                    self.ca = ca.wrapping_sub(1);
+                    steps |= self.bit_a;
+                    self.e = e;
+                    let e2 = e.wrapping_add(self.tj.wrapping_mul(2).wrapping_add(1));
+                    if cb != 0 && e2.unsigned_abs() < e.unsigned_abs() {
+                        self.e = e2;
+                        self.tj = self.tj.wrapping_add(1);
+                        self.cb = cb.wrapping_sub(1);
+                        steps |= self.bit_b;
+                    }
+                } else {
+                    let tj = self.tj.wrapping_add(1);
+                    self.tj = tj;
+                    let e = self.e.wrapping_add(tj.wrapping_mul(2).wrapping_sub(1));
+                    self.cb = cb.wrapping_sub(1);
+                    steps |= self.bit_b;
+                    self.e = e;
+                    let e2 = e.wrapping_add(self.ti.wrapping_mul(2).wrapping_add(1));
+                    if ca != 0 && e2.unsigned_abs() < e.unsigned_abs() {
+                        self.e = e2;
+                        self.ti = self.ti.wrapping_add(1);
+                        self.ca = ca.wrapping_sub(1);
+                        steps |= self.bit_a;
+                    }
+                }
             } else {
                 self.acc[0] = r;
             }
-            let r = self.acc[1].wrapping_add(self.i.unsigned_abs());
-            step_b = r >= q;
-            self.acc[1] = if step_b { r - q } else { r };
+        }
+        // The third axis: a linear DDA over the arc's length (hz = 0 for a plane arc).
+        let rz = self.acc[2].wrapping_add(self.hz);
+        if rz >= self.hq && self.cz != 0 {
+            self.acc[2] = rz - self.hq;
+            self.cz -= 1;
+            steps |= self.bit_z;
         } else {
-            // One axis of the segment is done: the other pulses once per command.
-            step_a = ca != 0;
-            step_b = cb != 0;
-            if step_a {
-                self.i = self.i.wrapping_add(self.da);
-            }
-        }
-        let mut steps = 0u8;
-        if step_a {
-            self.ca = ca - 1;
-            steps |= self.bit_a;
-        }
-        if step_b {
-            self.j = self.j.wrapping_add(self.db);
-            self.cb = cb - 1;
-            steps |= self.bit_b;
+            self.acc[2] = rz;
         }
         steps
     }

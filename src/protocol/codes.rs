@@ -15,7 +15,7 @@
 //! | line longer than [`super::LINE_MAX`] bytes, or damaged by a receive overflow | 11 | line overflow |
 //! | `SoftLimit` (G-code and jog; the line is refused before anything moves, no alarm) | 15 | travel exceeded |
 //! | `$J=` with a G/M code other than G20/G21/G90/G91, or a word other than X Y Z F N | 16 | invalid jog command |
-//! | `UnclosedComment`, `UnsupportedLetter`, `UnsupportedG`, `UnsupportedM`, `StopWithMotion`, `NotInDialect`, `HelicalArc` | 20 | unsupported command |
+//! | `UnclosedComment`, `UnsupportedLetter`, `UnsupportedG`, `UnsupportedM`, `StopWithMotion`, `NotInDialect` | 20 | unsupported command |
 //! | `ModalConflict` | 21 | modal group violation |
 //! | `NoFeed`, `$J=` without F | 22 | feed rate undefined |
 //! | `NotInteger` | 23 | command value not an integer |
@@ -96,8 +96,7 @@ pub const fn gcode_error(kind: &ErrorKind) -> GrblError {
         | K::UnsupportedG(_)
         | K::UnsupportedM(_)
         | K::StopWithMotion { .. }
-        | K::NotInDialect(_)
-        | K::HelicalArc => GrblError::UNSUPPORTED_COMMAND,
+        | K::NotInDialect(_) => GrblError::UNSUPPORTED_COMMAND,
         K::ModalConflict { .. } => GrblError::MODAL_GROUP,
         K::NotInteger(_) => GrblError::COMMAND_VALUE_NOT_INTEGER,
         K::AxisCommandConflict => GrblError::AXIS_COMMAND_CONFLICT,

@@ -192,6 +192,7 @@ pub fn displacement(b: &Block) -> [i32; 3] {
             let mut d = [0; 3];
             d[a] = end[0] - c.start[0];
             d[bb] = end[1] - c.start[1];
+            d[3 - a - bb] = c.helix;
             d
         }
         Motion::Dwell(_) => [0; 3],

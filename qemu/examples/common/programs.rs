@@ -30,7 +30,8 @@ pub const PROGRAMS: &[(&str, &str)] = &[
         "G2/G3 arcs",
         "G20 G90\nG0 X0.02 Y0\nG2 X0 Y-0.02 I-0.02 J0 F30\nG3 X0.02 Y0 I0 J0.02 F30\n\
          G3 X0.02 Y0 I-0.02 J0 F30\nG2 X0.01 Y0.01 I-0.01 J0 F30\nG17 G2 X0.01 Y0.01 I0.003 J-0.004 F30\n\
-         G18 G3 X0.01 Z0.01 I0.005 K0.005 F30\nM2\n",
+         G18 G3 X0.01 Z0.01 I0.005 K0.005 F30\nG17 G2 X0.01 Y0.01 Z-0.01 I0.01 J0 F30\n\
+         G17 G3 X0.01 Y0.01 Z0.05 I0.005 J0 F30\nM2\n",
     ),
     (
         "G0 then G1",

@@ -169,6 +169,8 @@ pub fn program_of_blocks(blocks: Vec<Sealed>) -> Vec<ProgBlock> {
                     }
                     pos[a] += p[0] - c.start[0];
                     pos[b] += p[1] - c.start[1];
+                    pos[3 - a - b] += c.helix;
+                    pulses[3 - a - b] = c.helix.unsigned_abs() as u64;
                 }
                 Motion::Dwell(_) => {}
             }
@@ -519,6 +521,12 @@ fn measure(
                 }
                 prev_ang = Some(ang);
                 arc_len.push(acc);
+            }
+            // A helix's path is longer than its plane's by sqrt(1 + (helix / plane)^2).
+            if c.helix != 0 && acc > 0.0 {
+                let scale = (acc * acc + (c.helix as f64).powi(2)).sqrt() / acc;
+                arc_len.iter_mut().for_each(|l| *l *= scale);
+                acc *= scale;
             }
             let total = acc;
             let tail = if c.decel {

@@ -289,3 +289,51 @@ fn end_just_outside_the_circle_past_a_crossing_is_accepted_and_exact() {
         Motion::Arc(_)
     ));
 }
+
+#[test]
+fn helices_move_the_third_axis_along_the_arc() {
+    // G17: Z is the third axis. A quarter circle of radius 1 in rising 0.5 in: the path is
+    // sqrt(15 708^2 + 5000^2) = 16 485 BLU, the plane's modulus R x path / plane.
+    let mut p = parser();
+    block(&mut p, "X1");
+    let a = arc_of(&mut p, "G3 F10 X0 Y1 Z0.5 I-1");
+    assert_eq!((a.plane, a.r, a.helix), (Plane::XY, 10_000, 5000));
+    assert_eq!(targets(&a), &[[0, 10_000]]);
+    let path = (15_707.96f64.powi(2) + 5000f64.powi(2)).sqrt();
+    let q = (10_000.0 * path / 15_707.96).round();
+    assert_eq!(a.q as f64, q);
+    assert_eq!(a.length as f64, (q * std::f64::consts::FRAC_PI_2).round());
+    assert_eq!(p.position(), [0, 10_000, 5000]);
+    // G18 moves Y, G19 moves X, either way round; a plane arc has no helix and q = R.
+    let mut p = parser();
+    block(&mut p, "Z1");
+    let a = arc_of(&mut p, "G18 G2 F10 Z0 X1 Y-0.25 K-1");
+    assert_eq!((a.plane, a.helix, a.ccw), (Plane::ZX, -2500, false));
+    let mut p = parser();
+    block(&mut p, "Y1");
+    let a = arc_of(&mut p, "G19 G3 F10 Y0 Z1 X0.1 J-1");
+    assert_eq!((a.plane, a.helix), (Plane::YZ, 1000));
+    let mut p = parser();
+    block(&mut p, "X1");
+    let a = arc_of(&mut p, "G3 F10 X0 Y1 Z0 I-1");
+    assert_eq!((a.helix, a.q, a.r), (0, 10_000, 10_000));
+    // A helix in the R form, and one full turn down (CAM's helical ramp into a pocket).
+    let mut p = parser();
+    block(&mut p, "X1");
+    let a = arc_of(&mut p, "G2 F10 X0 Y-1 Z-0.1 R1");
+    assert_eq!((a.helix, a.r), (-1000, 10_000));
+    let a = arc_of(&mut p, "G2 F10 X0 Y-1 Z-0.2 I0 J1");
+    assert_eq!((a.helix, a.n_targets), (-1000, 4));
+    assert_eq!(p.position(), [0, -10_000, -2000]);
+}
+
+#[test]
+fn a_helix_beyond_the_soft_limits_is_refused() {
+    let mut p = parser();
+    block(&mut p, "X1");
+    let err = p.line(2, "G3 F10 X0 Y1 Z10 I-1").unwrap_err();
+    assert!(
+        matches!(err.kind, ErrorKind::SoftLimit { axis: 'Z', .. }),
+        "{err:?}"
+    );
+}

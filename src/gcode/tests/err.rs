@@ -316,17 +316,6 @@ fn err_arc_radius_and_offsets() {
 }
 
 #[test]
-fn err_helical() {
-    assert_rejected(&mut busy(), "G2 X1 Z1 I0.5", ErrorKind::HelicalArc);
-    assert_rejected(&mut busy(), "G18 G2 X1 Y1 I0.5", ErrorKind::HelicalArc);
-    let mut p = parser();
-    assert!(
-        p.line(1, "G17 G2 F1 X1 Y0 Z0 I0.5").is_ok(),
-        "Z word without Z motion is planar"
-    );
-}
-
-#[test]
 fn err_arc_full_circle_radius() {
     assert_rejected(&mut busy(), "G2 X0 R1", ErrorKind::ArcFullCircleRadius);
 }
