@@ -1,6 +1,7 @@
-//! A program a CAM wrote runs on the firmware under QEMU (host; the built `millac-qemu` binary and
-//! QEMU, NC only): FreeCAD's drilling job, whose canned cycles (G81, G82 with its dwell, G83 pecks)
-//! the firmware's loader expands line by line into its block queue. Every block runs, each ends
+//! Programs run on the firmware under QEMU (host; the built `millac-qemu` binary and QEMU, NC
+//! only): FreeCAD's drilling job, whose canned cycles (G81, G82 with its dwell, G83 pecks) the
+//! firmware's loader expands line by line into its block queue, and a helical entry (helices and
+//! P turns, expanded the same way). Every block runs, each ends
 //! exactly where the host's reading of the program says (the analyser's end points from the
 //! capture), and the machine ends where `check` says.
 use serde_json::Value;
@@ -14,19 +15,19 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
-#[test]
-fn freecads_drilling_job_runs_under_qemu_block_for_block() {
-    let prog = Path::new(env!("CARGO_MANIFEST_DIR")).join("programs/cam/freecad/drill.nc");
+/// Runs `program` (under qemu/programs) NC only under QEMU; requires every block of the host's
+/// reading to run, each ending exactly where the host says, and the machine to end where the host
+/// says. Returns summary.json.
+fn runs_block_for_block(program: &str, scratch_name: &str) -> Value {
+    let prog = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("programs")
+        .join(program);
     let text = std::fs::read(&prog).unwrap();
     let settings = millac::Settings::default();
     let reading = millac_qemu::analysis::read_lines(&text, &settings);
     assert!(reading.refused.is_empty(), "{:?}", reading.refused);
     let want = millac_qemu::analysis::program_of_blocks(reading.blocks);
-    let cycles = String::from_utf8_lossy(&text);
-    for code in ["G81", "G82", "G83"] {
-        assert!(cycles.contains(code), "the job has {code}");
-    }
-    let out = scratch("drill").join("out");
+    let out = scratch(scratch_name).join("out");
     let o = Command::new(env!("CARGO_BIN_EXE_millac-qemu"))
         .args(["run", "--nc-only", "--out"])
         .arg(&out)
@@ -48,5 +49,34 @@ fn freecads_drilling_job_runs_under_qemu_block_for_block() {
     assert_eq!(
         ["x", "y", "z"].map(|k| p[k].as_i64().unwrap()),
         end.map(i64::from)
+    );
+    s
+}
+
+#[test]
+fn freecads_drilling_job_runs_under_qemu_block_for_block() {
+    let cycles = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("programs/cam/freecad/drill.nc"),
+    )
+    .unwrap();
+    for code in ["G81", "G82", "G83"] {
+        assert!(cycles.contains(code), "the job has {code}");
+    }
+    runs_block_for_block("cam/freecad/drill.nc", "drill");
+}
+
+/// A helical entry (helices, a line of P2 turns, a plane circle, an R-form helix) runs on the
+/// firmware with every pulse as the host core's and the path within half a BLU of its circles.
+#[test]
+fn a_helical_entry_runs_under_qemu_within_half_a_blu() {
+    let s = runs_block_for_block("helix-entry.nc", "helix");
+    assert_eq!(s["pulses_match_host"], true, "{s:#}");
+    let dev = s["max_deviation_blu"].as_f64().unwrap();
+    assert!(dev <= 0.5, "{dev} BLU off the path");
+    // Z's pulses: down 0.1 in to Z0, the helices 0.05 and 0.1 in down, 0.05 in up, 0.2 in out.
+    assert_eq!(
+        s["pulses"]["z"],
+        1000 + 1000 + 500 + 1000 + 500 + 2000,
+        "{s:#}"
     );
 }

@@ -125,6 +125,28 @@ struct Outcome {
 }
 
 /// Compares rs274's moves with millac's blocks (see the module's note).
+/// The centre's distance (BLU) when millac's arc `mk` is in rs274's arc `kind`'s plane and
+/// direction; `None` when it is not, or its centre is more than the tolerance away.
+fn same_arc(kind: Kind, mk: MillacKind, blu_per_mm: f64) -> Option<f64> {
+    match (kind, mk) {
+        (
+            Kind::Arc {
+                plane, centre, ccw, ..
+            },
+            MillacKind::Arc {
+                plane: mp,
+                centre: mc,
+                ccw: mccw,
+            },
+        ) if plane == mp && ccw == mccw => {
+            let c = centre.map(|v| v * blu_per_mm);
+            let d = (c[0] - mc[0] as f64).abs().max((c[1] - mc[1] as f64).abs());
+            (d <= TOLERANCE_BLU).then_some(d)
+        }
+        _ => None,
+    }
+}
+
 fn compare(
     name: &str,
     canon: &[rs274::Canon],
@@ -167,25 +189,24 @@ fn compare(
             c.seq,
             c.n.map(|n| format!(", N{n}")).unwrap_or_default()
         );
+        // An arc of P turns: millac makes P - 1 full circles about the same centre first (one
+        // block each), then the programmed arc; rs274 prints one move with its turns.
+        let mut circles = 0;
+        if let Kind::Arc { turns, .. } = kind {
+            while circles + 1 < turns as usize
+                && millac
+                    .get(next + circles)
+                    .is_some_and(|&(mk, _)| same_arc(kind, mk, blu_per_mm).is_some())
+            {
+                circles += 1;
+            }
+        }
         // The next millac block when it is this move (kind, end, centre).
-        let matched = millac.get(next).and_then(|&(mk, mend)| {
+        let matched = millac.get(next + circles).and_then(|&(mk, mend)| {
             let d = dev3(end, mend);
             let centre_dev = match (kind, mk) {
                 (Kind::Traverse, MillacKind::Rapid) | (Kind::Feed, MillacKind::Linear) => 0.0,
-                (
-                    Kind::Arc {
-                        plane, centre, ccw, ..
-                    },
-                    MillacKind::Arc {
-                        plane: mp,
-                        centre: mc,
-                        ccw: mccw,
-                    },
-                ) if plane == mp && ccw == mccw => {
-                    let c = centre.map(|v| v * blu_per_mm);
-                    (c[0] - mc[0] as f64).abs().max((c[1] - mc[1] as f64).abs())
-                }
-                _ => return None,
+                _ => same_arc(kind, mk, blu_per_mm)?,
             };
             (d <= TOLERANCE_BLU && centre_dev <= TOLERANCE_BLU).then_some(d.max(centre_dev))
         });
@@ -198,7 +219,7 @@ fn compare(
         let still = rounds_here || (rs_still && dev3(end, pos) <= TOLERANCE_BLU);
         prev = end;
         let full_circle = matches!(kind, Kind::Arc { .. })
-            && matches!(millac.get(next), Some((MillacKind::Arc { .. }, e)) if dev3(end, *e) <= TOLERANCE_BLU);
+            && matches!(millac.get(next + circles), Some((MillacKind::Arc { .. }, e)) if dev3(end, *e) <= TOLERANCE_BLU);
         if still && !full_circle {
             continue;
         }
@@ -209,6 +230,7 @@ fn compare(
                     worst = format!(" (at rs274 move {}, millac block {})", number + 1, next + 1);
                 }
             }
+            next += circles;
             pos = millac[next].1;
             next += 1;
             continue;

@@ -142,6 +142,151 @@ fn centre_from_radius(
     Ok(o)
 }
 
+/// Most turns of one G2/G3 line (its P word).
+pub const MAX_TURNS: u32 = 10_000;
+
+/// A G2/G3 with P turns (P > 1): P - 1 full circles about the same centre, then the programmed
+/// arc, the third axis moving in proportion to the angle over all of them (LinuxCNC's P word).
+/// Validated whole by [`Turns::new`]; expanded one block at a time by [`Turns::next_block`]
+/// (the tape emits them as the queue has room, as a canned cycle's). Loader task; host.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Turns {
+    line: u32,
+    plane: Plane,
+    ccw: bool,
+    f: u32,
+    /// The centre in machine BLU (a, b).
+    centre: [i64; 2],
+    /// The third axis at the start, its travel over the whole move, the programmed end.
+    third0: i64,
+    rise: i64,
+    end: [i32; 3],
+    /// Full circles to make, made so far; the whole angle in nanoradians (an integer, so that a
+    /// parsed line compares exactly).
+    full: u32,
+    made: u32,
+    angle_nrad: u64,
+    /// Where the next block starts, and whether the last one (the programmed arc) is out.
+    at: [i32; 3],
+    finished: bool,
+}
+
+impl Turns {
+    /// Validates a G2/G3 of `turns` (2..=[`MAX_TURNS`]) turns from `start` to `end` (machine
+    /// BLU) about the start plus `offsets`: the first full circle (its extent against the soft
+    /// limits) and the last arc are planned here, so the expansion cannot fail. Returns it and the
+    /// length of the whole move in BLU (for G93's feed).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        st: &Settings,
+        plane: Plane,
+        ccw: bool,
+        start: [i32; 3],
+        end: [i32; 3],
+        offsets: [i64; 2],
+        f: u32,
+        turns: u32,
+        line: u32,
+    ) -> Result<(Turns, u64), ErrorKind> {
+        let (ia, ib) = plane.axes();
+        let third = 3 - ia - ib;
+        let get = |p: [i32; 3], k: usize| p.get(k).copied().unwrap_or(0) as i64;
+        let mut t = Turns {
+            line,
+            plane,
+            ccw,
+            f,
+            centre: [get(start, ia) + offsets[0], get(start, ib) + offsets[1]],
+            third0: get(start, third),
+            rise: get(end, third) - get(start, third),
+            end,
+            full: turns - 1,
+            made: 0,
+            angle_nrad: 0,
+            at: start,
+            finished: false,
+        };
+        // The last arc, planned from the start (the plane's geometry is the same after the full
+        // circles): its angle is length / q (q x sweep commands, see `plan`), to a few
+        // microradians.
+        let last = t.arc_to(st, end)?;
+        let tau = 2.0 * core::f64::consts::PI;
+        let angle = t.full as f64 * tau + last.length as f64 / last.q.max(1) as f64;
+        t.angle_nrad = libm::round(angle * 1e9) as u64;
+        // The first full circle: its extent (every crossing) within the soft limits.
+        t.at = start;
+        let first = t.arc_to(st, t.circle_end(1)?)?;
+        t.at = start;
+        let length = first.length as u64 * t.full as u64 + last.length as u64;
+        Ok((t, length))
+    }
+
+    /// Where full circle number `k` (1-based) ends: where it starts, the third axis at k full
+    /// turns' share of the whole angle.
+    fn circle_end(&self, k: u32) -> Result<[i32; 3], ErrorKind> {
+        let (ia, ib) = self.plane.axes();
+        let tau = 2.0 * core::f64::consts::PI;
+        let angle = self.angle_nrad.max(1) as f64 * 1e-9;
+        let rise = libm::round(self.rise as f64 * k as f64 * tau / angle) as i64;
+        let z = i32::try_from(self.third0 + rise).map_err(|_| ErrorKind::ArcTooLarge)?;
+        let mut target = self.at;
+        if let Some(t) = target.get_mut(3 - ia - ib) {
+            *t = z;
+        }
+        Ok(target)
+    }
+
+    /// The arc from where the expansion stands to `target` about the centre.
+    fn arc_to(&mut self, st: &Settings, target: [i32; 3]) -> Result<Arc, ErrorKind> {
+        let (ia, ib) = self.plane.axes();
+        let get = |p: [i32; 3], k: usize| p.get(k).copied().unwrap_or(0) as i64;
+        let off = [
+            self.centre[0] - get(self.at, ia),
+            self.centre[1] - get(self.at, ib),
+        ];
+        let arc = plan(
+            st,
+            self.plane,
+            self.ccw,
+            self.at,
+            target,
+            Centre::Offsets(off),
+            self.f,
+        )?;
+        self.at = target;
+        Ok(arc)
+    }
+
+    /// The next block: the full circles, then the programmed arc; `None` after it. Its feed is
+    /// the line's (G93: set for the whole move by the parser).
+    pub fn next_block(&mut self, st: &Settings) -> Option<crate::nc::Block> {
+        let target = if self.made < self.full {
+            self.made += 1;
+            self.circle_end(self.made).ok()?
+        } else if !self.finished {
+            self.finished = true;
+            self.end
+        } else {
+            return None;
+        };
+        let arc = self.arc_to(st, target).ok()?;
+        Some(crate::nc::Block {
+            line: self.line,
+            motion: crate::nc::Motion::Arc(arc),
+        })
+    }
+
+    /// Every block is out.
+    pub fn done(&self) -> bool {
+        self.finished
+    }
+
+    /// Sets the feed number of every block (G93: the whole move's).
+    pub fn set_feed(&mut self, f: u32) {
+        self.f = f;
+    }
+}
+
 /// Plans one arc from `start` to `end` (machine BLU) and returns the block (decel false).
 pub fn plan(
     st: &Settings,

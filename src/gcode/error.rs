@@ -169,6 +169,8 @@ pub enum ErrorKind {
     ArcNeedsCentre { code: u8 },
     /// R together with I/J/K.
     ArcRadiusAndOffsets,
+    /// G2/G3's P (turns) not a whole number from 1 to `arc::MAX_TURNS`, or P > 1 in the R form.
+    ArcTurns,
     /// R-form arc whose end point equals its start point.
     ArcFullCircleRadius,
     /// Arc radius (start radius or R) of zero.
@@ -222,6 +224,7 @@ impl ErrorKind {
             ErrorKind::SoftLimit { .. } => "soft limit",
             ErrorKind::ArcNeedsCentre { .. } => "arc without centre or radius",
             ErrorKind::ArcRadiusAndOffsets => "arc with both R and I/J/K",
+            ErrorKind::ArcTurns => "arc turns (P)",
             ErrorKind::ArcFullCircleRadius => "R-form full circle",
             ErrorKind::ArcZeroRadius => "arc radius zero",
             ErrorKind::ArcRadiusTooSmall { .. } => "arc radius too small",
@@ -326,6 +329,11 @@ impl fmt::Display for ErrorKind {
                 write!(f, "G{code} needs a centre (I, J, K) or a radius (R)")
             }
             ErrorKind::ArcRadiusAndOffsets => f.write_str("an arc takes either R or I/J/K, not both"),
+            ErrorKind::ArcTurns => write!(
+                f,
+                "an arc's P (turns) must be a whole number from 1 to {}, and more than 1 turn needs I/J/K",
+                super::arc::MAX_TURNS
+            ),
             ErrorKind::ArcFullCircleRadius => {
                 f.write_str("an R-form arc cannot be a full circle (end point equals start point); use I/J/K")
             }

@@ -722,7 +722,7 @@ fn cycle(
         *b = fine_to_blu(st, f).ok_or(overflow(k))?;
     }
     *pos.fine = end;
-    Ok(Parsed::Cycle(c))
+    Ok(Parsed::Expand(super::Expansion::Cycle(c)))
 }
 
 /// A motion line: G0/G1/G2/G3 in the mode in force (G53: machine coordinates, G0/G1 in G90).
@@ -769,7 +769,20 @@ fn motion(
     let (target, target_fine) = targets(st, w, m.distance, &pos, scale, origin)?;
     let mut motion = match m.motion {
         MotionMode::ArcCw | MotionMode::ArcCcw => {
-            arc_motion(st, m, w, &pos, (target, target_fine), scale, used)?
+            match arc_motion(st, m, w, &pos, (target, target_fine), scale, used, line_no)? {
+                ArcPlan::One(motion) => motion,
+                ArcPlan::Turns(mut t, length) => {
+                    if inverse {
+                        // G93: the feed that runs the whole move (all its turns) in 1/F minutes.
+                        let length = u32::try_from(length).map_err(|_| ErrorKind::ArcTooLarge)?;
+                        let f = w.value(F).unwrap_or(super::Decimal::int(0));
+                        t.set_feed(inverse_time_feed(st, f, length)?);
+                    }
+                    *pos.blu = target;
+                    *pos.fine = target_fine;
+                    return Ok(Parsed::Expand(super::Expansion::Turns(t)));
+                }
+            }
         }
         _ => match line_motion(st, m, *pos.blu, target)? {
             Some(motion) => motion,
@@ -1027,7 +1040,9 @@ fn line_motion(
 /// exact programmed start, rounded once), then the planned arc within the soft limits. The offset
 /// along the axis normal to the plane must be absent or zero (FreeCAD's grbl post writes `K0` on
 /// every G17 arc; grbl ignores any K there, LinuxCNC refuses every K: millac takes the zero, which
-/// says nothing, and refuses another value, which would mean a centre off the plane).
+/// says nothing, and refuses another value, which would mean a centre off the plane). P is
+/// the number of turns (LinuxCNC's): P1 the arc as programmed, P2 one full circle more, and so on.
+#[allow(clippy::too_many_arguments)]
 fn arc_motion(
     st: &Settings,
     m: &Modes,
@@ -1036,12 +1051,26 @@ fn arc_motion(
     (target, end_fine): ([i32; 3], [i128; 3]),
     scale: Scale,
     used: &mut Used,
-) -> Result<Motion, ErrorKind> {
+    line_no: u32,
+) -> Result<ArcPlan, ErrorKind> {
     let pos = *position.blu;
     let (ia, ib) = m.plane.axes();
     let third = 3 - ia - ib;
     for i in [R, OFFSETS + ia, OFFSETS + ib] {
         used.take(i);
+    }
+    let turns = match w.value(P) {
+        None => 1,
+        Some(v) => {
+            used.take(P);
+            match v.as_integer() {
+                Some(n) if (1..=arc::MAX_TURNS as i128).contains(&n) => n as u32,
+                _ => return Err(ErrorKind::ArcTurns),
+            }
+        }
+    };
+    if turns > 1 && w.value(R).is_some() {
+        return Err(ErrorKind::ArcTurns);
     }
     match w.value(OFFSETS + third) {
         Some(v) if !v.is_zero() => {
@@ -1092,15 +1121,19 @@ fn arc_motion(
             })
         }
     };
-    let a = arc::plan(
-        st,
-        m.plane,
-        m.motion == MotionMode::ArcCcw,
-        pos,
-        target,
-        centre,
-        m.feed,
-    )?;
+    let ccw = m.motion == MotionMode::ArcCcw;
     check_soft(st, target)?;
-    Ok(Motion::Arc(a))
+    if let (true, Centre::Offsets(off)) = (turns > 1, centre) {
+        let (t, length) =
+            arc::Turns::new(st, m.plane, ccw, pos, target, off, m.feed, turns, line_no)?;
+        return Ok(ArcPlan::Turns(t, length));
+    }
+    let a = arc::plan(st, m.plane, ccw, pos, target, centre, m.feed)?;
+    Ok(ArcPlan::One(Motion::Arc(a)))
+}
+
+/// A G2/G3 line planned: one block, or P turns to expand (with the whole move's length in BLU).
+enum ArcPlan {
+    One(Motion),
+    Turns(arc::Turns, u64),
 }

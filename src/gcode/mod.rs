@@ -49,12 +49,40 @@ pub enum Parsed {
     Block(Block),
     /// Two blocks, in order (G28/G30 through an intermediate point).
     Two(Block, Block),
-    /// A canned cycle: its blocks come from [`cycles::Cycle::next_block`].
-    Cycle(cycles::Cycle),
+    /// A canned cycle or an arc of P turns: its blocks come from [`Expansion::next_block`].
+    Expand(Expansion),
     /// M2 / M30: end of program.
     End,
     /// M0 or M6: the machine stops once the motion before it has run and waits for cycle start.
     Stop(Stop),
+}
+
+/// A line that expands into more blocks than a line may queue at once: the tape emits them one at
+/// a time as the queue has room (loader task; host).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Expansion {
+    /// A canned cycle (G73, G81-G89).
+    Cycle(cycles::Cycle),
+    /// A G2/G3 of P turns.
+    Turns(arc::Turns),
+}
+
+impl Expansion {
+    /// The next block, `None` once all are out.
+    pub fn next_block(&mut self, st: &Settings) -> Option<Block> {
+        match self {
+            Expansion::Cycle(c) => c.next_block(st),
+            Expansion::Turns(t) => t.next_block(st),
+        }
+    }
+
+    /// Every block is out.
+    pub fn done(&self) -> bool {
+        match self {
+            Expansion::Cycle(c) => c.done(),
+            Expansion::Turns(t) => t.done(),
+        }
+    }
 }
 
 /// Why a program stops and waits for the operator's cycle start.
@@ -323,8 +351,8 @@ impl Parser {
                 }
                 match &mut p {
                     Parsed::Block(b) => self.signs = carry_signs(&mut b.motion, self.signs),
-                    Parsed::Cycle(c) => {
-                        // The SIGN lines after the cycle: its blocks run through once here.
+                    Parsed::Expand(c) => {
+                        // The SIGN lines after the expansion: its blocks run through once here.
                         let mut c = *c;
                         while let Some(mut b) = c.next_block(&self.settings) {
                             self.signs = carry_signs(&mut b.motion, self.signs);

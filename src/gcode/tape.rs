@@ -1,9 +1,8 @@
 //! The program "tape" (the paper's tape reader): bytes in chunks -> numbered lines -> parser ->
 //! look-ahead -> validated blocks. One piece of code for the firmware loader (idle task) and the
 //! host tool's pre-check, so both accept and reject exactly the same programs.
-use super::cycles::Cycle;
 use super::lines::{LineError, Lines};
-use super::{carry_signs, GcodeError, Lookahead, Parsed, Parser};
+use super::{carry_signs, Expansion, GcodeError, Lookahead, Parsed, Parser};
 use crate::ac::{apply_ceiling, FeedCeiling};
 use crate::nc::{Block, FrameConfig, Sealed};
 use crate::settings::Settings;
@@ -50,7 +49,7 @@ struct Reader {
     parser: Parser,
     lookahead: Lookahead,
     /// A cycle whose blocks are not all emitted yet, and the SIGN lines after the last one that was.
-    pending: Option<(Cycle, u8)>,
+    pending: Option<(Expansion, u8)>,
 }
 
 impl Reader {
@@ -65,7 +64,7 @@ impl Reader {
     ) -> Result<bool, TapeError> {
         let signs = self.parser.signs();
         let parsed = self.parser.line(n, text).map_err(TapeError::Gcode)?;
-        if let Parsed::Cycle(c) = parsed {
+        if let Parsed::Expand(c) = parsed {
             self.pending = Some((c, signs));
             self.pump(room, emit);
             return Ok(false);
@@ -356,8 +355,8 @@ fn take(parsed: Parsed, lookahead: &mut Lookahead, emit: &mut impl FnMut(Block))
             push(b);
             false
         }
-        // A cycle is expanded by the reader (it never comes here).
-        Parsed::Cycle(_) => false,
+        // An expansion is emitted by the reader (it never comes here).
+        Parsed::Expand(_) => false,
         Parsed::Stop(_) | Parsed::End => {
             if let Some(b) = lookahead.flush() {
                 emit(b);

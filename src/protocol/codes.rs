@@ -109,7 +109,9 @@ pub const fn gcode_error(kind: &ErrorKind) -> GrblError {
         K::ToolNumber { .. } => GrblError::ILLEGAL_TOOL,
         K::Cycle(CycleError::NotXy | CycleError::InverseTime) => GrblError::UNSUPPORTED_COMMAND,
         K::Cycle(CycleError::RBelowZ) => GrblError::INVALID_TARGET,
-        K::Cycle(CycleError::Repeats | CycleError::Peck) => GrblError::VALUE_OUT_OF_RANGE,
+        K::Cycle(CycleError::Repeats | CycleError::Peck) | K::ArcTurns => {
+            GrblError::VALUE_OUT_OF_RANGE
+        }
         K::NoFeed { .. } => GrblError::UNDEFINED_FEED,
         K::RepeatedWord(_) => GrblError::WORD_REPEATED,
         K::DwellNeedsP => GrblError::VALUE_WORD_MISSING,

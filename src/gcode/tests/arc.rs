@@ -337,3 +337,85 @@ fn a_helix_beyond_the_soft_limits_is_refused() {
         "{err:?}"
     );
 }
+
+/// The blocks of a G2/G3 line of P turns, from the parser's position before it, with each
+/// block's end point (BLU).
+fn turns(p: &mut Parser, line: &str) -> std::vec::Vec<(Arc, [i32; 3])> {
+    let st = *p.settings();
+    let mut at = p.position();
+    let mut t = match p.line(1, line) {
+        Ok(Parsed::Expand(e @ crate::gcode::Expansion::Turns(_))) => e,
+        other => panic!("{line}: {other:?}"),
+    };
+    let mut out = std::vec::Vec::new();
+    while let Some(b) = t.next_block(&st) {
+        let Motion::Arc(a) = b.motion else {
+            panic!("{:?}", b.motion)
+        };
+        let d = crate::rt::replan::displacement(&b);
+        at = [0, 1, 2].map(|k| at[k] + d[k]);
+        out.push((a, at));
+    }
+    assert!(t.done());
+    assert_eq!(
+        at,
+        p.position(),
+        "{line}: the parser stands where the turns end"
+    );
+    out
+}
+
+#[test]
+fn p_turns_add_full_circles_and_share_the_helix_by_angle() {
+    // Two full circles and the half circle programmed (5 pi in all), 0.3 in down: the third axis
+    // at 2 pi / 5 pi and 4 pi / 5 pi of the travel after each circle.
+    let mut p = parser();
+    let blocks = turns(&mut p, "G17 G2 F10 X1 Y0 Z-0.3 I0.5 J0 P3");
+    let ends: std::vec::Vec<[i32; 3]> = blocks.iter().map(|b| b.1).collect();
+    assert_eq!(ends, [[0, 0, -1200], [0, 0, -2400], [10_000, 0, -3000]]);
+    for (a, _) in &blocks {
+        assert_eq!((a.plane, a.ccw, a.r), (Plane::XY, false, 5000));
+    }
+    assert_eq!(blocks[0].0.helix, -1200);
+    // P1 is the arc as programmed: one block.
+    let mut p = parser();
+    let a = arc_of(&mut p, "G17 G3 F10 X1 Y0 I0.5 P1");
+    assert_eq!(a.helix, 0);
+    // G93: one F for the whole move, all its turns: five times the half circle's feed number.
+    let mut p = parser();
+    let half = arc_of(&mut p, "G93 G17 G2 F1 X1 Y0 I0.5").f;
+    let mut p = parser();
+    let blocks = turns(&mut p, "G93 G17 G2 F1 X1 Y0 I0.5 P3");
+    assert!(blocks.iter().all(|(a, _)| a.f == blocks[0].0.f));
+    assert!(
+        (blocks[0].0.f as f64 / half as f64 - 5.0).abs() < 0.01,
+        "{half} {blocks:?}"
+    );
+    // A plane full circle twice over.
+    let mut p = parser();
+    let blocks = turns(&mut p, "G3 F10 X0 Y0 I0.5 P2");
+    assert_eq!(blocks.len(), 2);
+    assert!(blocks
+        .iter()
+        .all(|(a, e)| a.n_targets == 4 && *e == [0, 0, 0]));
+}
+
+#[test]
+fn bad_p_turns_are_refused() {
+    for line in [
+        "G2 F10 X1 I0.5 P0",
+        "G2 F10 X1 I0.5 P1.5",
+        "G2 F10 X1 I0.5 P-2",
+        "G2 F10 X1 I0.5 P10001",
+        "G2 F10 X1 R0.5 P2",
+    ] {
+        assert_rejected(&mut parser(), line, ErrorKind::ArcTurns);
+    }
+    // The turns' extent is checked against the soft limits before anything is queued: a circle of
+    // radius 6 in about X6 crosses X 12 in, beyond the default +10 in.
+    let err = parser().line(1, "G2 F10 X0 Y0 I6 P2").unwrap_err();
+    assert!(
+        matches!(err.kind, ErrorKind::SoftLimit { axis: 'X', .. }),
+        "{err:?}"
+    );
+}

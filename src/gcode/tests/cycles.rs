@@ -18,7 +18,7 @@ fn expand(p: &mut Parser, line: &str) -> Vec<M> {
     let st = *p.settings();
     let mut at = p.position();
     let mut c = match p.line(1, line) {
-        Ok(Parsed::Cycle(c)) => c,
+        Ok(Parsed::Expand(crate::gcode::Expansion::Cycle(c))) => c,
         other => panic!("{line}: {other:?}"),
     };
     let mut out = Vec::new();

@@ -149,7 +149,7 @@ proptest! {
                 | (before_signs & !moving);
             match got {
                 Parsed::Nothing => prop_assert_eq!(d, [0, 0, 0]),
-                Parsed::Two(..) | Parsed::Cycle(_) | Parsed::Stop(_) | Parsed::End => {
+                Parsed::Two(..) | Parsed::Expand(_) | Parsed::Stop(_) | Parsed::End => {
                     prop_assert!(false, "{got:?}")
                 }
                 Parsed::Block(b) => {
