@@ -5,6 +5,8 @@
 
 use super::error::{axis_name, ErrorKind};
 use super::number::round_sqrt;
+#[cfg(doc)]
+use crate::nc::MAX_TURNS;
 use crate::nc::{Arc, Plane, MAX_SEGMENTS, Q_MAX, R_MAX};
 use crate::settings::Settings;
 
@@ -141,9 +143,6 @@ fn centre_from_radius(
     }
     Ok(o)
 }
-
-/// Most turns of one G2/G3 line (its P word).
-pub const MAX_TURNS: u32 = 10_000;
 
 /// A G2/G3 with P turns (P > 1): P - 1 full circles about the same centre, then the programmed
 /// arc, the third axis moving in proportion to the angle over all of them (LinuxCNC's P word).

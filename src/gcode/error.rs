@@ -169,7 +169,7 @@ pub enum ErrorKind {
     ArcNeedsCentre { code: u8 },
     /// R together with I/J/K.
     ArcRadiusAndOffsets,
-    /// G2/G3's P (turns) not a whole number from 1 to `arc::MAX_TURNS`, or P > 1 in the R form.
+    /// G2/G3's P (turns) not a whole number from 1 to `nc::MAX_TURNS`, or P > 1 in the R form.
     ArcTurns,
     /// R-form arc whose end point equals its start point.
     ArcFullCircleRadius,
@@ -332,7 +332,7 @@ impl fmt::Display for ErrorKind {
             ErrorKind::ArcTurns => write!(
                 f,
                 "an arc's P (turns) must be a whole number from 1 to {}, and more than 1 turn needs I/J/K",
-                super::arc::MAX_TURNS
+                crate::nc::MAX_TURNS
             ),
             ErrorKind::ArcFullCircleRadius => {
                 f.write_str("an R-form arc cannot be a full circle (end point equals start point); use I/J/K")

@@ -1064,7 +1064,7 @@ fn arc_motion(
         Some(v) => {
             used.take(P);
             match v.as_integer() {
-                Some(n) if (1..=arc::MAX_TURNS as i128).contains(&n) => n as u32,
+                Some(n) if (1..=crate::nc::MAX_TURNS as i128).contains(&n) => n as u32,
                 _ => return Err(ErrorKind::ArcTurns),
             }
         }

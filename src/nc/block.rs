@@ -106,6 +106,9 @@ pub const MAX_SEGMENTS: usize = 5;
 /// (see [`Arc`]), so the registers stay below 2^28 (268 m at 1 um per BLU).
 pub const R_MAX: u32 = 1 << 28;
 
+/// Most turns of one G2/G3 line (its P word, which the parser expands into as many blocks).
+pub const MAX_TURNS: u32 = 10_000;
+
 /// Circular interpolation (G2/G3) as a DDA with radius-error correction: registers i = a - a_c,
 /// j = b - b_c, modulus q. The arc is cut at axis crossings into segments; inside a segment both
 /// axes move monotonically, so the position counters of a segment are |delta a| and |delta b| and
