@@ -80,3 +80,44 @@ fn a_helical_entry_runs_under_qemu_within_half_a_blu() {
         "{s:#}"
     );
 }
+
+/// Every program of the CAM corpus that millac accepts (FreeCAD's five, LinuxCNC's three; the
+/// other two LinuxCNC programs are refused by name, see `cli::linuxcncs_programs_are_accepted_or_refused_by_name`)
+/// runs on the firmware under QEMU block for block, ending exactly where the host's reading says
+/// (which `rs274::millac_reads_the_corpus_as_linuxcnc_does` holds within 1 BLU of LinuxCNC's).
+/// About 45 min of virtual machining: run by hand, two at a time,
+/// `cargo test -p millac-qemu --release --test corpus -- --ignored --nocapture`.
+#[test]
+#[ignore = "about 45 min of machining under QEMU: run by hand"]
+fn the_whole_cam_corpus_runs_under_qemu_block_for_block() {
+    let programs = [
+        "cam/freecad/drill.nc",
+        "cam/freecad/pocket.nc",
+        "cam/freecad/adaptive.nc",
+        "cam/freecad/surface.nc",
+        "cam/freecad/multitool.nc",
+        "cam/linuxcnc/3dtest.ngc",
+        "cam/linuxcnc/arcspiral.ngc",
+        "cam/linuxcnc/cds.ngc",
+    ];
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    std::thread::scope(|s| {
+        for _ in 0..2 {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                let Some(p) = programs.get(i) else { break };
+                let started = std::time::Instant::now();
+                let summary = runs_block_for_block(p, &p.replace('/', "-"));
+                println!(
+                    "{p}: {} blocks, end points exact, machining {} s, max deviation {} BLU, \
+                     final position {} ({:.0} s wall)",
+                    summary["blocks"],
+                    summary["machining_time_s"],
+                    summary["max_deviation_blu"],
+                    summary["final_position_blu"],
+                    started.elapsed().as_secs_f64()
+                );
+            });
+        }
+    });
+}
