@@ -255,7 +255,7 @@ fn feed_hold_stops_at_the_acceleration_and_resume_ends_exactly() {
 }
 
 #[test]
-fn a_hold_in_a_decelerating_chain_and_an_arc_loses_nothing() {
+fn a_hold_in_a_decelerating_chain_and_a_helix_loses_nothing() {
     let c = cfg();
     let arc = Block {
         line: 2,
@@ -264,13 +264,14 @@ fn a_hold_in_a_decelerating_chain_and_an_arc_loses_nothing() {
             ccw: true,
             start: [1000, 0],
             r: 1000,
-            q: 1000,
-            helix: 0,
+            // A helix rising 300 BLU: q = R x path / plane, length = q x sweep (see the parser).
+            q: 1018,
+            helix: 300,
             targets: [[0, 1000], [0, 0], [0, 0], [0, 0], [0, 0]],
             n_targets: 1,
             f: 2000,
             decel: true,
-            length: 1571,
+            length: 1599,
             f_floor: 0,
             decel_below: 0,
             ramp: 0,
@@ -291,8 +292,8 @@ fn a_hold_in_a_decelerating_chain_and_an_arc_loses_nothing() {
         rig.run(400, u32::MAX, hold);
     }
     rig.finish(u32::MAX, RUN, 1 << 20);
-    // X: 500 + 500 - 1000 (the arc from (R, 0) to (0, R)), Y: 500 + 1000.
-    assert_eq!(rig.pulses, [0, 1500, -300]);
+    // X: 500 + 500 - 1000 (the helix from (R, 0) to (0, R)), Y: 500 + 1000, Z: 300 - 300.
+    assert_eq!(rig.pulses, [0, 1500, 0]);
     assert_eq!(rig.frame.blocks_done(), 4);
 }
 
