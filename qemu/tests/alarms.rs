@@ -15,7 +15,7 @@ fn corpus() -> Vec<Program> {
 const KNOWN_FALSE_ALARMS: &[(&str, &str)] = &[(
     "helix-entry.nc",
     // The full circle at depth that cleans the helix's last turn cuts a wedge whose chip fades to
-    // nothing over the turn (about 100 N, then air at 33.99 s): the breakage detector judges the
+    // nothing over the turn (about 100 N, held at 33.49 s): the breakage detector judges the
     // fading tooth periods before a whole revolution of air says the cut is over.
     "tool breakage",
 )];
