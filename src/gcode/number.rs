@@ -121,6 +121,13 @@ pub fn round_sqrt(n: u64) -> u64 {
     }
 }
 
+/// Whether an f32 can be listed and read back exactly: its shortest decimal (core's `{}`) has at
+/// most 13 integer digits and 15 decimals, inside what [`parse_decimal`] reads. The settings
+/// table's f32 settings and the tool table's limits are held to it.
+pub fn listable_f32(v: f32) -> bool {
+    v == 0.0 || (v.is_finite() && (1e-6..=1e12).contains(&v.abs()))
+}
+
 impl fmt::Display for Decimal {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let a = self.mantissa.unsigned_abs();

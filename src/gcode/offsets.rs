@@ -4,11 +4,11 @@
 //!
 //! A program coordinate p of axis k is the machine coordinate p + origin, where the origin is the
 //! active system's offset, plus the G92 offset when it is applied, plus (Z only) the tool length
-//! offset (RS274/NGC's order; LinuxCNC's and grbl's). Offsets are picometres (1e-12 mm): exact
+//! offset (RS274/NGC's order; LinuxCNC's and grbl's). Offsets are picometres (1e-9 mm): exact
 //! for a word of up to 9 decimals in mm or 8 in inches and for any machine position in BLU, so a
 //! program moves by exactly what its words say, rounded once to a BLU at the target.
 
-use super::tools::{ToolKind, ToolTable};
+use super::tools::{ToolKind, ToolTable, MAX_FLUTES};
 
 /// What the settings record keeps of the parser (grbl keeps the first three in EEPROM): the six
 /// coordinate systems, the G28 and G30 positions, and the tool table. G92 is not kept (grbl's
@@ -22,8 +22,9 @@ pub struct Work {
 }
 
 impl Work {
-    /// Every offset and length within +-[`MAX_PM`], diameters not negative, the limits finite and
-    /// not negative: what the parser can make, and what a record may hold.
+    /// Every offset and length within +-[`MAX_PM`], diameters not negative, at most
+    /// [`MAX_FLUTES`] flutes, the limits not negative and listable exactly: what the parser and
+    /// `$T` can make, and what a record may hold.
     pub fn valid(&self) -> bool {
         let ok = |v: i64| v.unsigned_abs() <= MAX_PM as u64;
         let lengths = self
@@ -32,12 +33,13 @@ impl Work {
             .chain([&self.g28, &self.g30])
             .flatten()
             .all(|&v| ok(v));
-        let limit = |v: f32| v.is_finite() && v >= 0.0;
+        let limit = |v: f32| v >= 0.0 && super::number::listable_f32(v);
         lengths
             && self.tools.iter().all(|(_, t)| {
                 ok(t.length_pm)
                     && ok(t.diameter_pm)
                     && t.diameter_pm >= 0
+                    && t.flutes <= MAX_FLUTES
                     && limit(t.force_limit_n)
                     && limit(t.torque_limit_nm)
                     && matches!(t.kind, ToolKind::Flat | ToolKind::Ball | ToolKind::Drill)
@@ -45,7 +47,7 @@ impl Work {
     }
 }
 
-/// The largest offset magnitude, picometres (1 km): three of them add up within i64.
+/// The largest offset magnitude, picometres (10^9 mm, 1000 km): three of them add up within i64.
 pub const MAX_PM: i64 = 1_000_000_000_000_000_000;
 
 /// The persistent offsets (grbl's: the six systems and the two stored positions) and the G92

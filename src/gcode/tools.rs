@@ -5,8 +5,12 @@
 /// Tools in the table: T1..=T16 (grblHAL's default table size; T0 is the empty spindle).
 pub const MAX_TOOLS: usize = 16;
 
+/// The most flutes a tool may have (a record or a `$T` line with more is refused).
+pub const MAX_FLUTES: u8 = 32;
+
 /// The cutter's shape, for the set-up's checks and the adaptive control's limits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(u8)]
 pub enum ToolKind {
     /// A flat end mill (the default of an entry nobody described).
     #[default]
@@ -15,6 +19,30 @@ pub enum ToolKind {
     Ball,
     /// A drill.
     Drill,
+}
+
+impl ToolKind {
+    /// The kinds in code order: code n is `KINDS[n]` (the settings record's byte, `$T`'s K word).
+    pub const KINDS: [ToolKind; 3] = [ToolKind::Flat, ToolKind::Ball, ToolKind::Drill];
+
+    /// The kind's code: 0 flat, 1 ball, 2 drill.
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The kind of a code, None for a code that names none.
+    pub fn from_code(code: u8) -> Option<ToolKind> {
+        Self::KINDS.get(code as usize).copied()
+    }
+
+    /// What the kind is called in listings.
+    pub const fn name(self) -> &'static str {
+        match self {
+            ToolKind::Flat => "flat end mill",
+            ToolKind::Ball => "ball end mill",
+            ToolKind::Drill => "drill",
+        }
+    }
 }
 
 /// One tool. An entry nobody described is all zero: length 0 (G43 H of it offsets nothing, as
@@ -26,10 +54,12 @@ pub struct Tool {
     pub length_pm: i64,
     /// Diameter, picometres (G10 L1 R is the radius).
     pub diameter_pm: i64,
+    /// Cutting edges (0: not known), at most [`MAX_FLUTES`].
     pub flutes: u8,
     pub kind: ToolKind,
     /// The permissible cutting force and spindle torque of this cutter (N, N m); 0 = the
-    /// machine's AC settings.
+    /// machine's AC settings. Finite, not negative, and listable exactly
+    /// ([`crate::gcode::number::listable_f32`]).
     pub force_limit_n: f32,
     pub torque_limit_nm: f32,
 }

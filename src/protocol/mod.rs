@@ -17,7 +17,8 @@
 //!   A line that is not UTF-8 gets `error:1`.
 //! - `$` commands (whitespace and comments removed, any case, as grbl): `$` help, `$$` and `$n`,
 //!   `$n=value` (through the [`SettingsTable`] hook), `$G`, `$#`, `$I`, `$N`, `$C`, `$X`, `$J=`,
-//!   `$H` (`error:5`: no homing), `$RST=` (the hook). Others: `error:3`.
+//!   `$H` (`error:5`: no homing), `$RST=` and `$T` (the tool table, [`table::tools`]; through the
+//!   hook). Others: `error:3`.
 //! - Status report: [`report::write_status`], with millac's `AC:` field ([`report::AcReport`]) and,
 //!   on a board that measures its frame ISR, `FC:min,max` (cycles, [`StatusData::frame_cycles`]).
 //! - `$I` adds `[FRAME:min,max,budget]` on such a board: the frame's fewest and most cycles from
@@ -86,6 +87,12 @@ pub trait SettingsTable {
     /// `$RST=$`, `$RST=#`, `$RST=*` (`what` is the character after `=`). Default: `error:3`.
     fn restore(&mut self, what: u8) -> Result<(), u8> {
         let _ = what;
+        Err(GrblError::INVALID_STATEMENT.0)
+    }
+    /// `$T...` (`cmd` is what follows `$T`): the tool table listed or one tool set
+    /// ([`table::tools`]). Default: `error:3`.
+    fn tool(&mut self, cmd: &str, out: &mut dyn Write) -> Result<(), u8> {
+        let _ = (cmd, out);
         Err(GrblError::INVALID_STATEMENT.0)
     }
     /// `$10` (status report mask) and `$13` (report inches) as currently set.
@@ -552,6 +559,10 @@ impl<'a> Protocol<'a> {
             }
             "$N" => sent(out.write_str("$N0=\r\n$N1=\r\n")),
             "$H" => Err(GrblError::SETTING_DISABLED),
+            _ if cmd.starts_with("$T") => cx
+                .table
+                .tool(cmd.get(2..).unwrap_or(""), out)
+                .map_err(GrblError),
             _ => {
                 if let Some(what) = cmd.strip_prefix("$RST=") {
                     match what.as_bytes() {
@@ -607,7 +618,7 @@ fn respond(out: &mut dyn Write, r: Result<(), GrblError>) {
 
 /// A `$` line as grbl's pre-parser sees it: whitespace, control characters and comments
 /// (`(...)`, `;` to the end) removed, letters upper case.
-fn compact(text: &str) -> heapless::String<LINE_MAX> {
+pub(crate) fn compact(text: &str) -> heapless::String<LINE_MAX> {
     let mut s = heapless::String::new();
     let mut paren = false;
     for c in text.chars() {

@@ -425,7 +425,7 @@ pub fn write_build_info(
 
 /// `[HLP:...]`, the commands millac implements.
 pub fn write_help(out: &mut dyn Write) -> fmt::Result {
-    out.write_str("[HLP:$$ $# $G $I $N $x=val $J=line $C $X $H ~ ! ? ctrl-x]\r\n")
+    out.write_str("[HLP:$$ $# $G $I $N $x=val $T $Tn=words $J=line $C $X $H ~ ! ? ctrl-x]\r\n")
 }
 
 /// `ALARM:N`.

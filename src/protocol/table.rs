@@ -15,7 +15,7 @@
 use core::fmt::{self, Write};
 
 use crate::ac::settings::{AcSettings, AcSettingsError};
-use crate::gcode::number::{parse_decimal, Decimal, NumError};
+use crate::gcode::number::{listable_f32, parse_decimal, Decimal, NumError};
 use crate::settings::{Blu, BoardLimits, Settings, SettingsError, Valid};
 
 mod entries;
@@ -23,6 +23,7 @@ mod persistent;
 pub mod record;
 #[cfg(test)]
 mod tests;
+pub mod tools;
 
 pub use entries::{entry, Entry, TABLE};
 use entries::{Kind, Unit};
@@ -123,6 +124,8 @@ pub enum SetError {
     Invalid(Invalid),
     /// 7: the storage refused the record (see [`record::set_persistent`]).
     Storage,
+    /// 38 (grblHAL's "illegal tool table entry"): `$T<n>` with n not a tool of the table.
+    ToolNumber,
 }
 
 impl SetError {
@@ -133,6 +136,7 @@ impl SetError {
             SetError::Negative => 4,
             SetError::Invalid(_) => 52,
             SetError::Storage => 7,
+            SetError::ToolNumber => 38,
         }
     }
 
@@ -143,14 +147,9 @@ impl SetError {
             SetError::Negative => "negative value",
             SetError::Invalid(i) => i.message(),
             SetError::Storage => "settings could not be stored",
+            SetError::ToolNumber => "no such tool in the table",
         }
     }
-}
-
-/// Whether an f32 setting can be listed and set back exactly (its shortest decimal has at most
-/// 13 integer digits and 15 decimals, inside what [`Decimal`] reads).
-fn representable(v: f32) -> bool {
-    v == 0.0 || (v.is_finite() && (1e-6..=1e12).contains(&v.abs()))
 }
 
 /// `internal x num / den` as an exact decimal (den divides 10^6 in every unit).
@@ -257,7 +256,7 @@ impl MachineSettings {
         }
         for e in TABLE.iter() {
             if let Kind::Real { get, .. } = e.kind {
-                if !representable(get(self)) {
+                if !listable_f32(get(self)) {
                     return Err(Invalid::Range);
                 }
             }
@@ -326,7 +325,7 @@ impl MachineSettings {
                     return Err(SetError::Negative);
                 }
                 // The f32 nearest the decimal (correctly rounded, `Decimal::to_f32`).
-                let v = value.to_f32().filter(|v| representable(*v)).ok_or(range)?;
+                let v = value.to_f32().filter(|v| listable_f32(*v)).ok_or(range)?;
                 set(self, v).ok_or(range)
             }
             Kind::Blu => {
@@ -458,6 +457,18 @@ impl super::SettingsTable for MachineSettings {
             .and_then(|_| self.write_value(e, &mut w))
             .and_then(|_| w.write_str("\r\n"));
         r.map_err(|_| super::GrblError::INVALID_STATEMENT.0)
+    }
+
+    /// `$T`: listed, or set in the table (validated; no storage here).
+    fn tool(&mut self, cmd: &str, out: &mut dyn Write) -> Result<(), u8> {
+        if let Some((n, t)) = tools::command(&self.work.tools, cmd, out).map_err(|e| e.code())? {
+            let mut new = *self;
+            new.work.tools.set(n, t);
+            new.validate(&crate::settings::BoardLimits::GENERIC)
+                .map_err(|e| SetError::Invalid(e).code())?;
+            *self = new;
+        }
+        Ok(())
     }
 
     fn report_options(&self) -> super::report::ReportOptions {

@@ -970,6 +970,52 @@ fn work_offsets_and_tools_are_stored_and_come_back_at_the_next_start() {
     RECORD.with(|r| *r.borrow_mut() = None);
 }
 
+/// `$T` over the serial line: a tool described there is stored at once and the running parser
+/// has it (G43 H applies its length without a restart); `$T3` lists it; `$T` while the machine
+/// runs is refused (a store must not come during motion) and changes nothing.
+#[test]
+fn a_tool_set_with_dollar_t_is_stored_and_the_parser_has_it_at_once() {
+    RECORD.with(|r| *r.borrow_mut() = Some(Vec::new()));
+    let b = session(
+        &[
+            (1, "$T3=L5 D6 N4 K1 F900 M12\n"),
+            (10, "$T3\n"),
+            (20, "G21 G43 H3 G0 Z0\n"),
+            (30, "G91 G1 F100 X1\n"),
+            (40, "$T3=L7\n"),
+        ],
+        &[],
+        None,
+        20_000,
+    );
+    assert_eq!(oks(&b.out), 4, "{}", b.out);
+    assert!(
+        b.out
+            .contains("$T3=L5 D6 N4 K1 F900 M12 (ball end mill)\r\nok\r\n"),
+        "{}",
+        b.out
+    );
+    assert!(b.out.contains("error:8"), "$T during motion: {}", b.out);
+    // Z0 is the machine's 5 mm with tool 3's length applied (2.54 um BLU); X: 1 mm.
+    assert_eq!(b.status.encoder(), [394, 0, 1_969], "{}", b.out);
+    let stored = RECORD.with(|r| r.borrow().clone()).unwrap();
+    let work =
+        crate::protocol::table::record::decode(&stored, &crate::settings::BoardLimits::GENERIC)
+            .unwrap()
+            .work;
+    let t = work.tools.get(3).unwrap();
+    assert_eq!(
+        t.length_pm, 5_000_000_000,
+        "the refused $T3=L7 stored nothing"
+    );
+    assert_eq!(
+        (t.diameter_pm, t.flutes, t.kind),
+        (6_000_000_000, 4, crate::gcode::ToolKind::Ball)
+    );
+    assert_eq!((t.force_limit_n, t.torque_limit_nm), (900.0, 12.0));
+    RECORD.with(|r| *r.borrow_mut() = None);
+}
+
 #[test]
 fn feed_hold_and_cycle_start_buttons_hold_and_resume() {
     let hold = Events {

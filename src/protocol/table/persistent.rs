@@ -84,6 +84,18 @@ impl<S: SettingsStorage> SettingsTable for Persistent<S> {
         SettingsTable::get(&*self.settings, n, out)
     }
 
+    /// `$T`: listed, or set, validated and stored as a G10 L1 is ([`Persistent::set_work`]; the
+    /// loader gives the parser the new table).
+    fn tool(&mut self, cmd: &str, out: &mut dyn Write) -> Result<(), u8> {
+        let tools = &self.settings.work.tools;
+        if let Some((n, t)) = super::tools::command(tools, cmd, out).map_err(|e| e.code())? {
+            let mut work = self.settings.work;
+            work.tools.set(n, t);
+            self.set_work(work).map_err(|e| e.code())?;
+        }
+        Ok(())
+    }
+
     /// `$RST=$`: the default settings, the work offsets and tool table kept; `$RST=#`: the work
     /// offsets, G28/G30 and the tool table cleared, the settings kept; `$RST=*`: both. Stored (this
     /// also replaces a refused record, so the start-up alarm does not come back). Anything else:

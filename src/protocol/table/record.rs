@@ -268,11 +268,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
         p.i64(t.length_pm);
         p.i64(t.diameter_pm);
         p.u8(t.flutes);
-        p.u8(match t.kind {
-            ToolKind::Flat => 0,
-            ToolKind::Ball => 1,
-            ToolKind::Drill => 2,
-        });
+        p.u8(t.kind.code());
         p.f32(t.force_limit_n);
         p.f32(t.torque_limit_nm);
     }
@@ -394,15 +390,10 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let mut kinds_known = true;
     for n in 1..=crate::gcode::tools::MAX_TOOLS as u32 {
         let (length_pm, diameter_pm, flutes) = (t.i64()?, t.i64()?, t.u8()?);
-        let kind = match t.u8()? {
-            0 => ToolKind::Flat,
-            1 => ToolKind::Ball,
-            2 => ToolKind::Drill,
-            _ => {
-                kinds_known = false;
-                ToolKind::Flat
-            }
-        };
+        let kind = ToolKind::from_code(t.u8()?).unwrap_or_else(|| {
+            kinds_known = false;
+            ToolKind::Flat
+        });
         let (force_limit_n, torque_limit_nm) = (t.f32()?, t.f32()?);
         work.tools.set(
             n,

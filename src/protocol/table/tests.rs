@@ -426,11 +426,11 @@ prop_compose! {
 }
 
 prop_compose! {
-    /// Work offsets and a tool table as the parser can make them (within +-1 km, diameters not
-    /// negative, limits finite).
+    /// Work offsets and a tool table as the parser can make them (within +-1000 km, diameters not
+    /// negative, flutes at most 32, limits listable).
     fn arb_work()(systems in prop::array::uniform6(prop::array::uniform3(-crate::gcode::offsets::MAX_PM..=crate::gcode::offsets::MAX_PM)),
                   homes in prop::array::uniform2(prop::array::uniform3(-1_000_000_000_000i64..=1_000_000_000_000)),
-                  tools in prop::collection::vec((-1_000_000_000_000i64..=1_000_000_000_000, 0i64..=100_000_000_000, any::<u8>(), 0u8..3, 0.0f32..1e6, 0.0f32..1e4), 16)) -> crate::gcode::Work {
+                  tools in prop::collection::vec((-1_000_000_000_000i64..=1_000_000_000_000, 0i64..=100_000_000_000, 0u8..=crate::gcode::tools::MAX_FLUTES, 0u8..3, prop_oneof![Just(0.0f32), 1e-3f32..1e6], prop_oneof![Just(0.0f32), 1e-3f32..1e4]), 16)) -> crate::gcode::Work {
         let mut w = crate::gcode::Work { systems, g28: homes[0], g30: homes[1], ..Default::default() };
         for (n, t) in tools.into_iter().enumerate() {
             w.tools.set(n as u32 + 1, crate::gcode::Tool {

@@ -22,7 +22,7 @@ fn help_settings_hook_and_unknown_commands() {
     let mut r = Rig::new();
     assert_eq!(
         answer(&mut r, "$"),
-        "[HLP:$$ $# $G $I $N $x=val $J=line $C $X $H ~ ! ? ctrl-x]\r\nok\r\n"
+        "[HLP:$$ $# $G $I $N $x=val $T $Tn=words $J=line $C $X $H ~ ! ? ctrl-x]\r\nok\r\n"
     );
     assert_eq!(answer(&mut r, "$$"), "$10=1\r\n$13=0\r\nok\r\n");
     assert_eq!(answer(&mut r, "$10=3"), "ok\r\n");
