@@ -653,16 +653,19 @@ fn state(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> String {
         .to_string()
 }
 
-/// `$0=7` (step pulse 7 us) set in one session is written to the settings file (kept outside the
-/// session's directory, so `serve` links it) and the next session, in a fresh directory with the
-/// same file, starts with it: no alarm, `$$` lists it, and the frame runs with it (the capture's
-/// pulses are 7 us wide, 5 us by default).
+/// `$0=7` (step pulse 7 us) and a tool described with `$T3=...` set in one session are written to
+/// the settings file (kept outside the session's directory, so `serve` links it) and the next
+/// session, in a fresh directory with the same file, starts with them: no alarm, `$$` and `$T3`
+/// list them, and the frame runs with it (the capture's pulses are 7 us wide, 5 us by default).
 #[test]
 fn a_setting_persists_into_the_next_session() {
     use millac::protocol::table::{record, MachineSettings};
     let settings = fresh("state").join("settings.bin");
     let mut want = MachineSettings::default();
     want.set_line("$0=7").unwrap();
+    let tool_line = "$T3=L45.2 D6 N4 K1 F900 M12.5 (ball end mill)";
+    millac::protocol::SettingsTable::tool(&mut want, "3=L45.2D6N4K1F900M12.5", &mut String::new())
+        .unwrap();
     {
         let Session {
             addr, stop, server, ..
@@ -672,6 +675,8 @@ fn a_setting_persists_into_the_next_session() {
         let mut r = BufReader::new(stream);
         banner(&mut w, &mut r);
         assert_eq!(ask(&mut w, &mut r, "$0=7").last().unwrap(), "ok");
+        let t = ask(&mut w, &mut r, "$t3 = l45.2 d6 n4 k1 f900 m12.5");
+        assert_eq!(t.last().unwrap(), "ok", "{t:?}");
         stop.store(true, Ordering::SeqCst);
         server.join().unwrap().expect("serve");
     }
@@ -690,6 +695,7 @@ fn a_setting_persists_into_the_next_session() {
     let b = banner(&mut w, &mut r);
     assert!(!b.iter().any(|l| l.starts_with("ALARM")), "{b:?}");
     assert_eq!(listing(&mut w, &mut r), expected_listing(&want));
+    assert_eq!(ask(&mut w, &mut r, "$T3"), [tool_line, "ok"]);
     assert_eq!(state(&mut w, &mut r), "Idle");
     assert_eq!(
         ask(&mut w, &mut r, "G91 G1 F30 X0.01").last().unwrap(),
