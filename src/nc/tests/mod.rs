@@ -609,7 +609,7 @@ proptest! {
     /// Helices in every plane, of any pitch (a shallow ramp to a steep coil): the end point is
     /// exact, the plane's path stays within half a BLU of the circle, the third axis within
     /// [`helix_bound`] of the helix, and the arc takes its length in commands (one BLU of
-    /// helical path each) to within 1 %.
+    /// helical path each) to within 1 % (plus the lattice's share at radii of a few BLU).
     #[test]
     fn helices_end_exact_and_follow_the_helix(
         r in 5.0f64..3000.0, a0 in -7.0f64..7.0, sweep in 0.3f64..6.2, ccw in any::<bool>(),
@@ -621,8 +621,14 @@ proptest! {
         prop_assert!(dev <= ARC_DEVIATION_BOUND, "radial deviation {}", dev);
         prop_assert!(zdev <= helix_bound(dz, r, sweep), "third axis {} BLU off the helix", zdev);
         prop_assert_eq!(c.helix, dz);
+        // Within 1 % and two commands, plus the lattice's share: the plane's DDA runs on the
+        // lattice point's register, up to half a BLU off the circle, so its count is off by up
+        // to 0.5 / R of the length; and its last lattice point may come up to about a BLU of
+        // plane path early or late, which the third axis covers at slope BLU per BLU (one pulse
+        // per command in its tail). Both matter only for radii of a few BLU.
         let n = c.length as f64;
-        prop_assert!((commands as f64 - n).abs() <= 0.01 * n + 2.0,
+        let slope = f64::from(dz.unsigned_abs()) / (r * sweep.abs());
+        prop_assert!((commands as f64 - n).abs() <= n * (0.01 + 0.5 / r) + 2.0 + slope,
             "{} pulse commands for a length of {}", commands, n);
     }
 }
