@@ -5,7 +5,7 @@
 //! (`flashstore/tests.rs`).
 //!
 //! Meant for the STM32F446RE's last sector (sector 7, 128 KiB at 0x0806_0000): 128 slots of
-//! [`SLOT_LEN`] bytes (1 KiB: the settings record with the work offsets and the tool table is 828
+//! [`SLOT_LEN`] bytes (1 KiB: the settings record with the work offsets and the tool table is 869
 //! bytes), so a sector erase (~1-2 s, reads stall meanwhile) comes once every 128 stores, and
 //! 10 000 erase cycles last 1.28 million stores (a store per `$N=value`, `$RST=`, G10 or
 //! G28.1/G30.1). A store programs `(8 + n) / 4` rounded up words plus two (the 828-byte record:

@@ -137,6 +137,122 @@ impl Default for Settings {
     }
 }
 
+/// Setting the machine up: the hard limits, homing, the probe and the tool change (grbl's `$6`,
+/// `$21`-`$27`; grblHAL's `$341`-`$344`; millac's `$345`, `$346`). Lengths in micrometres and rates
+/// in micrometres per minute (listed in mm and mm/min), so they do not depend on the BLU. Loader
+/// task (`$H`, G38, M6), init and the host tools.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Setup {
+    /// `$6`: the probe input is active low (inverted). Default false.
+    pub probe_invert: bool,
+    /// `$21`: a limit switch outside homing stops everything with `ALARM:1` and marks the
+    /// position lost. Default true (a machine without switches never closes one).
+    pub hard_limits: bool,
+    /// `$22`: homing enabled; the machine starts locked (`ALARM:11`) until `$H`. Default false.
+    pub homing: bool,
+    /// `$23`: bit k set, axis k homes toward its negative end (its switch at the soft minimum);
+    /// clear, toward its positive end (at the soft maximum). Default 0.
+    pub homing_dir_mask: u8,
+    /// `$24`: the locating feed, um/min. Default 25 mm/min.
+    pub homing_feed_um_min: u32,
+    /// `$25`: the seek rate, um/min. Default 500 mm/min.
+    pub homing_seek_um_min: u32,
+    /// `$26`: the pause after a switch stops an axis, ms. Default 250.
+    pub homing_debounce_ms: u32,
+    /// `$27`: the pull-off distance from the switch, um. Default 1 mm.
+    pub homing_pulloff_um: u32,
+    /// `$341`: at M6, 0 stop and wait for cycle start; 1 go to the G30 position, wait, and take
+    /// the new tool's length from the table; 2 go to the G30 position, wait, and probe the new
+    /// tool on the tool setter. Default 0.
+    pub tool_change: u8,
+    /// `$342`: the longest probing move of a tool-setter measurement, um. Default 30 mm.
+    pub probe_distance_um: u32,
+    /// `$343`: the tool setter's slow (measuring) feed, um/min. Default 25 mm/min.
+    pub probe_slow_um_min: u32,
+    /// `$344`: the tool setter's seek feed, um/min. Default 200 mm/min.
+    pub probe_seek_um_min: u32,
+    /// `$345`, `$346`: the tool setter's X and Y, machine coordinates, um. Default 0, 0.
+    pub setter_um: [i32; 2],
+}
+
+impl Default for Setup {
+    fn default() -> Self {
+        Setup {
+            probe_invert: false,
+            hard_limits: true,
+            homing: false,
+            homing_dir_mask: 0,
+            homing_feed_um_min: 25_000,
+            homing_seek_um_min: 500_000,
+            homing_debounce_ms: 250,
+            homing_pulloff_um: 1_000,
+            tool_change: 0,
+            probe_distance_um: 30_000,
+            probe_slow_um_min: 25_000,
+            probe_seek_um_min: 200_000,
+            setter_um: [0, 0],
+        }
+    }
+}
+
+/// Why [`Setup::validate`] refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SetupError {
+    /// A homing or probing rate is 0 or above the rapid rate.
+    Rate,
+    /// The pull-off is 0 or beyond an axis's travel between its soft limits, or the probing
+    /// distance is 0 or above 10 m.
+    Distance,
+    /// `$23` above 7, `$26` above 10 s, `$341` above 2.
+    Choice,
+}
+
+impl SetupError {
+    pub const fn message(self) -> &'static str {
+        match self {
+            SetupError::Rate => "homing and probing rates must be above 0 and at most the rapid rate",
+            SetupError::Distance => {
+                "the pull-off must be above 0 and within every axis's travel, the probing distance 1 um..10 m"
+            }
+            SetupError::Choice => "$23 must be 0..7, $26 at most 10000 ms, $341 0..2",
+        }
+    }
+}
+
+impl Setup {
+    /// Checks the set-up against the NC settings (rates within the rapid rate, the pull-off within
+    /// every axis's travel). Init, loader (`$n=`), host.
+    pub fn validate(&self, nc: &Settings) -> Result<(), SetupError> {
+        if self.homing_dir_mask > 7 || self.homing_debounce_ms > 10_000 || self.tool_change > 2 {
+            return Err(SetupError::Choice);
+        }
+        let rapid = nc.rapid_um_min();
+        let rates = [
+            self.homing_feed_um_min,
+            self.homing_seek_um_min,
+            self.probe_slow_um_min,
+            self.probe_seek_um_min,
+        ];
+        if rates.iter().any(|&r| r == 0 || u64::from(r) > rapid) {
+            return Err(SetupError::Rate);
+        }
+        let travel_um = (0..3)
+            .map(|k| {
+                let blu = i64::from(nc.soft_max[k]) - i64::from(nc.soft_min[k]);
+                blu * i64::from(nc.blu.nm()) / 1000
+            })
+            .min()
+            .unwrap_or(0);
+        if self.homing_pulloff_um == 0
+            || i64::from(self.homing_pulloff_um) >= travel_um
+            || !(1..=10_000_000).contains(&self.probe_distance_um)
+        {
+            return Err(SetupError::Distance);
+        }
+        Ok(())
+    }
+}
+
 /// What a board can do, for [`Settings::validate`]: its rate caps and the worst-case times of
 /// its frame and pulse-end ISRs (measured on the board, e.g. with the cycle counter, and stated as
 /// constants in its firmware). Init context (a `const` per board).
@@ -323,6 +439,11 @@ impl SettingsError {
 }
 
 impl Settings {
+    /// The rapid rate in um/min (the rapid pulse rate times the BLU).
+    pub fn rapid_um_min(&self) -> u64 {
+        u64::from(self.rapid_hz) * u64::from(self.blu.nm()) * 60 / 1000
+    }
+
     /// [`Settings::validate`] for `board`, and the settings as a [`Valid`] when they pass: what a
     /// consumer of NC settings takes.
     pub fn validated(self, board: &BoardLimits) -> Result<Valid<Settings>, SettingsError> {

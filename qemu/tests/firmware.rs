@@ -315,7 +315,7 @@ fn interrupts_have_no_calls_and_no_panic_path() {
     assert!(!reset.calls_and_traps.is_empty());
 }
 
-/// The QEMU board's firmware fits its flash and RAM budgets (hal/lm3s6965/budget.txt, a quarter
+/// The QEMU board's firmware fits its flash and RAM budgets (hal/lm3s6965/budget.txt, an eighth
 /// of the LM3S6965's flash free).
 #[test]
 fn fits_its_flash_and_ram_budgets() {

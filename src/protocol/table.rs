@@ -62,6 +62,8 @@ pub struct MachineSettings {
     /// `$30`: the spindle speed (rpm) of full PWM duty on a board with a spindle output (grbl's
     /// max spindle speed; S above it runs at full duty). Default 1000, as grbl's.
     pub spindle_max_rpm: u32,
+    /// Hard limits, homing, the probe and the tool change (`$6`, `$21`-`$27`, `$341`-`$346`).
+    pub setup: crate::settings::Setup,
     /// The work offsets, G28/G30 positions and tool table the parser keeps (set by G10, G28.1,
     /// G30.1; stored when a line changes them, as grbl writes its EEPROM; `$RST=#` clears them).
     pub work: crate::gcode::Work,
@@ -75,6 +77,7 @@ impl Default for MachineSettings {
             ac_enabled: true,
             report: ReportSettings::default(),
             spindle_max_rpm: 1000,
+            setup: crate::settings::Setup::default(),
             work: crate::gcode::Work::default(),
         }
     }
@@ -95,6 +98,8 @@ pub enum Invalid {
     PlanNotOnThisBoard,
     /// A work offset or tool table value out of range (`Work::valid`).
     Work,
+    /// [`crate::settings::Setup::validate`] refused.
+    Setup(crate::settings::SetupError),
 }
 
 impl Invalid {
@@ -107,6 +112,7 @@ impl Invalid {
                 "feed ceiling 2 (the plan) needs a frame that applies the plan ratio: not on this board"
             }
             Invalid::Work => "a work offset or tool table value is out of range",
+            Invalid::Setup(e) => e.message(),
         }
     }
 }
@@ -254,6 +260,7 @@ impl MachineSettings {
         if !self.work.valid() {
             return Err(Invalid::Work);
         }
+        self.setup.validate(&self.nc).map_err(Invalid::Setup)?;
         for e in TABLE.iter() {
             if let Kind::Real { get, .. } = e.kind {
                 if !listable_f32(get(self)) {

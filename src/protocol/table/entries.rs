@@ -143,7 +143,7 @@ macro_rules! mirror {
 /// millac's own from `$200` (NC) and `$250` (adaptive control). `$200` (the BLU) comes first: the
 /// settings listed in mm are kept in BLU, so a listing restored line by line onto the defaults
 /// changes the BLU before it sets them.
-pub static TABLE: [Entry; 62] = [
+pub static TABLE: [Entry; 76] = [
     Entry {
         number: 200,
         name: "BLU",
@@ -160,6 +160,15 @@ pub static TABLE: [Entry; 62] = [
         nc.pulse_width_ns
     ),
     flag!(
+        6,
+        "probe pin invert",
+        |m| m.setup.probe_invert as i64,
+        |m, v| {
+            m.setup.probe_invert = choice(v, 2)? == 1;
+            Some(())
+        }
+    ),
+    flag!(
         10,
         "status report mask",
         |m| m.report.status_mask as i64,
@@ -174,6 +183,59 @@ pub static TABLE: [Entry; 62] = [
     }),
     flag!(20, "soft limits (always on)", |_| 1, |_, v| (v == 1)
         .then_some(())),
+    flag!(21, "hard limits", |m| m.setup.hard_limits as i64, |m, v| {
+        m.setup.hard_limits = choice(v, 2)? == 1;
+        Some(())
+    }),
+    flag!(22, "homing cycle", |m| m.setup.homing as i64, |m, v| {
+        m.setup.homing = choice(v, 2)? == 1;
+        Some(())
+    }),
+    int!(
+        23,
+        "homing direction invert mask",
+        "mask",
+        Unit::One,
+        u8,
+        false,
+        setup.homing_dir_mask
+    ),
+    int!(
+        24,
+        "homing locate feed",
+        "mm/min",
+        Unit::Milli,
+        u32,
+        false,
+        setup.homing_feed_um_min
+    ),
+    int!(
+        25,
+        "homing search seek",
+        "mm/min",
+        Unit::Milli,
+        u32,
+        false,
+        setup.homing_seek_um_min
+    ),
+    int!(
+        26,
+        "homing switch debounce delay",
+        "ms",
+        Unit::One,
+        u32,
+        false,
+        setup.homing_debounce_ms
+    ),
+    int!(
+        27,
+        "homing switch pull-off distance",
+        "mm",
+        Unit::Milli,
+        u32,
+        false,
+        setup.homing_pulloff_um
+    ),
     int!(
         30,
         "max spindle speed (full PWM duty)",
@@ -553,6 +615,60 @@ pub static TABLE: [Entry; 62] = [
         u32,
         false,
         ac.ft_periods
+    ),
+    flag!(
+        341,
+        "tool change mode",
+        |m| m.setup.tool_change as i64,
+        |m, v| {
+            m.setup.tool_change = choice(v, 3)?;
+            Some(())
+        }
+    ),
+    int!(
+        342,
+        "tool setter probing distance",
+        "mm",
+        Unit::Milli,
+        u32,
+        false,
+        setup.probe_distance_um
+    ),
+    int!(
+        343,
+        "tool setter slow feed",
+        "mm/min",
+        Unit::Milli,
+        u32,
+        false,
+        setup.probe_slow_um_min
+    ),
+    int!(
+        344,
+        "tool setter seek feed",
+        "mm/min",
+        Unit::Milli,
+        u32,
+        false,
+        setup.probe_seek_um_min
+    ),
+    int!(
+        345,
+        "tool setter X (machine)",
+        "mm",
+        Unit::Milli,
+        i32,
+        true,
+        setup.setter_um[0]
+    ),
+    int!(
+        346,
+        "tool setter Y (machine)",
+        "mm",
+        Unit::Milli,
+        i32,
+        true,
+        setup.setter_um[1]
     ),
 ];
 

@@ -9,10 +9,11 @@
 //! | 0 | 4 | magic `MLST` |
 //! | 4 | 2 | version ([`VERSION`]) |
 //! | 6 | 2 | payload length ([`PAYLOAD_LEN`]) |
-//! | 8 | [`PAYLOAD_LEN`] | the settings, field by field in declaration order: integers as themselves, f32 as their bits, enums and bools as one byte; then the work offsets (G54..G59, G28, G30: i64 picometres) and the tool table (per tool: length and diameter i64 picometres, flutes, kind, force and torque limits f32) |
+//! | 8 | [`PAYLOAD_LEN`] | the settings, field by field in declaration order: integers as themselves, f32 as their bits, enums and bools as one byte; the set-up ([`Setup`]); then the work offsets (G54..G59, G28, G30: i64 picometres) and the tool table (per tool: length and diameter i64 picometres, flutes, kind, force and torque limits f32) |
 //! | 8 + len | 4 | CRC-32 (IEEE 802.3, reflected 0xEDB88320, as zlib's) of everything before it |
 //!
-//! Any change of the payload bumps [`VERSION`] (6: the work offsets and tool table added); a record
+//! Any change of the payload bumps [`VERSION`] (6: the work offsets and tool table added; 7: the
+//! set-up, homing, probe and tool change, after the AC's settings); a record
 //! of another version loads as defaults with [`RecordError::Version`] (no migration yet). The CRC is computed bit by bit ([`crc32`]): the
 //! record is about 200 bytes and checked once at start-up and once per store, so a table (1 KiB of
 //! flash, or 16 KiB for the sliced tables of crc32fast) buys nothing, and 10 lines need no new
@@ -24,13 +25,14 @@ use crate::ac::settings::{AcSettings, Calibration, FeedCeiling, Pick};
 use crate::gcode::number::Decimal;
 use crate::gcode::{Tool, ToolKind, Work};
 use crate::ports::SettingsStorage;
-use crate::settings::{Blu, BoardLimits, Settings, Valid};
+use crate::settings::{Blu, BoardLimits, Settings, Setup, Valid};
 
 pub const MAGIC: [u8; 4] = *b"MLST";
-pub const VERSION: u16 = 6;
+pub const VERSION: u16 = 7;
 pub const HEADER_LEN: usize = 8;
-/// 208 bytes of settings, then the work offsets (24 x i64) and the tool table (16 x 26 bytes).
-pub const PAYLOAD_LEN: usize = 208 + 24 * 8 + 16 * 26;
+/// 208 bytes of settings and 41 of the set-up (`$6`, `$21`-`$27`, `$341`-`$346`), then the work
+/// offsets (24 x i64) and the tool table (16 x 26 bytes).
+pub const PAYLOAD_LEN: usize = 208 + 41 + 24 * 8 + 16 * 26;
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF): the
@@ -260,6 +262,28 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     p.u8(s.ac.breakage as u8);
     p.f32(s.ac.chatter_step_mm);
     p.u32(s.ac.chatter_max_rpm);
+    let u = &s.setup;
+    for b in [u.probe_invert, u.hard_limits, u.homing] {
+        p.u8(b as u8);
+    }
+    p.u8(u.homing_dir_mask);
+    for v in [
+        u.homing_feed_um_min,
+        u.homing_seek_um_min,
+        u.homing_debounce_ms,
+        u.homing_pulloff_um,
+    ] {
+        p.u32(v);
+    }
+    p.u8(u.tool_change);
+    for v in [
+        u.probe_distance_um,
+        u.probe_slow_um_min,
+        u.probe_seek_um_min,
+    ] {
+        p.u32(v);
+    }
+    u.setter_um.into_iter().for_each(|v| p.i32(v));
     let w = &s.work;
     for v in w.systems.iter().chain([&w.g28, &w.g30]).flatten() {
         p.i64(*v);
@@ -378,6 +402,13 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let breakage = t.bool()?;
     let chatter_step_mm = t.f32()?;
     let chatter_max_rpm = t.u32()?;
+    let (probe_invert, hard_limits, homing) = (t.bool()?, t.bool()?, t.bool()?);
+    let homing_dir_mask = t.u8()?;
+    let (homing_feed_um_min, homing_seek_um_min) = (t.u32()?, t.u32()?);
+    let (homing_debounce_ms, homing_pulloff_um) = (t.u32()?, t.u32()?);
+    let tool_change = t.u8()?;
+    let (probe_distance_um, probe_slow_um_min, probe_seek_um_min) = (t.u32()?, t.u32()?, t.u32()?);
+    let setter_um = [t.i32()?, t.i32()?];
     let mut work = Work::default();
     for v in work
         .systems
@@ -464,6 +495,21 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
                 inches: inches?,
             },
             spindle_max_rpm,
+            setup: Setup {
+                probe_invert: probe_invert?,
+                hard_limits: hard_limits?,
+                homing: homing?,
+                homing_dir_mask,
+                homing_feed_um_min,
+                homing_seek_um_min,
+                homing_debounce_ms,
+                homing_pulloff_um,
+                tool_change,
+                probe_distance_um,
+                probe_slow_um_min,
+                probe_seek_um_min,
+                setter_um,
+            },
             work,
         })
     };

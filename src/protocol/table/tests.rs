@@ -11,27 +11,31 @@ use std::string::String;
 use std::vec::Vec;
 
 const DEFAULT_LIST: &str =
-    "$200=0.00254\r\n$0=5\r\n$10=1\r\n$13=0\r\n$20=1\r\n$30=1000\r\n$110=4013.1492\r\n$111=4013.1492\r\n\
+    "$200=0.00254\r\n$0=5\r\n$6=0\r\n$10=1\r\n$13=0\r\n$20=1\r\n$21=1\r\n$22=0\r\n$23=0\r\n$24=25\r\n\
+$25=500\r\n$26=250\r\n$27=1\r\n$30=1000\r\n$110=4013.1492\r\n$111=4013.1492\r\n\
 $112=4013.1492\r\n$120=635\r\n$121=635\r\n$122=635\r\n$130=254\r\n$131=254\r\n$132=101.6\r\n\
 $201=5000\r\n$202=3000\r\n$203=400\r\n$204=100\r\n$205=25\r\n$206=20\r\n$207=5\r\n\
 $230=-254\r\n$231=-254\r\n$232=-101.6\r\n$250=1\r\n$251=3\r\n$252=1000\r\n$253=10\r\n$254=4000\r\n\
 $255=80\r\n$256=0.9\r\n$257=75000\r\n$258=100\r\n$259=3000\r\n$260=-0.1\r\n$261=0\r\n$262=3\r\n\
 $263=0\r\n$264=1500\r\n$265=10\r\n$266=0\r\n$267=4\r\n$268=0\r\n$269=600\r\n$270=0.05\r\n$271=2.5\r\n$272=2.5\r\n$273=2048\r\n$274=2048\r\n$275=2048\r\n$276=1\r\n$277=0\r\n$280=20\r\n\
-$281=1500\r\n$282=1\r\n$283=50\r\n$284=6.35\r\n$285=0.6\r\n$286=1.4\r\n$287=5\r\n$288=5\r\n";
+$281=1500\r\n$282=1\r\n$283=50\r\n$284=6.35\r\n$285=0.6\r\n$286=1.4\r\n$287=5\r\n$288=5\r\n\
+$341=0\r\n$342=30\r\n$343=25\r\n$344=200\r\n$345=0\r\n$346=0\r\n";
 
-/// The record of the defaults, version 6 (its acceleration 250 000 BLU/s^2 since the ramps came,
+/// The record of the defaults, version 7 (its acceleration 250 000 BLU/s^2 since the ramps came,
 /// issue 7; `$30` max spindle speed, `$264` the AC's nominal feed and `$265` the GPC weight appended in version 2, issues
 /// 8 and 9; GPC (`$251=3`, `$265=10`) the default feed law since issue 9; version 3 appends the process
 /// monitors' `$267` flutes, `$269` spindle speed, `$266` chatter threshold and `$268` breakage (issue 10); version 4
 /// appends `$276` the chatter depth step and its payload grows to 204 bytes, version 5 `$277` the chatter spindle speed
 /// limit, 208 bytes (issue 10); version 6 appends the work offsets and the tool table (all zero in
-/// the defaults), 816 bytes; the CRC checked here with Python's zlib.crc32): a change of the
-/// layout must bump the version.
-const DEFAULT_IMAGE: &str = "4d4c5354060030030088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
+/// the defaults), 816 bytes; version 7 inserts the set-up after the AC's settings (`$6`,
+/// `$21`-`$27`, `$341`-`$346`: 41 bytes, 857 in all; its fields and the CRC checked here with
+/// Python's struct and zlib.crc32): a change of the layout must bump the version.
+const DEFAULT_IMAGE: &str = "4d4c5354070059030088130000b80b0000dd660000900100006400000019000000204e000088130000881300006079\
 feff6079feffc063ffffa0860100a0860100409c000090d0030090d0030090d003000103e80300000a000000cdcc4c\
 3d00000045000020400000004500002040000000450000007a450000a0426666663ff824010064000000b80b0000cd\
 ccccbd14000000dc050100320000003333cb409a99193f3333b33f0000a0400500000003000000000100e8030000dc\
-05000000002041040000005802000000000000000000803f0000000000000000000000000000000000000000000000\
+05000000002041040000005802000000000000000000803f0000000000010000a861000020a10700fa000000e80300\
+000030750000a8610000400d0300000000000000000000000000000000000000000000000000000000000000000000\
 0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
 0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
 0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
@@ -44,7 +48,7 @@ ccccbd14000000dc050100320000003333cb409a99193f3333b33f0000a040050000000300000000
 0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
 0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
 0000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\
-00000000000000000000000000000000000000000000000000211439cd";
+00000000000000000000000000000000000000837e50e9";
 
 fn listing(m: &MachineSettings) -> String {
     let mut s = String::new();
@@ -79,10 +83,12 @@ fn table_lists_the_blu_first_then_ascending_numbers() {
             w[1].number
         );
     }
-    for n in [0u16, 10, 13, 20, 110, 120, 130, 200, 250, 288] {
+    for n in [
+        0u16, 6, 10, 13, 20, 21, 27, 110, 120, 130, 200, 250, 288, 341, 346,
+    ] {
         assert_eq!(entry(n).map(|e| e.number), Some(n));
     }
-    for n in [1u16, 2, 3, 4, 5, 6, 11, 12, 21, 22, 100, 133, 299] {
+    for n in [1u16, 2, 3, 4, 5, 11, 12, 28, 100, 133, 299, 340, 347] {
         assert!(entry(n).is_none(), "${n} is not millac's");
     }
 }
@@ -90,6 +96,16 @@ fn table_lists_the_blu_first_then_ascending_numbers() {
 #[test]
 fn grbl_settings_take_grbl_units() {
     let mut m = MachineSettings::default();
+    // The set-up's lengths and rates are um and um/min, listed in mm and mm/min whatever the BLU.
+    set(&mut m, "$27=2.5").unwrap();
+    set(&mut m, "$25=1200.0004").unwrap();
+    set(&mut m, "$345=-120.25").unwrap();
+    assert_eq!(m.setup.homing_pulloff_um, 2_500);
+    assert_eq!(
+        m.setup.homing_seek_um_min, 1_200_000,
+        "rounded to the um/min"
+    );
+    assert_eq!(m.setup.setter_um, [-120_250, 0]);
     set(&mut m, "$0=10").unwrap();
     assert_eq!(m.nc.pulse_width_ns, 10_000);
     set(&mut m, "$0=2.5004").unwrap();
@@ -97,8 +113,9 @@ fn grbl_settings_take_grbl_units() {
     // 3000 mm/min = 50 mm/s = 19 685.04 BLU/s -> 19 685, listed exactly.
     set(&mut m, "$110=3000").unwrap();
     assert_eq!(m.nc.rapid_hz, 19_685);
-    assert_eq!(m.line(6).unwrap().as_str(), "$110=2999.994");
-    assert_eq!(m.line(7).unwrap().as_str(), "$111=2999.994");
+    let at = |n: u16| TABLE.iter().position(|e| e.number == n).unwrap();
+    assert_eq!(m.line(at(110)).unwrap().as_str(), "$110=2999.994");
+    assert_eq!(m.line(at(111)).unwrap().as_str(), "$111=2999.994");
     set(&mut m, "$111=2999.994").unwrap();
     set(&mut m, "$112=3000").unwrap(); // the same rate once rounded
     set(&mut m, "$121=100").unwrap();
@@ -197,8 +214,9 @@ fn ac_settings_take_their_units_and_signs() {
 fn refused_sets_give_grbl_errors_and_change_nothing() {
     use crate::ac::settings::AcSettingsError as A;
     use crate::settings::SettingsError as N;
+    use crate::settings::SetupError as U;
     let r = SetError::Invalid(Invalid::Range);
-    let cases: [(&str, SetError); 46] = [
+    let cases: [(&str, SetError); 63] = [
         ("$1=25", SetError::Unsupported),
         ("$2=0", SetError::Unsupported),
         ("$100=250", SetError::Unsupported),
@@ -248,6 +266,28 @@ fn refused_sets_give_grbl_errors_and_change_nothing() {
         ("$200=0.0025401", r),
         ("$254=0.0000001", r),
         ("$201=99999999999999999999999", r),
+        ("$6=2", r),
+        ("$21=2", r),
+        ("$22=-1", SetError::Negative),
+        ("$23=8", SetError::Invalid(Invalid::Setup(U::Choice))),
+        ("$23=1.5", SetError::BadNumber),
+        ("$24=0", SetError::Invalid(Invalid::Setup(U::Rate))),
+        // The default rapid rate is 4013.149 mm/min.
+        ("$25=4014", SetError::Invalid(Invalid::Setup(U::Rate))),
+        ("$26=10001", SetError::Invalid(Invalid::Setup(U::Choice))),
+        ("$27=0", SetError::Invalid(Invalid::Setup(U::Distance))),
+        // Z's travel is 203.2 mm.
+        ("$27=203.2", SetError::Invalid(Invalid::Setup(U::Distance))),
+        ("$27=-1", SetError::Negative),
+        ("$341=3", r),
+        ("$342=0", SetError::Invalid(Invalid::Setup(U::Distance))),
+        (
+            "$342=10000.001",
+            SetError::Invalid(Invalid::Setup(U::Distance)),
+        ),
+        ("$343=0", SetError::Invalid(Invalid::Setup(U::Rate))),
+        ("$344=5000", SetError::Invalid(Invalid::Setup(U::Rate))),
+        ("$345=3000000", r),
     ];
     let mut m = MachineSettings::default();
     for (stmt, want) in cases {
@@ -412,14 +452,42 @@ prop_compose! {
 }
 
 prop_compose! {
+    /// A set-up whose rates fit the slowest rapid rate `arb_nc` makes (100 BLU/s of 2.54 um:
+    /// 15 240 um/min) and whose pull-off fits the shortest travel it makes.
+    fn arb_setup()(flags in prop::array::uniform3(any::<bool>()), dir in 0u8..=7,
+                   rates in prop::array::uniform4(1u32..=15_000), debounce in 0u32..=10_000,
+                   pulloff in 1u32..=100, change in 0u8..=2, distance in 1u32..=10_000_000,
+                   setter in prop::array::uniform2(-2_000_000_000i32..=2_000_000_000))
+                   -> crate::settings::Setup {
+        crate::settings::Setup {
+            probe_invert: flags[0],
+            hard_limits: flags[1],
+            homing: flags[2],
+            homing_dir_mask: dir,
+            homing_feed_um_min: rates[0],
+            homing_seek_um_min: rates[1],
+            homing_debounce_ms: debounce,
+            homing_pulloff_um: pulloff,
+            tool_change: change,
+            probe_distance_um: distance,
+            probe_slow_um_min: rates[2],
+            probe_seek_um_min: rates[3],
+            setter_um: setter,
+        }
+    }
+}
+
+prop_compose! {
     fn arb_settings()(nc in arb_nc(), ac in arb_ac(), on in any::<bool>(), mask in 0u8..=3,
-                      inches in any::<bool>(), rpm in 1u32..=1_000_000) -> MachineSettings {
+                      inches in any::<bool>(), rpm in 1u32..=1_000_000, setup in arb_setup())
+                      -> MachineSettings {
         MachineSettings {
             nc,
             ac,
             ac_enabled: on,
             report: ReportSettings { status_mask: mask, inches },
             spindle_max_rpm: rpm,
+            setup,
             work: crate::gcode::Work::default(),
         }
     }
