@@ -180,6 +180,16 @@ pub mod alarm {
     /// grbl 3: reset while in motion (position may be lost): the firmware raises it when a soft
     /// reset stops a running block.
     pub const ABORT_CYCLE: u8 = 3;
+    /// grbl 6: homing failed: the cycle was reset (or the e-stop pressed) before it ended.
+    pub const HOMING_RESET: u8 = 6;
+    /// grbl 8: homing failed: the pull-off did not open the limit switch.
+    pub const HOMING_PULLOFF: u8 = 8;
+    /// grbl 9: homing failed: no limit switch within the search distance.
+    pub const HOMING_NO_SWITCH: u8 = 9;
+    /// grblHAL 11: homing required: homing is enabled (`$22`) and the machine has not been
+    /// homed since power-up, or its position was lost (a hard limit, an e-stop or a reset in
+    /// motion). Only `$H` clears it.
+    pub const HOMING_REQUIRED: u8 = 11;
     /// grblHAL 10: the e-stop input is (or was) active; the machine stopped at once. `$X` clears
     /// it only once the e-stop is released.
     pub const ESTOP: u8 = 10;

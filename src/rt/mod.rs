@@ -11,6 +11,7 @@
 pub mod ac;
 pub mod actask;
 pub mod console;
+pub mod homing;
 pub mod isr;
 pub mod loader;
 pub mod monitor;
