@@ -88,6 +88,9 @@ pub struct Debouncer {
     events: Events,
     /// The alarm latch: the safety lines seen active since it was set (0: clear).
     latch: u16,
+    /// The lines that trip the latch: the e-stop, and the limit switches unless
+    /// [`Debouncer::set_limit_trips`] turned them off.
+    trips: u16,
 }
 
 impl Default for Debouncer {
@@ -110,7 +113,15 @@ impl Debouncer {
                 tripped: false,
             },
             latch: 0,
+            trips: SAFETY,
         }
+    }
+
+    /// Whether a closing limit switch trips the latch (on at start): off while the homing cycle
+    /// seeks the switches and with hard limits off (`$21=0`). The switches still go active at
+    /// once and show in [`Debouncer::inputs`]. Loader task.
+    pub fn set_limit_trips(&mut self, on: bool) {
+        self.trips = if on { SAFETY } else { ESTOP };
     }
 
     /// One raw sample of the inputs. Board's periodic input task. Returns the debounced inputs.
@@ -138,7 +149,7 @@ impl Debouncer {
         let rising = stable & !before;
         self.events.feed_hold |= rising & FEED_HOLD != 0;
         self.events.cycle_start |= rising & CYCLE_START != 0;
-        let active = stable & SAFETY;
+        let active = stable & self.trips;
         if active != 0 {
             self.events.tripped |= self.latch == 0;
             self.latch |= active;
@@ -172,7 +183,7 @@ impl Debouncer {
     /// only when no e-stop or limit line is active (debounced); returns true when the latch is
     /// clear afterwards (also when nothing was latched), false when it stays latched.
     pub fn acknowledge(&mut self) -> bool {
-        if self.stable & SAFETY == 0 {
+        if self.stable & self.trips == 0 {
             self.latch = 0;
             self.events.tripped = false;
         }
@@ -183,6 +194,32 @@ impl Debouncer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// With limit trips off (homing, `$21=0`) a closing limit switch shows at once in the inputs
+    /// and latches nothing; the e-stop still trips. Turned back on, a switch still closed trips.
+    #[test]
+    fn limit_trips_off_leave_the_switches_to_the_homing_cycle() {
+        let mut d = Debouncer::new(3);
+        d.set_limit_trips(false);
+        let x = Inputs {
+            limits: 0b001,
+            ..IDLE
+        };
+        assert_eq!(d.sample(x).limits, 0b001);
+        assert_eq!(d.take(), Events::default());
+        assert_eq!(d.latched(), None);
+        assert!(d.acknowledge());
+        d.sample(Inputs { estop: true, ..x });
+        assert!(d.take().tripped);
+        assert_eq!(d.latched().map(|t| (t.estop, t.limits)), Some((true, 0)));
+        let mut d = Debouncer::new(3);
+        d.set_limit_trips(false);
+        d.sample(x);
+        d.set_limit_trips(true);
+        d.sample(x);
+        assert!(d.take().tripped);
+        assert_eq!(d.latched().map(|t| t.limits), Some(0b001));
+    }
 
     const IDLE: Inputs = Inputs {
         estop: false,

@@ -440,6 +440,15 @@ impl Parser {
         self.offsets = offsets;
     }
 
+    /// A copy without soft limits: the homing cycle plans its moves on it (they run before the
+    /// machine knows where it is, and toward the switches beyond the limits). Loader task.
+    pub fn without_soft_limits(&self) -> Parser {
+        let mut p = self.clone();
+        p.settings.soft_min = [i32::MIN; 3];
+        p.settings.soft_max = [i32::MAX; 3];
+        p
+    }
+
     /// The tool table.
     pub fn tools(&self) -> &ToolTable {
         &self.tools

@@ -134,6 +134,9 @@ pub enum Event<'a> {
     Gcode { line: &'a str, check: bool },
     /// A valid `$J=` jog: plan it ([`JogRequest::plan`]), queue it, then [`Protocol::reply`].
     Jog(JogRequest),
+    /// `$H` (mask 0b111), `$HX`, `$HY`, `$HZ` (bit k: axis k), in Idle or Alarm: run the homing
+    /// cycle, then [`Protocol::reply`] (`ok` once every axis asked for is home).
+    Home(u8),
     /// Realtime requests (`?` `!` `~` 0x85 0x84, override changes).
     Realtime(Pending),
     /// Soft reset (0x18, or `$C` turned off): stop, flush the queue, re-initialise the parser.
@@ -267,6 +270,13 @@ impl<'a> Protocol<'a> {
         self.message(out, format_args!("receive overflow: {lost} bytes lost"));
     }
 
+    /// Clears the alarm lock without `$X` (a homing cycle that ended: the machine's position is
+    /// known again, as grbl's `$H` unlocks).
+    pub fn clear_alarm(&mut self) {
+        self.alarm = None;
+        self.settings_refused = None;
+    }
+
     /// Pushes `[MSG:...]`.
     pub fn message(&mut self, out: &mut dyn Write, text: fmt::Arguments<'_>) {
         let _ = report::write_message(out, text);
@@ -299,7 +309,7 @@ impl<'a> Protocol<'a> {
         self.last_wco = data.wco_pm;
         self.wco_countdown = match (wco, state) {
             (false, _) => self.wco_countdown.saturating_sub(1),
-            (true, State::Run | State::Hold { .. } | State::Jog) => 9,
+            (true, State::Run | State::Hold { .. } | State::Jog | State::Home) => 9,
             (true, _) => 29,
         };
         let cx = report::StatusContext {
@@ -461,7 +471,10 @@ impl<'a> Protocol<'a> {
             self.line.clear();
             return self.system(&cmd, out, cx);
         }
-        if matches!(self.state(cx.state), State::Alarm | State::Jog) {
+        if matches!(
+            self.state(cx.state),
+            State::Alarm | State::Jog | State::Home
+        ) {
             self.line.clear();
             respond(out, Err(GrblError::GCODE_LOCK));
             return Event::Replied;
@@ -491,10 +504,12 @@ impl<'a> Protocol<'a> {
             "$" => sent(report::write_help(out)),
             "$G" => sent(report::write_modes(out, &cx.modes, cx.machine, opts.inches)),
             "$X" if cx.interlock.is_some() && self.alarm.is_some() => {
-                let _ = out.write_str(if cx.interlock == Some(codes::alarm::AC_BREAKAGE) {
-                    "[MSG:Tool breakage: reset (Ctrl-X) first, then change the tool]\r\n"
-                } else {
-                    "[MSG:E-stop or limit switch still active]\r\n"
+                let _ = out.write_str(match cx.interlock {
+                    Some(codes::alarm::AC_BREAKAGE) => {
+                        "[MSG:Tool breakage: reset (Ctrl-X) first, then change the tool]\r\n"
+                    }
+                    Some(codes::alarm::HOMING_REQUIRED) => "[MSG:Homing required: '$H']\r\n",
+                    _ => "[MSG:E-stop or limit switch still active]\r\n",
                 });
                 Err(GrblError::GCODE_LOCK)
             }
@@ -558,7 +573,20 @@ impl<'a> Protocol<'a> {
                 ))
             }
             "$N" => sent(out.write_str("$N0=\r\n$N1=\r\n")),
-            "$H" => Err(GrblError::SETTING_DISABLED),
+            _ if cmd.starts_with("$H") => {
+                let mask = match cmd {
+                    "$H" => 0b111,
+                    "$HX" => 0b001,
+                    "$HY" => 0b010,
+                    "$HZ" => 0b100,
+                    _ => {
+                        respond(out, Err(GrblError::INVALID_STATEMENT));
+                        return Event::Replied;
+                    }
+                };
+                self.awaiting = true;
+                return Event::Home(mask);
+            }
             _ if cmd.starts_with("$T") => cx
                 .table
                 .tool(cmd.get(2..).unwrap_or(""), out)

@@ -51,6 +51,8 @@ pub enum State {
         complete: bool,
     },
     Jog,
+    /// The homing cycle runs (`$H`).
+    Home,
     Alarm,
     Check,
 }
@@ -63,6 +65,7 @@ impl State {
             State::Hold { complete: true } => "Hold:0",
             State::Hold { complete: false } => "Hold:1",
             State::Jog => "Jog",
+            State::Home => "Home",
             State::Alarm => "Alarm",
             State::Check => "Check",
         }

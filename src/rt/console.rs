@@ -73,6 +73,13 @@ pub enum News<'a> {
     ProgramEnd,
     /// M0 or M6 on line `line`: the machine stands (and, attended, holds until cycle start).
     Stop { stop: Stop, line: u32 },
+    /// Homing is on (`$22`) and the machine does not know where it is: locked until `$H`
+    /// (`ALARM:11`).
+    HomingRequired,
+    /// The homing cycle ended: every axis asked for is home (the alarm lock is cleared).
+    Homed,
+    /// The homing cycle failed with this alarm (6, 8, 9).
+    HomingFailed(u8),
 }
 
 /// What the loader needs of its line source and its voice. Loader task.
@@ -268,6 +275,12 @@ impl<const T: usize> Console for Serial<'_, T> {
             } => self.message(format_args!(
                 "Tool change (M6, line {line}): fit T{tool}, then cycle start"
             )),
+            News::HomingRequired => {
+                self.alarm(alarm::HOMING_REQUIRED);
+                self.message(format_args!("Homing required: '$H'"));
+            }
+            News::Homed => self.proto.clear_alarm(),
+            News::HomingFailed(code) => self.alarm(code),
         }
     }
 

@@ -50,14 +50,15 @@ use crate::protocol::table::Persistent;
 use crate::protocol::{Context, Event, SettingsTable};
 use crate::rt::ac::AC_RUN;
 use crate::rt::console::{trip_alarm, Console, News, Refused};
+use crate::rt::homing::{self, Step as HomingStep};
 use crate::rt::replan::{self, Replan};
 use crate::rt::status::LoaderWriter;
 use crate::settings::Settings;
 use heapless::spsc::{Consumer, Producer};
 
-use crate::gcode::{Parsed, Spindle, Stop};
+use crate::gcode::{Decimal, Distance, Parsed, Spindle, Stop, Units};
 use crate::inputs::{Events, Trip};
-use crate::protocol::jog::JogRequest;
+use crate::protocol::jog::{JogPlan, JogRequest};
 use crate::protocol::LINE_MAX;
 
 /// Free queue slots a line needs before the loader takes it: the look-ahead's held block and the
@@ -103,6 +104,13 @@ pub trait LoaderBoard {
     fn acknowledge(&mut self) -> bool {
         true
     }
+    /// The limit switches closed now (bit k: axis k), for the homing cycle. Default: none.
+    fn limits(&mut self) -> u8 {
+        0
+    }
+    /// Whether a closing limit switch trips the alarm latch: off while the homing cycle seeks
+    /// the switches, and with `$21=0`; on otherwise (the default, and at power-up).
+    fn limit_trips(&mut self, _on: bool) {}
     /// The alarm is latched and an e-stop or limit line is still active (`$X` would be refused:
     /// the protocol answers it with `error:9` before saying anything else).
     fn latch_active(&mut self) -> bool {
@@ -190,6 +198,8 @@ pub enum Step<'l> {
     Line { line: &'l str, check: bool },
     /// A `$J=` jog.
     Jog(JogRequest),
+    /// `$H` (mask 0b111) or `$HX`/`$HY`/`$HZ`: the homing cycle.
+    Home(u8),
     /// Realtime requests (`?` `!` `~`, jog cancel, overrides).
     Realtime(Pending),
     /// A soft reset, or an input trip (`trip`): stop at once, drop everything queued.
@@ -260,6 +270,19 @@ pub struct Loader<
     now: Now,
     /// The console has no more lines ([`Event::End`]).
     ended: bool,
+    /// The homing cycle, while it runs.
+    homing: Option<HomingRun>,
+    /// The axes homed since power-up (bit k: axis k); a lost position clears them all.
+    homed: u8,
+}
+
+/// A running homing cycle: its sequence, the axes asked for, and the step under way.
+struct HomingRun {
+    cycle: homing::Cycle,
+    mask: u8,
+    /// The move or pause under way: the axis whose switch it watches, and whether the switch
+    /// stops it. None: the next step is due.
+    under_way: Option<(usize, bool)>,
 }
 
 /// How a loader's run ended (a console that ends: a program file).
@@ -369,7 +392,17 @@ where
                 ac_held: false,
             },
             ended: false,
+            homing: None,
+            homed: 0,
         };
+        loader
+            .board
+            .limit_trips(loader.table.settings.setup.hard_limits);
+        // With homing on, an operator's machine starts locked until `$H` (`ALARM:11`): it does
+        // not know where it is. A program run starts where the machine stands.
+        if loader.table.settings.setup.homing && loader.console.attended() {
+            loader.console.say(News::HomingRequired);
+        }
         loader.publish();
         loader
     }
@@ -480,7 +513,9 @@ where
         }
         // A measure-only AC's verdict holds nothing (its state is only logged).
         let ac_held = self.ac_enabled && status.ac_state.get() > AC_RUN;
-        let state = if self.hold || ac_held {
+        let state = if self.homing.is_some() {
+            State::Home
+        } else if self.hold || ac_held {
             State::Hold {
                 complete: status.stopped(),
             }
@@ -496,6 +531,9 @@ where
             state,
             ac_held,
         };
+        if self.homing.is_some() {
+            self.homing_turn(idle);
+        }
         // A canned cycle still expanding fills the queue as it empties; no line is taken until
         // it is done.
         if self.tape.pending() && !self.replan.pending() {
@@ -516,6 +554,7 @@ where
         // The line source's news. A G-code line is copied out of the protocol's buffer (the
         // protocol answers it after the step).
         let mut line = heapless::String::<LINE_MAX>::new();
+        let unhomed = self.table.settings.setup.homing && self.homed != 0b111;
         let polled = {
             let mut cx: Context<'_, dyn SettingsTable + '_> = Context {
                 table: &mut *self.table,
@@ -534,6 +573,9 @@ where
                     Some(alarm::AC_BREAKAGE)
                 } else if self.board.latch_active() {
                     self.board.latched().map(|t| trip_alarm(&t))
+                } else if unhomed {
+                    // The position is not known (power-up, or lost): only `$H` unlocks.
+                    Some(alarm::HOMING_REQUIRED)
                 } else {
                     None
                 },
@@ -549,6 +591,7 @@ where
                     });
                 }
                 Event::Jog(jog) => Some(Step::Jog(jog)),
+                Event::Home(mask) => Some(Step::Home(mask)),
                 Event::Realtime(p) => Some(Step::Realtime(p)),
                 Event::Reset => Some(Step::Reset { trip: None }),
                 Event::Unlock => Some(Step::Unlock),
@@ -603,6 +646,7 @@ where
             }
             Step::Line { line, check } => self.line(line, check),
             Step::Jog(jog) => self.jog(jog),
+            Step::Home(mask) => self.home(mask),
             Step::Realtime(p) => self.realtime(p),
             Step::Reset { trip } => self.reset(trip),
             Step::Unlock => self.unlock(),
@@ -817,6 +861,165 @@ where
         self.console.reply(result.map_err(Refused::Grbl));
     }
 
+    /// `$H`: the homing cycle starts (`error:5` with homing off, `$22=0`). Its `ok` comes when
+    /// every axis asked for is home; the protocol takes no line meanwhile.
+    fn home(&mut self, mask: u8) {
+        let setup = self.table.settings.setup;
+        if !setup.homing {
+            self.console
+                .reply(Err(Refused::Grbl(GrblError::SETTING_DISABLED)));
+            return;
+        }
+        self.board.limit_trips(false);
+        self.homing = Some(HomingRun {
+            cycle: homing::Cycle::new(mask, &setup, &self.settings),
+            mask,
+            under_way: None,
+        });
+        self.homing_turn(true);
+    }
+
+    /// One turn of the homing cycle (`idle`: the machine stands): a move that watches a switch
+    /// stops at once when it closes; a step that has ended gives the next.
+    fn homing_turn(&mut self, idle: bool) {
+        let Some(run) = self.homing.as_mut() else {
+            return;
+        };
+        let closed = |board: &mut B, axis: usize| board.limits() & (1 << axis) != 0;
+        let switch = match run.under_way {
+            None => false,
+            Some((axis, true)) if !idle && closed(self.board, axis) => {
+                let (at, signs) = abort(self.blocks, self.status, self.board);
+                self.replan.restart(at);
+                self.tape.jogged_to(at, signs);
+                true
+            }
+            Some(_) if !idle => return,
+            Some((axis, _)) => closed(self.board, axis),
+        };
+        loop {
+            let Some(run) = self.homing.as_mut() else {
+                return;
+            };
+            let step = run.cycle.next(switch);
+            match step {
+                HomingStep::Move {
+                    axis,
+                    um,
+                    rate_um_min,
+                    until_switch,
+                } => {
+                    run.under_way = Some((axis, until_switch));
+                    let mut target = [None; 3];
+                    if let Some(t) = target.get_mut(axis) {
+                        *t = Some(Decimal {
+                            mantissa: i128::from(um),
+                            scale: 3,
+                        });
+                    }
+                    let jog = JogRequest {
+                        target,
+                        feed: Decimal {
+                            mantissa: i128::from(rate_um_min),
+                            scale: 3,
+                        },
+                        units: Some(Units::Mm),
+                        distance: Some(Distance::Incremental),
+                        machine: false,
+                    };
+                    let plan = jog.plan(&self.tape.parser().without_soft_limits());
+                    match plan {
+                        Ok(JogPlan {
+                            block: Some(b),
+                            end,
+                        }) => {
+                            let signs = match b.motion {
+                                Motion::Linear(l) => l.signs,
+                                _ => self.tape.parser().signs(),
+                            };
+                            self.queue_direct(b);
+                            self.tape.jogged_to(end, signs);
+                        }
+                        // A move beyond the counters' range: the switch is not where it can be.
+                        _ => return self.homing_ended(HomingStep::Fail(alarm::HOMING_NO_SWITCH)),
+                    }
+                    return;
+                }
+                HomingStep::Pause { ms } => {
+                    run.under_way = Some((0, false));
+                    let mut line: heapless::String<24> = heapless::String::new();
+                    let _ = core::fmt::Write::write_fmt(
+                        &mut line,
+                        format_args!(
+                            "G4 P{}",
+                            Decimal {
+                                mantissa: i128::from(ms),
+                                scale: 3,
+                            }
+                        ),
+                    );
+                    let mut p = self.tape.parser().clone();
+                    if let Ok(Parsed::Block(b)) = p.line(0, &line) {
+                        self.queue_direct(b);
+                    }
+                    return;
+                }
+                HomingStep::Home { axis } => {
+                    let home =
+                        homing::home_position(axis, &self.table.settings.setup, &self.settings);
+                    let raw = self.status.position().get(axis).copied().unwrap_or(0);
+                    self.status.set_origin(axis, home.wrapping_sub(raw));
+                    let at = self.status.machine_position();
+                    self.replan.restart(at);
+                    self.tape.jogged_to(at, self.status.next_signs.get());
+                    run.under_way = None;
+                }
+                HomingStep::Done | HomingStep::Fail(_) => return self.homing_ended(step),
+            }
+        }
+    }
+
+    /// The homing cycle is done (`ok`, the alarm lock cleared) or failed (its alarm; every axis
+    /// unhomed).
+    fn homing_ended(&mut self, step: HomingStep) {
+        let Some(run) = self.homing.take() else {
+            return;
+        };
+        self.board
+            .limit_trips(self.table.settings.setup.hard_limits);
+        if let HomingStep::Fail(code) = step {
+            if !self.now.idle || self.blocks.len() != 0 {
+                let (at, signs) = abort(self.blocks, self.status, self.board);
+                self.replan.restart(at);
+                self.tape.jogged_to(at, signs);
+            }
+            self.homed = 0;
+            self.console.say(News::HomingFailed(code));
+            self.console
+                .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
+        } else {
+            self.homed |= run.mask;
+            // The lock goes once every axis is home (a `$HX` alone leaves it).
+            if self.homed == 0b111 {
+                self.console.say(News::Homed);
+            }
+            self.console.reply(Ok(()));
+        }
+        self.publish();
+    }
+
+    /// Queues a block planned outside the tape (the homing cycle's moves and pauses).
+    fn queue_direct(&mut self, b: crate::nc::Block) {
+        let b = finish_block(b, None, &self.cfg, self.settings.q0);
+        enqueue(
+            self.blocks,
+            self.replan,
+            self.status,
+            b,
+            &mut self.last_feed,
+        );
+    }
+
     /// Realtime requests: hold, resume, jog cancel, overrides, the status report.
     fn realtime(&mut self, p: Pending) {
         let ac_held = self.now.ac_held;
@@ -874,7 +1077,7 @@ where
                 State::Idle if self.tape.holds_a_block() => State::Run,
                 s => s,
             },
-            position: status.encoder(),
+            position: status.machine_encoder(),
             feed_blu_per_min: if idle {
                 0
             } else {
@@ -908,6 +1111,17 @@ where
         let (at, signs) = abort(self.blocks, status, self.board);
         self.replan.restart(at);
         self.tape.abort(at, signs);
+        // A stop in motion loses the position (the drives may not have followed an abrupt
+        // stop): homing, when on, is required again. A homing cycle under way fails (ALARM:6
+        // after a soft reset; a trip says its own alarm).
+        let homing = self.homing.take();
+        if moving || homing.is_some() {
+            self.homed = 0;
+        }
+        if homing.is_some() {
+            self.board
+                .limit_trips(self.table.settings.setup.hard_limits);
+        }
         // A line waiting for the spindle: a soft reset discards it with the stream (the protocol
         // has done so); after a trip it is answered, refused.
         let waiting = self.deferred.take().is_some();
@@ -924,8 +1138,14 @@ where
                         .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
                 }
             }
+            None if homing.is_some() => self.console.say(News::HomingFailed(alarm::HOMING_RESET)),
             None if moving => self.console.say(News::AbortCycle),
             None => {}
+        }
+        if homing.is_some() && trip.is_some() {
+            // The `$H` awaits its answer (a soft reset discards it with the stream).
+            self.console
+                .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
         }
     }
 
@@ -1031,7 +1251,7 @@ fn abort<const Q: usize>(
         board.wait();
     }
     status.operator_bits(operator::ABORT, false);
-    (status.position(), status.next_signs.get())
+    (status.machine_position(), status.next_signs.get())
 }
 
 /// Queues a block through the re-plan's record (see `crate::rt::replan`), remembering its

@@ -202,13 +202,16 @@ impl<F: ProgramFile> Console for Program<F> {
                 format_args!("tool change (M6) at line {line}: T{tool}"),
             ),
             // The AC task writes its own holds (`alarm: ...`) as they come; no operator, no
-            // trips, no serial line.
+            // trips, no serial line, no `$H`.
             News::AcHold { .. }
             | News::SpindleStopped
             | News::Tripped(_)
             | News::StillActive(_)
             | News::AbortCycle
-            | News::RxOverflow { .. } => {}
+            | News::RxOverflow { .. }
+            | News::HomingRequired
+            | News::Homed
+            | News::HomingFailed(_) => {}
         }
     }
 

@@ -647,7 +647,7 @@ impl<const N: usize> Replan<N> {
                 if self.reacts() && chatter && status.stopped() {
                     let done = self.front(sink);
                     self.trim(done);
-                    let at = status.position();
+                    let at = status.machine_position();
                     let held = self
                         .entry(done)
                         .filter(|e| matches!(e.block.motion, Motion::Linear(_) | Motion::Arc(_)));

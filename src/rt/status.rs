@@ -157,6 +157,10 @@ pub struct Status {
     /// ([`PulseWriter`]) from the pins themselves (+1 / -1 per high PULSE line by its SIGN line)
     /// before it lowers them ([`Status::encoder`]); read by the sampler and the AC task.
     encoder: [I32; 3],
+    /// The machine coordinates of the counters' zero, BLU: 0 at power-up; homing sets it so that
+    /// counter + origin is the axis's machine position ([`Status::machine_position`]). Written by
+    /// the loader ([`LoaderWriter::set_origin`]); the ISRs never read it, so they count as before.
+    origin: [I32; 3],
     /// Samples taken since start (the sampler's next sample index). Written by the sampler
     /// ([`SamplerWriter`]).
     pub samples: U32,
@@ -223,6 +227,7 @@ impl Status {
             idle: Flag::new(true),
             next_signs: U8::new(0),
             encoder: [I32::new(0), I32::new(0), I32::new(0)],
+            origin: [I32::new(0), I32::new(0), I32::new(0)],
             samples: U32::new(0),
             ac_missed: U32::new(0),
             samples_dropped: U32::new(0),
@@ -296,6 +301,22 @@ impl Status {
     /// The frame's position X, Y, Z as last published.
     pub fn position(&self) -> [i32; 3] {
         [0, 1, 2].map(|k| self.position[k].get())
+    }
+
+    /// The counters' origin ([`Status::machine_position`]).
+    pub fn origin(&self) -> [i32; 3] {
+        [0, 1, 2].map(|k| self.origin[k].get())
+    }
+
+    /// The frame's position in machine coordinates: [`Status::position`] plus the origin homing
+    /// set (the parser's, the soft limits' and the reports' coordinates).
+    pub fn machine_position(&self) -> [i32; 3] {
+        [0, 1, 2].map(|k| self.position[k].get().wrapping_add(self.origin[k].get()))
+    }
+
+    /// The encoder counts in machine coordinates (the status report's MPos).
+    pub fn machine_encoder(&self) -> [i32; 3] {
+        [0, 1, 2].map(|k| self.encoder[k].get().wrapping_add(self.origin[k].get()))
     }
 }
 
@@ -517,6 +538,12 @@ impl AcWriter<'_> {
 }
 
 impl LoaderWriter<'_> {
+    /// Homing: axis `k`'s counters' zero is at `origin` in machine coordinates.
+    pub fn set_origin(&self, k: usize, origin: i32) {
+        if let Some(o) = self.0.origin.get(k) {
+            o.set(origin);
+        }
+    }
     pub fn set_operator(&self, word: u32) {
         self.0.operator.set(word)
     }

@@ -45,6 +45,29 @@ std::thread_local! {
     /// it and stores into it, so a second session starts from what the first stored. None (the
     /// default): no record, the defaults, and stores go nowhere.
     static RECORD: core::cell::RefCell<Option<Vec<u8>>> = const { core::cell::RefCell::new(None) };
+    /// The machine's limit switches and the set-up of the sessions of this thread (`Some`): the
+    /// bench closes each axis's switch from its true position, and the table takes the set-up.
+    static MACHINE: core::cell::Cell<Option<(Switches, crate::settings::Setup)>> =
+        const { core::cell::Cell::new(None) };
+}
+
+/// The machine model's limit switches: where the machine stands at power-up and where each
+/// axis's switch is, in true BLU (the counters start at 0 wherever the machine stands); a switch
+/// is closed at and beyond its position on its side (+1: toward the positive end).
+#[derive(Clone, Copy, Debug)]
+struct Switches {
+    start: [i32; 3],
+    at: [i32; 3],
+    side: [i32; 3],
+}
+
+impl Switches {
+    /// The switches closed with the encoder at `encoder`.
+    fn closed(&self, encoder: [i32; 3]) -> u8 {
+        (0..3)
+            .filter(|&k| (encoder[k] + self.start[k] - self.at[k]) * self.side[k] >= 0)
+            .fold(0, |m, k| m | 1 << k)
+    }
 }
 
 const Q: usize = 16;
@@ -202,6 +225,9 @@ struct Bench<const S: bool = true> {
     oks_at: Vec<u64>,
     /// Program mode: how the run ended, whether it succeeded, its result lines.
     program: Option<(Option<Finished>, bool, Vec<String>)>,
+    /// The machine's limit switches (None: no switches), and whether a closing one trips.
+    switches: Option<Switches>,
+    limit_trips: bool,
 }
 
 /// A program file in memory, read `chunk` bytes at a time; its result lines.
@@ -346,6 +372,20 @@ impl<const S: bool> LoaderBoard for Bench<S> {
     }
 
     fn inputs(&mut self) -> Events {
+        // A switch that closes while limits trip: the latch, as the board's debouncer sets it.
+        if let Some(sw) = self.switches {
+            let closed = sw.closed(self.status.encoder());
+            if self.limit_trips && closed != 0 && self.latch.is_none() {
+                self.latch = Some(Trip {
+                    estop: false,
+                    limits: closed,
+                });
+                return Events {
+                    tripped: true,
+                    ..Events::default()
+                };
+            }
+        }
         match self.inputs.front() {
             Some((at, e)) if *at <= self.frames => {
                 let e = *e;
@@ -365,15 +405,24 @@ impl<const S: bool> LoaderBoard for Bench<S> {
     }
 
     fn acknowledge(&mut self) -> bool {
-        if self.estop_active {
+        if self.estop_active || self.limits() != 0 {
             return false;
         }
         self.latch = None;
         true
     }
 
+    fn limits(&mut self) -> u8 {
+        self.switches
+            .map_or(0, |sw| sw.closed(self.status.encoder()))
+    }
+
+    fn limit_trips(&mut self, on: bool) {
+        self.limit_trips = on;
+    }
+
     fn latch_active(&mut self) -> bool {
-        self.latch.is_some() && self.estop_active
+        self.latch.is_some() && (self.estop_active || self.limits() != 0)
     }
 
     fn frame_limit_cycles(&self) -> Option<u32> {
@@ -461,6 +510,11 @@ fn session_on<const S: bool>(
     let (rx, task) = Box::leak(Box::new(RxShared::new())).split();
     let (mut table, _) =
         Persistent::load(NoStorage, crate::settings::BoardLimits::GENERIC).unwrap();
+    if let Some((_, setup)) = MACHINE.with(|m| m.get()) {
+        let mut m = table.settings.get();
+        m.setup = setup;
+        table.settings = m.validated(&table.board).unwrap();
+    }
     if let Some((_, AcEvent::Chatter { step_mm, max_rpm })) = ac_event {
         let mut m = table.settings.get();
         m.ac.chatter_step_mm = step_mm;
@@ -505,6 +559,8 @@ fn session_on<const S: bool>(
         job_end_at: None,
         oks_at: Vec::new(),
         program: None,
+        switches: MACHINE.with(|m| m.get()).map(|(sw, _)| sw),
+        limit_trips: true,
     };
     // The breakage and chatter events are an enabled AC's (its holds apply): the loader gets its
     // ceiling, as the boards give it with `$250=1`.
@@ -1014,6 +1070,191 @@ fn a_tool_set_with_dollar_t_is_stored_and_the_parser_has_it_at_once() {
     );
     assert_eq!((t.force_limit_n, t.torque_limit_nm), (900.0, 12.0));
     RECORD.with(|r| *r.borrow_mut() = None);
+}
+
+/// A homing set-up for the bench: quick (pull-off 0.2 mm, locate at 100 mm/min, pauses of
+/// 20 ms) so a cycle fits a test.
+fn homing_setup() -> crate::settings::Setup {
+    crate::settings::Setup {
+        homing: true,
+        homing_pulloff_um: 200,
+        homing_feed_um_min: 100_000,
+        homing_debounce_ms: 20,
+        ..crate::settings::Setup::default()
+    }
+}
+
+/// The bench's machine: it stands 30, 20 and 5 mm short of its switches at power-up (true
+/// BLU: the switches at 0; it starts at -11 811, -7 874, -1 969).
+const SWITCHES: Switches = Switches {
+    start: [-11_811, -7_874, -1_969],
+    at: [0, 0, 0],
+    side: [1, 1, 1],
+};
+
+/// The status report's MPos in BLU (tenths of a mil: the report's mm times 10 000 / 25.4).
+fn mpos(out: &str) -> [i64; 3] {
+    let r = out.rsplit("MPos:").next().unwrap();
+    let v: Vec<f64> = r
+        .split(['|', '>'])
+        .next()
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    [0, 1, 2].map(|k| (v[k] / 0.00254).round() as i64)
+}
+
+/// With homing on (`$22=1`) the machine starts locked with `ALARM:11`: G-code is refused and
+/// `$X` too (the position is not known); `$H` homes Z, then X, then Y, each stopping on its
+/// switch, and leaves every axis its pull-off inside its soft maximum, which is where its switch
+/// is. The lock is gone; G0 X0 Y0 Z0 goes to the machine's zero, 254 mm below the switches.
+#[test]
+fn homing_finds_the_switches_and_makes_the_soft_limits_the_machines() {
+    MACHINE.with(|m| m.set(Some((SWITCHES, homing_setup()))));
+    let b = session(
+        &[
+            (1, "G0 X1\n"),
+            (10, "$X\n"),
+            (20, "$H\n"),
+            (60_000, "?"),
+            (60_010, "G90 G0 X0 Y0 Z0\n"),
+            (200_000, "?"),
+        ],
+        &[],
+        None,
+        200_100,
+    );
+    MACHINE.with(|m| m.set(None));
+    let out = &b.out;
+    assert!(out.contains("ALARM:11\r\n"), "{out}");
+    let after_banner = out.split("ALARM:11").nth(1).unwrap();
+    assert!(
+        after_banner.starts_with("\r\n[MSG:Homing required: '$H']\r\nerror:9\r\n"),
+        "{out}"
+    );
+    assert!(
+        out.contains("[MSG:Homing required: '$H']\r\nerror:9\r\nok\r\n"),
+        "$X refused, then $H: {out}"
+    );
+    // Home: the soft maximum (100 000 BLU, 40 000 for Z) less the pull-off (79 BLU).
+    let home = out.split("<Idle|").nth(1).unwrap();
+    assert_eq!(mpos(home), [99_921, 99_921, 39_921], "{out}");
+    // The true position: 79 BLU inside each switch.
+    let truth = [0, 1, 2].map(|k| b.status.encoder()[k] + SWITCHES.start[k]);
+    assert_eq!(b.status.machine_encoder(), [0, 0, 0], "{out}");
+    assert_eq!(
+        truth,
+        [-100_000, -100_000, -40_000],
+        "machine zero is 254 mm below X's switch"
+    );
+    assert_eq!(oks(out), 2, "{out}");
+}
+
+/// Homing off (`$22=0`, the default): `$H` is `error:5`, as grbl's.
+#[test]
+fn homing_off_refuses_dollar_h() {
+    let b = session(&[(1, "$H\n")], &[], None, 100);
+    assert!(b.out.ends_with("error:5\r\n"), "{}", b.out);
+}
+
+/// A switch that never closes (the machine's switch far beyond the search): `ALARM:9`, the
+/// machine stopped where the search ended, still locked.
+#[test]
+fn homing_without_a_switch_fails_with_alarm_9() {
+    let far = Switches {
+        at: [0, 0, 500_000],
+        ..SWITCHES
+    };
+    let fast = crate::settings::Setup {
+        homing_seek_um_min: 760_000,
+        ..homing_setup()
+    };
+    MACHINE.with(|m| m.set(Some((far, fast))));
+    // 120 000 BLU at 760 mm/min (4987 BLU/s, just under the feed DDA's top rate): 24 s.
+    let b = session(&[(1, "$HZ\n"), (135_000, "G0 X1\n")], &[], None, 135_100);
+    MACHINE.with(|m| m.set(None));
+    assert!(
+        b.out.contains("ALARM:9\r\nerror:9\r\nerror:9\r\n"),
+        "{}",
+        b.out
+    );
+    // 1.5 x Z's travel (80 000 BLU) searched.
+    assert_eq!(b.status.encoder(), [0, 0, 120_000]);
+}
+
+/// An e-stop during a homed machine's move stops it and loses the position: once the e-stop is
+/// released, `$X` is refused (homing required) until `$H` homes again; then it moves.
+#[test]
+fn an_estop_in_motion_loses_the_position_and_only_homing_unlocks() {
+    MACHINE.with(|m| m.set(Some((SWITCHES, homing_setup()))));
+    let estop = Events {
+        tripped: true,
+        ..Events::default()
+    };
+    let b = session(
+        &[
+            (1, "$H\n"),
+            (60_000, "G91 G1 F500 X-5\n"),
+            (72_000, "$X\n"),
+            (72_010, "$H\n"),
+            (140_000, "G21 G91 G1 F500 X-1\n"),
+        ],
+        &[(61_000, estop)],
+        Some(70_000),
+        150_000,
+    );
+    MACHINE.with(|m| m.set(None));
+    let out = &b.out;
+    assert!(out.contains("ALARM:10\r\n"), "{out}");
+    let tail = out.split("ALARM:10\r\n").nth(1).unwrap();
+    assert!(
+        tail.contains("[MSG:Homing required: '$H']\r\nerror:9\r\nok\r\nok\r\n"),
+        "$X refused, $H, then the move: {out}"
+    );
+    assert_eq!(
+        b.status.machine_encoder(),
+        [99_921 - 394, 99_921, 39_921],
+        "{out}"
+    );
+}
+
+/// Hard limits (`$21=1`, the default): a switch that closes in a move stops everything with
+/// `ALARM:1` at the switch, and `$X` is refused while it stays closed. With `$21=0` the same
+/// move runs through (a machine whose switches are only for homing).
+#[test]
+fn hard_limits_trip_with_21_on_and_not_with_21_off() {
+    let sw = Switches {
+        start: [0; 3],
+        at: [1_969, 500_000, 500_000],
+        side: [1; 3],
+    };
+    for hard in [true, false] {
+        let setup = crate::settings::Setup {
+            hard_limits: hard,
+            ..crate::settings::Setup::default()
+        };
+        MACHINE.with(|m| m.set(Some((sw, setup))));
+        let b = session(
+            &[(1, "G21 G91 G1 F2000 X10\n"), (40_000, "$X\n")],
+            &[],
+            None,
+            40_100,
+        );
+        MACHINE.with(|m| m.set(None));
+        if hard {
+            assert!(b.out.contains("ALARM:1\r\n"), "{}", b.out);
+            assert!(b.out.ends_with("still active]\r\nerror:9\r\n"), "{}", b.out);
+            let x = b.status.encoder()[0];
+            assert!(
+                (1_969..1_969 + 20).contains(&x),
+                "stopped at the switch: {x}"
+            );
+        } else {
+            assert!(!b.out.contains("ALARM"), "{}", b.out);
+            assert_eq!(b.status.encoder(), [3_937, 0, 0]);
+        }
+    }
 }
 
 #[test]

@@ -141,6 +141,14 @@ impl<M: Mutex<T = Debouncer>> LoaderBoard for Nucleo<'_, M> {
             d.latched().is_some() && (i.estop || i.limits != 0)
         })
     }
+
+    fn limits(&mut self) -> u8 {
+        self.inputs.lock(|d| d.inputs().limits)
+    }
+
+    fn limit_trips(&mut self, on: bool) {
+        self.inputs.lock(|d| d.set_limit_trips(on))
+    }
 }
 
 /// The AC log lines at defmt's debug level (`DEFMT_LOG=debug` to see them).

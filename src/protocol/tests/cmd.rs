@@ -44,8 +44,34 @@ fn help_settings_hook_and_unknown_commands() {
     ] {
         assert_eq!(answer(&mut r, bad), "error:3\r\n", "{bad}");
     }
-    assert_eq!(answer(&mut r, "$H"), "error:5\r\n");
     assert_eq!(answer(&mut r, "$N"), "$N0=\r\n$N1=\r\nok\r\n");
+}
+
+/// `$H`, `$HX`, `$HY`, `$HZ` (any case, spaces) hand the homing cycle to the loader with the
+/// axes' mask; it answers (the rig at once). Other `$H...` are `error:3`.
+#[test]
+fn homing_commands_go_to_the_loader_with_their_axes() {
+    let mut r = Rig::new();
+    for (cmd, mask) in [
+        ("$H", 0b111),
+        ("$HX", 0b001),
+        ("$hy", 0b010),
+        ("$H Z", 0b100),
+    ] {
+        assert_eq!(
+            r.feed(std::format!("{cmd}\n").as_bytes()),
+            [Ev::Home(mask)],
+            "{cmd}"
+        );
+        assert_eq!(r.take(), "ok\r\n");
+    }
+    for bad in ["$HXY", "$HA", "$H=1"] {
+        assert_eq!(answer(&mut r, bad), "error:3\r\n", "{bad}");
+    }
+    // In Alarm too (that is how a machine locked at power-up is homed).
+    r.p.alarm(11, &mut r.out);
+    r.take();
+    assert_eq!(r.feed(b"$H\n"), [Ev::Home(0b111)]);
 }
 
 #[test]

@@ -50,6 +50,7 @@ impl SettingsTable for Table {
 pub enum Ev {
     Gcode(String, bool),
     Jog(JogRequest),
+    Home(u8),
     Realtime(Pending),
     Reset,
     Replied,
@@ -120,6 +121,7 @@ impl Rig {
             Event::Replied => Ev::Replied,
             Event::Gcode { line, check } => Ev::Gcode(line.to_string(), check),
             Event::Jog(j) => Ev::Jog(j),
+            Event::Home(m) => Ev::Home(m),
             Event::Realtime(p) => Ev::Realtime(p),
             Event::Reset => Ev::Reset,
             Event::Unlock => Ev::Unlock,
@@ -140,6 +142,8 @@ impl Rig {
                 let r = j.plan(&self.parser).map(|_| ());
                 assert!(self.p.reply(r, &mut self.out));
             }
+            // The loader's homing cycle, done at once.
+            Ev::Home(_) => assert!(self.p.reply(Ok(()), &mut self.out)),
             Ev::Reset => self.parser = Parser::new(self.machine),
             _ => {}
         }
