@@ -55,6 +55,70 @@ fn inputs(b: u16) -> Inputs {
     }
 }
 
+/// A simulated machine's limit switches (the QEMU board's machine model and the host benches;
+/// a real board reads its pins): where the machine stands at power-up and where each axis's
+/// switch is, in true BLU (the counters start at 0 wherever the machine stands, so true =
+/// counter + start); a switch is closed at and beyond its position on its side.
+///
+/// File form (`machine.txt` in the QEMU board's working directory, one line; [`Self::parse`],
+/// written by [`core::fmt::Display`]): `start X Y Z switches X Y Z negative MASK`, integers in
+/// BLU, MASK's bit k set when axis k's switch is at its negative end.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LimitSwitches {
+    pub start: [i32; 3],
+    pub at: [i32; 3],
+    /// Bit k: axis k's switch closes at and below its position (else at and above).
+    pub negative: u8,
+}
+
+impl LimitSwitches {
+    /// The switches closed with the counters at `counts` (bit k: axis k).
+    pub fn closed(&self, counts: [i32; 3]) -> u8 {
+        (0..3).fold(0, |m, k| {
+            let d = i64::from(counts[k]) + i64::from(self.start[k]) - i64::from(self.at[k]);
+            let on = if self.negative & (1 << k) != 0 {
+                d <= 0
+            } else {
+                d >= 0
+            };
+            m | (u8::from(on) << k)
+        })
+    }
+
+    /// Reads the file form; None when it is not exactly that.
+    pub fn parse(text: &str) -> Option<LimitSwitches> {
+        let mut w = text.split_whitespace();
+        let mut three = |name: &str| -> Option<[i32; 3]> {
+            (w.next()? == name).then_some(())?;
+            let mut v = [0; 3];
+            for x in v.iter_mut() {
+                *x = w.next()?.parse().ok()?;
+            }
+            Some(v)
+        };
+        let start = three("start")?;
+        let at = three("switches")?;
+        (w.next()? == "negative").then_some(())?;
+        let negative: u8 = w.next()?.parse().ok().filter(|m| *m <= 7)?;
+        w.next().is_none().then_some(LimitSwitches {
+            start,
+            at,
+            negative,
+        })
+    }
+}
+
+impl core::fmt::Display for LimitSwitches {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let ([a, b, c], [x, y, z]) = (self.start, self.at);
+        write!(
+            f,
+            "start {a} {b} {c} switches {x} {y} {z} negative {}",
+            self.negative
+        )
+    }
+}
+
 /// What latched the alarm: the e-stop and the limit switches (bit k = axis k) seen active since
 /// the latch was set.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -194,6 +258,32 @@ impl Debouncer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The machine model's switches close at their positions on their sides, from the start
+    /// position; the file form reads back what it writes, and nothing else.
+    #[test]
+    fn limit_switches_close_at_their_positions_and_read_back() {
+        let sw = LimitSwitches {
+            start: [-100, 0, 50],
+            at: [0, -30, 60],
+            negative: 0b010,
+        };
+        assert_eq!(sw.closed([0, 0, 0]), 0);
+        assert_eq!(sw.closed([100, -30, 10]), 0b111);
+        assert_eq!(sw.closed([99, -29, 9]), 0);
+        let text = std::format!("{sw}");
+        assert_eq!(text, "start -100 0 50 switches 0 -30 60 negative 2");
+        assert_eq!(LimitSwitches::parse(&text), Some(sw));
+        assert_eq!(LimitSwitches::parse(&std::format!("{text}\n")), Some(sw));
+        for bad in [
+            "",
+            "start 1 2 3",
+            "start 1 2 3 switches 1 2 3 negative 8",
+            &std::format!("{text} 1"),
+        ] {
+            assert_eq!(LimitSwitches::parse(bad), None, "{bad}");
+        }
+    }
 
     /// With limit trips off (homing, `$21=0`) a closing limit switch shows at once in the inputs
     /// and latches nothing; the e-stop still trips. Turned back on, a switch still closed trips.

@@ -85,7 +85,7 @@ fn serve_steel_block(
                 faults: Vec::new(),
                 settings: millac::ac::AcSettings::default(),
             };
-            serve::serve(&out, &settings_file, &addr, 4, Some(&ac), stop)
+            serve::serve(&out, &settings_file, &addr, 4, Some(&ac), None, stop)
         })
     };
     let stream = connect(&addr);
@@ -163,11 +163,22 @@ fn start(tag: &str) -> Session {
 
 /// A session in `out` (kept as it is) with the settings file `settings`.
 fn start_in(out: std::path::PathBuf, settings: std::path::PathBuf) -> Session {
+    start_machine(out, settings, None)
+}
+
+/// [`start_in`] with the machine model's limit switches.
+fn start_machine(
+    out: std::path::PathBuf,
+    settings: std::path::PathBuf,
+    machine: Option<millac::inputs::LimitSwitches>,
+) -> Session {
     let addr = format!("127.0.0.1:{}", free_port());
     let stop = Arc::new(AtomicBool::new(false));
     let server = {
         let (out, addr, stop) = (out.clone(), addr.clone(), stop.clone());
-        std::thread::spawn(move || serve::serve(&out, &settings, &addr, 4, None, stop))
+        std::thread::spawn(move || {
+            serve::serve(&out, &settings, &addr, 4, None, machine.as_ref(), stop)
+        })
     };
     Session {
         out,
@@ -712,6 +723,63 @@ fn a_setting_persists_into_the_next_session() {
     assert_eq!(e.edges.len(), 100, "0.01 in = 100 BLU");
     let width = e.min_pulse_width_ns.unwrap();
     assert!((7000..7000 + 2000).contains(&width), "{width} ns");
+}
+
+/// Homing under QEMU through `serve`, with the lines the senders' Homing and Unlock buttons send
+/// (`$H`, `$X`): the machine model stands 5, 4 and 3 mm short of its switches. A first session
+/// turns homing on (`$22=1`, quick pull-off and pauses) and homes; the second, on the same
+/// settings file, starts locked (`ALARM:11`: G-code and `$X` refused), homes with `$H` and is
+/// Idle at the home position: the soft maxima less the 0.2 mm pull-off.
+#[test]
+fn a_machine_homes_through_serve_and_starts_locked_until_it_has() {
+    let settings = fresh("homing-state").join("settings.bin");
+    let machine = millac::inputs::LimitSwitches {
+        start: [-1_969, -1_575, -1_181],
+        at: [0; 3],
+        negative: 0,
+    };
+    let home = "MPos:253.799,253.799,101.399";
+    {
+        let Session {
+            addr, stop, server, ..
+        } = start_machine(fresh("homing1"), settings.clone(), Some(machine));
+        let stream = connect(&addr);
+        let mut w = stream.try_clone().unwrap();
+        let mut r = BufReader::new(stream);
+        banner(&mut w, &mut r);
+        for set in ["$22=1", "$27=0.2", "$24=100", "$26=20"] {
+            assert_eq!(ask(&mut w, &mut r, set).last().unwrap(), "ok", "{set}");
+        }
+        let got = ask(&mut w, &mut r, "$H");
+        assert_eq!(got.last().unwrap(), "ok", "{got:?}");
+        w.write_all(b"?").unwrap();
+        let s = read_until(&mut r, |s| s.starts_with('<')).pop().unwrap();
+        assert!(s.starts_with("<Idle|") && s.contains(home), "{s}");
+        stop.store(true, Ordering::SeqCst);
+        server.join().unwrap().expect("serve");
+    }
+    let Session {
+        addr, stop, server, ..
+    } = start_machine(fresh("homing2"), settings, Some(machine));
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    let mut b = banner(&mut w, &mut r);
+    // The firmware's power-up lines may come after the port's greeting: read on to G0's answer.
+    b.extend(ask(&mut w, &mut r, "G0 X1"));
+    assert_eq!(b.last().unwrap(), "error:9", "{b:?}");
+    assert!(b.iter().any(|l| l == "ALARM:11"), "{b:?}");
+    assert_eq!(state(&mut w, &mut r), "Alarm");
+    assert_eq!(
+        ask(&mut w, &mut r, "$X"),
+        ["[MSG:Homing required: '$H']", "error:9"]
+    );
+    assert_eq!(ask(&mut w, &mut r, "$H").last().unwrap(), "ok");
+    w.write_all(b"?").unwrap();
+    let s = read_until(&mut r, |s| s.starts_with('<')).pop().unwrap();
+    assert!(s.starts_with("<Idle|") && s.contains(home), "{s}");
+    stop.store(true, Ordering::SeqCst);
+    server.join().unwrap().expect("serve");
 }
 
 /// A settings file with one flipped byte: the banner is followed by `ALARM:120` and why, G-code

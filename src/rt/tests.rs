@@ -51,24 +51,7 @@ std::thread_local! {
         const { core::cell::Cell::new(None) };
 }
 
-/// The machine model's limit switches: where the machine stands at power-up and where each
-/// axis's switch is, in true BLU (the counters start at 0 wherever the machine stands); a switch
-/// is closed at and beyond its position on its side (+1: toward the positive end).
-#[derive(Clone, Copy, Debug)]
-struct Switches {
-    start: [i32; 3],
-    at: [i32; 3],
-    side: [i32; 3],
-}
-
-impl Switches {
-    /// The switches closed with the encoder at `encoder`.
-    fn closed(&self, encoder: [i32; 3]) -> u8 {
-        (0..3)
-            .filter(|&k| (encoder[k] + self.start[k] - self.at[k]) * self.side[k] >= 0)
-            .fold(0, |m, k| m | 1 << k)
-    }
-}
+use crate::inputs::LimitSwitches as Switches;
 
 const Q: usize = 16;
 const T: usize = 1024;
@@ -1089,7 +1072,7 @@ fn homing_setup() -> crate::settings::Setup {
 const SWITCHES: Switches = Switches {
     start: [-11_811, -7_874, -1_969],
     at: [0, 0, 0],
-    side: [1, 1, 1],
+    negative: 0,
 };
 
 /// The status report's MPos in BLU (tenths of a mil: the report's mm times 10 000 / 25.4).
@@ -1227,7 +1210,7 @@ fn hard_limits_trip_with_21_on_and_not_with_21_off() {
     let sw = Switches {
         start: [0; 3],
         at: [1_969, 500_000, 500_000],
-        side: [1; 3],
+        negative: 0,
     };
     for hard in [true, false] {
         let setup = crate::settings::Setup {

@@ -19,6 +19,9 @@ pub const SETTINGS_FILE: &str = "settings.bin\0";
 pub const SERVE_LOG_FILE: &str = "serve.nc\0";
 /// The firmware's results for the host tools (`millac::wire`, "Result file").
 pub const RESULT_FILE: &str = "result.txt\0";
+/// The machine model's limit switches (`millac::inputs::LimitSwitches`' file form), read once
+/// when serial mode starts; none: no switches (`$H` then fails with `ALARM:9`).
+pub const MACHINE_FILE: &str = "machine.txt\0";
 /// The names without their NUL.
 pub const REQ_NAME: &str = strip_nul(REQ_FILE);
 pub const RESP_NAME: &str = strip_nul(RESP_FILE);
@@ -26,6 +29,7 @@ pub const AC_LOG_NAME: &str = strip_nul(AC_LOG_FILE);
 pub const SETTINGS_NAME: &str = strip_nul(SETTINGS_FILE);
 pub const SERVE_LOG_NAME: &str = strip_nul(SERVE_LOG_FILE);
 pub const RESULT_NAME: &str = strip_nul(RESULT_FILE);
+pub const MACHINE_NAME: &str = strip_nul(MACHINE_FILE);
 
 /// `s` without a trailing NUL.
 const fn strip_nul(s: &str) -> &str {
@@ -51,5 +55,6 @@ mod tests {
         assert_eq!(SETTINGS_NAME, "settings.bin");
         assert_eq!(SERVE_LOG_NAME, "serve.nc");
         assert_eq!(RESULT_NAME, "result.txt");
+        assert_eq!(MACHINE_NAME, "machine.txt");
     }
 }

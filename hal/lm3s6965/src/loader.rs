@@ -20,7 +20,10 @@ use crate::facts::Lm3s6965 as B;
 use crate::shared::{QUEUE, RECORD, SERIAL};
 use crate::storage::FileStorage;
 use crate::uart::TX_QUEUE;
-use millac::ports::Board;
+use cortex_m_semihosting::nr;
+use millac::inputs::{Debouncer, Events, LimitSwitches, Trip};
+use millac::ports::{Board, Inputs};
+use millac::rt::status::STATUS;
 
 /// What init hands the loader (the idle task's local resource).
 pub struct Ends {
@@ -70,6 +73,8 @@ pub fn run(ends: &mut Ends, replan: &mut Option<Replan<RECORD>>) -> ! {
                 true => crate::session::SessionLog::create(),
                 false => crate::session::SessionLog::none(),
             },
+            switches: if serial { machine() } else { None },
+            inputs: millac::inputs::Debouncer::default(),
         },
     );
     if let Some(p) = program {
@@ -97,15 +102,42 @@ pub fn set_spindle_rpm(rpm: u32) {
     }
 }
 
+/// The machine model's limit switches from `machine.txt` ([`crate::files::MACHINE_FILE`]), if
+/// QEMU's working directory holds a valid one. Idle loader, once.
+fn machine() -> Option<LimitSwitches> {
+    let fd = crate::semihost::open(crate::files::MACHINE_FILE.as_bytes(), nr::open::R)?;
+    let mut buf = [0u8; 128];
+    let n = crate::semihost::read(fd, &mut buf);
+    crate::semihost::close(fd);
+    let text = core::str::from_utf8(buf.get(..n?)?).ok()?;
+    LimitSwitches::parse(text)
+}
+
 /// The QEMU board as the loader sees it: in serial mode UART0 (`start` with the board's UART
 /// clock; `kick` pends UART0) and the session log `serve.nc`; in both modes a simulated spindle:
 /// the S of a spindle change reaches the simulated cut through the ADC's requests
-/// ([`spindle_rpm`]), after the motion before it, as on the real board. No operator inputs.
+/// ([`spindle_rpm`]), after the motion before it, as on the real board. In serial mode the
+/// machine model's limit switches, when `machine.txt` gives them: closed from the pulses the
+/// board emitted (the encoder), sampled through the core's debouncer at every loader turn, as
+/// a real board samples its pins. No other operator inputs.
 pub struct QemuLoader {
     pub clock_hz: u32,
     /// Serial mode: UART0 is started (program mode leaves it off).
     pub serial: bool,
     pub log: crate::session::SessionLog,
+    pub switches: Option<LimitSwitches>,
+    pub inputs: Debouncer,
+}
+
+impl QemuLoader {
+    /// One sample of the simulated switches.
+    fn sample(&mut self) -> Inputs {
+        let limits = self.switches.map_or(0, |sw| sw.closed(STATUS.encoder()));
+        self.inputs.sample(Inputs {
+            limits,
+            ..Inputs::default()
+        })
+    }
 }
 
 impl millac::rt::loader::LoaderBoard for QemuLoader {
@@ -137,5 +169,36 @@ impl millac::rt::loader::LoaderBoard for QemuLoader {
 
     fn log_reset(&mut self) {
         self.log.reset();
+    }
+
+    fn inputs(&mut self) -> Events {
+        // No machine model (program mode, or no machine.txt): no inputs, no work per turn.
+        if self.switches.is_none() {
+            return Events::default();
+        }
+        self.sample();
+        self.inputs.take()
+    }
+
+    fn latched(&mut self) -> Option<Trip> {
+        self.inputs.latched()
+    }
+
+    fn acknowledge(&mut self) -> bool {
+        self.sample();
+        self.inputs.acknowledge()
+    }
+
+    fn latch_active(&mut self) -> bool {
+        let i = self.sample();
+        self.inputs.latched().is_some() && i.limits != 0
+    }
+
+    fn limits(&mut self) -> u8 {
+        self.sample().limits
+    }
+
+    fn limit_trips(&mut self, on: bool) {
+        self.inputs.set_limit_trips(on);
     }
 }

@@ -26,6 +26,11 @@ pub(crate) struct ServeArgs {
     /// No simulated ADC and no adaptive control.
     #[arg(long, conflicts_with = "strategy")]
     pub(crate) nc_only: bool,
+    /// The machine model's limit switches, one line `start X Y Z switches X Y Z negative MASK`
+    /// (BLU: where the machine stands at power-up and where each switch is; MASK bit k: axis
+    /// k's switch at its negative end). Without it the machine has no switches.
+    #[arg(long)]
+    pub(crate) machine: Option<PathBuf>,
     #[command(flatten)]
     pub(crate) cut: CutArgs,
 }
@@ -38,8 +43,22 @@ pub(crate) fn command(args: ServeArgs) -> Result<bool> {
         settings,
         shift,
         nc_only,
+        machine,
         cut,
     } = args;
+    let machine = match machine {
+        Some(path) => {
+            let text = std::fs::read_to_string(&path)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            Some(millac::inputs::LimitSwitches::parse(&text).ok_or_else(|| {
+                anyhow::anyhow!(
+                    "{}: not a machine model (one line: start X Y Z switches X Y Z negative MASK)",
+                    path.display()
+                )
+            })?)
+        }
+        None => None,
+    };
     if let Some(s) = cut.strategy {
         anyhow::ensure!(
             settings.is_none(),
@@ -49,7 +68,14 @@ pub(crate) fn command(args: ServeArgs) -> Result<bool> {
         millac_qemu::emulator::serve::store_strategy(&out, s.into())?;
     }
     let settings = settings.unwrap_or_else(|| millac_qemu::emulator::serve::default_settings(&out));
-    serve(&tcp, &out, &settings, shift, (!nc_only).then_some(&cut))
+    serve(
+        &tcp,
+        &out,
+        &settings,
+        shift,
+        (!nc_only).then_some(&cut),
+        machine.as_ref(),
+    )
 }
 
 fn serve(
@@ -58,6 +84,7 @@ fn serve(
     settings: &Path,
     shift: u32,
     cut: Option<&CutArgs>,
+    machine: Option<&millac::inputs::LimitSwitches>,
 ) -> Result<bool> {
     let ac = match cut {
         Some(c) => Some(runner::AcRun {
@@ -94,7 +121,7 @@ fn serve(
     let served = reported(
         out,
         true,
-        millac_qemu::emulator::serve::serve(out, settings, tcp, shift, ac.as_ref(), stop),
+        millac_qemu::emulator::serve::serve(out, settings, tcp, shift, ac.as_ref(), machine, stop),
     )?;
     println!(
         "{}",

@@ -121,13 +121,16 @@ pub fn store_strategy(out: &Path, strategy: millac::ac::law::Strategy) -> Result
 /// `out/capture.vcd`, `out/serve.nc` (the firmware's session log) and `out/summary.json`. The
 /// firmware loads and stores its settings in `settings` ([`link_settings`]). With `ac`, the
 /// simulated ADC serves the cutting process as in `run` (`out/ac.log` is the firmware's AC log;
-/// `out/ac.csv` and `out/ac.svg` as in `run`).
+/// `out/ac.csv` and `out/ac.svg` as in `run`). With `machine`, the machine model's limit
+/// switches (`out/machine.txt`: the firmware closes them from its own pulses; `$H` homes on
+/// them, a move into one trips `ALARM:1`); without, none.
 pub fn serve(
     out: &Path,
     settings: &Path,
     tcp: &str,
     shift: u32,
     ac: Option<&AcRun>,
+    machine: Option<&millac::inputs::LimitSwitches>,
     stop: Arc<AtomicBool>,
 ) -> Result<Served> {
     let elf = firmware::build()?;
@@ -143,6 +146,14 @@ pub fn serve(
         let _ = std::fs::remove_file(out.join(f));
     }
     link_settings(out, settings)?;
+    let machine_file = out.join(crate::lm3s_files::MACHINE_NAME);
+    match machine {
+        Some(m) => std::fs::write(&machine_file, format!("{m}\n"))
+            .with_context(|| format!("writing {}", machine_file.display()))?,
+        None => {
+            let _ = std::fs::remove_file(&machine_file);
+        }
+    }
     // The settings the firmware will start with (the same checks; a refused record is the
     // defaults there too): the simulated ADC's clock and whether the AC caps the feed.
     let stored = std::fs::read(settings)
