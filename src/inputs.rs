@@ -52,6 +52,7 @@ fn inputs(b: u16) -> Inputs {
         feed_hold: b & FEED_HOLD != 0,
         cycle_start: b & CYCLE_START != 0,
         limits: (b >> LIMITS_SHIFT) as u8,
+        probe: false,
     }
 }
 
@@ -61,14 +62,17 @@ fn inputs(b: u16) -> Inputs {
 /// counter + start); a switch is closed at and beyond its position on its side.
 ///
 /// File form (`machine.txt` in the QEMU board's working directory, one line; [`Self::parse`],
-/// written by [`core::fmt::Display`]): `start X Y Z switches X Y Z negative MASK`, integers in
-/// BLU, MASK's bit k set when axis k's switch is at its negative end.
+/// written by [`core::fmt::Display`]): `start X Y Z switches X Y Z negative MASK [probe Z]`,
+/// integers in BLU, MASK's bit k set when axis k's switch is at its negative end; `probe Z`: a
+/// flat surface (a touch plate, the stock's top) the probe touches at and below true Z.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LimitSwitches {
     pub start: [i32; 3],
     pub at: [i32; 3],
     /// Bit k: axis k's switch closes at and below its position (else at and above).
     pub negative: u8,
+    /// The probe touches at and below this true Z (None: nothing to touch).
+    pub probe: Option<i32>,
 }
 
 impl LimitSwitches {
@@ -83,6 +87,12 @@ impl LimitSwitches {
             };
             m | (u8::from(on) << k)
         })
+    }
+
+    /// The probe touches with the counters at `counts`.
+    pub fn touches(&self, counts: [i32; 3]) -> bool {
+        self.probe
+            .is_some_and(|z| i64::from(counts[2]) + i64::from(self.start[2]) <= i64::from(z))
     }
 
     /// Reads the file form; None when it is not exactly that.
@@ -100,10 +110,16 @@ impl LimitSwitches {
         let at = three("switches")?;
         (w.next()? == "negative").then_some(())?;
         let negative: u8 = w.next()?.parse().ok().filter(|m| *m <= 7)?;
+        let probe = match w.next() {
+            None => None,
+            Some("probe") => Some(w.next()?.parse().ok()?),
+            Some(_) => return None,
+        };
         w.next().is_none().then_some(LimitSwitches {
             start,
             at,
             negative,
+            probe,
         })
     }
 }
@@ -115,7 +131,11 @@ impl core::fmt::Display for LimitSwitches {
             f,
             "start {a} {b} {c} switches {x} {y} {z} negative {}",
             self.negative
-        )
+        )?;
+        match self.probe {
+            Some(p) => write!(f, " probe {p}"),
+            None => Ok(()),
+        }
     }
 }
 
@@ -155,6 +175,8 @@ pub struct Debouncer {
     /// The lines that trip the latch: the e-stop, and the limit switches unless
     /// [`Debouncer::set_limit_trips`] turned them off.
     trips: u16,
+    /// The probe as last sampled: not debounced (a probing move stops at its first touch).
+    probe: bool,
 }
 
 impl Default for Debouncer {
@@ -178,6 +200,7 @@ impl Debouncer {
             },
             latch: 0,
             trips: SAFETY,
+            probe: false,
         }
     }
 
@@ -190,6 +213,7 @@ impl Debouncer {
 
     /// One raw sample of the inputs. Board's periodic input task. Returns the debounced inputs.
     pub fn sample(&mut self, raw: Inputs) -> Inputs {
+        let raw_probe = raw.probe;
         let raw = bits(raw);
         let before = self.stable;
         let mut stable = before;
@@ -218,12 +242,17 @@ impl Debouncer {
             self.events.tripped |= self.latch == 0;
             self.latch |= active;
         }
-        inputs(stable)
+        self.probe = raw_probe;
+        self.inputs()
     }
 
-    /// The debounced inputs as of the last sample. Any context that holds the debouncer.
+    /// The debounced inputs as of the last sample, the probe as sampled. Any context that holds
+    /// the debouncer.
     pub fn inputs(&self) -> Inputs {
-        inputs(self.stable)
+        Inputs {
+            probe: self.probe,
+            ..inputs(self.stable)
+        }
     }
 
     /// Takes (and clears) the events since the last call. Loader task.
@@ -267,6 +296,7 @@ mod tests {
             start: [-100, 0, 50],
             at: [0, -30, 60],
             negative: 0b010,
+            probe: None,
         };
         assert_eq!(sw.closed([0, 0, 0]), 0);
         assert_eq!(sw.closed([100, -30, 10]), 0b111);
@@ -283,6 +313,13 @@ mod tests {
         ] {
             assert_eq!(LimitSwitches::parse(bad), None, "{bad}");
         }
+        // A probe surface at true Z 40: the counters' Z -10 is true Z 40.
+        let with = LimitSwitches {
+            probe: Some(40),
+            ..sw
+        };
+        assert_eq!(LimitSwitches::parse(&std::format!("{with}")), Some(with));
+        assert!(!sw.touches([0, 0, -10]) && !with.touches([0, 0, -9]) && with.touches([0, 0, -10]));
     }
 
     /// With limit trips off (homing, `$21=0`) a closing limit switch shows at once in the inputs
@@ -316,6 +353,7 @@ mod tests {
         feed_hold: false,
         cycle_start: false,
         limits: 0,
+        probe: false,
     };
 
     fn hold(on: bool) -> Inputs {

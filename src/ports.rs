@@ -247,6 +247,8 @@ pub struct Inputs {
     pub cycle_start: bool,
     /// Axis limit switches, bit k = axis k.
     pub limits: u8,
+    /// The probe touches (as wired: a probe closing to ground; `$6` inverts it). Not debounced.
+    pub probe: bool,
 }
 
 /// Operator inputs (e-stop, feed hold, cycle start, limits), raw. The board's periodic input task,
@@ -308,6 +310,8 @@ pub struct PinInputs<P> {
     pub feed_hold: P,
     pub cycle_start: P,
     pub limits: [P; 3],
+    /// The probe (normally open to ground: touching reads low).
+    pub probe: P,
 }
 
 impl<P: embedded_hal::digital::InputPin> OperatorInputs for PinInputs<P> {
@@ -325,6 +329,7 @@ impl<P: embedded_hal::digital::InputPin> OperatorInputs for PinInputs<P> {
             feed_hold: active(&mut self.feed_hold),
             cycle_start: active(&mut self.cycle_start),
             limits,
+            probe: active(&mut self.probe),
         }
     }
 }
@@ -371,6 +376,7 @@ mod tests {
                 PinMock::new(&[T::get(State::Low), T::get(State::High)]),
                 PinMock::new(&[T::get(State::High), T::get(State::Low)]),
             ],
+            probe: PinMock::new(&[T::get(State::High), T::get(State::Low)]),
         };
         assert_eq!(
             i.read(),
@@ -379,6 +385,7 @@ mod tests {
                 feed_hold: true,
                 cycle_start: false,
                 limits: 0b010,
+                probe: false,
             }
         );
         assert_eq!(
@@ -388,11 +395,17 @@ mod tests {
                 feed_hold: false,
                 cycle_start: true,
                 limits: 0b100,
+                probe: true,
             }
         );
-        for pin in [&mut i.estop, &mut i.feed_hold, &mut i.cycle_start]
-            .into_iter()
-            .chain(i.limits.iter_mut())
+        for pin in [
+            &mut i.estop,
+            &mut i.feed_hold,
+            &mut i.cycle_start,
+            &mut i.probe,
+        ]
+        .into_iter()
+        .chain(i.limits.iter_mut())
         {
             pin.done();
         }

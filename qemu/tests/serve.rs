@@ -737,6 +737,7 @@ fn a_machine_homes_through_serve_and_starts_locked_until_it_has() {
         start: [-1_969, -1_575, -1_181],
         at: [0; 3],
         negative: 0,
+        probe: None,
     };
     let home = "MPos:253.799,253.799,101.399";
     {
@@ -780,6 +781,65 @@ fn a_machine_homes_through_serve_and_starts_locked_until_it_has() {
     assert!(s.starts_with("<Idle|") && s.contains(home), "{s}");
     stop.store(true, Ordering::SeqCst);
     server.join().unwrap().expect("serve");
+}
+
+/// Probing under QEMU through `serve`, with the lines CNCjs's probe widget sends for a Z probe
+/// on a 10 mm plate (G91, G38.2 Z-10 F20, G90, G10 L20 P1 Z10, G91, G0 Z4, G90): the machine
+/// model's plate is 1 mm (394 BLU) below the tool; the probe stops there at once and says so
+/// before its `ok`, and G54's Z is set 10 mm below the touch.
+#[test]
+fn a_z_probe_through_serve_sets_work_zero_as_cncjs_does() {
+    let machine = millac::inputs::LimitSwitches {
+        start: [0; 3],
+        at: [500_000; 3],
+        negative: 0,
+        probe: Some(-394),
+    };
+    let Session {
+        addr, stop, server, ..
+    } = start_machine(
+        fresh("probe"),
+        fresh("probe-state").join("settings.bin"),
+        Some(machine),
+    );
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    banner(&mut w, &mut r);
+    assert_eq!(ask(&mut w, &mut r, "G21").last().unwrap(), "ok");
+    let mut got = Vec::new();
+    for line in [
+        "G91",
+        "G38.2 Z-10 F20",
+        "G90",
+        "G10 L20 P1 Z10",
+        "G91",
+        "G0 Z4",
+        "G90",
+    ] {
+        let a = ask(&mut w, &mut r, line);
+        assert_eq!(a.last().unwrap(), "ok", "{line}: {a:?}");
+        got.extend(a);
+    }
+    assert!(
+        got.contains(&"[PRB:0.000,0.000,-1.001:1]".to_string()),
+        "{got:?}"
+    );
+    poll_idle(&mut w, &mut r);
+    let offsets = ask(&mut w, &mut r, "$#");
+    assert!(
+        offsets.contains(&"[G54:0.000,0.000,-11.001]".to_string()),
+        "{offsets:?}"
+    );
+    assert!(
+        offsets.contains(&"[PRB:0.000,0.000,-1.001:1]".to_string()),
+        "{offsets:?}"
+    );
+    stop.store(true, Ordering::SeqCst);
+    let served = server.join().unwrap().expect("serve");
+    // The pulses: down 394 BLU to the plate, then up 4 mm.
+    let e = millac_qemu::analysis::edges(0, &served.capture.pins);
+    assert_eq!(e.edges.len(), 394 + 1575, "Z pulses");
 }
 
 /// A settings file with one flipped byte: the banner is followed by `ALARM:120` and why, G-code

@@ -58,8 +58,6 @@ pub enum Construct {
     CutterCompensation,
     /// G59.1, G59.2, G59.3: coordinate systems beyond grbl's six.
     G59Extended,
-    /// G38.x probing moves (the set-up work adds probing).
-    Probe,
     /// G10 L1/L10/L11 forms other than millac's tool table form, or an L that is not 1, 2, 20.
     G10Form,
 }
@@ -73,7 +71,6 @@ impl Construct {
             Construct::Polar => "polar coordinates (@ radius, ^ angle) are not supported: post the program with X and Y",
             Construct::CutterCompensation => "cutter radius compensation (G41/G42) is not supported: let the CAM program the tool centre path (compensation 'in computer') and use G40",
             Construct::G59Extended => "G59.1-G59.3 are not supported: grbl has the six coordinate systems G54-G59",
-            Construct::Probe => "probing (G38.x) is not supported yet",
             Construct::G10Form => "this G10 form is not supported: G10 L2 / L20 P0-P6 set a coordinate system, G10 L1 P<tool> Z<length> R<radius> a tool",
         }
     }
@@ -171,6 +168,8 @@ pub enum ErrorKind {
     ArcRadiusAndOffsets,
     /// G2/G3's P (turns) not a whole number from 1 to `nc::MAX_TURNS`, or P > 1 in the R form.
     ArcTurns,
+    /// A probing move (G38.x) of less than a BLU.
+    ProbeTarget,
     /// R-form arc whose end point equals its start point.
     ArcFullCircleRadius,
     /// Arc radius (start radius or R) of zero.
@@ -225,6 +224,7 @@ impl ErrorKind {
             ErrorKind::ArcNeedsCentre { .. } => "arc without centre or radius",
             ErrorKind::ArcRadiusAndOffsets => "arc with both R and I/J/K",
             ErrorKind::ArcTurns => "arc turns (P)",
+            ErrorKind::ProbeTarget => "probe target",
             ErrorKind::ArcFullCircleRadius => "R-form full circle",
             ErrorKind::ArcZeroRadius => "arc radius zero",
             ErrorKind::ArcRadiusTooSmall { .. } => "arc radius too small",
@@ -334,6 +334,9 @@ impl fmt::Display for ErrorKind {
                 "an arc's P (turns) must be a whole number from 1 to {}, and more than 1 turn needs I/J/K",
                 crate::nc::MAX_TURNS
             ),
+            ErrorKind::ProbeTarget => {
+                f.write_str("a probing move (G38.x) must move at least one BLU")
+            }
             ErrorKind::ArcFullCircleRadius => {
                 f.write_str("an R-form arc cannot be a full circle (end point equals start point); use I/J/K")
             }

@@ -22,8 +22,8 @@ use super::words::{
     N, OFFSETS, P, Q, R, S, T,
 };
 use super::{
-    feed_number, Distance, FeedMode, Modes, MotionMode, Parsed, PathMode, Retract, Spindle, Stop,
-    ToolLength, Units,
+    feed_number, Distance, FeedMode, Modes, MotionMode, Parsed, PathMode, Probe, Retract, Spindle,
+    Stop, ToolLength, Units,
 };
 use crate::nc::{isqrt, Block, Dwell, Linear, Motion, Plane, Rapid, Q_MAX};
 use crate::settings::Settings;
@@ -219,6 +219,7 @@ pub fn execute(st: &Settings, s: State, line_no: u32, text: &str) -> Result<Pars
     }
 
     let before = m.motion;
+    let probe = w.g[G_MOTION].and_then(Probe::of_code);
     let motion_word = motion_mode(&w, m);
     let dwell = non_modal == Some(40);
     let moves = dwell
@@ -267,6 +268,8 @@ pub fn execute(st: &Settings, s: State, line_no: u32, text: &str) -> Result<Pars
                     } else {
                         Parsed::Nothing
                     }
+                } else if let Some(kind) = probe {
+                    probe_move(st, &w, m, pos, offsets, scale, line_no, &mut used, kind)?
                 } else {
                     motion(
                         st,
@@ -808,6 +811,37 @@ fn motion(
         line: line_no,
         motion,
     }))
+}
+
+/// G38.2-G38.5: a G1 move to the target (axis words and a feed required, a move of at least a
+/// BLU), handed on as a probing move; the motion mode is then G80, so a following line of axis
+/// words alone is refused where LinuxCNC and grbl would probe again (millac never moves a probe
+/// without a G38 on the line).
+#[allow(clippy::too_many_arguments)]
+fn probe_move(
+    st: &Settings,
+    w: &Words,
+    m: &mut Modes,
+    pos: Position,
+    offsets: &Offsets,
+    scale: Scale,
+    line_no: u32,
+    used: &mut Used,
+    kind: Probe,
+) -> Result<Parsed, ErrorKind> {
+    if !w.has_axes() {
+        return Err(ErrorKind::NoAxisWords { code: 380 });
+    }
+    if m.feed_mode == FeedMode::PerMinute && m.feed == 0 {
+        return Err(ErrorKind::NoFeed { code: 38 });
+    }
+    m.motion = MotionMode::Linear;
+    let parsed = motion(st, w, m, pos, offsets, scale, Some(10), line_no, used);
+    m.motion = MotionMode::None;
+    match parsed? {
+        Parsed::Block(b) => Ok(Parsed::Probe(b, kind)),
+        _ => Err(ErrorKind::ProbeTarget),
+    }
 }
 
 /// G93: the feed number that runs `length` BLU in 1/F minutes: f = round(L F q0 / (W0 60)),

@@ -55,6 +55,32 @@ pub enum Parsed {
     End,
     /// M0 or M6: the machine stops once the motion before it has run and waits for cycle start.
     Stop(Stop),
+    /// G38.2-G38.5: a probing move, run once the machine stands and stopped where the probe
+    /// input changes (the loader watches it).
+    Probe(Block, Probe),
+}
+
+/// What a probing move waits for (G38.2-G38.5, as LinuxCNC and grbl).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Probe {
+    /// G38.2, G38.3: stop on contact; G38.4, G38.5: stop on loss of contact.
+    pub toward: bool,
+    /// G38.2, G38.4: the move's end without the change is an alarm (`ALARM:5`); G38.3, G38.5:
+    /// it is not (the report says `:0`).
+    pub must_change: bool,
+}
+
+impl Probe {
+    /// The probe of a G38 code in tenths (382..=385).
+    pub const fn of_code(code: u16) -> Option<Probe> {
+        match code {
+            382..=385 => Some(Probe {
+                toward: code <= 383,
+                must_change: code % 2 == 0,
+            }),
+            _ => None,
+        }
+    }
 }
 
 /// A line that expands into more blocks than a line may queue at once: the tape emits them one at
@@ -350,7 +376,9 @@ impl Parser {
                     self.tools.set(n, tool);
                 }
                 match &mut p {
-                    Parsed::Block(b) => self.signs = carry_signs(&mut b.motion, self.signs),
+                    Parsed::Block(b) | Parsed::Probe(b, _) => {
+                        self.signs = carry_signs(&mut b.motion, self.signs)
+                    }
                     Parsed::Expand(c) => {
                         // The SIGN lines after the expansion: its blocks run through once here.
                         let mut c = *c;

@@ -350,6 +350,14 @@ fn take(parsed: Parsed, lookahead: &mut Lookahead, emit: &mut impl FnMut(Block))
             push(b);
             false
         }
+        // A probing move runs alone and ends standing: out at once, decelerating.
+        Parsed::Probe(b, _) => {
+            push(b);
+            if let Some(b) = lookahead.flush() {
+                emit(b);
+            }
+            false
+        }
         Parsed::Two(a, b) => {
             push(a);
             push(b);

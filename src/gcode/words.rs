@@ -67,7 +67,7 @@ const M_GROUPS: usize = 4;
 const fn g_group(c: Code) -> Option<usize> {
     Some(match c {
         40 | 100 | 280 | 281 | 300 | 301 | 530 | 920..=923 => G_NON_MODAL,
-        0 | 10 | 20 | 30 | 730 | 800 | 810 | 820 | 830 | 850 | 890 => G_MOTION,
+        0 | 10 | 20 | 30 | 382..=385 | 730 | 800 | 810 | 820 | 830 | 850 | 890 => G_MOTION,
         170 | 180 | 190 => G_PLANE,
         900 | 910 => G_DISTANCE,
         930 | 940 => G_FEED_MODE,
@@ -138,7 +138,6 @@ impl Words {
         let Some(group) = group else {
             return Err(match (letter, code) {
                 ('G', 591..=593) => ErrorKind::NotInDialect(Construct::G59Extended),
-                ('G', 380..=385) => ErrorKind::NotInDialect(Construct::Probe),
                 _ => unsupported,
             });
         };

@@ -122,7 +122,8 @@ pub const fn gcode_error(kind: &ErrorKind) -> GrblError {
         | K::ArcZeroRadius
         | K::ArcEndNotOnCircle { .. }
         | K::ArcEndUnreachable { .. }
-        | K::ArcTooLarge => GrblError::INVALID_TARGET,
+        | K::ArcTooLarge
+        | K::ProbeTarget => GrblError::INVALID_TARGET,
         K::ArcRadiusTooSmall { .. } => GrblError::ARC_RADIUS,
         K::ArcNeedsCentre { .. } => GrblError::NO_OFFSETS_IN_PLANE,
         K::DwellWithAxes | K::UnusedWord(_) | K::ArcRadiusAndOffsets => GrblError::UNUSED_WORDS,
@@ -180,6 +181,11 @@ pub mod alarm {
     /// grbl 3: reset while in motion (position may be lost): the firmware raises it when a soft
     /// reset stops a running block.
     pub const ABORT_CYCLE: u8 = 3;
+    /// grbl 4: probe failed: the probe was not as the move expects it when it started (touching
+    /// before a G38.2/G38.3, clear before a G38.4/G38.5).
+    pub const PROBE_INITIAL: u8 = 4;
+    /// grbl 5: probe failed: a G38.2/G38.4 ended without the probe's change.
+    pub const PROBE_NO_CONTACT: u8 = 5;
     /// grbl 6: homing failed: the cycle was reset (or the e-stop pressed) before it ended.
     pub const HOMING_RESET: u8 = 6;
     /// grbl 8: homing failed: the pull-off did not open the limit switch.

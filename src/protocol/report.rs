@@ -336,10 +336,13 @@ pub struct OffsetsReport {
     pub offsets: crate::gcode::Offsets,
     /// The tool length offset in force (Z).
     pub tlo_pm: i64,
+    /// The last probing move's stop, machine coordinates in BLU, and whether the probe changed
+    /// ([0; 3], false before any).
+    pub probe: ([i32; 3], bool),
 }
 
 /// `$#`: the six coordinate systems, G28, G30, G92 (as applied), the tool length offset, and the
-/// probe (none yet: zero, not successful), in `$13` units like every position.
+/// last probe ([`write_probe`]), in `$13` units like every position.
 pub fn write_offsets(
     out: &mut dyn Write,
     r: &OffsetsReport,
@@ -363,9 +366,23 @@ pub fn write_offsets(
     row("G92", o.g92_applied())?;
     out.write_str("[TLO:")?;
     write_pm(out, r.tlo_pm, inches)?;
-    out.write_str("]\r\n[PRB:")?;
-    write_axes(out, [0; 3], unit, inches)?;
-    out.write_str(":0]\r\n")
+    out.write_str("]\r\n")?;
+    write_probe(out, r.probe.0, r.probe.1, unit, inches)
+}
+
+/// `[PRB:x,y,z:s]`: where a probing move stopped (machine coordinates, `$13` units) and whether
+/// the probe changed (1) or the move ended without (0). After every G38 line, before its answer,
+/// and in `$#`.
+pub fn write_probe(
+    out: &mut dyn Write,
+    at: [i32; 3],
+    ok: bool,
+    unit: Blu,
+    inches: bool,
+) -> fmt::Result {
+    out.write_str("[PRB:")?;
+    write_axes(out, at, unit, inches)?;
+    write!(out, ":{}]\r\n", u8::from(ok))
 }
 
 /// Picometres per BLU (exact: 2 540 000 or 1 000 000).

@@ -80,6 +80,16 @@ pub enum News<'a> {
     Homed,
     /// The homing cycle failed with this alarm (6, 8, 9).
     HomingFailed(u8),
+    /// A probing move ended at `at` (machine BLU): `ok`, the probe changed; reported in the BLU
+    /// `unit`, in inches with `$13=1`.
+    Probed {
+        at: [i32; 3],
+        ok: bool,
+        unit: Blu,
+        inches: bool,
+    },
+    /// A probing move failed with this alarm (4, 5).
+    ProbeFailed(u8),
 }
 
 /// What the loader needs of its line source and its voice. Loader task.
@@ -280,7 +290,15 @@ impl<const T: usize> Console for Serial<'_, T> {
                 self.message(format_args!("Homing required: '$H'"));
             }
             News::Homed => self.proto.clear_alarm(),
-            News::HomingFailed(code) => self.alarm(code),
+            News::HomingFailed(code) | News::ProbeFailed(code) => self.alarm(code),
+            News::Probed {
+                at,
+                ok,
+                unit,
+                inches,
+            } => {
+                let _ = crate::protocol::report::write_probe(&mut self.out, at, ok, unit, inches);
+            }
         }
     }
 

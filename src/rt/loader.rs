@@ -56,7 +56,7 @@ use crate::rt::status::LoaderWriter;
 use crate::settings::Settings;
 use heapless::spsc::{Consumer, Producer};
 
-use crate::gcode::{Decimal, Distance, Parsed, Spindle, Stop, Units};
+use crate::gcode::{Decimal, Distance, Parsed, Probe, Spindle, Stop, Units};
 use crate::inputs::{Events, Trip};
 use crate::protocol::jog::{JogPlan, JogRequest};
 use crate::protocol::LINE_MAX;
@@ -108,6 +108,10 @@ pub trait LoaderBoard {
     fn limits(&mut self) -> u8 {
         0
     }
+    /// The probe input is active (as wired; `$6` inverts it in the loader). Default: never.
+    fn probe(&mut self) -> bool {
+        false
+    }
     /// Whether a closing limit switch trips the alarm latch: off while the homing cycle seeks
     /// the switches, and with `$21=0`; on otherwise (the default, and at power-up).
     fn limit_trips(&mut self, _on: bool) {}
@@ -156,6 +160,8 @@ struct Sync {
     end: bool,
     /// M0 or M6: once the machine stands, it holds (a serial line: `~` resumes) and says why.
     stop: Option<Stop>,
+    /// G38.x: a probing move, watched until the probe changes.
+    probe: Option<Probe>,
 }
 
 /// What the loader works with, from the board's init: the block queue's producer, the re-plan's
@@ -274,6 +280,10 @@ pub struct Loader<
     homing: Option<HomingRun>,
     /// The axes homed since power-up (bit k: axis k); a lost position clears them all.
     homed: u8,
+    /// A probing move under way (its `ok` waits for it).
+    probing: Option<Probe>,
+    /// Where the last probing move stopped (machine BLU) and whether the probe changed.
+    last_probe: ([i32; 3], bool),
 }
 
 /// A running homing cycle: its sequence, the axes asked for, and the step under way.
@@ -394,6 +404,8 @@ where
             ended: false,
             homing: None,
             homed: 0,
+            probing: None,
+            last_probe: ([0; 3], false),
         };
         loader
             .board
@@ -532,7 +544,10 @@ where
             ac_held,
         };
         if self.homing.is_some() {
-            self.homing_turn(idle);
+            self.homing_turn(self.stands());
+        }
+        if self.probing.is_some() {
+            self.probe_turn(self.stands());
         }
         // A canned cycle still expanding fills the queue as it empties; no line is taken until
         // it is done.
@@ -562,6 +577,7 @@ where
                 offsets: crate::protocol::report::OffsetsReport {
                     offsets: *self.tape.parser().offsets(),
                     tlo_pm: self.tape.parser().modes().tlo_pm,
+                    probe: self.last_probe,
                 },
                 machine: &self.settings,
                 state,
@@ -747,6 +763,9 @@ where
             if sync.rpm != 0 {
                 self.status.set_spindle_rpm(sync.rpm);
             }
+        }
+        if let Some(p) = sync.probe {
+            return self.probe_start(p, d.no, &d.line);
         }
         let result = self.queue_line(d.no, &d.line);
         let ok = result.is_ok();
@@ -1008,6 +1027,69 @@ where
         self.publish();
     }
 
+    /// The machine stands now: nothing queued, nothing held for a re-plan, the frame idle (read
+    /// afresh: a step of this turn may have queued a block).
+    fn stands(&self) -> bool {
+        self.blocks.len() == 0 && self.status.idle.get() && !self.replan.pending()
+    }
+
+    /// Whether the probe touches now (`$6` applied).
+    fn probe_contact(&mut self) -> bool {
+        self.board.probe() != self.table.settings.setup.probe_invert
+    }
+
+    /// A G38 line, the machine standing: refused with `ALARM:4` when the probe is not as the move
+    /// expects it (touching before a G38.2/.3, clear before a G38.4/.5); else queued and watched
+    /// ([`Self::probe_turn`]), its answer kept until it ends.
+    fn probe_start(&mut self, p: Probe, no: u32, line: &str) {
+        // Touching before a move toward the work, or clear before one away from it.
+        if self.probe_contact() == p.toward {
+            self.console.say(News::ProbeFailed(alarm::PROBE_INITIAL));
+            self.console
+                .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
+            return;
+        }
+        match self.queue_line(no, line) {
+            Ok(()) => self.probing = Some(p),
+            Err(e) => self.console.reply(Err(e)),
+        }
+    }
+
+    /// One turn of a probing move (`idle`: it has ended): the probe's change stops it at once;
+    /// then `[PRB:...]` and its answer (`ALARM:5` when a G38.2/.4 ended without the change).
+    fn probe_turn(&mut self, idle: bool) {
+        let Some(p) = self.probing else {
+            return;
+        };
+        let changed = self.probe_contact() == p.toward;
+        if !changed && !idle {
+            return;
+        }
+        let at = if idle {
+            self.status.machine_position()
+        } else {
+            let (at, signs) = abort(self.blocks, self.status, self.board);
+            self.replan.restart(at);
+            self.tape.jogged_to(at, signs);
+            at
+        };
+        self.probing = None;
+        self.last_probe = (at, changed);
+        self.console.say(News::Probed {
+            at,
+            ok: changed,
+            unit: self.settings.blu,
+            inches: self.table.settings.report.inches,
+        });
+        if !changed && p.must_change {
+            self.console.say(News::ProbeFailed(alarm::PROBE_NO_CONTACT));
+            self.console
+                .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
+        } else {
+            self.console.reply(Ok(()));
+        }
+    }
+
     /// Queues a block planned outside the tape (the homing cycle's moves and pauses).
     fn queue_direct(&mut self, b: crate::nc::Block) {
         let b = finish_block(b, None, &self.cfg, self.settings.q0);
@@ -1115,6 +1197,7 @@ where
         // stop): homing, when on, is required again. A homing cycle under way fails (ALARM:6
         // after a soft reset; a trip says its own alarm).
         let homing = self.homing.take();
+        let probing = self.probing.take();
         if moving || homing.is_some() {
             self.homed = 0;
         }
@@ -1142,7 +1225,7 @@ where
             None if moving => self.console.say(News::AbortCycle),
             None => {}
         }
-        if homing.is_some() && trip.is_some() {
+        if (homing.is_some() || probing.is_some()) && trip.is_some() {
             // The `$H` awaits its answer (a soft reset discards it with the stream).
             self.console
                 .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
@@ -1195,7 +1278,8 @@ fn sync_line<B: LoaderBoard>(
     applied: (Spindle, u32),
 ) -> Option<Sync> {
     let letters = line.bytes().any(|b| matches!(b, b'M' | b'm' | b'S' | b's'));
-    if !letters && !may_store(line) {
+    let probe = line.as_bytes().windows(2).any(|w| w == b"38");
+    if !letters && !probe && !may_store(line) {
         return None;
     }
     let mut probe = tape.parser().clone();
@@ -1213,8 +1297,16 @@ fn sync_line<B: LoaderBoard>(
             Parsed::Stop(s) => Some(s),
             _ => None,
         },
+        probe: match parsed {
+            Parsed::Probe(_, p) => Some(p),
+            _ => None,
+        },
     };
-    (sync.end || sync.stop.is_some() || stores || (B::Board::SPINDLE && (spindle, rpm) != applied))
+    (sync.end
+        || sync.stop.is_some()
+        || sync.probe.is_some()
+        || stores
+        || (B::Board::SPINDLE && (spindle, rpm) != applied))
         .then_some(sync)
 }
 

@@ -211,7 +211,9 @@ impl<F: ProgramFile> Console for Program<F> {
             | News::RxOverflow { .. }
             | News::HomingRequired
             | News::Homed
-            | News::HomingFailed(_) => {}
+            | News::HomingFailed(_)
+            | News::Probed { .. }
+            | News::ProbeFailed(_) => {}
         }
     }
 

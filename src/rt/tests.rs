@@ -404,6 +404,11 @@ impl<const S: bool> LoaderBoard for Bench<S> {
         self.limit_trips = on;
     }
 
+    fn probe(&mut self) -> bool {
+        self.switches
+            .is_some_and(|sw| sw.touches(self.status.encoder()))
+    }
+
     fn latch_active(&mut self) -> bool {
         self.latch.is_some() && (self.estop_active || self.limits() != 0)
     }
@@ -1073,6 +1078,7 @@ const SWITCHES: Switches = Switches {
     start: [-11_811, -7_874, -1_969],
     at: [0, 0, 0],
     negative: 0,
+    probe: None,
 };
 
 /// The status report's MPos in BLU (tenths of a mil: the report's mm times 10 000 / 25.4).
@@ -1211,6 +1217,7 @@ fn hard_limits_trip_with_21_on_and_not_with_21_off() {
         start: [0; 3],
         at: [1_969, 500_000, 500_000],
         negative: 0,
+        probe: None,
     };
     for hard in [true, false] {
         let setup = crate::settings::Setup {
@@ -1238,6 +1245,65 @@ fn hard_limits_trip_with_21_on_and_not_with_21_off() {
             assert_eq!(b.status.encoder(), [3_937, 0, 0]);
         }
     }
+}
+
+/// Probing against the machine model's plate at true Z -1000 BLU (the machine starts at 0):
+/// G38.2 stops at once where the probe touches and says `[PRB:...:1]` before its `ok` (machine
+/// coordinates), the parser standing there; G38.4 backs off until it clears; a G38.3 that finds
+/// nothing says `:0` and `ok`; `$#` keeps the last probe; a G38.2 that finds nothing is
+/// `ALARM:5`; a G38.2 started touching is `ALARM:4`, and nothing moves.
+#[test]
+fn probing_stops_where_the_probe_touches_and_reports_it() {
+    let plate = Switches {
+        start: [0; 3],
+        at: [500_000; 3],
+        negative: 0,
+        probe: Some(-1_000),
+    };
+    MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
+    let b = session(
+        &[
+            (1, "G21 G91 G38.2 Z-10 F200\n"),
+            (20_000, "G38.4 Z1 F20\n"),
+            (40_000, "G0 Z1\n"),
+            (42_000, "G38.3 Z2 F200\n"),
+            (60_000, "$#\n"),
+            (60_100, "G38.2 Z1 F200\n"),
+        ],
+        &[],
+        None,
+        80_000,
+    );
+    let out = &b.out;
+    assert!(
+        out.contains("[PRB:0.000,0.000,-2.540:1]\r\nok\r\n"),
+        "{out}"
+    );
+    assert!(
+        out.contains("[PRB:0.000,0.000,-2.537:1]\r\nok\r\n"),
+        "backed off 1 BLU: {out}"
+    );
+    // Up 1 mm (394 BLU) from -999 BLU, then a G38.3 of 2 mm (787 BLU) up that touches nothing.
+    assert!(out.contains("[PRB:0.000,0.000,0.462:0]\r\nok\r\n"), "{out}");
+    assert!(
+        out.contains("[TLO:0.000]\r\n[PRB:0.000,0.000,0.462:0]\r\nok\r\n"),
+        "{out}"
+    );
+    assert!(
+        out.ends_with("[PRB:0.000,0.000,1.463:0]\r\nALARM:5\r\nerror:9\r\n"),
+        "{out}"
+    );
+    assert_eq!(b.status.encoder(), [0, 0, 576]);
+    // Touching at the start: ALARM:4, nothing moves.
+    let b = session(
+        &[(1, "G21 G90 G0 Z-3\n"), (10_000, "G38.2 Z-5 F100\n")],
+        &[],
+        None,
+        12_000,
+    );
+    MACHINE.with(|m| m.set(None));
+    assert!(b.out.ends_with("ok\r\nALARM:4\r\nerror:9\r\n"), "{}", b.out);
+    assert_eq!(b.status.encoder(), [0, 0, -1_181]);
 }
 
 #[test]

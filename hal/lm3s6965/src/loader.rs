@@ -201,4 +201,10 @@ impl millac::rt::loader::LoaderBoard for QemuLoader {
     fn limit_trips(&mut self, on: bool) {
         self.inputs.set_limit_trips(on);
     }
+
+    /// The machine model's probe surface, from the pulses sent (not debounced: a probe stops
+    /// its move at once).
+    fn probe(&mut self) -> bool {
+        self.switches.is_some_and(|sw| sw.touches(STATUS.encoder()))
+    }
 }

@@ -694,7 +694,7 @@ pub type InputPins = PinInputs<AnyPin<Input>>;
 pub type SpindlePins = (AnyPin<Output>, AnyPin<Output>);
 
 /// The operator inputs (pull-ups, switches to ground): PB12 e-stop (normally closed), PB13 feed
-/// hold, PB14 cycle start, PB15 / PB1 / PB2 X / Y / Z limit; the spindle's PA8 enable and PA9
+/// hold, PB14 cycle start, PB15 / PB1 / PB2 X / Y / Z limit, PB0 probe; the spindle's PA8 enable and PA9
 /// direction (high = M4) outputs, and its PWM on PB6 (TIM4 CH1) started. Init.
 pub fn pins(gpioa: pac::GPIOA, gpiob: pac::GPIOB, rcc: &mut Rcc) -> (InputPins, SpindlePins) {
     use stm32f4xx_hal::gpio::GpioExt;
@@ -708,6 +708,7 @@ pub fn pins(gpioa: pac::GPIOA, gpiob: pac::GPIOB, rcc: &mut Rcc) -> (InputPins, 
             gpiob.pb1.into_pull_up_input().erase(),
             gpiob.pb2.into_pull_up_input().erase(),
         ],
+        probe: gpiob.pb0.into_pull_up_input().erase(),
     };
     let spindle = (
         gpioa.pa8.into_push_pull_output().erase(),

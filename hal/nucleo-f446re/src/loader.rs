@@ -149,6 +149,11 @@ impl<M: Mutex<T = Debouncer>> LoaderBoard for Nucleo<'_, M> {
     fn limit_trips(&mut self, on: bool) {
         self.inputs.lock(|d| d.set_limit_trips(on))
     }
+
+    /// The probe pin as the input task last sampled it (every 1 ms, not debounced).
+    fn probe(&mut self) -> bool {
+        self.inputs.lock(|d| d.inputs().probe)
+    }
 }
 
 /// The AC log lines at defmt's debug level (`DEFMT_LOG=debug` to see them).

@@ -250,11 +250,6 @@ fn stops_delimiters_and_accepted_modes() {
     );
     assert_rejected(
         &mut p,
-        "G38.2 Z-1 F10",
-        ErrorKind::NotInDialect(Construct::Probe),
-    );
-    assert_rejected(
-        &mut p,
         "G10 L10 P1 Z0",
         ErrorKind::NotInDialect(Construct::G10Form),
     );
@@ -298,4 +293,58 @@ fn a_zero_offset_normal_to_the_plane_is_accepted() {
         Motion::Arc(_)
     ));
     assert_rejected(&mut p, "G2 X0 Y0 I-0.1 J0 K0.1", ErrorKind::UnusedWord('K'));
+}
+
+/// G38.2-G38.5: a G1 move to the target handed on as a probing move with what it waits for;
+/// feed and axis words required, a move of at least a BLU; the motion mode is G80 afterwards
+/// (axis words alone are refused, never a move); G38.0, G38.1 and G38.6 are no codes.
+#[test]
+fn probing_moves_are_g1_moves_that_wait_for_the_probe() {
+    use crate::gcode::Probe;
+    let mut p = Parser::new(Settings::default());
+    let got = p.line(1, "G21 G91 G38.2 Z-10 F20").unwrap();
+    let Parsed::Probe(b, kind) = got else {
+        panic!("{got:?}")
+    };
+    assert_eq!(
+        kind,
+        Probe {
+            toward: true,
+            must_change: true
+        }
+    );
+    match b.motion {
+        crate::nc::Motion::Linear(l) => assert_eq!((l.steps, l.signs & 4), ([0, 0, 3937], 0)),
+        m => panic!("{m:?}"),
+    }
+    assert_eq!(p.position(), [0, 0, -3937]);
+    assert_eq!(p.modes().motion, crate::gcode::MotionMode::None);
+    assert_rejected(&mut p, "Z-1", ErrorKind::AxisWordsUnused { code: 800 });
+    for (code, toward, must) in [
+        ("38.3", true, false),
+        ("38.4", false, true),
+        ("38.5", false, false),
+    ] {
+        let got = p.line(2, &std::format!("g{code} x1")).unwrap();
+        assert!(
+            matches!(got, Parsed::Probe(_, k) if k == Probe { toward, must_change: must }),
+            "{code}: {got:?}"
+        );
+    }
+    let mut p = Parser::new(Settings::default());
+    assert_rejected(&mut p, "G38.2 Z-1", ErrorKind::NoFeed { code: 38 });
+    assert_rejected(&mut p, "G38.2 F10", ErrorKind::NoAxisWords { code: 380 });
+    assert_rejected(&mut p, "G90 G38.2 Z0 F10", ErrorKind::ProbeTarget);
+    assert_rejected(
+        &mut p,
+        "G38.2 G1 Z-1 F10",
+        ErrorKind::ModalConflict {
+            letter: 'G',
+            first: 382,
+            second: 10,
+        },
+    );
+    for bad in ["G38.1 Z-1 F10", "G38.6 Z-1 F10", "G38 Z-1 F10"] {
+        assert!(p.line(3, bad).is_err(), "{bad}");
+    }
 }

@@ -149,7 +149,11 @@ proptest! {
                 | (before_signs & !moving);
             match got {
                 Parsed::Nothing => prop_assert_eq!(d, [0, 0, 0]),
-                Parsed::Two(..) | Parsed::Expand(_) | Parsed::Stop(_) | Parsed::End => {
+                Parsed::Two(..)
+                | Parsed::Expand(_)
+                | Parsed::Stop(_)
+                | Parsed::End
+                | Parsed::Probe(..) => {
                     prop_assert!(false, "{got:?}")
                 }
                 Parsed::Block(b) => {

@@ -110,6 +110,7 @@ impl Rig {
             offsets: crate::protocol::report::OffsetsReport {
                 offsets: *self.parser.offsets(),
                 tlo_pm: self.parser.modes().tlo_pm,
+                probe: ([0; 3], false),
             },
             machine: &self.machine,
             state: self.state,
