@@ -140,6 +140,9 @@ pub struct StatusData {
     /// The work coordinate offset (the parser's program origin in machine coordinates,
     /// picometres): `WCO:`, and WPos = MPos - WCO.
     pub wco_pm: [i64; 3],
+    /// The inputs active now, grbl's `Pn:` field (only when one is): bits 0-2 the X, Y, Z limit
+    /// switches, bit 3 the probe (after `$6`).
+    pub pins: u8,
 }
 
 /// The feed of feed number `f` in BLU per minute: f * W0 * 60 / q0, rounded.
@@ -243,6 +246,14 @@ pub fn write_status(out: &mut dyn Write, d: &StatusData, cx: &StatusContext) -> 
     out.write_str("|FS:")?;
     write_rate(out, d.feed_blu_per_min, cx.unit, inches)?;
     write!(out, ",{}", d.spindle_rpm)?;
+    if d.pins & 0b1111 != 0 {
+        out.write_str("|Pn:")?;
+        for (bit, c) in [(8, 'P'), (1, 'X'), (2, 'Y'), (4, 'Z')] {
+            if d.pins & bit != 0 {
+                out.write_char(c)?;
+            }
+        }
+    }
     if cx.wco {
         out.write_str("|WCO:")?;
         write_pm_axes(out, d.wco_pm, inches)?;

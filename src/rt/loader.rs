@@ -1170,6 +1170,7 @@ where
             ac,
             wco_pm: self.tape.parser().work_origin_pm(),
             frame_cycles: status.frame_cycles(),
+            pins: self.board.limits() | u8::from(self.probe_contact()) << 3,
         };
         self.console
             .status_report(&data, options, self.settings.blu);

@@ -1264,6 +1264,7 @@ fn probing_stops_where_the_probe_touches_and_reports_it() {
     let b = session(
         &[
             (1, "G21 G91 G38.2 Z-10 F200\n"),
+            (19_000, "?"),
             (20_000, "G38.4 Z1 F20\n"),
             (40_000, "G0 Z1\n"),
             (42_000, "G38.3 Z2 F200\n"),
@@ -1277,6 +1278,11 @@ fn probing_stops_where_the_probe_touches_and_reports_it() {
     let out = &b.out;
     assert!(
         out.contains("[PRB:0.000,0.000,-2.540:1]\r\nok\r\n"),
+        "{out}"
+    );
+    // Standing on the plate, the status report's Pn: says the probe touches.
+    assert!(
+        out.contains("<Idle|MPos:0.000,0.000,-2.540|FS:0,0|Pn:P|"),
         "{out}"
     );
     assert!(

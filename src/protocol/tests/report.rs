@@ -18,7 +18,28 @@ fn data() -> StatusData {
         ac: None,
         frame_cycles: None,
         wco_pm: [0; 3],
+        pins: 0,
     }
+}
+
+/// grbl's `Pn:` field: the probe and the limit switches active now, in grbl's order (P, X, Y,
+/// Z), after `FS:`; none active, no field.
+#[test]
+fn the_pins_field_names_the_active_inputs() {
+    let mut r = Rig::new();
+    let d = StatusData {
+        pins: 0b1101,
+        ..data()
+    };
+    assert_eq!(
+        status(&mut r, &d),
+        "<Idle|MPos:31.356,-0.003,0.000|FS:0,0|Pn:PXZ|WCO:0.000,0.000,0.000|Ov:100,100,100>\r\n"
+    );
+    let d = StatusData {
+        pins: 0b0010,
+        ..data()
+    };
+    assert!(status(&mut r, &d).contains("|FS:0,0|Pn:Y|Ov:"));
 }
 
 fn status(r: &mut Rig, d: &StatusData) -> String {
