@@ -212,7 +212,7 @@ impl ErrorKind {
             ErrorKind::NoAxisWords { .. } => "no axis words",
             ErrorKind::MissingWord { .. } => "value word missing",
             ErrorKind::CoordinateSystem => "unsupported coordinate system",
-            ErrorKind::G53Motion => "G53 needs G0 or G1 in G90",
+            ErrorKind::G53Motion => "G53 needs G0 or G1",
             ErrorKind::AxisWordsUnused { .. } => "axis words not used",
             ErrorKind::ToolLengthAxis => "G43.1 takes only Z",
             ErrorKind::ToolNumber { .. } => "no such tool",
@@ -287,7 +287,7 @@ impl fmt::Display for ErrorKind {
                 f.write_str("the coordinate system must be P0 (the one in use) or P1-P6 (G54-G59)")
             }
             ErrorKind::G53Motion => {
-                f.write_str("G53 moves only with G0 or G1 in absolute distance mode (G90)")
+                f.write_str("G53 moves only with G0 or G1")
             }
             ErrorKind::AxisWordsUnused { code } => {
                 write_code(f, 'G', code)?;

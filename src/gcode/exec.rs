@@ -741,11 +741,10 @@ fn motion(
     line_no: u32,
     used: &mut Used,
 ) -> Result<Parsed, ErrorKind> {
+    // G53: the axis words are machine coordinates whatever G90/G91 (grbl's absolute override;
+    // the senders' tool-change routines send G53 moves in G91).
     let machine = w.g[G_NON_MODAL] == Some(530);
-    if machine
-        && (m.distance != Distance::Absolute
-            || !matches!(m.motion, MotionMode::Rapid | MotionMode::Linear))
-    {
+    if machine && !matches!(m.motion, MotionMode::Rapid | MotionMode::Linear) {
         return Err(ErrorKind::G53Motion);
     }
     // A motion runs when the line has axis words or names a motion mode (grbl).
@@ -769,7 +768,12 @@ fn motion(
     }
 
     let origin = origin_fine(m, offsets, machine);
-    let (target, target_fine) = targets(st, w, m.distance, &pos, scale, origin)?;
+    let distance = if machine {
+        Distance::Absolute
+    } else {
+        m.distance
+    };
+    let (target, target_fine) = targets(st, w, distance, &pos, scale, origin)?;
     let mut motion = match m.motion {
         MotionMode::ArcCw | MotionMode::ArcCcw => {
             match arc_motion(st, m, w, &pos, (target, target_fine), scale, used, line_no)? {

@@ -93,7 +93,10 @@ fn g53_moves_in_machine_coordinates_for_one_line() {
         at(2.1, 2.0, 0.0),
         "G53 is non-modal"
     );
-    assert_rejected(&mut p, "G53 G91 G0 X1", ErrorKind::G53Motion);
+    // In G91 too, G53's words are machine coordinates (grbl's absolute override; CNCjs's tool
+    // change sends G53 moves whatever the distance mode); G91 stays for the next line.
+    assert_eq!(run(&mut p, &["G53 G91 G0 X1"]), at(1.0, 2.0, 0.0));
+    assert_eq!(run(&mut p, &["X0.5"]), at(1.5, 2.0, 0.0), "G91 in force");
     assert_rejected(&mut p, "G53 G2 X1 I1 F10", ErrorKind::G53Motion);
 }
 
