@@ -51,7 +51,10 @@ pub const G_RETURN: usize = 8;
 pub const G_COORD: usize = 9;
 /// Path control: G61, G61.1, G64.
 pub const G_PATH: usize = 10;
-const G_GROUPS: usize = 11;
+/// Arc distance mode: G91.1 (I J K from the start, the only mode millac has: accepted, nothing
+/// to do; grbl's, and what UGS sends when it restores the modal state). G90.1 is refused.
+pub const G_ARC_DISTANCE: usize = 11;
+const G_GROUPS: usize = 12;
 
 /// M modal groups (indices into [`Words::m`]).
 /// Stopping: M0 M1 M2 M30.
@@ -77,6 +80,7 @@ const fn g_group(c: Code) -> Option<usize> {
         980 | 990 => G_RETURN,
         540 | 550 | 560 | 570 | 580 | 590 => G_COORD,
         610 | 611 | 640 => G_PATH,
+        911 => G_ARC_DISTANCE,
         _ => return None,
     })
 }

@@ -351,3 +351,18 @@ fn probing_moves_are_g1_moves_that_wait_for_the_probe() {
         assert!(p.line(3, bad).is_err(), "{bad}");
     }
 }
+
+/// G91.1 (arc centres from the start: millac's only mode) is accepted and changes nothing, also
+/// beside G91 on one line (its own modal group); G90.1 is refused naming itself.
+#[test]
+fn g91_1_is_accepted_and_g90_1_refused() {
+    let mut p = Parser::new(Settings::default());
+    let mut q = Parser::new(Settings::default());
+    let a = p.line(1, "G21 G91 G91.1 G2 X2 I1 F100").unwrap();
+    let b = q.line(1, "G21 G91 G2 X2 I1 F100").unwrap();
+    assert_eq!(a, b);
+    assert_eq!(p.modes(), q.modes());
+    let e = p.line(2, "G90.1").unwrap_err();
+    assert!(matches!(e.kind, ErrorKind::UnsupportedG(_)), "{e:?}");
+    assert!(std::format!("{e}").contains("G90.1"), "{e}");
+}
