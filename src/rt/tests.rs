@@ -1312,6 +1312,80 @@ fn probing_stops_where_the_probe_touches_and_reports_it() {
     assert_eq!(b.status.encoder(), [0, 0, -1_181]);
 }
 
+/// The senders' own probe and zero lines (from their sources: bCNC without spaces and in lower
+/// case, UGS with G49 and P0, CNCjs with P1), each against the plate 1 mm below: every line is
+/// answered `ok`, every probe stops on the plate and reports it, and each zeroing puts work zero
+/// where the sender meant it.
+#[test]
+fn the_senders_probe_and_zero_lines_run_as_they_mean() {
+    let plate = Switches {
+        start: [0; 3],
+        at: [500_000; 3],
+        negative: 0,
+        probe: Some(-394),
+    };
+    MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
+    for (sender, lines, zero) in [
+        // bCNC: single probe, then its zero (no spaces), then $#.
+        (
+            "bCNC",
+            &["G21", "G91", "G38.2Z-10F10.0", "G90", "G10L20P1Z0", "$#"][..],
+            "[G54:0.000,0.000,-1.001]",
+        ),
+        // bCNC's probe routine's form: lower case, words run together.
+        (
+            "bCNC routine",
+            &["G21", "g91G38.2f10.0z-31.5", "g90", "G10L20P1X0Y0Z0", "$#"][..],
+            "[G54:0.000,0.000,-1.001]",
+        ),
+        // UGS's probe module: G49 first, P0 (the system in force).
+        (
+            "UGS",
+            &[
+                "G21 G91 G49",
+                "G38.2 Z-10 F100",
+                "G90 G21",
+                "G10 P0 L20 Z0",
+                "$#",
+            ][..],
+            "[G54:0.000,0.000,-1.001]",
+        ),
+        // CNCjs's probe widget on a 10 mm plate.
+        (
+            "CNCjs",
+            &[
+                "G21",
+                "G91",
+                "G38.2 Z-10 F20",
+                "G90",
+                "G10 L20 P1 Z10",
+                "$#",
+            ][..],
+            "[G54:0.000,0.000,-11.001]",
+        ),
+    ] {
+        let sends: Vec<(u64, String)> = lines
+            .iter()
+            .enumerate()
+            .map(|(i, l)| (1 + 20_000 * i as u64, std::format!("{l}\n")))
+            .collect();
+        let sends: Vec<(u64, &str)> = sends.iter().map(|(f, l)| (*f, l.as_str())).collect();
+        let b = session(&sends, &[], None, 20_000 * lines.len() as u64 + 100);
+        let out = &b.out;
+        assert_eq!(oks(out), lines.len(), "{sender}: {out}");
+        assert!(
+            !out.contains("error") && !out.contains("ALARM"),
+            "{sender}: {out}"
+        );
+        assert!(
+            out.contains("[PRB:0.000,0.000,-1.001:1]\r\n"),
+            "{sender}: {out}"
+        );
+        assert!(out.contains(zero), "{sender}: {out}");
+    }
+    MACHINE.with(|m| m.set(None));
+}
+
 #[test]
 fn feed_hold_and_cycle_start_buttons_hold_and_resume() {
     let hold = Events {
