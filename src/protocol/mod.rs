@@ -245,10 +245,13 @@ impl<'a> Protocol<'a> {
         self.rx.available()
     }
 
-    /// The state reports and command checks use: the alarm lock, then check mode, then the
-    /// caller's.
+    /// The state reports and command checks use: the homing cycle, then the alarm lock, then
+    /// check mode, then the caller's.
     pub fn state(&self, machine: State) -> State {
-        if self.alarm.is_some() {
+        // The homing cycle runs in the alarm lock it is there to clear: `Home`, as grbl says.
+        if machine == State::Home {
+            State::Home
+        } else if self.alarm.is_some() {
             State::Alarm
         } else if self.check {
             State::Check
@@ -427,6 +430,11 @@ impl<'a> Protocol<'a> {
             let _ = report::write_alarm(out, code);
             let _ = report::write_message(out, format_args!("{}; defaults loaded", why.message()));
         }
+        // The homing lock is said again after every banner (a sender that connects late, or
+        // resets, learns why nothing moves).
+        if self.alarm == Some(codes::alarm::HOMING_REQUIRED) {
+            let _ = report::write_alarm(out, codes::alarm::HOMING_REQUIRED);
+        }
         if self.alarm.is_some() {
             let _ = out.write_str("[MSG:'$H'|'$X' to unlock]\r\n");
         }
@@ -503,6 +511,8 @@ impl<'a> Protocol<'a> {
         let r: Result<(), GrblError> = match cmd {
             "$" => sent(report::write_help(out)),
             "$G" => sent(report::write_modes(out, &cx.modes, cx.machine, opts.inches)),
+            // The homing cycle clears the lock itself when it ends.
+            "$X" if state == State::Home => Err(GrblError::IDLE_ERROR),
             "$X" if cx.interlock.is_some() && self.alarm.is_some() => {
                 let _ = out.write_str(match cx.interlock {
                     Some(codes::alarm::AC_BREAKAGE) => {

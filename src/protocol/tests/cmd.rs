@@ -72,6 +72,19 @@ fn homing_commands_go_to_the_loader_with_their_axes() {
     r.p.alarm(11, &mut r.out);
     r.take();
     assert_eq!(r.feed(b"$H\n"), [Ev::Home(0b111)]);
+    r.take();
+    // While it homes the state is Home (grbl's), not the lock's Alarm, and `$X` waits for it.
+    r.state = State::Home;
+    assert_eq!(r.p.state(r.state), State::Home);
+    assert_eq!(answer(&mut r, "$X"), "error:8\r\n");
+    // A reset's banner says the homing lock again.
+    r.state = State::Idle;
+    r.feed(&[0x18]);
+    let banner = r.take();
+    assert!(
+        banner.ends_with("ALARM:11\r\n[MSG:'$H'|'$X' to unlock]\r\n"),
+        "{banner}"
+    );
 }
 
 #[test]
