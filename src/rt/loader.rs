@@ -543,12 +543,24 @@ where
             state,
             ac_held,
         };
-        if self.homing.is_some() {
-            self.homing_turn(self.stands());
+        if self.homing.is_some() || self.probing.is_some() {
+            if self.homing.is_some() {
+                self.homing_turn(self.stands());
+            }
+            if self.probing.is_some() {
+                self.probe_turn(self.stands());
+            }
+            // A cycle that ended this turn: the reports and the `$` commands of this turn see
+            // the machine as it is now (a `?` right after `$H`'s `ok` says Idle, not Home).
+            if self.homing.is_none() && self.now.state == State::Home {
+                self.now.state = if self.stands() {
+                    State::Idle
+                } else {
+                    State::Run
+                };
+            }
         }
-        if self.probing.is_some() {
-            self.probe_turn(self.stands());
-        }
+        let state = self.now.state;
         // A canned cycle still expanding fills the queue as it empties; no line is taken until
         // it is done.
         if self.tape.pending() && !self.replan.pending() {

@@ -369,6 +369,13 @@ fn output(st: &mut State, bytes: &[u8]) {
             st.line.push(b);
         }
         st.mid_line = b != b'\n';
+        // A client that connected mid-line is greeted at that line's end, not at the next
+        // line's first byte: an idle firmware may send none for a long time (a test that
+        // connected while the firmware wrote its banner waited for ever for a greeting).
+        if let Some(c) = st.client.as_mut().filter(|c| !c.joined && !st.mid_line) {
+            c.joined = true;
+            greet(&mut to_client);
+        }
     }
     if !to_client.is_empty() {
         send(st, &to_client);
