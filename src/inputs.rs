@@ -62,9 +62,13 @@ fn inputs(b: u16) -> Inputs {
 /// counter + start); a switch is closed at and beyond its position on its side.
 ///
 /// File form (`machine.txt` in the QEMU board's working directory, one line; [`Self::parse`],
-/// written by [`core::fmt::Display`]): `start X Y Z switches X Y Z negative MASK [probe Z]`,
-/// integers in BLU, MASK's bit k set when axis k's switch is at its negative end; `probe Z`: a
-/// flat surface (a touch plate, the stock's top) the probe touches at and below true Z.
+/// written by [`core::fmt::Display`]): `start X Y Z switches X Y Z negative MASK [probe Z]
+/// [setter X Y Z R] [tool N L]...`, integers in BLU, MASK's bit k set when axis k's switch is
+/// at its negative end; `probe Z`: a flat surface (a touch plate, the stock's top) the probe
+/// touches at and below true Z; `setter X Y Z R`: a tool setter whose square pad (R either side
+/// of X, Y) the probe touches at and below true Z; `tool N L`: tool N (1..16) is L long (its tip
+/// L below the spindle's: the probe touches with the tip; tool 0, none, and any tool not given
+/// are 0 long).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LimitSwitches {
     pub start: [i32; 3],
@@ -73,7 +77,14 @@ pub struct LimitSwitches {
     pub negative: u8,
     /// The probe touches at and below this true Z (None: nothing to touch).
     pub probe: Option<i32>,
+    /// A tool setter: X, Y, the pad's top Z and its half width R (None: no setter).
+    pub setter: Option<[i32; 4]>,
+    /// The lengths of tools 1..16 (index 0 is tool 1).
+    pub tools: [i32; TOOLS],
 }
+
+/// The tools a machine model knows the lengths of (1..=TOOLS).
+pub const TOOLS: usize = 16;
 
 impl LimitSwitches {
     /// The switches closed with the counters at `counts` (bit k: axis k).
@@ -89,10 +100,22 @@ impl LimitSwitches {
         })
     }
 
-    /// The probe touches with the counters at `counts`.
-    pub fn touches(&self, counts: [i32; 3]) -> bool {
-        self.probe
-            .is_some_and(|z| i64::from(counts[2]) + i64::from(self.start[2]) <= i64::from(z))
+    /// The probe touches with the counters at `counts` and tool `tool` in the spindle: the
+    /// plate under the tool's tip, or the setter's pad.
+    pub fn touches(&self, counts: [i32; 3], tool: u8) -> bool {
+        let length = match usize::from(tool).checked_sub(1) {
+            Some(k) => self.tools.get(k).copied().unwrap_or(0),
+            None => 0,
+        };
+        let t = |k: usize| i64::from(counts[k]) + i64::from(self.start[k]);
+        let tip = t(2) - i64::from(length);
+        let plate = self.probe.is_some_and(|z| tip <= i64::from(z));
+        let setter = self.setter.is_some_and(|[x, y, z, r]| {
+            (t(0) - i64::from(x)).abs() <= i64::from(r)
+                && (t(1) - i64::from(y)).abs() <= i64::from(r)
+                && tip <= i64::from(z)
+        });
+        plate || setter
     }
 
     /// Reads the file form; None when it is not exactly that.
@@ -110,17 +133,35 @@ impl LimitSwitches {
         let at = three("switches")?;
         (w.next()? == "negative").then_some(())?;
         let negative: u8 = w.next()?.parse().ok().filter(|m| *m <= 7)?;
-        let probe = match w.next() {
-            None => None,
-            Some("probe") => Some(w.next()?.parse().ok()?),
-            Some(_) => return None,
-        };
-        w.next().is_none().then_some(LimitSwitches {
+        let mut sw = LimitSwitches {
             start,
             at,
             negative,
-            probe,
-        })
+            ..LimitSwitches::default()
+        };
+        let int = |w: &mut core::str::SplitWhitespace| -> Option<i32> { w.next()?.parse().ok() };
+        while let Some(word) = w.next() {
+            match word {
+                "probe" if sw.probe.is_none() => sw.probe = Some(int(&mut w)?),
+                "setter" if sw.setter.is_none() => {
+                    let mut v = [0; 4];
+                    for x in v.iter_mut() {
+                        *x = int(&mut w)?;
+                    }
+                    sw.setter = Some(v).filter(|v| v[3] >= 0);
+                    sw.setter?;
+                }
+                "tool" => {
+                    let n = usize::try_from(int(&mut w)?)
+                        .ok()
+                        .filter(|n| (1..=TOOLS).contains(n))?;
+                    let slot = sw.tools.get_mut(n - 1)?;
+                    *slot = int(&mut w)?;
+                }
+                _ => return None,
+            }
+        }
+        Some(sw)
     }
 }
 
@@ -132,10 +173,16 @@ impl core::fmt::Display for LimitSwitches {
             "start {a} {b} {c} switches {x} {y} {z} negative {}",
             self.negative
         )?;
-        match self.probe {
-            Some(p) => write!(f, " probe {p}"),
-            None => Ok(()),
+        if let Some(p) = self.probe {
+            write!(f, " probe {p}")?;
         }
+        if let Some([x, y, z, r]) = self.setter {
+            write!(f, " setter {x} {y} {z} {r}")?;
+        }
+        for (k, l) in self.tools.iter().enumerate().filter(|(_, l)| **l != 0) {
+            write!(f, " tool {} {l}", k + 1)?;
+        }
+        Ok(())
     }
 }
 
@@ -296,7 +343,7 @@ mod tests {
             start: [-100, 0, 50],
             at: [0, -30, 60],
             negative: 0b010,
-            probe: None,
+            ..LimitSwitches::default()
         };
         assert_eq!(sw.closed([0, 0, 0]), 0);
         assert_eq!(sw.closed([100, -30, 10]), 0b111);
@@ -319,7 +366,40 @@ mod tests {
             ..sw
         };
         assert_eq!(LimitSwitches::parse(&std::format!("{with}")), Some(with));
-        assert!(!sw.touches([0, 0, -10]) && !with.touches([0, 0, -9]) && with.touches([0, 0, -10]));
+        assert!(
+            !sw.touches([0, 0, -10], 0)
+                && !with.touches([0, 0, -9], 0)
+                && with.touches([0, 0, -10], 0)
+        );
+        // A setter at true X 0, Y 0, its pad 5 either side with its top at true Z 20, and
+        // tool 3 is 30 long: tool 3's tip touches the pad 30 higher than no tool.
+        let mut tools = [0; TOOLS];
+        tools[2] = 30;
+        let setter = LimitSwitches {
+            setter: Some([0, 0, 20, 5]),
+            tools,
+            ..sw
+        };
+        let text = std::format!("{setter}");
+        assert_eq!(
+            text,
+            "start -100 0 50 switches 0 -30 60 negative 2 setter 0 0 20 5 tool 3 30"
+        );
+        assert_eq!(LimitSwitches::parse(&text), Some(setter));
+        // Over the pad (true X 105 - 100 = 5), true Z 50 - 30 = 20 with no tool: touching.
+        assert!(setter.touches([105, 0, -30], 0));
+        assert!(!setter.touches([105, 0, -29], 0));
+        assert!(!setter.touches([106, 0, -30], 0), "beside the pad");
+        assert!(setter.touches([100, 0, 0], 3) && !setter.touches([100, 0, 1], 3));
+        for bad in [
+            "start 1 2 3 switches 1 2 3 negative 0 tool 17 5",
+            "start 1 2 3 switches 1 2 3 negative 0 tool 0 5",
+            "start 1 2 3 switches 1 2 3 negative 0 setter 1 2 3",
+            "start 1 2 3 switches 1 2 3 negative 0 setter 1 2 3 -1",
+            "start 1 2 3 switches 1 2 3 negative 0 probe 1 probe 2",
+        ] {
+            assert_eq!(LimitSwitches::parse(bad), None, "{bad}");
+        }
     }
 
     /// With limit trips off (homing, `$21=0`) a closing limit switch shows at once in the inputs

@@ -738,6 +738,8 @@ fn a_machine_homes_through_serve_and_starts_locked_until_it_has() {
         at: [0; 3],
         negative: 0,
         probe: None,
+        setter: None,
+        tools: [0; millac::inputs::TOOLS],
     };
     let home = "MPos:253.799,253.799,101.399";
     {
@@ -794,6 +796,8 @@ fn a_z_probe_through_serve_sets_work_zero_as_cncjs_does() {
         at: [500_000; 3],
         negative: 0,
         probe: Some(-394),
+        setter: None,
+        tools: [0; millac::inputs::TOOLS],
     };
     let Session {
         addr, stop, server, ..

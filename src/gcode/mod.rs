@@ -438,6 +438,13 @@ impl Parser {
         self.signs = signs;
     }
 
+    /// The tool change (`rt::toolchange`) set the new tool's length offset: as `G43 H<n>` (the
+    /// table's) or `G43.1` (a measured one) would; nothing moves. Loader task.
+    pub fn set_tool_length(&mut self, tlo_pm: i64, how: ToolLength) {
+        self.modes.tlo_pm = tlo_pm;
+        self.modes.tool_length = how;
+    }
+
     /// SIGN lines after the last accepted block (bit k set = axis k positive).
     pub fn signs(&self) -> u8 {
         self.signs

@@ -288,6 +288,12 @@ impl Tape {
         self.reader.parser.jogged_to(end, signs);
     }
 
+    /// The tool change set the new tool's length offset (see `Parser::set_tool_length`).
+    /// Loader task.
+    pub fn set_tool_length(&mut self, tlo_pm: i64, how: super::ToolLength) {
+        self.reader.parser.set_tool_length(tlo_pm, how);
+    }
+
     /// True when a block is held by the look-ahead (see [`Tape::flush`]).
     pub fn holds_a_block(&self) -> bool {
         self.reader.lookahead.holds()

@@ -196,6 +196,9 @@ pub mod alarm {
     /// homed since power-up, or its position was lost (a hard limit, an e-stop or a reset in
     /// motion). Only `$H` clears it.
     pub const HOMING_REQUIRED: u8 = 11;
+    /// grblHAL 13: probe protection: the probe touched outside a probing move (a jog or a move
+    /// ran the probe into the work or the tool setter). The feed is held; `$X` clears it.
+    pub const PROBE_PROTECTION: u8 = 13;
     /// grblHAL 10: the e-stop input is (or was) active; the machine stopped at once. `$X` clears
     /// it only once the e-stop is released.
     pub const ESTOP: u8 = 10;

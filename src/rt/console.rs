@@ -90,6 +90,8 @@ pub enum News<'a> {
     },
     /// A probing move failed with this alarm (4, 5).
     ProbeFailed(u8),
+    /// The probe touched outside a probing move: the feed is held (`ALARM:13`).
+    ProbeProtection,
 }
 
 /// What the loader needs of its line source and its voice. Loader task.
@@ -291,6 +293,10 @@ impl<const T: usize> Console for Serial<'_, T> {
             }
             News::Homed => self.proto.clear_alarm(),
             News::HomingFailed(code) | News::ProbeFailed(code) => self.alarm(code),
+            News::ProbeProtection => {
+                self.alarm(alarm::PROBE_PROTECTION);
+                self.message(format_args!("Probe contact outside probing: held"));
+            }
             News::Probed {
                 at,
                 ok,

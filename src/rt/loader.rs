@@ -53,10 +53,11 @@ use crate::rt::console::{trip_alarm, Console, News, Refused};
 use crate::rt::homing::{self, Step as HomingStep};
 use crate::rt::replan::{self, Replan};
 use crate::rt::status::LoaderWriter;
+use crate::rt::toolchange::{self, Ended as ChangeEnded, Step as ChangeStep};
 use crate::settings::Settings;
 use heapless::spsc::{Consumer, Producer};
 
-use crate::gcode::{Decimal, Distance, Parsed, Probe, Spindle, Stop, Units};
+use crate::gcode::{Decimal, Distance, Parsed, Probe, Spindle, Stop, ToolLength, Units};
 use crate::inputs::{Events, Trip};
 use crate::protocol::jog::{JogPlan, JogRequest};
 use crate::protocol::LINE_MAX;
@@ -112,6 +113,10 @@ pub trait LoaderBoard {
     fn probe(&mut self) -> bool {
         false
     }
+    /// The operator has fitted `tool` at a tool change and pressed cycle start (or, unattended,
+    /// the change went on without one): a board with a tool changer, or a simulated machine,
+    /// takes it. Default: nothing (the operator did it).
+    fn tool_fitted(&mut self, _tool: u8) {}
     /// Whether a closing limit switch trips the alarm latch: off while the homing cycle seeks
     /// the switches, and with `$21=0`; on otherwise (the default, and at power-up).
     fn limit_trips(&mut self, _on: bool) {}
@@ -284,6 +289,33 @@ pub struct Loader<
     probing: Option<Probe>,
     /// Where the last probing move stopped (machine BLU) and whether the probe changed.
     last_probe: ([i32; 3], bool),
+    /// The tool change (`$341` = 1, 2), while it runs.
+    change: Option<ChangeRun>,
+    /// Where the tool in the spindle touched the tool setter (machine Z, BLU), once measured;
+    /// forgotten when the position is lost or a tool comes in unmeasured.
+    setter_ref: Option<i32>,
+    /// The probe touched at the last turn (probe protection acts on a new contact).
+    probe_was: bool,
+}
+
+/// A running tool change: its sequence, the M6 line's number, the step under way and the
+/// spindle to restore.
+struct ChangeRun {
+    change: toolchange::Change,
+    line: u32,
+    under_way: Option<ChangeWait>,
+    spindle: (Spindle, u32),
+}
+
+/// What a tool change step waits for.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum ChangeWait {
+    /// A rapid: the machine standing.
+    Move,
+    /// A probing move: the probe's contact, or the move's end.
+    Probe,
+    /// The operator's cycle start (the hold released) after fitting this tool.
+    Fit(u8),
 }
 
 /// A running homing cycle: its sequence, the axes asked for, and the step under way.
@@ -406,6 +438,9 @@ where
             homed: 0,
             probing: None,
             last_probe: ([0; 3], false),
+            change: None,
+            setter_ref: None,
+            probe_was: false,
         };
         loader
             .board
@@ -543,12 +578,16 @@ where
             state,
             ac_held,
         };
-        if self.homing.is_some() || self.probing.is_some() {
+        self.probe_protection(idle);
+        if self.homing.is_some() || self.probing.is_some() || self.change.is_some() {
             if self.homing.is_some() {
                 self.homing_turn(self.stands());
             }
             if self.probing.is_some() {
                 self.probe_turn(self.stands());
+            }
+            if self.change.is_some() {
+                self.change_turn(self.stands());
             }
             // A cycle that ended this turn: the reports and the `$` commands of this turn see
             // the machine as it is now (a `?` right after `$H`'s `ok` says Idle, not Home).
@@ -574,8 +613,12 @@ where
             self.tape
                 .pump(room, |b| enqueue(blocks, replan, status, b, last_feed));
         }
+        // A probing move or a tool change holds the next line until it ends (a serial line's
+        // protocol waits for the answer anyway; a program file's console does not).
         let room = Q - 1 - self.blocks.len() >= ROOM_PER_LINE
             && self.deferred.is_none()
+            && self.probing.is_none()
+            && self.change.is_none()
             && !self.tape.pending()
             && !self.replan.pending();
         // The line source's news. A G-code line is copied out of the protocol's buffer (the
@@ -657,9 +700,7 @@ where
             Step::JogStopped => {
                 // The jog has stopped: drop it and any jog queued behind it. The parser keeps its
                 // modes (a jog changes none) and stands where the machine stopped.
-                let (at, signs) = abort(self.blocks, self.status, self.board);
-                self.replan.restart(at);
-                self.tape.jogged_to(at, signs);
+                self.stop_here();
                 self.cancel_jog = false;
                 self.jogging = false;
                 self.hold = false;
@@ -781,6 +822,16 @@ where
         }
         let result = self.queue_line(d.no, &d.line);
         let ok = result.is_ok();
+        if let Some(Stop::ToolChange { tool }) = sync.stop.filter(|_| ok) {
+            // Whatever the mode, the next cut is a new tool's: the AC starts it afresh.
+            self.status.ask_new_job();
+            if self.table.settings.setup.tool_change != 0 {
+                // The M6's `ok` comes when the change is done.
+                return self.change_start(tool, d.no);
+            }
+            // Fitted by hand, measured nowhere: the setter's reference is the old tool's.
+            self.setter_ref = None;
+        }
         let end = sync.end && ok;
         if end {
             self.status.ask_new_job();
@@ -920,9 +971,7 @@ where
         let switch = match run.under_way {
             None => false,
             Some((axis, true)) if !idle && closed(self.board, axis) => {
-                let (at, signs) = abort(self.blocks, self.status, self.board);
-                self.replan.restart(at);
-                self.tape.jogged_to(at, signs);
+                self.stop_here();
                 true
             }
             Some(_) if !idle => return,
@@ -1020,9 +1069,7 @@ where
             .limit_trips(self.table.settings.setup.hard_limits);
         if let HomingStep::Fail(code) = step {
             if !self.now.idle || self.blocks.len() != 0 {
-                let (at, signs) = abort(self.blocks, self.status, self.board);
-                self.replan.restart(at);
-                self.tape.jogged_to(at, signs);
+                self.stop_here();
             }
             self.homed = 0;
             self.console.say(News::HomingFailed(code));
@@ -1080,10 +1127,7 @@ where
         let at = if idle {
             self.status.machine_position()
         } else {
-            let (at, signs) = abort(self.blocks, self.status, self.board);
-            self.replan.restart(at);
-            self.tape.jogged_to(at, signs);
-            at
+            self.stop_here()
         };
         self.probing = None;
         self.last_probe = (at, changed);
@@ -1099,6 +1143,234 @@ where
                 .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
         } else {
             self.console.reply(Ok(()));
+        }
+    }
+
+    /// Stops the machine at once (the queue dropped) and stands the parser and the re-plan's
+    /// record where it stopped (a cancelled jog, a homing switch, a probe's contact). Returns
+    /// that position (machine BLU).
+    fn stop_here(&mut self) -> [i32; 3] {
+        let (at, signs) = abort(self.blocks, self.status, self.board);
+        self.replan.restart(at);
+        self.tape.jogged_to(at, signs);
+        at
+    }
+
+    /// Queues a move to machine coordinates `target` (BLU; the axes given only): a rapid, or
+    /// a feed move at `rate_um_min`. Planned as `G21 G53 G0`/`G1` on a copy of the parser (soft
+    /// limits checked as for any line), so the modes stay; the parser stands at its end.
+    fn machine_move(
+        &mut self,
+        target: [Option<i32>; 3],
+        rate_um_min: Option<u32>,
+    ) -> Result<(), Refused> {
+        let nm = i128::from(self.settings.blu.nm());
+        let mm = |v: i128, scale: u8| Decimal { mantissa: v, scale };
+        let mut line: heapless::String<LINE_MAX> = heapless::String::new();
+        let mut w = |args: core::fmt::Arguments| {
+            core::fmt::Write::write_fmt(&mut line, args)
+                .map_err(|_| Refused::Grbl(GrblError::OVERFLOW))
+        };
+        match rate_um_min {
+            None => w(format_args!("G21G53G0"))?,
+            Some(r) => w(format_args!("G21G53G1F{}", mm(i128::from(r), 3)))?,
+        }
+        for (k, t) in target.iter().enumerate() {
+            if let Some(t) = t {
+                let axis = ['X', 'Y', 'Z'].get(k).copied().unwrap_or('Z');
+                w(format_args!("{}{}", axis, mm(i128::from(*t) * nm, 6)))?;
+            }
+        }
+        let mut p = self.tape.parser().clone();
+        let parsed = p
+            .line(0, &line)
+            .map_err(|e| Refused::Tape(TapeError::Gcode(e)))?;
+        // Nothing to queue when the machine is already there.
+        if let Parsed::Block(b) = parsed {
+            self.queue_direct(b);
+            self.tape.jogged_to(p.position(), p.signs());
+        }
+        Ok(())
+    }
+
+    /// An M6 with `$341` = 1 or 2 has been parsed (the machine stands): the spindle stops and
+    /// the change's first step runs ([`toolchange`]).
+    fn change_start(&mut self, tool: u8, line: u32) {
+        let parser = self.tape.parser();
+        let table_pm = parser
+            .tools()
+            .get(u32::from(tool))
+            .map_or(0, |t| t.length_pm);
+        let change = toolchange::Change::new(
+            tool,
+            self.status.machine_position(),
+            parser.offsets().g30,
+            parser.modes().tlo_pm,
+            table_pm,
+            self.setter_ref,
+            &self.table.settings.setup,
+            &self.settings,
+        );
+        let spindle = self.spindle;
+        if spindle.0 != Spindle::Off {
+            self.spindle = (Spindle::Off, spindle.1);
+            self.board
+                .spindle(Spindle::Off, 0, self.table.settings.spindle_max_rpm);
+        }
+        self.change = Some(ChangeRun {
+            change,
+            line,
+            under_way: None,
+            spindle,
+        });
+        self.change_turn(true);
+    }
+
+    /// One turn of the tool change (`idle`: the machine stands): a probing move stops at once
+    /// at the probe's contact; the operator's cycle start ends the wait; a step that has ended
+    /// gives the next.
+    fn change_turn(&mut self, idle: bool) {
+        let Some(run) = self.change.as_ref() else {
+            return;
+        };
+        let mut ended = match run.under_way {
+            None => ChangeEnded::Done,
+            Some(ChangeWait::Move) if !idle => return,
+            Some(ChangeWait::Move) => ChangeEnded::Done,
+            Some(ChangeWait::Probe) => {
+                let contact = self.probe_contact();
+                if !contact && !idle {
+                    return;
+                }
+                let at = if idle {
+                    self.status.machine_position()
+                } else {
+                    self.stop_here()
+                };
+                ChangeEnded::Probed(contact.then_some(at[2]))
+            }
+            Some(ChangeWait::Fit(_)) if self.hold => return,
+            Some(ChangeWait::Fit(tool)) => {
+                self.board.tool_fitted(tool);
+                ChangeEnded::Done
+            }
+        };
+        loop {
+            let Some(run) = self.change.as_mut() else {
+                return;
+            };
+            run.under_way = None;
+            let step = run.change.next(ended);
+            ended = ChangeEnded::Done;
+            let moved = match step {
+                ChangeStep::Rapid(target) => self.machine_move(target, None),
+                ChangeStep::Probe { blu, rate_um_min } => {
+                    if self.probe_contact() {
+                        // Touching before the probe moves: the setter or the tool is not where
+                        // the change expects it.
+                        return self.change_ended(Err(alarm::PROBE_INITIAL));
+                    }
+                    let z = self.status.machine_position()[2];
+                    let floor = self.settings.soft_min[2];
+                    let target = z.saturating_sub(blu).max(floor);
+                    self.machine_move([None, None, Some(target)], Some(rate_um_min))
+                        .map(|()| {
+                            if let Some(run) = self.change.as_mut() {
+                                run.under_way = Some(ChangeWait::Probe);
+                            }
+                        })
+                }
+                ChangeStep::Fit { tool } => {
+                    if !self.console.attended() {
+                        // Nobody to fit it: the machine (or a program's simulation) has.
+                        self.board.tool_fitted(tool);
+                        continue;
+                    }
+                    let line = run.line;
+                    run.under_way = Some(ChangeWait::Fit(tool));
+                    self.hold = true;
+                    self.publish();
+                    self.console.say(News::Stop {
+                        stop: Stop::ToolChange { tool },
+                        line,
+                    });
+                    return;
+                }
+                ChangeStep::Length { tlo_pm, table } => {
+                    let how = if table {
+                        ToolLength::Table(self.tape.parser().loaded_tool())
+                    } else {
+                        ToolLength::Dynamic
+                    };
+                    self.tape.set_tool_length(tlo_pm, how);
+                    continue;
+                }
+                ChangeStep::Spindle => {
+                    let (state, rpm) = run.spindle;
+                    if state != Spindle::Off {
+                        self.spindle = (state, rpm);
+                        self.board
+                            .spindle(state, rpm, self.table.settings.spindle_max_rpm);
+                    }
+                    continue;
+                }
+                ChangeStep::Done => return self.change_ended(Ok(())),
+                ChangeStep::Fail(code) => return self.change_ended(Err(code)),
+            };
+            match moved {
+                Err(e) => {
+                    // A move the soft limits refuse (the G30 position, the setter or the way
+                    // back outside them): the change stops here, the M6 refused.
+                    self.change = None;
+                    self.console.reply(Err(e));
+                    return;
+                }
+                Ok(()) => {
+                    if let Some(run) = self.change.as_mut() {
+                        if run.under_way.is_none() {
+                            run.under_way = Some(ChangeWait::Move);
+                        }
+                    }
+                    if !self.stands() {
+                        return;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The tool change is done (the M6's `ok`) or failed (its alarm, the M6 refused).
+    fn change_ended(&mut self, result: Result<(), u8>) {
+        let Some(run) = self.change.take() else {
+            return;
+        };
+        self.setter_ref = run.change.reference();
+        match result {
+            Ok(()) => self.console.reply(Ok(())),
+            Err(code) => {
+                self.setter_ref = None;
+                self.console.say(News::ProbeFailed(code));
+                self.console
+                    .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
+            }
+        }
+    }
+
+    /// Probe protection: the probe touching anew while the machine moves outside a probing
+    /// move (a jog or a program's move ran it into the work or the setter) holds the feed with
+    /// `ALARM:13`. A probe that stays in contact from a probing move's end is no news.
+    fn probe_protection(&mut self, idle: bool) {
+        let contact = self.probe_contact();
+        let probing = self.probing.is_some()
+            || self
+                .change
+                .as_ref()
+                .is_some_and(|c| c.under_way == Some(ChangeWait::Probe));
+        let new = contact && !core::mem::replace(&mut self.probe_was, contact);
+        if new && !idle && !probing && self.homing.is_none() {
+            self.hold = true;
+            self.publish();
+            self.console.say(News::ProbeProtection);
         }
     }
 
@@ -1211,8 +1483,10 @@ where
         // after a soft reset; a trip says its own alarm).
         let homing = self.homing.take();
         let probing = self.probing.take();
+        let changing = self.change.take();
         if moving || homing.is_some() {
             self.homed = 0;
+            self.setter_ref = None;
         }
         if homing.is_some() {
             self.board
@@ -1238,7 +1512,7 @@ where
             None if moving => self.console.say(News::AbortCycle),
             None => {}
         }
-        if (homing.is_some() || probing.is_some()) && trip.is_some() {
+        if (homing.is_some() || probing.is_some() || changing.is_some()) && trip.is_some() {
             // The `$H` awaits its answer (a soft reset discards it with the stream).
             self.console
                 .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));

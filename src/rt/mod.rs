@@ -21,6 +21,7 @@ pub mod start;
 pub mod status;
 #[cfg(test)]
 mod tests;
+pub mod toolchange;
 
 pub use isr::{pulse_end, FrameTask, Reloads};
 pub use status::Status;

@@ -201,6 +201,10 @@ impl<F: ProgramFile> Console for Program<F> {
                 Said::Stop,
                 format_args!("tool change (M6) at line {line}: T{tool}"),
             ),
+            News::ProbeProtection => f.result(
+                Said::Alarm,
+                format_args!("probe contact outside a probing move: held"),
+            ),
             // The AC task writes its own holds (`alarm: ...`) as they come; no operator, no
             // trips, no serial line, no `$H`.
             News::AcHold { .. }

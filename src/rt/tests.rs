@@ -211,6 +211,10 @@ struct Bench<const S: bool = true> {
     /// The machine's limit switches (None: no switches), and whether a closing one trips.
     switches: Option<Switches>,
     limit_trips: bool,
+    /// The tool in the simulated spindle (the machine model's lengths), and each fit (frame,
+    /// tool) the loader reported.
+    fitted: u8,
+    fits: Vec<(u64, u8)>,
 }
 
 /// A program file in memory, read `chunk` bytes at a time; its result lines.
@@ -405,8 +409,14 @@ impl<const S: bool> LoaderBoard for Bench<S> {
     }
 
     fn probe(&mut self) -> bool {
+        let tool = self.fitted;
         self.switches
-            .is_some_and(|sw| sw.touches(self.status.encoder()))
+            .is_some_and(|sw| sw.touches(self.status.encoder(), tool))
+    }
+
+    fn tool_fitted(&mut self, tool: u8) {
+        self.fitted = tool;
+        self.fits.push((self.frames, tool));
     }
 
     fn latch_active(&mut self) -> bool {
@@ -548,6 +558,8 @@ fn session_on<const S: bool>(
         oks_at: Vec::new(),
         program: None,
         switches: MACHINE.with(|m| m.get()).map(|(sw, _)| sw),
+        fitted: 0,
+        fits: Vec::new(),
         limit_trips: true,
     };
     // The breakage and chatter events are an enabled AC's (its holds apply): the loader gets its
@@ -1079,6 +1091,8 @@ const SWITCHES: Switches = Switches {
     at: [0, 0, 0],
     negative: 0,
     probe: None,
+    setter: None,
+    tools: [0; crate::inputs::TOOLS],
 };
 
 /// The status report's MPos in BLU (tenths of a mil: the report's mm times 10 000 / 25.4).
@@ -1218,6 +1232,8 @@ fn hard_limits_trip_with_21_on_and_not_with_21_off() {
         at: [1_969, 500_000, 500_000],
         negative: 0,
         probe: None,
+        setter: None,
+        tools: [0; crate::inputs::TOOLS],
     };
     for hard in [true, false] {
         let setup = crate::settings::Setup {
@@ -1259,6 +1275,8 @@ fn probing_stops_where_the_probe_touches_and_reports_it() {
         at: [500_000; 3],
         negative: 0,
         probe: Some(-1_000),
+        setter: None,
+        tools: [0; crate::inputs::TOOLS],
     };
     MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
     let b = session(
@@ -1300,16 +1318,264 @@ fn probing_stops_where_the_probe_touches_and_reports_it() {
         "{out}"
     );
     assert_eq!(b.status.encoder(), [0, 0, 576]);
-    // Touching at the start: ALARM:4, nothing moves.
+    // Touching at the start (standing on the plate after a G38.2): ALARM:4, nothing moves.
     let b = session(
-        &[(1, "G21 G90 G0 Z-3\n"), (10_000, "G38.2 Z-5 F100\n")],
+        &[
+            (1, "G21 G91 G38.2 Z-10 F200\n"),
+            (19_000, "G38.2 Z-5 F100\n"),
+        ],
         &[],
         None,
-        12_000,
+        21_000,
     );
     MACHINE.with(|m| m.set(None));
-    assert!(b.out.ends_with("ok\r\nALARM:4\r\nerror:9\r\n"), "{}", b.out);
-    assert_eq!(b.status.encoder(), [0, 0, -1_181]);
+    assert!(
+        b.out.ends_with(":1]\r\nok\r\nALARM:4\r\nerror:9\r\n"),
+        "{}",
+        b.out
+    );
+    assert_eq!(b.status.encoder(), [0, 0, -1_000]);
+}
+
+/// Probe protection: a move that is not a probing move and runs the probe into the plate (a
+/// G0 meant for above it) holds the feed at the contact with `ALARM:13`; `~` does not resume
+/// it until `$X`. A feed move that ends 1 BLU above the plate runs untouched.
+#[test]
+fn a_probe_contact_outside_probing_holds_with_alarm_13() {
+    let plate = Switches {
+        start: [0; 3],
+        at: [500_000; 3],
+        negative: 0,
+        probe: Some(-1_000),
+        setter: None,
+        tools: [0; crate::inputs::TOOLS],
+    };
+    MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
+    let b = session(
+        &[
+            (1, "G20 G90 G1 F20 Z-0.0999\n"),
+            (40_000, "?"),
+            (40_010, "G0 Z-0.2\n"),
+            (60_000, "?"),
+            (60_010, "~"),
+            (61_000, "?"),
+            (61_010, "$X\n"),
+            (61_020, "~"),
+            (80_000, "?"),
+            (90_000, "?"),
+        ],
+        &[],
+        None,
+        90_100,
+    );
+    MACHINE.with(|m| m.set(None));
+    let out = &b.out;
+    let held = out.split("ALARM:13\r\n").collect::<Vec<_>>();
+    assert_eq!(held.len(), 2, "one alarm: {out}");
+    assert!(
+        held[0].contains("<Idle|MPos:0.000,0.000,-2.537|"),
+        "the first move, 1 BLU above the plate, ran through: {out}"
+    );
+    assert!(
+        held[1].starts_with("[MSG:Probe contact outside probing: held]\r\n"),
+        "{out}"
+    );
+    // Held near the plate (the rapid decelerates from where the probe touched), still held
+    // after `~`, and after `$X` and `~` the move ends.
+    let reports: Vec<&str> = held[1].split("<").skip(1).collect();
+    assert!(reports[0].starts_with("Alarm|"), "{out}");
+    assert!(reports[1].starts_with("Alarm|"), "~ refused: {out}");
+    assert!(
+        reports[2].starts_with("Idle|MPos:0.000,0.000,-5.080|"),
+        "{out}"
+    );
+    let stopped = mpos(reports[0]);
+    assert!(
+        (-1_300..=-1_000).contains(&stopped[2]),
+        "held near the contact: {stopped:?}"
+    );
+}
+
+/// The bench's machine for tool changes: a tool setter whose pad's top is at true Z -7 874
+/// (-20 mm) at X, Y 3 937 (10 mm), tool 1 3 937 BLU long (10 mm), tool 2 5 906 (15 mm); the
+/// machine starts with no tool (0 long).
+const SETTER: Switches = Switches {
+    start: [0; 3],
+    at: [500_000; 3],
+    negative: 0,
+    probe: None,
+    setter: Some([3_937, 3_937, -7_874, 400]),
+    tools: {
+        let mut t = [0; crate::inputs::TOOLS];
+        t[0] = 3_937;
+        t[1] = 5_906;
+        t
+    },
+};
+
+/// `$341` = `mode`, the setter at 10, 10 mm, quick probing (pull-off 0.5 mm, seek 600 mm/min,
+/// slow 100 mm/min, at most 60 mm).
+fn change_setup(mode: u8) -> crate::settings::Setup {
+    crate::settings::Setup {
+        tool_change: mode,
+        setter_um: [10_000, 10_000],
+        probe_distance_um: 60_000,
+        probe_seek_um_min: 600_000,
+        probe_slow_um_min: 100_000,
+        homing_pulloff_um: 500,
+        ..crate::settings::Setup::default()
+    }
+}
+
+/// The tool setter (`$341=2`): at each M6 the spindle stops, Z rises to the G30 position's Z
+/// and X, Y go there; at the first change the tool in the spindle is measured on the setter
+/// first. The machine holds naming the tool; after cycle start the new tool is measured, the
+/// tool length offset becomes the old one plus how much higher the new tip touched, the
+/// spindle runs again, and the machine returns so that the new tip is where the old one was;
+/// only then comes the M6's `ok`. Two changes: the offsets are the tools' true lengths (the
+/// first tool, none, is 0 long), and work Z0 puts tool 2's tip where no tool's would be.
+#[test]
+fn the_tool_change_measures_each_tool_on_the_setter_and_returns() {
+    MACHINE.with(|m| m.set(Some((SETTER, change_setup(2)))));
+    let b = session(
+        &[
+            (
+                1,
+                "G21 G90 G0 X0 Y0 Z25\nG30.1\nM3 S1000\nG0 X5 Y5 Z-2\nT1 M6\n",
+            ),
+            (150_000, "?"),
+            (150_010, "~"),
+            (300_000, "?"),
+            (300_010, "T2 M6\n"),
+            (450_000, "?"),
+            (450_010, "~"),
+            (600_000, "?"),
+            (600_010, "$#\n"),
+            (600_020, "G0 Z0\n"),
+            (650_000, "?"),
+        ],
+        &[],
+        None,
+        650_100,
+    );
+    MACHINE.with(|m| m.set(None));
+    let out = &b.out;
+    assert!(!out.contains("error") && !out.contains("ALARM"), "{out}");
+    assert_eq!(
+        b.fits.iter().map(|f| f.1).collect::<Vec<_>>(),
+        [1, 2],
+        "{out}"
+    );
+    let reports: Vec<&str> = out.split('<').skip(1).collect();
+    // Waiting for T1 at the G30 position, held; the M6 not yet answered.
+    let g30 = [0, 0, 9_843];
+    assert!(reports[0].starts_with("Hold:0|"), "{out}");
+    assert_eq!(mpos(reports[0]), g30, "{out}");
+    assert!(
+        out.contains("[MSG:Tool change (M6, line 5): fit T1, then cycle start]"),
+        "{out}"
+    );
+    assert_eq!(oks(out.split('<').next().unwrap()), 4, "{out}");
+    // Back over X5 Y5, Z 10 mm higher (T1 is 10 mm longer than no tool), the tip where it was.
+    let blu = |mm: f64| (mm / 0.00254).round() as i64;
+    assert_eq!(
+        mpos(reports[1]),
+        [blu(5.0), blu(5.0), blu(-2.0) + 3_937],
+        "{out}"
+    );
+    assert!(reports[2].starts_with("Hold:0|"), "{out}");
+    assert_eq!(mpos(reports[2]), g30, "{out}");
+    assert_eq!(
+        mpos(reports[3]),
+        [blu(5.0), blu(5.0), blu(-2.0) + 5_906],
+        "{out}"
+    );
+    let tlo = std::format!("[TLO:{:.3}]", 5_906.0 * 0.00254);
+    assert!(out.contains(&tlo), "{tlo}: {out}");
+    // Work Z0 with T2: the spindle 15 mm up, T2's tip at true Z 0.
+    assert_eq!(mpos(reports[4])[2], 5_906, "{out}");
+    assert_eq!(oks(out), 8, "{out}");
+    // The spindle: off for each change, on again before the way back.
+    let states: Vec<Spindle> = b.spindle.iter().map(|c| c.state).collect();
+    assert_eq!(
+        states,
+        [
+            Spindle::Cw,
+            Spindle::Off,
+            Spindle::Cw,
+            Spindle::Off,
+            Spindle::Cw
+        ],
+        "{out}"
+    );
+    for c in &b.spindle[1..] {
+        assert!(c.idle, "the machine stands for the spindle: {c:?}");
+    }
+}
+
+/// `$341=1`: the table's length. The change goes to the G30 position, holds, and takes the
+/// tool table's length as the offset (`[TLO:]` and `$G`'s G43), returning with the tip where
+/// it was. A program run unattended goes through the same change without a hold.
+#[test]
+fn the_tool_change_takes_the_tables_length_and_runs_unattended() {
+    MACHINE.with(|m| m.set(Some((SETTER, change_setup(1)))));
+    let b = session(
+        &[
+            (
+                1,
+                "G21 G90 G0 X0 Y0 Z25\nG30.1\nG10 L1 P3 Z12.7\nG0 X5 Y5 Z-2\nT3 M6\n",
+            ),
+            (60_000, "?"),
+            (60_010, "~"),
+            (120_000, "?"),
+            (120_010, "$#\n$G\n"),
+        ],
+        &[],
+        None,
+        120_100,
+    );
+    let out = &b.out;
+    assert!(!out.contains("error") && !out.contains("ALARM"), "{out}");
+    let reports: Vec<&str> = out.split('<').skip(1).collect();
+    assert!(reports[0].starts_with("Hold:0|"), "{out}");
+    assert_eq!(mpos(reports[0]), [0, 0, 9_843], "{out}");
+    // 12.7 mm = 5 000 BLU higher.
+    assert_eq!(mpos(reports[1]), [1_969, 1_969, -787 + 5_000], "{out}");
+    assert!(out.contains("[TLO:12.700]"), "{out}");
+    assert!(out.contains(" G43 "), "{out}");
+    assert_eq!(b.fits.iter().map(|f| f.1).collect::<Vec<_>>(), [3]);
+    let (finished, ok, results, b) = program_run(
+        "G21 G90 G0 X0 Y0 Z25\nG30.1\nG10 L1 P3 Z12.7\nG0 X5 Y5 Z-2\nT3 M6\nG91 G0 X1\n",
+        256,
+        100_000,
+        None,
+    );
+    MACHINE.with(|m| m.set(None));
+    assert_eq!((finished, ok), (Some(Finished::Done), true), "{results:?}");
+    assert_eq!(b.status.encoder(), [1_969 + 394, 1_969, -787 + 5_000]);
+    assert_eq!(b.fits.iter().map(|f| f.1).collect::<Vec<_>>(), [3]);
+}
+
+/// A tool setter that is not where `$345`/`$346` say (none in the machine): the probe finds no
+/// contact within `$342`, the change fails with `ALARM:5` and the M6 is refused.
+#[test]
+fn a_tool_change_that_finds_no_setter_fails_with_alarm_5() {
+    let none = Switches {
+        setter: None,
+        ..SETTER
+    };
+    MACHINE.with(|m| m.set(Some((none, change_setup(2)))));
+    let b = session(
+        &[(1, "G21 G90 G0 X0 Y0 Z25\nG30.1\nT1 M6\n")],
+        &[],
+        None,
+        60_000,
+    );
+    MACHINE.with(|m| m.set(None));
+    assert!(b.out.ends_with("ALARM:5\r\nerror:9\r\n"), "{}", b.out);
+    // Stopped at the end of the search: 60 mm below the G30 Z.
+    assert_eq!(b.status.encoder(), [3_937, 3_937, 9_843 - 23_622]);
+    assert!(b.fits.is_empty());
 }
 
 /// The senders' own probe and zero lines (from their sources: bCNC without spaces and in lower
@@ -1323,6 +1589,8 @@ fn the_senders_probe_and_zero_lines_run_as_they_mean() {
         at: [500_000; 3],
         negative: 0,
         probe: Some(-394),
+        setter: None,
+        tools: [0; crate::inputs::TOOLS],
     };
     MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
     for (sender, lines, zero) in [

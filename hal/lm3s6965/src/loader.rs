@@ -75,6 +75,7 @@ pub fn run(ends: &mut Ends, replan: &mut Option<Replan<RECORD>>) -> ! {
             },
             switches: if serial { machine() } else { None },
             inputs: millac::inputs::Debouncer::default(),
+            fitted: 0,
         },
     );
     if let Some(p) = program {
@@ -106,7 +107,7 @@ pub fn set_spindle_rpm(rpm: u32) {
 /// QEMU's working directory holds a valid one. Idle loader, once.
 fn machine() -> Option<LimitSwitches> {
     let fd = crate::semihost::open(crate::files::MACHINE_FILE.as_bytes(), nr::open::R)?;
-    let mut buf = [0u8; 128];
+    let mut buf = [0u8; 512];
     let n = crate::semihost::read(fd, &mut buf);
     crate::semihost::close(fd);
     let text = core::str::from_utf8(buf.get(..n?)?).ok()?;
@@ -127,6 +128,8 @@ pub struct QemuLoader {
     pub log: crate::session::SessionLog,
     pub switches: Option<LimitSwitches>,
     pub inputs: Debouncer,
+    /// The tool in the simulated spindle (0 at power-up: none).
+    pub fitted: u8,
 }
 
 impl QemuLoader {
@@ -205,6 +208,14 @@ impl millac::rt::loader::LoaderBoard for QemuLoader {
     /// The machine model's probe surface, from the pulses sent (not debounced: a probe stops
     /// its move at once).
     fn probe(&mut self) -> bool {
-        self.switches.is_some_and(|sw| sw.touches(STATUS.encoder()))
+        let tool = self.fitted;
+        self.switches
+            .is_some_and(|sw| sw.touches(STATUS.encoder(), tool))
+    }
+
+    /// The simulated operator fitted the tool the change asked for (its length in the machine
+    /// model).
+    fn tool_fitted(&mut self, tool: u8) {
+        self.fitted = tool;
     }
 }
