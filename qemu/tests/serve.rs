@@ -1638,3 +1638,257 @@ fn a_session_that_ends_in_an_alarm_with_lines_not_run_is_not_completed() {
     assert_eq!(h["blocks_done"], 0, "{s}");
     assert_eq!(h["position_blu"], s["final_position_blu"], "{s}");
 }
+
+/// The machine model of the tool-change tests: a tool setter whose pad's top is at true Z -20
+/// mm (-7 874 BLU) at X, Y 10 mm; tool 1 is 10 mm long (3 937 BLU), tool 2 15 mm (5 906).
+const SETTER: millac::inputs::LimitSwitches = millac::inputs::LimitSwitches {
+    start: [0; 3],
+    at: [500_000; 3],
+    negative: 0,
+    probe: None,
+    setter: Some([3_937, 3_937, -7_874, 400]),
+    tools: {
+        let mut t = [0; millac::inputs::TOOLS];
+        t[0] = 3_937;
+        t[1] = 5_906;
+        t
+    },
+};
+
+/// A status report's MPos, mm.
+fn mpos_mm(report: &str) -> [f64; 3] {
+    let v: Vec<f64> = report
+        .split('|')
+        .find_map(|f| f.strip_prefix("MPos:"))
+        .unwrap_or_else(|| panic!("no MPos in {report}"))
+        .split(',')
+        .map(|x| x.trim_end_matches('>').parse().unwrap())
+        .collect();
+    [v[0], v[1], v[2]]
+}
+
+/// Where a machine coordinate of `mm` lands (a whole BLU, 0.0001 in), as the report says it.
+fn on_blu(mm: f64) -> f64 {
+    ((mm / 0.00254).round() * 2.54).round() / 1000.0
+}
+
+/// `$#`'s `[TLO:z]`, mm.
+fn tlo_mm(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> f64 {
+    let got = ask(w, r, "$#");
+    got.iter()
+        .find_map(|l| l.strip_prefix("[TLO:")?.strip_suffix(']'))
+        .unwrap_or_else(|| panic!("no TLO in {got:?}"))
+        .parse()
+        .unwrap()
+}
+
+/// Polls `?` until the machine holds standing (`Hold:0`), then presses cycle start (`~`), as an
+/// operator answers a sender's "Continue" prompt. Returns the report that held.
+fn continue_at_hold(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> String {
+    let t0 = Instant::now();
+    loop {
+        w.write_all(b"?").unwrap();
+        let s = read_until(r, |s| s.starts_with('<')).pop().unwrap();
+        if s.starts_with("<Hold:0|") {
+            w.write_all(b"~").unwrap();
+            return s;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(120), "never held: {s}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Sends each line as a line-by-line sender does (the next after the last one's `ok`); every
+/// answer must be `ok`. `M0` lines hold: the operator continues once the machine stands.
+fn run_lines(w: &mut TcpStream, r: &mut BufReader<TcpStream>, sender: &str, lines: &[&str]) {
+    for line in lines {
+        let got = ask(w, r, line);
+        assert_eq!(got.last().unwrap(), "ok", "{sender}: {line}: {got:?}");
+        assert!(
+            !got.iter().any(|l| l.starts_with("ALARM")),
+            "{sender}: {line}: {got:?}"
+        );
+        if line.eq_ignore_ascii_case("m0") {
+            continue_at_hold(w, r);
+        }
+    }
+}
+
+/// Tool changes under QEMU through `serve`, one session, the machine model's setter:
+/// - millac's own (`$341=2`; what CNCjs's "Send M6", bCNC's policy 0 and UGS without its
+///   interceptor put on the wire: `T1 M6` as written): the machine goes to the G30 position and
+///   holds naming T1; after `~` it measures the tool in the spindle (none, first) and T1 on the
+///   setter, returns with T1's tip where the spindle's was, and answers `ok`; the offset is
+///   T1's length (10 mm).
+/// - bCNC's manual tool change (policy 3, TLO) for T2, its lines as `CNC.toolChange()` writes
+///   them (lower case, no spaces, `g53` in `g91`, `m0` holds): probed on the setter, `g43.1z`
+///   from its `[PRB:]` less the calibration's, back to where it began.
+/// - UGS's tool-change interceptor for T2 (an empty line for the M6, `T2`, up to the program's
+///   top, `M5`, the restore lines).
+/// - CNCjs's manual TLO tool change (policy 3), its macro's lines for T1.
+///
+/// Every line is `ok`, nothing alarms, and each sequence ends where the sender meant it to.
+#[test]
+fn the_senders_tool_changes_run_through_serve() {
+    let Session {
+        addr, stop, server, ..
+    } = start_machine(
+        fresh("toolchange"),
+        fresh("toolchange-state").join("settings.bin"),
+        Some(SETTER),
+    );
+    let stream = connect(&addr);
+    let mut w = stream.try_clone().unwrap();
+    let mut r = BufReader::new(stream);
+    banner(&mut w, &mut r);
+    for set in [
+        "$341=2", "$345=10", "$346=10", "$342=60", "$343=100", "$344=600", "$27=0.5",
+    ] {
+        assert_eq!(ask(&mut w, &mut r, set).last().unwrap(), "ok", "{set}");
+    }
+    run_lines(
+        &mut w,
+        &mut r,
+        "set-up",
+        &["G21 G90 G0 X0 Y0 Z25", "G30.1", "G0 X5 Y5 Z-2"],
+    );
+    // millac's own change: the M6's answer comes after the change.
+    w.write_all(b"T1 M6\n").unwrap();
+    let told = read_until(&mut r, |s| s.starts_with("[MSG:Tool change"));
+    assert_eq!(
+        told.last().unwrap(),
+        "[MSG:Tool change (M6, line 4): fit T1, then cycle start]"
+    );
+    let held = continue_at_hold(&mut w, &mut r);
+    assert_eq!(mpos_mm(&held), [0.0, 0.0, 25.001], "{held}");
+    let got = read_until(&mut r, |s| s == "ok" || s.starts_with("error:"));
+    assert_eq!(got.last().unwrap(), "ok", "{got:?}");
+    let s = poll_idle(&mut w, &mut r);
+    // T1's tip where the spindle's was: the spindle 10 mm higher.
+    assert_eq!(mpos_mm(&s), [5.001, 5.001, 8.001], "{s}");
+    assert_eq!(tlo_mm(&mut w, &mut r), 10.0);
+
+    // bCNC, policy 3 (TLO), T1 still in the spindle (its calibration: the touch of the tool
+    // the work was zeroed with, here T1 at machine Z -10.000).
+    let toolmz = -10.0;
+    run_lines(
+        &mut w,
+        &mut r,
+        "bCNC",
+        &[
+            "$g",
+            "m5",
+            "g53g0z25.0",
+            "g53g0x0.0y0.0",
+            "m0",
+            "g53g0x10.0y10.0",
+            "g53g0z-8.0",
+            "g91G38.2f100.0z-5.0",
+        ],
+    );
+    let prb = ask(&mut w, &mut r, "$#");
+    let prbz: f64 = prb
+        .iter()
+        .find_map(|l| l.strip_prefix("[PRB:"))
+        .and_then(|l| l.split(':').next())
+        .map(|xyz| xyz.split(',').nth(2).unwrap().parse().unwrap())
+        .unwrap();
+    assert_eq!(prbz, -10.0, "T1 touches the setter 10 mm up: {prb:?}");
+    let tlo = format!("g43.1z{}", prbz - toolmz);
+    run_lines(
+        &mut w,
+        &mut r,
+        "bCNC",
+        &[
+            "g4p1",
+            &tlo,
+            "g53g0z25.0",
+            "g53g0x0.0y0.0",
+            "m0",
+            "g90",
+            "g0x5.0y5.0",
+            "g0z-2.0",
+            "f1000.0M3",
+            "g4p0.5",
+        ],
+    );
+    let s = poll_idle(&mut w, &mut r);
+    // Work Z -2 with the offset bCNC set (0: the same tool): machine Z -2.
+    assert_eq!(mpos_mm(&s), [5.001, 5.001, on_blu(-2.0)], "{s}");
+    assert_eq!(tlo_mm(&mut w, &mut r), 0.0);
+
+    // UGS's interceptor: the M6 line replaced by an empty line, its T word alone, up to the
+    // program's top, the spindle off, the operator's pause (nothing sent), up again, restore.
+    run_lines(
+        &mut w,
+        &mut r,
+        "UGS",
+        &[
+            "",
+            "T2",
+            "G90 G0 Z25.000",
+            "M5",
+            "G90 G0 Z25.000",
+            "G21 G90",
+            "M3S12000.0F1000.0",
+            "G90 G0X5.000Y5.000",
+            "G90 G0Z-2.000",
+            "G21G90G91.1G94G54G17",
+        ],
+    );
+    let s = poll_idle(&mut w, &mut r);
+    assert_eq!(mpos_mm(&s), [5.001, 5.001, on_blu(-2.0)], "{s}");
+
+    // CNCjs, policy 3 (manual TLO), for T1: its macro's lines (the change position 0, 0, 25;
+    // the probe position over the setter at Z -8; a probe distance of 5, feed 100).
+    run_lines(
+        &mut w,
+        &mut r,
+        "CNCjs",
+        &[
+            "T1 (M6)",
+            "G4 P0.5",
+            "M5",
+            "G90",
+            "G53 G0 Z25",
+            "G53 G0 X0 Y0",
+            "G4 P0.5",
+            "M0",
+            "G53 G0 X10 Y10",
+            "G53 G0 Z-8",
+            "G4 P0.5",
+            "G91 G38.2 F100 Z-5",
+            "G4 P1",
+        ],
+    );
+    // `G43.1 Z<posz - touch plate height>`: posz, the work Z from the status report (MPos less
+    // the work offset: here the TLO, 0), the plate 0.
+    w.write_all(b"?").unwrap();
+    let s = read_until(&mut r, |s| s.starts_with('<')).pop().unwrap();
+    let posz = mpos_mm(&s)[2];
+    assert_eq!(posz, -10.0, "{s}");
+    let tlo = format!("G43.1 Z{posz}");
+    run_lines(
+        &mut w,
+        &mut r,
+        "CNCjs",
+        &[
+            &tlo,
+            "G53 G0 Z25",
+            "G53 G0 X0 Y0",
+            "G4 P0.5",
+            "M0",
+            "G90",
+            "G0 X5 Y5",
+            "G0 Z-2",
+            "M3",
+            "G4 P0.5",
+        ],
+    );
+    let s = poll_idle(&mut w, &mut r);
+    // Work Z -2 with TLO -10: machine Z -12.
+    assert_eq!(mpos_mm(&s), [5.001, 5.001, on_blu(-12.0)], "{s}");
+    assert_eq!(tlo_mm(&mut w, &mut r), -10.0);
+    stop.store(true, Ordering::SeqCst);
+    server.join().unwrap().expect("serve");
+}

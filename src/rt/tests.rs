@@ -1337,6 +1337,27 @@ fn probing_stops_where_the_probe_touches_and_reports_it() {
     assert_eq!(b.status.encoder(), [0, 0, -1_000]);
 }
 
+/// A program file's probing move: the next line waits for it (the console of a program file
+/// gives the next line without waiting for an answer; the probe's stop must not drop it, nor
+/// the parser stand where it does not). The G0 X1 after the G38.2 runs from the plate.
+#[test]
+fn a_program_files_line_after_a_probe_runs_from_where_the_probe_stopped() {
+    let plate = Switches {
+        start: [0; 3],
+        at: [500_000; 3],
+        negative: 0,
+        probe: Some(-1_000),
+        setter: None,
+        tools: [0; crate::inputs::TOOLS],
+    };
+    MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
+    let (finished, ok, results, b) =
+        program_run("G21 G91 G38.2 Z-10 F200\nG0 X1 Z1\n", 256, 40_000, None);
+    MACHINE.with(|m| m.set(None));
+    assert_eq!((finished, ok), (Some(Finished::Done), true), "{results:?}");
+    assert_eq!(b.status.encoder(), [394, 0, -1_000 + 394]);
+}
+
 /// Probe protection: a move that is not a probing move and runs the probe into the plate (a
 /// G0 meant for above it) holds the feed at the contact with `ALARM:13`; `~` does not resume
 /// it until `$X`. A feed move that ends 1 BLU above the plate runs untouched.
