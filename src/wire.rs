@@ -257,9 +257,21 @@ pub enum SessionLine<'a> {
     Flush,
     /// Soft reset (`Tape::reset`): `(millac:reset)`.
     Reset,
+    /// A move the loader planned itself (the homing cycle's, the tool change's) as this line on
+    /// a copy of the parser without soft limits, the modes unchanged, the parser standing at its
+    /// end: `(millac:move G21G53G0Z25)`.
+    Move(&'a str),
+    /// The parser stands at `at` (machine BLU) with the SIGN lines `signs`, after a soft reset
+    /// or an axis homed (`(millac:stop X Y Z S)`), or after the machine was stopped mid-move (a
+    /// reset or a jog cancel in motion, a homing switch, a probe's contact: `cut`, `(millac:cut
+    /// X Y Z S)`): then a block was cut short.
+    Stop { at: [i32; 3], signs: u8, cut: bool },
 }
 
 const JOG_PREFIX: &str = "(millac:jog ";
+const MOVE_PREFIX: &str = "(millac:move ";
+const STOP_PREFIX: &str = "(millac:stop ";
+const CUT_PREFIX: &str = "(millac:cut ";
 const FLUSH_LINE: &str = "(millac:flush)";
 const RESET_LINE: &str = "(millac:reset)";
 
@@ -276,6 +288,20 @@ impl<'a> SessionLine<'a> {
             .and_then(|r| r.strip_suffix(')'))
         {
             SessionLine::Jog(j)
+        } else if let Some(m) = line
+            .strip_prefix(MOVE_PREFIX)
+            .and_then(|r| r.strip_suffix(')'))
+        {
+            SessionLine::Move(m)
+        } else if let Some(stop) =
+            [(STOP_PREFIX, false), (CUT_PREFIX, true)]
+                .iter()
+                .find_map(|(prefix, cut)| {
+                    let words = line.strip_prefix(prefix)?.strip_suffix(')')?;
+                    parse_stop(words, *cut)
+                })
+        {
+            stop
         } else {
             SessionLine::Gcode(line)
         }
@@ -293,9 +319,31 @@ impl<'a> SessionLine<'a> {
             SessionLine::Jog(j) => write!(w, "{JOG_PREFIX}{j})")?,
             SessionLine::Flush => w.write_str(FLUSH_LINE)?,
             SessionLine::Reset => w.write_str(RESET_LINE)?,
+            SessionLine::Move(m) => write!(w, "{MOVE_PREFIX}{m})")?,
+            SessionLine::Stop {
+                at: [x, y, z],
+                signs,
+                cut,
+            } => {
+                let prefix = if *cut { CUT_PREFIX } else { STOP_PREFIX };
+                write!(w, "{prefix}{x} {y} {z} {signs})")?
+            }
         }
         w.write_char('\n')
     }
+}
+
+/// The words of a stop marker: three positions and the SIGN lines.
+fn parse_stop(words: &str, cut: bool) -> Option<SessionLine<'static>> {
+    let mut w = words.split(' ');
+    let mut at = [0i32; 3];
+    for v in at.iter_mut() {
+        *v = w.next()?.parse().ok()?;
+    }
+    let signs = w.next()?.parse().ok()?;
+    w.next()
+        .is_none()
+        .then_some(SessionLine::Stop { at, signs, cut })
 }
 
 #[cfg(test)]
@@ -377,15 +425,23 @@ mod tests {
         /// Every session line reads back as written (G-code lines that look like markers are left
         /// out of the log by the loader, see `SessionLine::is_marker`).
         #[test]
-        fn session_lines_round_trip(line in "[ -~]{0,80}", kind in 0..4u8) {
+        fn session_lines_round_trip(
+            line in "[ -~]{0,80}",
+            kind in 0..6u8,
+            at in proptest::array::uniform3(any::<i32>()),
+            signs in any::<u8>(),
+            cut in any::<bool>(),
+        ) {
             let l = match kind {
                 0 => SessionLine::Gcode(&line),
                 1 => SessionLine::Jog(&line),
                 2 => SessionLine::Flush,
+                3 => SessionLine::Move(&line),
+                4 => SessionLine::Stop { at, signs, cut },
                 _ => SessionLine::Reset,
             };
             prop_assume!(!(kind == 0 && SessionLine::is_marker(&line)));
-            prop_assume!(!(kind == 1 && (line.contains(')') || line.contains('\n'))));
+            prop_assume!(!((kind == 1 || kind == 3) && (line.contains(')') || line.contains('\n'))));
             let mut s = String::new();
             l.emit(&mut s).unwrap();
             let body = s.strip_suffix('\n').unwrap();
@@ -400,9 +456,25 @@ mod tests {
         SessionLine::Jog("G91 X1 F100").emit(&mut s).unwrap();
         SessionLine::Flush.emit(&mut s).unwrap();
         SessionLine::Reset.emit(&mut s).unwrap();
+        SessionLine::Move("G21G53G0Z25").emit(&mut s).unwrap();
+        for cut in [false, true] {
+            SessionLine::Stop {
+                at: [1, -2, 3],
+                signs: 5,
+                cut,
+            }
+            .emit(&mut s)
+            .unwrap();
+        }
         assert_eq!(
             s,
-            "(millac:jog G91 X1 F100)\n(millac:flush)\n(millac:reset)\n"
+            "(millac:jog G91 X1 F100)\n(millac:flush)\n(millac:reset)\n\
+             (millac:move G21G53G0Z25)\n(millac:stop 1 -2 3 5)\n(millac:cut 1 -2 3 5)\n"
+        );
+        // A stop marker with other words is a comment line.
+        assert_eq!(
+            SessionLine::parse("(millac:stop 1 2 3)"),
+            SessionLine::Gcode("(millac:stop 1 2 3)")
         );
         assert!(SessionLine::is_marker("(millac:flush)"));
         assert!(!SessionLine::is_marker("G1 X1 (millac:flush)"));

@@ -844,6 +844,13 @@ fn a_z_probe_through_serve_sets_work_zero_as_cncjs_does() {
     // The pulses: down 394 BLU to the plate, then up 4 mm.
     let e = millac_qemu::analysis::edges(0, &served.capture.pins);
     assert_eq!(e.edges.len(), 394 + 1575, "Z pulses");
+    // The probe cut its move short: the report says so instead of a pulse mismatch, and the
+    // session's end is where the machine stands.
+    let s = &served.summary;
+    assert_eq!(s["replay"]["whole"], false, "{s}");
+    assert!(s["pulses_match_host"].is_null(), "{s}");
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(s["final_position_blu"]["z"], -394 + 1575, "{s}");
 }
 
 /// A settings file with one flipped byte: the banner is followed by `ALARM:120` and why, G-code
@@ -1731,7 +1738,10 @@ fn run_lines(w: &mut TcpStream, r: &mut BufReader<TcpStream>, sender: &str, line
 #[test]
 fn the_senders_tool_changes_run_through_serve() {
     let Session {
-        addr, stop, server, ..
+        addr,
+        stop,
+        server,
+        out,
     } = start_machine(
         fresh("toolchange"),
         fresh("toolchange-state").join("settings.bin"),
@@ -1890,5 +1900,19 @@ fn the_senders_tool_changes_run_through_serve() {
     assert_eq!(mpos_mm(&s), [5.001, 5.001, on_blu(-12.0)], "{s}");
     assert_eq!(tlo_mm(&mut w, &mut r), -10.0);
     stop.store(true, Ordering::SeqCst);
-    server.join().unwrap().expect("serve");
+    let served = server.join().unwrap().expect("serve");
+    // The session's report: completed (Idle at the end), its probes' cut moves named, and its
+    // end where the machine stands (the tool-change moves are in `serve.nc` as moves).
+    let s = &served.summary;
+    assert_eq!(s["completed"], true, "{s}");
+    assert_eq!(s["replay"]["whole"], false, "{s}");
+    assert_eq!(s["final_position_blu"]["z"], -4_724, "{s}");
+    let log = std::fs::read_to_string(served_log(&out)).unwrap();
+    assert!(log.contains("(millac:move G21G53G0Z25."), "{log}");
+    assert!(log.contains("(millac:cut "), "{log}");
+}
+
+/// The session log `serve` leaves in its folder.
+fn served_log(out: &std::path::Path) -> std::path::PathBuf {
+    out.join(millac_qemu::lm3s_files::SERVE_LOG_NAME)
 }

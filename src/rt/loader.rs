@@ -57,9 +57,9 @@ use crate::rt::toolchange::{self, Ended as ChangeEnded, Step as ChangeStep};
 use crate::settings::Settings;
 use heapless::spsc::{Consumer, Producer};
 
-use crate::gcode::{Decimal, Distance, Parsed, Probe, Spindle, Stop, ToolLength, Units};
+use crate::gcode::{Decimal, Parsed, Probe, Spindle, Stop, ToolLength};
 use crate::inputs::{Events, Trip};
-use crate::protocol::jog::{JogPlan, JogRequest};
+use crate::protocol::jog::JogRequest;
 use crate::protocol::LINE_MAX;
 
 /// Free queue slots a line needs before the loader takes it: the look-ahead's held block and the
@@ -81,6 +81,12 @@ pub trait LoaderBoard {
     fn log_flush(&mut self) {}
     /// Soft reset.
     fn log_reset(&mut self) {}
+    /// A move the loader planned itself (homing, the tool change): `line`, planned on a copy
+    /// of the parser without soft limits.
+    fn log_move(&mut self, _line: &str) {}
+    /// The parser stands at `at` with `signs`: after a soft reset, an axis homed, or (`cut`)
+    /// the machine stopped mid-move.
+    fn log_stop(&mut self, _at: [i32; 3], _signs: u8, _cut: bool) {}
 
     /// What the board is (its `Board::SPINDLE`: a line that changes M3/M4/M5 or S waits until
     /// the motion queued before it has finished, grbl's buffer sync, then
@@ -990,38 +996,23 @@ where
                     until_switch,
                 } => {
                     run.under_way = Some((axis, until_switch));
+                    let nm = i64::from(self.settings.blu.nm());
+                    let here = self.tape.parser().position();
+                    let to = here
+                        .get(axis)
+                        .map(|&p| {
+                            // um in BLU, rounded half away from zero.
+                            let d = (um.abs() * 1000 + nm / 2) / nm;
+                            i64::from(p) + if um < 0 { -d } else { d }
+                        })
+                        .and_then(|t| i32::try_from(t).ok());
                     let mut target = [None; 3];
-                    if let Some(t) = target.get_mut(axis) {
-                        *t = Some(Decimal {
-                            mantissa: i128::from(um),
-                            scale: 3,
-                        });
+                    if let (Some(t), Some(to)) = (target.get_mut(axis), to) {
+                        *t = Some(to);
                     }
-                    let jog = JogRequest {
-                        target,
-                        feed: Decimal {
-                            mantissa: i128::from(rate_um_min),
-                            scale: 3,
-                        },
-                        units: Some(Units::Mm),
-                        distance: Some(Distance::Incremental),
-                        machine: false,
-                    };
-                    let plan = jog.plan(&self.tape.parser().without_soft_limits());
-                    match plan {
-                        Ok(JogPlan {
-                            block: Some(b),
-                            end,
-                        }) => {
-                            let signs = match b.motion {
-                                Motion::Linear(l) => l.signs,
-                                _ => self.tape.parser().signs(),
-                            };
-                            self.queue_direct(b);
-                            self.tape.jogged_to(end, signs);
-                        }
-                        // A move beyond the counters' range: the switch is not where it can be.
-                        _ => return self.homing_ended(HomingStep::Fail(alarm::HOMING_NO_SWITCH)),
+                    // A move beyond the counters' range: the switch is not where it can be.
+                    if to.is_none() || self.machine_move(target, Some(rate_um_min), true).is_err() {
+                        return self.homing_ended(HomingStep::Fail(alarm::HOMING_NO_SWITCH));
                     }
                     return;
                 }
@@ -1038,10 +1029,7 @@ where
                             }
                         ),
                     );
-                    let mut p = self.tape.parser().clone();
-                    if let Ok(Parsed::Block(b)) = p.line(0, &line) {
-                        self.queue_direct(b);
-                    }
+                    let _ = self.direct_line(&line, true);
                     return;
                 }
                 HomingStep::Home { axis } => {
@@ -1050,8 +1038,10 @@ where
                     let raw = self.status.position().get(axis).copied().unwrap_or(0);
                     self.status.set_origin(axis, home.wrapping_sub(raw));
                     let at = self.status.machine_position();
+                    let signs = self.status.next_signs.get();
                     self.replan.restart(at);
-                    self.tape.jogged_to(at, self.status.next_signs.get());
+                    self.tape.jogged_to(at, signs);
+                    self.board.log_stop(at, signs, false);
                     run.under_way = None;
                 }
                 HomingStep::Done | HomingStep::Fail(_) => return self.homing_ended(step),
@@ -1153,16 +1143,19 @@ where
         let (at, signs) = abort(self.blocks, self.status, self.board);
         self.replan.restart(at);
         self.tape.jogged_to(at, signs);
+        self.board.log_stop(at, signs, true);
         at
     }
 
     /// Queues a move to machine coordinates `target` (BLU; the axes given only): a rapid, or
     /// a feed move at `rate_um_min`. Planned as `G21 G53 G0`/`G1` on a copy of the parser (soft
-    /// limits checked as for any line), so the modes stay; the parser stands at its end.
+    /// limits checked as for any line, unless `free`: the homing cycle's), so the modes stay; the
+    /// parser stands at its end.
     fn machine_move(
         &mut self,
         target: [Option<i32>; 3],
         rate_um_min: Option<u32>,
+        free: bool,
     ) -> Result<(), Refused> {
         let nm = i128::from(self.settings.blu.nm());
         let mm = |v: i128, scale: u8| Decimal { mantissa: v, scale };
@@ -1181,14 +1174,26 @@ where
                 w(format_args!("{}{}", axis, mm(i128::from(*t) * nm, 6)))?;
             }
         }
-        let mut p = self.tape.parser().clone();
+        self.direct_line(&line, free)
+    }
+
+    /// Queues `line` (a move or a dwell the loader makes itself) as planned on a copy of the
+    /// parser (without soft limits when `free`), logged as such; the modes stay, the parser
+    /// stands at its end.
+    fn direct_line(&mut self, line: &str, free: bool) -> Result<(), Refused> {
+        let mut p = if free {
+            self.tape.parser().without_soft_limits()
+        } else {
+            self.tape.parser().clone()
+        };
         let parsed = p
-            .line(0, &line)
+            .line(0, line)
             .map_err(|e| Refused::Tape(TapeError::Gcode(e)))?;
         // Nothing to queue when the machine is already there.
         if let Parsed::Block(b) = parsed {
             self.queue_direct(b);
             self.tape.jogged_to(p.position(), p.signs());
+            self.board.log_move(line);
         }
         Ok(())
     }
@@ -1263,7 +1268,7 @@ where
             let step = run.change.next(ended);
             ended = ChangeEnded::Done;
             let moved = match step {
-                ChangeStep::Rapid(target) => self.machine_move(target, None),
+                ChangeStep::Rapid(target) => self.machine_move(target, None, false),
                 ChangeStep::Probe { blu, rate_um_min } => {
                     if self.probe_contact() {
                         // Touching before the probe moves: the setter or the tool is not where
@@ -1273,7 +1278,7 @@ where
                     let z = self.status.machine_position()[2];
                     let floor = self.settings.soft_min[2];
                     let target = z.saturating_sub(blu).max(floor);
-                    self.machine_move([None, None, Some(target)], Some(rate_um_min))
+                    self.machine_move([None, None, Some(target)], Some(rate_um_min), false)
                         .map(|()| {
                             if let Some(run) = self.change.as_mut() {
                                 run.under_way = Some(ChangeWait::Probe);
@@ -1478,6 +1483,7 @@ where
         let (at, signs) = abort(self.blocks, status, self.board);
         self.replan.restart(at);
         self.tape.abort(at, signs);
+        self.board.log_stop(at, signs, moving);
         // A stop in motion loses the position (the drives may not have followed an abrupt
         // stop): homing, when on, is required again. A homing cycle under way fails (ALARM:6
         // after a soft reset; a trip says its own alarm).

@@ -174,6 +174,14 @@ impl millac::rt::loader::LoaderBoard for QemuLoader {
         self.log.reset();
     }
 
+    fn log_move(&mut self, line: &str) {
+        self.log.planned(line);
+    }
+
+    fn log_stop(&mut self, at: [i32; 3], signs: u8, cut: bool) {
+        self.log.stop(at, signs, cut);
+    }
+
     fn inputs(&mut self) -> Events {
         // No machine model (program mode, or no machine.txt): no inputs, no work per turn.
         if self.switches.is_none() {

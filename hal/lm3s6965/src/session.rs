@@ -1,6 +1,6 @@
 //! The session log of the serial mode: `serve.nc` in QEMU's working directory (semihosting),
 //! one `millac::wire::SessionLine` per accepted G-code line, jog, early run of the look-ahead's
-//! held block and soft reset, in the order the loader fed its tape, so the host can replay the
+//! held block, soft reset, move the loader planned itself and stop, in the order the loader fed its tape, so the host can replay the
 //! session into exactly the blocks the firmware queued (`millac serve` writes summary.json from
 //! it). Written by the loader task in serial mode ([`crate::serial`]). A semihosting write stops
 //! the emulator while it runs, so under `-icount` it costs no virtual time. Semihosting, like
@@ -63,5 +63,15 @@ impl SessionLog {
     /// Soft reset (`Tape::reset`).
     pub fn reset(&mut self) {
         self.write(SessionLine::Reset);
+    }
+
+    /// A move the loader planned itself (homing, the tool change).
+    pub fn planned(&mut self, line: &str) {
+        self.write(SessionLine::Move(line));
+    }
+
+    /// Where the parser stands after a reset, a homed axis or (`cut`) a stop mid-move.
+    pub fn stop(&mut self, at: [i32; 3], signs: u8, cut: bool) {
+        self.write(SessionLine::Stop { at, signs, cut });
     }
 }

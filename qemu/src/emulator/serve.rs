@@ -29,6 +29,7 @@ use crate::emulator::runner::{self, AcRun};
 use crate::{analysis, analysis::vcd, emulator::cosim, emulator::firmware};
 use anyhow::{anyhow, Context, Result};
 use millac::gcode::tape::{finish_block, Tape};
+use millac::gcode::Parsed;
 use millac::nc::{FrameConfig, Motion, Sealed};
 use millac::protocol::jog::JogRequest;
 use millac::wire::SessionLine;
@@ -226,20 +227,29 @@ pub fn serve(
     let settings: Settings = stored.nc;
     let log_path = out.join(crate::lm3s_files::SERVE_LOG_NAME);
     let log = std::fs::read_to_string(&log_path).unwrap_or_default();
-    let prog = analysis::program_of_blocks(
-        replay(&log, &settings).with_context(|| format!("replaying {}", log_path.display()))?,
-    );
+    let replayed =
+        replay(&log, &settings).with_context(|| format!("replaying {}", log_path.display()))?;
+    let prog = analysis::program_of_blocks(replayed.blocks);
     // What the session left: the blocks that ran to their end in the capture, and the state.
     let [x, y, z] = vcd::positions(0, &cap.pins);
     let ran = analysis::analyse(&prog, &settings, 0, &cap.pins);
     let blocks_done = ran.blocks.iter().take_while(|b| b.completed).count();
     let idle = ending.state.as_deref() == Some("Idle");
-    let hold = (!idle || blocks_done < prog.len()).then(|| runner::Hold {
+    // A session that stopped a move mid-block (homing, probing, a reset or a jog cancel in
+    // motion) completed when the machine ended Idle (its cut blocks were cut on purpose), and
+    // is analysed block by block up to the first block that did not run to its end: its pulses
+    // after that are not a whole number of the replayed blocks.
+    let hold = (!idle || (replayed.whole && blocks_done < prog.len())).then(|| runner::Hold {
         alarm: ending.alarm.clone().unwrap_or_default(),
         blocks_done,
         position: [x, y, z],
         signal: None,
     });
+    let prog = if replayed.whole || hold.is_some() {
+        prog
+    } else {
+        prog.into_iter().take(blocks_done).collect()
+    };
     let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
     // The host's comparison runs (constant feeds, the bound) at the session's spindle speed: the
     // last S of its log (the plant followed every spindle change live; a session that changes
@@ -259,6 +269,15 @@ pub fn serve(
         summary["hold"]["state"] = json!(ending.state);
         summary["hold"]["alarm"] = json!(ending.alarm);
     }
+    if !replayed.whole {
+        summary["pulses_match_host"] = Value::Null;
+        summary["replay"] = json!({
+            "whole": false,
+            "blocks_compared": blocks_done,
+            "why": "a move was stopped mid-block (homing, probing, a reset or a jog cancel in \
+                    motion): the blocks up to it are compared, the pulses after it are not",
+        });
+    }
     // The end of the whole capture (in `run` the analysis' end equals it when the pulse counts
     // match; here it stays the capture's even if the log missed a block).
     summary["final_position_blu"] = json!({"x": x, "y": y, "z": z});
@@ -276,10 +295,21 @@ pub fn serve(
 /// The blocks the firmware queued in a serial session, in order, from its log `serve.nc` (see
 /// `millac::wire::SessionLine`): the same tape, jog planning and block finishing as the loader in
 /// serial mode (`millac::rt::loader`), so the session is analysed like a `run` of its program.
-pub fn replay(log: &str, settings: &Settings) -> Result<Vec<Sealed>> {
+pub struct Replayed {
+    pub blocks: Vec<Sealed>,
+    /// Every block ran whole: no stop marker found the machine short of where the blocks
+    /// before it end (a reset or a jog cancel in motion, a homing switch, a probe's contact).
+    /// Otherwise the capture's pulses are not a whole number of these blocks and are not
+    /// compared with the host's.
+    pub whole: bool,
+}
+
+/// Replays a session log (see [`Replayed`]).
+pub fn replay(log: &str, settings: &Settings) -> Result<Replayed> {
     let mut tape = Tape::new(*settings);
     let cfg = FrameConfig::from_settings(settings);
     let mut blocks = Vec::new();
+    let mut whole = true;
     for (i, text) in log.lines().enumerate() {
         let n = u32::try_from(i + 1).unwrap_or(u32::MAX);
         match SessionLine::parse(text) {
@@ -300,11 +330,27 @@ pub fn replay(log: &str, settings: &Settings) -> Result<Vec<Sealed>> {
                     tape.jogged_to(plan.end, signs);
                 }
             }
+            SessionLine::Move(line) => {
+                let mut p = tape.parser().without_soft_limits();
+                if let Parsed::Block(b) = p.line(n, line).map_err(|e| anyhow!("line {n}: {e}"))? {
+                    blocks.push(finish_block(b, None, &cfg, settings.q0));
+                    tape.jogged_to(p.position(), p.signs());
+                }
+            }
+            SessionLine::Stop { at, signs, cut } => {
+                whole &= !cut;
+                tape.jogged_to(at, signs);
+            }
             SessionLine::Flush => tape.flush(|b| blocks.push(b)),
-            SessionLine::Reset => tape.reset(|b| blocks.push(b)),
+            // As the loader's reset: the held block dropped, the modes at power-up; the stop
+            // marker after it says where the parser stands.
+            SessionLine::Reset => {
+                let (at, signs) = (tape.parser().position(), tape.parser().signs());
+                tape.abort(at, signs);
+            }
         }
     }
-    Ok(blocks)
+    Ok(Replayed { blocks, whole })
 }
 
 #[cfg(test)]
