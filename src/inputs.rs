@@ -21,8 +21,10 @@
 //!   as one).
 //! - **Alarm latch.** An active e-stop or limit switch latches an alarm ([`Trip`]: which lines
 //!   tripped it, accumulated while latched). It stays latched after the line is released, until
-//!   the loader acknowledges it; the acknowledgement is refused while any e-stop or limit line is
-//!   still active (debounced, so also during the release's bounce).
+//!   the loader acknowledges it; the acknowledgement is refused while the e-stop is still active
+//!   (debounced, so also during the release's bounce). A limit switch still closed at the
+//!   acknowledgement is let be (the machine can be jogged off it, as grbl's): it trips again
+//!   only once it has opened (debounced) and closes anew.
 //! - At start every line is inactive: an e-stop or limit active at power-up trips at the first
 //!   sample; a button held at power-up acts once `samples` samples later.
 use crate::ports::Inputs;
@@ -224,6 +226,9 @@ pub struct Debouncer {
     trips: u16,
     /// The probe as last sampled: not debounced (a probing move stops at its first touch).
     probe: bool,
+    /// Limit switches still closed when the alarm was acknowledged: they trip again only once
+    /// they have opened.
+    let_be: u16,
 }
 
 impl Default for Debouncer {
@@ -248,6 +253,7 @@ impl Debouncer {
             latch: 0,
             trips: SAFETY,
             probe: false,
+            let_be: 0,
         }
     }
 
@@ -284,7 +290,8 @@ impl Debouncer {
         let rising = stable & !before;
         self.events.feed_hold |= rising & FEED_HOLD != 0;
         self.events.cycle_start |= rising & CYCLE_START != 0;
-        let active = stable & self.trips;
+        self.let_be &= stable;
+        let active = stable & self.trips & !self.let_be;
         if active != 0 {
             self.events.tripped |= self.latch == 0;
             self.latch |= active;
@@ -320,14 +327,22 @@ impl Debouncer {
     }
 
     /// The operator acknowledges the alarm (`$X`, soft reset). Loader task. Clears the latch
-    /// only when no e-stop or limit line is active (debounced); returns true when the latch is
-    /// clear afterwards (also when nothing was latched), false when it stays latched.
+    /// only when the e-stop is not active (debounced); a limit switch still closed is let be
+    /// until it opens. Returns true when the latch is clear afterwards (also when nothing was
+    /// latched), false when it stays latched.
     pub fn acknowledge(&mut self) -> bool {
-        if self.stable & self.trips == 0 {
+        if self.stable & self.trips & ESTOP == 0 {
+            self.let_be = self.stable & SAFETY & !ESTOP;
             self.latch = 0;
             self.events.tripped = false;
         }
         self.latch == 0
+    }
+
+    /// The alarm is latched and the e-stop is still active: `$X` would be refused. Loader task
+    /// (the boards' `LoaderBoard::latch_active`).
+    pub fn latch_active(&self) -> bool {
+        self.latch != 0 && self.stable & ESTOP != 0
     }
 }
 
@@ -567,26 +582,48 @@ mod tests {
         assert!(d.take().tripped);
     }
 
+    /// A limit switch still closed does not refuse the acknowledgement (the e-stop does): it is
+    /// let be, so the machine can be jogged off it; it does not trip again while it stays
+    /// closed, and trips again once it has opened (debounced) and closes anew. Another switch
+    /// trips meanwhile.
     #[test]
-    fn ack_is_refused_while_a_limit_is_active() {
+    fn a_limit_still_closed_is_let_be_until_it_opens() {
         let mut d = Debouncer::new(2);
         let limit_x = Inputs {
             limits: 0b001,
             ..IDLE
         };
-        for _ in 0..20 {
-            d.sample(limit_x);
-            assert!(!d.acknowledge());
-        }
-        assert!(d.latched().is_some());
-        // The trip event stays pending for the loader while refused.
+        d.sample(limit_x);
         assert!(d.take().tripped);
-        d.sample(IDLE);
-        assert!(!d.acknowledge(), "release not yet debounced");
-        d.sample(IDLE);
+        assert!(!d.latch_active(), "a limit alone does not refuse $X");
         assert!(d.acknowledge());
         assert_eq!(d.latched(), None);
+        for _ in 0..20 {
+            d.sample(limit_x);
+        }
+        assert_eq!(d.take(), Events::default(), "no trip while it stays closed");
+        assert_eq!(d.latched(), None);
+        // Y closes meanwhile: that trips.
+        d.sample(Inputs {
+            limits: 0b011,
+            ..IDLE
+        });
+        assert!(d.take().tripped);
+        assert_eq!(d.latched().map(|t| t.limits), Some(0b010));
+        assert!(d.acknowledge());
+        // Both open (one sample: not yet debounced), close again: still let be.
+        d.sample(IDLE);
+        d.sample(limit_x);
         assert_eq!(d.take(), Events::default());
+        // Open for good, then closing trips again.
+        d.sample(IDLE);
+        d.sample(IDLE);
+        d.sample(limit_x);
+        assert!(d.take().tripped);
+        // The e-stop still refuses the acknowledgement.
+        d.sample(estop(true));
+        assert!(d.latch_active());
+        assert!(!d.acknowledge());
     }
 
     #[test]

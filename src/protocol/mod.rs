@@ -519,7 +519,7 @@ impl<'a> Protocol<'a> {
                         "[MSG:Tool breakage: reset (Ctrl-X) first, then change the tool]\r\n"
                     }
                     Some(codes::alarm::HOMING_REQUIRED) => "[MSG:Homing required: '$H']\r\n",
-                    _ => "[MSG:E-stop or limit switch still active]\r\n",
+                    _ => "[MSG:E-stop still active]\r\n",
                 });
                 Err(GrblError::GCODE_LOCK)
             }

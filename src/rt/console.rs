@@ -271,7 +271,7 @@ impl<const T: usize> Console for Serial<'_, T> {
             }
             News::StillActive(t) => {
                 self.alarm(trip_alarm(&t));
-                self.message(format_args!("E-stop or limit switch still active"));
+                self.message(format_args!("E-stop still active"));
             }
             News::AbortCycle => self.alarm(alarm::ABORT_CYCLE),
             News::RxOverflow { lost } => self.proto.rx_overflow(lost, &mut self.out),

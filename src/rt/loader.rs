@@ -107,7 +107,8 @@ pub trait LoaderBoard {
     fn latched(&mut self) -> Option<Trip> {
         None
     }
-    /// `$X`: clears the latch; false while an e-stop or limit line is still active.
+    /// `$X`: clears the latch; false while the e-stop is still active (a limit switch still
+    /// closed is let be until it opens, so the machine can be jogged off it).
     fn acknowledge(&mut self) -> bool {
         true
     }
@@ -126,8 +127,8 @@ pub trait LoaderBoard {
     /// Whether a closing limit switch trips the alarm latch: off while the homing cycle seeks
     /// the switches, and with `$21=0`; on otherwise (the default, and at power-up).
     fn limit_trips(&mut self, _on: bool) {}
-    /// The alarm is latched and an e-stop or limit line is still active (`$X` would be refused:
-    /// the protocol answers it with `error:9` before saying anything else).
+    /// The alarm is latched and the e-stop is still active (`$X` would be refused: the protocol
+    /// answers it with `error:9` before saying anything else).
     fn latch_active(&mut self) -> bool {
         false
     }
@@ -1525,12 +1526,13 @@ where
         }
     }
 
-    /// `$X` (the protocol has cleared its alarm): refused while an e-stop or a limit switch is
-    /// still active; also clears an AC sensor hold (the AC resumes from f_min).
+    /// `$X` (the protocol has cleared its alarm): refused while the e-stop is still active (a
+    /// limit switch still closed is let be: jog off it); also clears an AC sensor hold (the AC
+    /// resumes from f_min).
     fn unlock(&mut self) {
         if let Some(t) = self.board.latched() {
             if !self.board.acknowledge() {
-                // The e-stop or a limit switch is still active: the alarm stays.
+                // The e-stop is still active: the alarm stays.
                 self.console.say(News::StillActive(t));
                 return;
             }

@@ -211,6 +211,8 @@ struct Bench<const S: bool = true> {
     /// The machine's limit switches (None: no switches), and whether a closing one trips.
     switches: Option<Switches>,
     limit_trips: bool,
+    /// Switches still closed at `$X` (they trip again once they have opened).
+    let_be: u8,
     /// The tool in the simulated spindle (the machine model's lengths), and each fit (frame,
     /// tool) the loader reported.
     fitted: u8,
@@ -362,7 +364,9 @@ impl<const S: bool> LoaderBoard for Bench<S> {
         // A switch that closes while limits trip: the latch, as the board's debouncer sets it.
         if let Some(sw) = self.switches {
             let closed = sw.closed(self.status.encoder());
-            if self.limit_trips && closed != 0 && self.latch.is_none() {
+            // As the debouncer: a switch let be at `$X` trips again once it has opened.
+            self.let_be &= closed;
+            if self.limit_trips && closed & !self.let_be != 0 && self.latch.is_none() {
                 self.latch = Some(Trip {
                     estop: false,
                     limits: closed,
@@ -392,9 +396,10 @@ impl<const S: bool> LoaderBoard for Bench<S> {
     }
 
     fn acknowledge(&mut self) -> bool {
-        if self.estop_active || self.limits() != 0 {
+        if self.estop_active {
             return false;
         }
+        self.let_be = self.limits();
         self.latch = None;
         true
     }
@@ -420,7 +425,7 @@ impl<const S: bool> LoaderBoard for Bench<S> {
     }
 
     fn latch_active(&mut self) -> bool {
-        self.latch.is_some() && (self.estop_active || self.limits() != 0)
+        self.latch.is_some() && self.estop_active
     }
 
     fn frame_limit_cycles(&self) -> Option<u32> {
@@ -560,6 +565,7 @@ fn session_on<const S: bool>(
         switches: MACHINE.with(|m| m.get()).map(|(sw, _)| sw),
         fitted: 0,
         fits: Vec::new(),
+        let_be: 0,
         limit_trips: true,
     };
     // The breakage and chatter events are an enabled AC's (its holds apply): the loader gets its
@@ -816,8 +822,7 @@ fn an_estop_stops_at_once_latches_alarm_10_and_needs_release_and_unlock() {
     assert_eq!(b.out.matches("ALARM:10\r\n").count(), 1, "{}", b.out);
     assert!(b.out.contains("[MSG:E-stop]"), "{}", b.out);
     assert!(
-        b.out
-            .contains("[MSG:E-stop or limit switch still active]\r\nerror:9\r\n"),
+        b.out.contains("[MSG:E-stop still active]\r\nerror:9\r\n"),
         "{}",
         b.out
     );
@@ -1223,8 +1228,10 @@ fn an_estop_in_motion_loses_the_position_and_only_homing_unlocks() {
 }
 
 /// Hard limits (`$21=1`, the default): a switch that closes in a move stops everything with
-/// `ALARM:1` at the switch, and `$X` is refused while it stays closed. With `$21=0` the same
-/// move runs through (a machine whose switches are only for homing).
+/// `ALARM:1` at the switch. `$X` unlocks with the switch still closed (as grbl's), so the axis
+/// can be jogged off it; it does not trip while it stays closed, and trips again once it has
+/// opened and closes anew. With `$21=0` the same move runs through (a machine whose switches
+/// are only for homing).
 #[test]
 fn hard_limits_trip_with_21_on_and_not_with_21_off() {
     let sw = Switches {
@@ -1242,23 +1249,43 @@ fn hard_limits_trip_with_21_on_and_not_with_21_off() {
         };
         MACHINE.with(|m| m.set(Some((sw, setup))));
         let b = session(
-            &[(1, "G21 G91 G1 F2000 X10\n"), (40_000, "$X\n")],
+            &[
+                (1, "G21 G91 G1 F2000 X10\n"),
+                (40_000, "$X\n"),
+                (40_100, "$J=G91 G21 X-2 F500\n"),
+                (60_000, "?"),
+                (60_100, "G21 G91 G1 F500 X5\n"),
+            ],
             &[],
             None,
-            40_100,
+            100_000,
         );
         MACHINE.with(|m| m.set(None));
         if hard {
-            assert!(b.out.contains("ALARM:1\r\n"), "{}", b.out);
-            assert!(b.out.ends_with("still active]\r\nerror:9\r\n"), "{}", b.out);
+            let alarms: Vec<&str> = b.out.split("ALARM:1\r\n").collect();
+            assert_eq!(alarms.len(), 3, "two trips: {}", b.out);
+            assert!(
+                alarms[1].starts_with(
+                    "[MSG:Limit switch 001 (ZYX)]\r\n[MSG:Caution: Unlocked]\r\nok\r\nok\r\n<Idle|"
+                ),
+                "$X unlocks, the jog off runs: {}",
+                b.out
+            );
+            // Jogged 2 mm (787 BLU) back from the switch.
+            let off = mpos(alarms[1]);
+            assert!(
+                (1_969 - 787..1_969 - 787 + 20).contains(&off[0]),
+                "{off:?}: {}",
+                b.out
+            );
             let x = b.status.encoder()[0];
             assert!(
                 (1_969..1_969 + 20).contains(&x),
-                "stopped at the switch: {x}"
+                "stopped at the switch again: {x}"
             );
         } else {
             assert!(!b.out.contains("ALARM"), "{}", b.out);
-            assert_eq!(b.status.encoder(), [3_937, 0, 0]);
+            assert_eq!(b.status.encoder(), [3_937 - 787 + 1_969, 0, 0]);
         }
     }
 }

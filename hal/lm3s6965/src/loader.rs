@@ -201,8 +201,8 @@ impl millac::rt::loader::LoaderBoard for QemuLoader {
     }
 
     fn latch_active(&mut self) -> bool {
-        let i = self.sample();
-        self.inputs.latched().is_some() && i.limits != 0
+        self.sample();
+        self.inputs.latch_active()
     }
 
     fn limits(&mut self) -> u8 {

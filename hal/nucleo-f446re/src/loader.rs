@@ -136,10 +136,7 @@ impl<M: Mutex<T = Debouncer>> LoaderBoard for Nucleo<'_, M> {
     }
 
     fn latch_active(&mut self) -> bool {
-        self.inputs.lock(|d| {
-            let i = d.inputs();
-            d.latched().is_some() && (i.estop || i.limits != 0)
-        })
+        self.inputs.lock(|d| d.latch_active())
     }
 
     fn limits(&mut self) -> u8 {

@@ -285,7 +285,7 @@ fn bad_jogs_get_grbl_errors() {
     }
 }
 
-/// `$X` while the board says its e-stop or a limit switch is still active: refused before anything
+/// `$X` while the board says its e-stop is still active: refused before anything
 /// else is said (no "Unlocked"), the alarm stays; once the interlock clears, `$X` unlocks.
 #[test]
 fn unlock_is_refused_while_the_interlock_is_active() {
@@ -295,7 +295,7 @@ fn unlock_is_refused_while_the_interlock_is_active() {
     r.interlock = Some(10);
     assert_eq!(
         answer(&mut r, "$X"),
-        "[MSG:E-stop or limit switch still active]\r\nerror:9\r\n"
+        "[MSG:E-stop still active]\r\nerror:9\r\n"
     );
     assert_eq!(r.p.alarm_code(), Some(10));
     r.interlock = None;
