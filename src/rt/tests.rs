@@ -1290,6 +1290,20 @@ fn hard_limits_trip_with_21_on_and_not_with_21_off() {
     }
 }
 
+/// The bench's machine for probing: no switches near, a plate the probe touches at true Z
+/// `z` and below (the machine starts at 0), the default set-up.
+fn on_plate(z: i32) {
+    let plate = Switches {
+        start: [0; 3],
+        at: [500_000; 3],
+        negative: 0,
+        probe: Some(z),
+        setter: None,
+        tools: [0; crate::inputs::TOOLS],
+    };
+    MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
+}
+
 /// Probing against the machine model's plate at true Z -1000 BLU (the machine starts at 0):
 /// G38.2 stops at once where the probe touches and says `[PRB:...:1]` before its `ok` (machine
 /// coordinates), the parser standing there; G38.4 backs off until it clears; a G38.3 that finds
@@ -1297,15 +1311,7 @@ fn hard_limits_trip_with_21_on_and_not_with_21_off() {
 /// `ALARM:5`; a G38.2 started touching is `ALARM:4`, and nothing moves.
 #[test]
 fn probing_stops_where_the_probe_touches_and_reports_it() {
-    let plate = Switches {
-        start: [0; 3],
-        at: [500_000; 3],
-        negative: 0,
-        probe: Some(-1_000),
-        setter: None,
-        tools: [0; crate::inputs::TOOLS],
-    };
-    MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
+    on_plate(-1_000);
     let b = session(
         &[
             (1, "G21 G91 G38.2 Z-10 F200\n"),
@@ -1369,15 +1375,7 @@ fn probing_stops_where_the_probe_touches_and_reports_it() {
 /// the parser stand where it does not). The G0 X1 after the G38.2 runs from the plate.
 #[test]
 fn a_program_files_line_after_a_probe_runs_from_where_the_probe_stopped() {
-    let plate = Switches {
-        start: [0; 3],
-        at: [500_000; 3],
-        negative: 0,
-        probe: Some(-1_000),
-        setter: None,
-        tools: [0; crate::inputs::TOOLS],
-    };
-    MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
+    on_plate(-1_000);
     let (finished, ok, results, b) =
         program_run("G21 G91 G38.2 Z-10 F200\nG0 X1 Z1\n", 256, 40_000, None);
     MACHINE.with(|m| m.set(None));
@@ -1390,15 +1388,7 @@ fn a_program_files_line_after_a_probe_runs_from_where_the_probe_stopped() {
 /// it until `$X`. A feed move that ends 1 BLU above the plate runs untouched.
 #[test]
 fn a_probe_contact_outside_probing_holds_with_alarm_13() {
-    let plate = Switches {
-        start: [0; 3],
-        at: [500_000; 3],
-        negative: 0,
-        probe: Some(-1_000),
-        setter: None,
-        tools: [0; crate::inputs::TOOLS],
-    };
-    MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
+    on_plate(-1_000);
     let b = session(
         &[
             (1, "G20 G90 G1 F20 Z-0.0999\n"),
@@ -1632,15 +1622,7 @@ fn a_tool_change_that_finds_no_setter_fails_with_alarm_5() {
 /// where the sender meant it.
 #[test]
 fn the_senders_probe_and_zero_lines_run_as_they_mean() {
-    let plate = Switches {
-        start: [0; 3],
-        at: [500_000; 3],
-        negative: 0,
-        probe: Some(-394),
-        setter: None,
-        tools: [0; crate::inputs::TOOLS],
-    };
-    MACHINE.with(|m| m.set(Some((plate, crate::settings::Setup::default()))));
+    on_plate(-394);
     for (sender, lines, zero) in [
         // bCNC: single probe, then its zero (no spaces), then $#.
         (
