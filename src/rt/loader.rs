@@ -1094,10 +1094,7 @@ where
     fn probe_start(&mut self, p: Probe, no: u32, line: &str) {
         // Touching before a move toward the work, or clear before one away from it.
         if self.probe_contact() == p.toward {
-            self.console.say(News::ProbeFailed(alarm::PROBE_INITIAL));
-            self.console
-                .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
-            return;
+            return self.probe_failed(alarm::PROBE_INITIAL);
         }
         match self.queue_line(no, line) {
             Ok(()) => self.probing = Some(p),
@@ -1129,12 +1126,23 @@ where
             inches: self.table.settings.report.inches,
         });
         if !changed && p.must_change {
-            self.console.say(News::ProbeFailed(alarm::PROBE_NO_CONTACT));
-            self.console
-                .reply(Err(Refused::Grbl(GrblError::GCODE_LOCK)));
+            self.probe_failed(alarm::PROBE_NO_CONTACT);
         } else {
             self.console.reply(Ok(()));
         }
+    }
+
+    /// A probing line failed with `code` (4, 5): the alarm, then the line's answer: `ok` on a
+    /// serial line, as grbl's (the alarm locks what follows), refused in a program file (its
+    /// run ends there).
+    fn probe_failed(&mut self, code: u8) {
+        self.console.say(News::ProbeFailed(code));
+        let answer = if self.console.attended() {
+            Ok(())
+        } else {
+            Err(Refused::Grbl(GrblError::GCODE_LOCK))
+        };
+        self.console.reply(answer);
     }
 
     /// Stops the machine at once (the queue dropped) and stands the parser and the re-plan's

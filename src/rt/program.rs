@@ -201,6 +201,10 @@ impl<F: ProgramFile> Console for Program<F> {
                 Said::Stop,
                 format_args!("tool change (M6) at line {line}: T{tool}"),
             ),
+            News::ProbeFailed(code) => f.result(
+                Said::Alarm,
+                format_args!("probe failed (ALARM:{code}): no contact, or touching at the start"),
+            ),
             News::ProbeProtection => f.result(
                 Said::Alarm,
                 format_args!("probe contact outside a probing move: held"),
@@ -216,8 +220,7 @@ impl<F: ProgramFile> Console for Program<F> {
             | News::HomingRequired
             | News::Homed
             | News::HomingFailed(_)
-            | News::Probed { .. }
-            | News::ProbeFailed(_) => {}
+            | News::Probed { .. } => {}
         }
     }
 

@@ -1347,7 +1347,7 @@ fn probing_stops_where_the_probe_touches_and_reports_it() {
         "{out}"
     );
     assert!(
-        out.ends_with("[PRB:0.000,0.000,1.463:0]\r\nALARM:5\r\nerror:9\r\n"),
+        out.ends_with("[PRB:0.000,0.000,1.463:0]\r\nALARM:5\r\nok\r\n"),
         "{out}"
     );
     assert_eq!(b.status.encoder(), [0, 0, 576]);
@@ -1363,7 +1363,7 @@ fn probing_stops_where_the_probe_touches_and_reports_it() {
     );
     MACHINE.with(|m| m.set(None));
     assert!(
-        b.out.ends_with(":1]\r\nok\r\nALARM:4\r\nerror:9\r\n"),
+        b.out.ends_with(":1]\r\nok\r\nALARM:4\r\nok\r\n"),
         "{}",
         b.out
     );
@@ -1378,9 +1378,18 @@ fn a_program_files_line_after_a_probe_runs_from_where_the_probe_stopped() {
     on_plate(-1_000);
     let (finished, ok, results, b) =
         program_run("G21 G91 G38.2 Z-10 F200\nG0 X1 Z1\n", 256, 40_000, None);
-    MACHINE.with(|m| m.set(None));
     assert_eq!((finished, ok), (Some(Finished::Done), true), "{results:?}");
     assert_eq!(b.status.encoder(), [394, 0, -1_000 + 394]);
+    // A probe that finds nothing ends the run there, said as an alarm; the G0 after it never
+    // runs.
+    let (_, ok, results, b) = program_run("G21 G91 G38.2 Z-1 F200\nG0 X1\n", 256, 40_000, None);
+    MACHINE.with(|m| m.set(None));
+    assert!(!ok, "{results:?}");
+    assert!(
+        results[0].starts_with("alarm: probe failed (ALARM:5)"),
+        "{results:?}"
+    );
+    assert_eq!(b.status.encoder(), [0, 0, -394]);
 }
 
 /// Probe protection: a move that is not a probing move and runs the probe into the plate (a
