@@ -1767,7 +1767,7 @@ fn the_senders_tool_changes_run_through_serve() {
     let told = read_until(&mut r, |s| s.starts_with("[MSG:Tool change"));
     assert_eq!(
         told.last().unwrap(),
-        "[MSG:Tool change (M6, line 4): fit T1, then cycle start]"
+        "[MSG:Tool change (M6): fit T1, then cycle start]"
     );
     let held = continue_at_hold(&mut w, &mut r);
     assert_eq!(mpos_mm(&held), [0.0, 0.0, 25.001], "{held}");

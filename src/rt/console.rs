@@ -277,15 +277,16 @@ impl<const T: usize> Console for Serial<'_, T> {
             News::RxOverflow { lost } => self.proto.rx_overflow(lost, &mut self.out),
             // A sender's next program starts on the same line.
             News::ProgramEnd => {}
+            // No line number: a sender numbers its lines itself (millac's count of the lines
+            // received would not match its file's).
             News::Stop {
-                stop: Stop::Pause,
-                line,
-            } => self.message(format_args!("Pause (M0, line {line}): cycle start resumes")),
+                stop: Stop::Pause, ..
+            } => self.message(format_args!("Pause (M0): cycle start resumes")),
             News::Stop {
                 stop: Stop::ToolChange { tool },
-                line,
+                ..
             } => self.message(format_args!(
-                "Tool change (M6, line {line}): fit T{tool}, then cycle start"
+                "Tool change (M6): fit T{tool}, then cycle start"
             )),
             News::HomingRequired => {
                 self.alarm(alarm::HOMING_REQUIRED);

@@ -174,6 +174,9 @@ struct Sync {
     stop: Option<Stop>,
     /// G38.x: a probing move, watched until the probe changes.
     probe: Option<Probe>,
+    /// G4: a dwell, answered once it has run (grbl's G4 waits for the motion before it and
+    /// answers after the dwell: senders use it to wait for the machine, CNCjs's `%wait`).
+    dwell: bool,
 }
 
 /// What the loader works with, from the board's init: the block queue's producer, the re-plan's
@@ -303,6 +306,11 @@ pub struct Loader<
     setter_ref: Option<i32>,
     /// The probe touched at the last turn (probe protection acts on a new contact).
     probe_was: bool,
+    /// A G4 line runs: its `ok` comes when the machine stands again.
+    dwelling: bool,
+    /// The tool length offset the last guided tool change set (and how): the tool in the
+    /// spindle's, kept through a soft reset (the tool has not changed).
+    tool_tlo: Option<(i64, ToolLength)>,
 }
 
 /// A running tool change: its sequence, the M6 line's number, the step under way and the
@@ -448,6 +456,8 @@ where
             change: None,
             setter_ref: None,
             probe_was: false,
+            dwelling: false,
+            tool_tlo: None,
         };
         loader
             .board
@@ -586,6 +596,10 @@ where
             ac_held,
         };
         self.probe_protection(idle);
+        if self.dwelling && self.stands() {
+            self.dwelling = false;
+            self.console.reply(Ok(()));
+        }
         if self.homing.is_some() || self.probing.is_some() || self.change.is_some() {
             if self.homing.is_some() {
                 self.homing_turn(self.stands());
@@ -626,6 +640,7 @@ where
             && self.deferred.is_none()
             && self.probing.is_none()
             && self.change.is_none()
+            && !self.dwelling
             && !self.tape.pending()
             && !self.replan.pending();
         // The line source's news. A G-code line is copied out of the protocol's buffer (the
@@ -836,12 +851,20 @@ where
                 // The M6's `ok` comes when the change is done.
                 return self.change_start(tool, d.no);
             }
-            // Fitted by hand, measured nowhere: the setter's reference is the old tool's.
+            // Fitted by hand, measured nowhere: the setter's reference is the old tool's, and
+            // the change's length offset no longer the spindle's.
             self.setter_ref = None;
+            self.tool_tlo = None;
         }
         let end = sync.end && ok;
         if end {
             self.status.ask_new_job();
+        }
+        if sync.dwell && ok {
+            // Answered once the dwell has run (see `Loader::turn`).
+            self.run_held();
+            self.dwelling = true;
+            return;
         }
         self.console.reply(result);
         if end {
@@ -1317,6 +1340,7 @@ where
                         ToolLength::Dynamic
                     };
                     self.tape.set_tool_length(tlo_pm, how);
+                    self.tool_tlo = Some((tlo_pm, how));
                     continue;
                 }
                 ChangeStep::Spindle => {
@@ -1493,6 +1517,11 @@ where
         self.replan.restart(at);
         self.tape.abort(at, signs);
         self.board.log_stop(at, signs, moving);
+        // The parser's modes are at power-up (G49), but the tool in the spindle is the one the
+        // last guided change measured: its length offset stays.
+        if let Some((pm, how)) = self.tool_tlo {
+            self.tape.set_tool_length(pm, how);
+        }
         // A stop in motion loses the position (the drives may not have followed an abrupt
         // stop): homing, when on, is required again. A homing cycle under way fails (ALARM:6
         // after a soft reset; a trip says its own alarm).
@@ -1509,7 +1538,7 @@ where
         }
         // A line waiting for the spindle: a soft reset discards it with the stream (the protocol
         // has done so); after a trip it is answered, refused.
-        let waiting = self.deferred.take().is_some();
+        let waiting = self.deferred.take().is_some() || core::mem::take(&mut self.dwelling);
         self.hold = false;
         self.cancel_jog = false;
         self.jogging = false;
@@ -1582,7 +1611,7 @@ fn sync_line<B: LoaderBoard>(
 ) -> Option<Sync> {
     let letters = line.bytes().any(|b| matches!(b, b'M' | b'm' | b'S' | b's'));
     let probe = line.as_bytes().windows(2).any(|w| w == b"38");
-    if !letters && !probe && !may_store(line) {
+    if !letters && !probe && !may_store(line) && !may_dwell(line) {
         return None;
     }
     let mut probe = tape.parser().clone();
@@ -1604,13 +1633,35 @@ fn sync_line<B: LoaderBoard>(
             Parsed::Probe(_, p) => Some(p),
             _ => None,
         },
+        dwell: matches!(parsed, Parsed::Block(b) if matches!(b.motion, Motion::Dwell(_))),
     };
     (sync.end
         || sync.stop.is_some()
         || sync.probe.is_some()
+        || sync.dwell
         || stores
         || (B::Board::SPINDLE && (spindle, rpm) != applied))
         .then_some(sync)
+}
+
+/// Whether a line may hold G4 (a G, zeros, then a 4 that no digit or point follows; spaces
+/// ignored as the parser ignores them): only such lines are parsed on a copy to find out.
+pub(crate) fn may_dwell(line: &str) -> bool {
+    let mut b = line.bytes().filter(|b| !b.is_ascii_whitespace()).peekable();
+    while let Some(c) = b.next() {
+        if c.eq_ignore_ascii_case(&b'G') {
+            while b.peek() == Some(&b'0') {
+                b.next();
+            }
+            if b.peek() == Some(&b'4') {
+                b.next();
+                if !b.peek().is_some_and(|n| n.is_ascii_digit() || *n == b'.') {
+                    return true;
+                }
+            }
+        }
+    }
+    false
 }
 
 /// Whether a line may hold G10, G28.1 or G30.1 (its digits "10", "28.1" or "30.1", spaces

@@ -878,13 +878,12 @@ G1 X0.01
     );
     assert!(
         b.out
-            .contains("[MSG:Tool change (M6, line 2): fit T2, then cycle start]"),
+            .contains("[MSG:Tool change (M6): fit T2, then cycle start]"),
         "{}",
         b.out
     );
     assert!(
-        b.out
-            .contains("[MSG:Pause (M0, line 4): cycle start resumes]"),
+        b.out.contains("[MSG:Pause (M0): cycle start resumes]"),
         "{}",
         b.out
     );
@@ -1519,7 +1518,7 @@ fn the_tool_change_measures_each_tool_on_the_setter_and_returns() {
     assert!(reports[0].starts_with("Hold:0|"), "{out}");
     assert_eq!(mpos(reports[0]), g30, "{out}");
     assert!(
-        out.contains("[MSG:Tool change (M6, line 5): fit T1, then cycle start]"),
+        out.contains("[MSG:Tool change (M6): fit T1, then cycle start]"),
         "{out}"
     );
     assert_eq!(oks(out.split('<').next().unwrap()), 4, "{out}");
@@ -1601,6 +1600,58 @@ fn the_tool_change_takes_the_tables_length_and_runs_unattended() {
     assert_eq!((finished, ok), (Some(Finished::Done), true), "{results:?}");
     assert_eq!(b.status.encoder(), [1_969 + 394, 1_969, -787 + 5_000]);
     assert_eq!(b.fits.iter().map(|f| f.1).collect::<Vec<_>>(), [3]);
+}
+
+/// G4 waits for the motion before it and is answered once its dwell has run, as grbl's (senders
+/// use it to wait for the machine: CNCjs's `%wait` is `G4 P0.5`, bCNC's tool change a `g4p1`
+/// before it reads the position): a `$#` right after its `ok` is answered (not `error:8`), and
+/// the `ok` comes after the move's end plus the dwell.
+#[test]
+fn g4_is_answered_after_the_motion_before_it_and_its_dwell() {
+    let b = session(&[(1, "G91 G1 F30 X0.01\nG4 P0.2\n$#\n")], &[], None, 6_000);
+    let out = &b.out;
+    assert!(!out.contains("error"), "{out}");
+    assert_eq!(oks(out), 3, "{out}");
+    // 100 BLU at 30 ipm (1 BLU a frame, with its ramps), then 0.2 s = 1000 frames.
+    let g4 = b.oks_at[1];
+    assert!((1_100..1_450).contains(&g4), "G4's ok at frame {g4}");
+    assert!(out.contains("[G54:"), "{out}");
+    // Which lines may be a G4 (the parser decides the rest).
+    for (line, dwell) in [
+        ("G4 P1", true),
+        ("g04p1", true),
+        ("G 4 P1", true),
+        ("G4.0 P1", false),
+        ("G40", false),
+        ("G43.1 Z4", false),
+        ("X4 G1", false),
+        ("G1 X1 G4", true),
+    ] {
+        assert_eq!(super::loader::may_dwell(line), dwell, "{line}");
+    }
+}
+
+/// The tool length offset a guided tool change set survives a soft reset (the tool in the
+/// spindle has not changed; grbl would reset it to G49 with the other modes, and a sender that
+/// resets at a job's end, as bCNC does, would cut the next job with the tool 15 mm too deep).
+#[test]
+fn a_soft_reset_keeps_the_length_offset_of_the_tool_in_the_spindle() {
+    MACHINE.with(|m| m.set(Some((SETTER, change_setup(1)))));
+    let b = session(
+        &[
+            (1, "G21 G90 G0 X0 Y0 Z25\nG30.1\nG10 L1 P3 Z12.7\nT3 M6\n"),
+            (60_000, "~"),
+            (100_000, "\u{18}"),
+            (100_100, "$#\n$G\n"),
+        ],
+        &[],
+        None,
+        100_300,
+    );
+    MACHINE.with(|m| m.set(None));
+    let after = b.out.rsplit("Grbl 1.1h").next().unwrap();
+    assert!(after.contains("[TLO:12.700]"), "{}", b.out);
+    assert!(after.contains(" G43 "), "{}", b.out);
 }
 
 /// A tool setter that is not where `$345`/`$346` say (none in the machine): the probe finds no
