@@ -47,14 +47,25 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
         false,
         (|| -> Result<bool> {
             std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-            let run = acsim::run_with_faults(
-                &prog,
-                &settings,
-                &cut,
-                (!args.no_ac).then_some(acs),
-                true,
-                &args.faults,
-            )?;
+            // The AC's run and the comparison's (programmed feeds, then the oracle, then the
+            // safe constant feed: each needs the one before) are independent: two threads, the
+            // same results as one after the other.
+            let (run, cmp) = std::thread::scope(|s| {
+                let comparison = s.spawn(|| acreport::compare(&prog, &settings, &cut, &acs));
+                let run = acsim::run_with_faults(
+                    &prog,
+                    &settings,
+                    &cut,
+                    (!args.no_ac).then_some(acs),
+                    true,
+                    &args.faults,
+                );
+                let cmp = comparison
+                    .join()
+                    .unwrap_or_else(|p| std::panic::resume_unwind(p));
+                (run, cmp)
+            });
+            let run = run?;
             let csv = out.join("ac.csv");
             std::fs::write(&csv, acsim::csv(&run.rows))
                 .with_context(|| format!("writing {}", csv.display()))?;
@@ -75,13 +86,12 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 acs.sample_hz,
             );
             // The comparison's runs (constant feeds, the oracle) are left out once a signal has come:
-            // they would be cut short too.
-            let cmp = match millac_qemu::interrupt::received() {
-                None => Some(acreport::compare(&prog, &settings, &cut, &acs)?),
+            // they were cut short too.
+            let signal = millac_qemu::interrupt::received().map(millac_qemu::interrupt::name);
+            let cmp = match signal {
+                None => Some(cmp?),
                 Some(_) => None,
             };
-            let signal = millac_qemu::interrupt::received().map(millac_qemu::interrupt::name);
-            let cmp = cmp.filter(|_| signal.is_none());
             println!(
                 "millac host run ({}): final position {:?}",
                 match (args.no_ac, args.strategy) {

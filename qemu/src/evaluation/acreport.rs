@@ -127,6 +127,10 @@ pub fn oracle_walk(
     };
     let mut pos = [0i64; 3];
     for (i, b) in prog.iter().enumerate() {
+        // A signal: the caller discards the comparison (it runs beside the AC's run).
+        if crate::interrupt::received().is_some() {
+            break;
+        }
         let start = pulse;
         while programmed.path.get(pulse).is_some_and(|p| p.2 == i) {
             pulse += 1;
