@@ -24,7 +24,8 @@
 //!   [`evaluation::optimise`] and [`evaluation::model`] (offline optimisation and the
 //!   model-based method), the labs of the monitors ([`evaluation::alarmlab`],
 //!   [`evaluation::breaklab`], [`evaluation::chatterlab`]) and [`evaluation::plot`].
-//! - [`interrupt`] turns SIGINT and SIGTERM into an early end with a report (any long run).
+//! - [`interrupt`] turns SIGINT and SIGTERM into an early end with a report (any long run);
+//!   [`progress`] shows a long run's progress on a terminal.
 //!
 //! Pins (GPIO port B, PL061 at 0x4000_5000): PB0 X_STEP, PB1 Y_STEP, PB2 Z_STEP, PB3 X_SIGN,
 //! PB4 Y_SIGN, PB5 Z_SIGN. Sign high = positive direction; a rising step edge = one BLU.
@@ -47,3 +48,4 @@ pub mod lm3s_facts;
 /// file (one definition, in the board's folder).
 #[path = "../../hal/lm3s6965/src/files.rs"]
 pub mod lm3s_files;
+pub mod progress;

@@ -10,6 +10,7 @@ use std::path::PathBuf;
 
 fn main() {
     let cli = Cli::parse();
+    millac_qemu::progress::set_quiet(cli.quiet);
     // The commands that leave a report in their folder: SIGINT and SIGTERM end them with it.
     let report: Option<(PathBuf, bool)> = match &cli.cmd {
         None => Some((PathBuf::from("out/demo"), false)),

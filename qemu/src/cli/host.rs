@@ -51,15 +51,26 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
             // safe constant feed: each needs the one before) are independent: two threads, the
             // same results as one after the other.
             let (run, cmp) = std::thread::scope(|s| {
-                let comparison = s.spawn(|| acreport::compare(&prog, &settings, &cut, &acs));
-                let run = acsim::run_with_faults(
-                    &prog,
-                    &settings,
-                    &cut,
-                    (!args.no_ac).then_some(acs),
-                    true,
-                    &args.faults,
-                );
+                let comparison = s.spawn(|| {
+                    millac_qemu::progress::with_bar("comparison", prog.len(), || {
+                        acreport::compare(&prog, &settings, &cut, &acs)
+                    })
+                });
+                let label = if args.no_ac {
+                    "programmed feeds"
+                } else {
+                    "AC run"
+                };
+                let run = millac_qemu::progress::with_bar(label, prog.len(), || {
+                    acsim::run_with_faults(
+                        &prog,
+                        &settings,
+                        &cut,
+                        (!args.no_ac).then_some(acs),
+                        true,
+                        &args.faults,
+                    )
+                });
                 let cmp = comparison
                     .join()
                     .unwrap_or_else(|p| std::panic::resume_unwind(p));

@@ -28,6 +28,9 @@ pub(crate) const DEMO: &str = include_str!("../../programs/fig1-cavity.nc");
 pub(crate) struct Cli {
     #[command(subcommand)]
     pub(crate) cmd: Option<Cmd>,
+    /// No progress bars (they show only on a terminal anyway).
+    #[arg(long, global = true)]
+    pub(crate) quiet: bool,
 }
 
 #[derive(Subcommand)]

@@ -131,6 +131,7 @@ pub fn oracle_walk(
         if crate::interrupt::received().is_some() {
             break;
         }
+        crate::progress::update(i, out.time_s);
         let start = pulse;
         while programmed.path.get(pulse).is_some_and(|p| p.2 == i) {
             pulse += 1;
@@ -177,6 +178,7 @@ pub fn compare(
     acs: &AcSettings,
 ) -> Result<Comparison> {
     let fraction = acs.optimal_fraction as f64;
+    crate::progress::stage("programmed feeds");
     let programmed = acsim::run(prog, settings, cut, None)?;
     let programmed_load =
         acsim::load_figures(&programmed.samples, &cut.tool, fraction, acs.sample_hz);
@@ -191,6 +193,7 @@ pub fn compare(
         .iter()
         .map(|c| acsim::programmed_ipm(settings, &c.block))
         .collect();
+    crate::progress::stage("oracle (bound)");
     let walk = oracle_walk(prog, settings, cut, &programmed, &limits, &ceiling_ipm)?;
     let oracle_s = walk.time_s;
     let min_limit = walk
@@ -207,6 +210,7 @@ pub fn compare(
         max_f
     };
     let safe_prog = acsim::with_constant_feed(&ceilings, safe_f, settings);
+    crate::progress::stage("safe constant feed");
     let safe = acsim::run(&safe_prog, settings, cut, None)?;
     let safe_load = acsim::load_figures(&safe.samples, &cut.tool, fraction, acs.sample_hz);
     Ok(Comparison {

@@ -507,7 +507,12 @@ pub fn run_with_faults(
     // The programmed feed and the block index of the pulses the last interrupt computed (they go
     // out at the next one).
     let mut computed = (0.0, 0usize);
+    let mut ticks = 0u32;
     loop {
+        ticks = ticks.wrapping_add(1);
+        if ticks % 4096 == 0 {
+            crate::progress::update(frames.frame().blocks_done() as usize, t as f64 * 1e-9);
+        }
         while let Some(b) = program.pop_front() {
             if let Err(b) = replan.offer(&mut queue, b) {
                 program.push_front(b);

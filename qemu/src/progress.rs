@@ -1,0 +1,107 @@
+//! Progress bars for the host tool's long commands (host: the CLI opens a bar around a run with
+//! [`with_bar`]; the runs report into the bar of their own thread with [`update`] and
+//! [`stage`]). Each bar shows the blocks done of the total, the virtual time simulated, the
+//! ratio to real time and the time left. Bars draw on stderr only when it is a terminal
+//! (indicatif hides them otherwise) and never with `--quiet` ([`set_quiet`]); without a bar
+//! (the library in tests, a pipe) [`update`] is one thread-local read.
+use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::OnceLock;
+use std::time::Instant;
+
+static QUIET: AtomicBool = AtomicBool::new(false);
+static BARS: OnceLock<MultiProgress> = OnceLock::new();
+
+std::thread_local! {
+    /// This thread's bar and when it started, while [`with_bar`] runs.
+    static BAR: RefCell<Option<(ProgressBar, Instant)>> = const { RefCell::new(None) };
+}
+
+/// `--quiet`: no bars at all.
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, Ordering::Relaxed);
+}
+
+fn bars() -> &'static MultiProgress {
+    BARS.get_or_init(|| MultiProgress::with_draw_target(ProgressDrawTarget::stderr()))
+}
+
+/// Runs `f` with a bar named `label` of `total` blocks on this thread (none with `--quiet`);
+/// the bar is cleared when `f` returns.
+pub fn with_bar<T>(label: &str, total: usize, f: impl FnOnce() -> T) -> T {
+    if QUIET.load(Ordering::Relaxed) {
+        return f();
+    }
+    let bar = bars().add(ProgressBar::new(total as u64));
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{prefix:>20} [{bar:24}] {pos}/{len} blocks  {msg}  eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar.set_prefix(label.to_string());
+    BAR.with(|b| *b.borrow_mut() = Some((bar.clone(), Instant::now())));
+    let out = f();
+    BAR.with(|b| *b.borrow_mut() = None);
+    bar.finish_and_clear();
+    out
+}
+
+/// A run on this thread has done `blocks` blocks and simulated `virtual_s` seconds.
+pub fn update(blocks: usize, virtual_s: f64) {
+    BAR.with(|b| {
+        if let Some((bar, started)) = b.borrow().as_ref() {
+            bar.set_position(blocks as u64);
+            let wall = started.elapsed().as_secs_f64();
+            if wall > 0.0 {
+                bar.set_message(format!(
+                    "{virtual_s:.0} s virtual, {:.0}x real time",
+                    virtual_s / wall
+                ));
+            }
+        }
+    });
+}
+
+/// The run on this thread begins a new stage (the comparison's programmed feeds, the oracle,
+/// the safe feed): the bar starts again under `label`.
+pub fn stage(label: &str) {
+    BAR.with(|b| {
+        if let Some((bar, started)) = b.borrow_mut().as_mut() {
+            bar.set_prefix(label.to_string());
+            bar.set_position(0);
+            bar.reset_eta();
+            *started = Instant::now();
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Without a bar, updates do nothing; with one, the run's result comes back and the bar is
+    /// gone afterwards (it draws nowhere: the tests' stderr is not a terminal).
+    #[test]
+    fn a_bar_lives_only_around_its_run() {
+        update(3, 1.0);
+        assert!(BAR.with(|b| b.borrow().is_none()));
+        let r = with_bar("test", 10, || {
+            update(4, 2.0);
+            stage("next");
+            BAR.with(|b| {
+                let b = b.borrow();
+                let (bar, _) = b.as_ref().expect("a bar");
+                (bar.position(), bar.prefix())
+            })
+        });
+        assert_eq!(r, (0, "next".to_string()));
+        assert!(BAR.with(|b| b.borrow().is_none()));
+        set_quiet(true);
+        let r = with_bar("quiet", 10, || BAR.with(|b| b.borrow().is_none()));
+        set_quiet(false);
+        assert!(r, "--quiet: no bar");
+    }
+}
