@@ -36,7 +36,7 @@ pub fn with_bar<T>(label: &str, total: usize, f: impl FnOnce() -> T) -> T {
     let bar = bars().add(ProgressBar::new(total as u64));
     bar.set_style(
         ProgressStyle::with_template(
-            "{prefix:>20} [{bar:24}] {pos}/{len} blocks  {msg}  eta {eta}",
+            "{prefix:>22} [{bar:24}] {pos}/{len} blocks  {msg}  eta {eta}",
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar())
         .progress_chars("=> "),
@@ -49,18 +49,30 @@ pub fn with_bar<T>(label: &str, total: usize, f: impl FnOnce() -> T) -> T {
     out
 }
 
-/// A run on this thread has done `blocks` blocks and simulated `virtual_s` seconds.
+/// A run on this thread has done `blocks` blocks and simulated `virtual_s` seconds (NaN: a
+/// stage that simulates no time, the oracle's walk).
 pub fn update(blocks: usize, virtual_s: f64) {
     BAR.with(|b| {
         if let Some((bar, started)) = b.borrow().as_ref() {
             bar.set_position(blocks as u64);
             let wall = started.elapsed().as_secs_f64();
-            if wall > 0.0 {
+            if !virtual_s.is_finite() {
+                bar.set_message("");
+            } else if wall > 0.0 {
                 bar.set_message(format!(
                     "{virtual_s:.0} s virtual, {:.0}x real time",
                     virtual_s / wall
                 ));
             }
+        }
+    });
+}
+
+/// The run on this thread has `total` blocks (known once its program is read).
+pub fn set_total(total: usize) {
+    BAR.with(|b| {
+        if let Some((bar, _)) = b.borrow().as_ref() {
+            bar.set_length(total as u64);
         }
     });
 }

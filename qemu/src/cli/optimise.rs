@@ -109,7 +109,9 @@ fn optimise(
         ..acsim::Cut::steel(stock, 1)
     }
     .at_program_rpm(text, &settings);
-    let o = optimise::optimise(text, &settings, &cut, opts)?;
+    let o = millac_qemu::progress::with_bar("optimise", 0, || {
+        optimise::optimise(text, &settings, &cut, opts)
+    })?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -123,7 +125,9 @@ fn optimise(
         .map_or_else(|| "program".into(), |n| n.to_string_lossy().into_owned());
     optimise::plot(&svg, &name, &o)?;
     let prog = analysis::load_program(&o.text, &settings).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let run = acsim::run(&prog, &settings, &cut, None)?;
+    let run = millac_qemu::progress::with_bar("optimised program", prog.len(), || {
+        acsim::run(&prog, &settings, &cut, None)
+    })?;
     let hz = millac::ac::AcSettings::default().sample_hz;
     let before = acsim::load_figures(&o.programmed.samples, &cut.tool, opts.fraction, hz);
     let after = acsim::load_figures(&run.samples, &cut.tool, opts.fraction, hz);

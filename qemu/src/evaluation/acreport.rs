@@ -131,7 +131,7 @@ pub fn oracle_walk(
         if crate::interrupt::received().is_some() {
             break;
         }
-        crate::progress::update(i, out.time_s);
+        crate::progress::update(i, f64::NAN);
         let start = pulse;
         while programmed.path.get(pulse).is_some_and(|p| p.2 == i) {
             pulse += 1;

@@ -424,6 +424,8 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
         );
     }
     let prog = analysis::load_program(text, settings).map_err(|e| anyhow!("{e}"))?;
+    crate::progress::set_total(prog.len());
+    crate::progress::stage("programmed feeds");
     let programmed = acsim::run(&prog, settings, cut, None)?;
     let limits = OracleLimits {
         f0_n: opts.fraction * cut.tool.f_max_n,
@@ -434,6 +436,7 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
     };
     let frm = acsim::feed_ipm(settings, settings.q0);
     let ceiling = vec![frm; prog.len()];
+    crate::progress::stage("limits along the path");
     let mut walk = oracle_walk(&prog, settings, cut, &programmed, &limits, &ceiling)?;
     let guarded = if opts.guard > 0.0 {
         guard(
