@@ -97,6 +97,25 @@ pub struct Stock {
     odometer_mm: f64,
     /// Per cell: the odometer reading when the tool last lowered it, `NEG_INFINITY` for never.
     lowered_at: Vec<f64>,
+    /// No cell's top is above it (the highest top when the stock was made; cuts only lower
+    /// cells, so it stays a bound): a cut whose tip stays at or above it lowers nothing.
+    max_top: Bound,
+}
+
+/// An upper bound of the tops ([`Stock::max_top`]): a cache, equal whatever its value, so two
+/// stocks with the same cells compare equal however they were cut.
+#[derive(Clone, Copy, Debug)]
+struct Bound(f64);
+
+impl PartialEq for Bound {
+    fn eq(&self, _: &Bound) -> bool {
+        true
+    }
+}
+
+/// The highest top of `top` (`NEG_INFINITY` when every cell is empty).
+fn highest(top: &[f64]) -> Bound {
+    Bound(top.iter().copied().fold(f64::NEG_INFINITY, f64::max))
 }
 
 /// What a cell holds for a tool whose bottom is at some Z (see [`Stock::cell_class`]).
@@ -315,6 +334,7 @@ impl Stock {
             floor_mm,
             odometer_mm: 0.0,
             lowered_at: vec![f64::NEG_INFINITY; nx * ny],
+            max_top: Bound(f64::NEG_INFINITY),
         };
         for (_, s) in &shapes {
             match *s {
@@ -326,6 +346,7 @@ impl Stock {
                 ),
             }
         }
+        st.max_top = highest(&st.top);
         Ok(st)
     }
 
@@ -358,6 +379,7 @@ impl Stock {
                 .map(|&t| if t.is_finite() { top } else { t })
                 .collect(),
             lowered_at: vec![f64::NEG_INFINITY; self.top.len()],
+            max_top: Bound(top),
             ..self.clone()
         }
     }
@@ -500,6 +522,19 @@ impl Stock {
         let odo = self.odometer_mm;
         let len = len2.sqrt();
         self.odometer_mm += len;
+        // Cells this cut cannot lower are skipped before the distance test (the same cells are
+        // lowered to the same bytes): a cell whose top is at or below `z_lo`, a bound of the
+        // tip Z at every point of the segment (a level segment or a plunge: exactly its Z;
+        // otherwise the lower end less far more than the rounding of the interpolation); all of
+        // them when the tip stays at or above the highest top (a move in the air).
+        let z_lo = if a[2] == b[2] || len2 == 0.0 {
+            a[2]
+        } else {
+            a[2].min(b[2]) - (a[2].abs() + b[2].abs()) * 1e-9
+        };
+        if z_lo >= self.max_top.0 {
+            return;
+        }
         let lo = |v: f64, o: f64| ((v - o) / self.cell_mm).floor();
         let i0 = lo(a[0].min(b[0]) - r_mm, self.x0_mm).max(0.0);
         let i1 = lo(a[0].max(b[0]) + r_mm, self.x0_mm).min(self.nx as f64 - 1.0);
@@ -509,17 +544,8 @@ impl Stock {
             return;
         }
         let r2 = r_mm * r_mm;
-        // Cells this cut cannot lower are skipped before the distance test (the same cells are
-        // lowered to the same bytes): a cell whose top is at or below `z_lo`, a bound of the
-        // tip Z at every point of the segment (a level segment or a plunge: exactly its Z;
-        // otherwise the lower end less far more than the rounding of the interpolation), and in
-        // each row the cells whose centres lie farther along X than `r_mm` (and a margin) from
-        // the segment's X extent at the nearest Y.
-        let z_lo = if a[2] == b[2] || len2 == 0.0 {
-            a[2]
-        } else {
-            a[2].min(b[2]) - (a[2].abs() + b[2].abs()) * 1e-9
-        };
+        // And in each row the cells whose centres lie farther along X than `r_mm` (and a margin)
+        // from the segment's X extent at the nearest Y.
         let (xa, xb) = (a[0].min(b[0]), a[0].max(b[0]));
         let (ya, yb) = (a[1].min(b[1]), a[1].max(b[1]));
         for j in j0 as usize..=j1 as usize {
@@ -638,6 +664,17 @@ mod tests {
             fast.cut_capsule(a, b, r);
             cut_capsule_every_cell(&mut every, a, b, r);
             a = b;
+        }
+        // Moves in the air (at the highest top, and above it) lower nothing either way and
+        // advance the odometer alike; one just below it cuts.
+        let top = highest(&fast.top).0;
+        for (a, b) in [
+            ([20.0, 20.0, top], [60.0, 50.0, top]),
+            ([0.0, 0.0, top + 5.0], [100.0, 80.0, top + 2.0]),
+            ([10.0, 70.0, top - 0.01], [12.0, 70.0, top - 0.01]),
+        ] {
+            fast.cut_capsule(a, b, 6.35);
+            cut_capsule_every_cell(&mut every, a, b, 6.35);
         }
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&fast.top), bits(&every.top));
