@@ -202,12 +202,17 @@ impl Cutter {
         u: [f64; 2],
         reach: f64,
     ) -> Option<SideTooth> {
+        let base = tip[2].max(stock.floor_mm());
+        // Above the highest top no material is ahead of any tooth (the probe below would find
+        // `a <= 0`): the same answer without the angle's sine and cosine.
+        if base >= stock.max_top() {
+            return None;
+        }
         let (s, co) = psi.sin_cos();
         let cos_a = co * u[0] + s * u[1];
         if cos_a <= 0.0 {
             return None;
         }
-        let base = tip[2].max(stock.floor_mm());
         // The line along the feed through the edge (y: its lateral offset from the path, at most
         // half a cell inside the swath's side), the envelope of the swept discs on it at `x_env`
         // ahead of the axis, the probe one cell beyond the envelope along its normal.

@@ -442,6 +442,12 @@ impl Stock {
         self.top[j * self.nx + i]
     }
 
+    /// No cell's top is above this (mm): the highest top when the stock was made (cuts only
+    /// lower cells).
+    pub fn max_top(&self) -> f64 {
+        self.max_top.0
+    }
+
     /// The XY path length the tool has swept over this stock, mm (see the module docs).
     pub fn odometer_mm(&self) -> f64 {
         self.odometer_mm
