@@ -275,7 +275,13 @@ impl Cutter {
         let dr = self.r_mm / n;
         let (s, co) = psi.sin_cos();
         let (mut w, mut moment) = (0.0, 0.0);
-        for j in 0..n as usize {
+        // Above the highest top no cell is above `z_min`: nothing engaged, without the walk.
+        let edge = if z_min >= stock.max_top() {
+            0
+        } else {
+            n as usize
+        };
+        for j in 0..edge {
             let r = (j as f64 + 0.5) * dr;
             let top = stock.top_in_disc(tip[0] + r * co, tip[1] + r * s, tip[0], tip[1], self.r_mm);
             if top > z_min {
