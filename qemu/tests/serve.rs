@@ -1055,12 +1055,6 @@ fn poll_idle(w: &mut TcpStream, r: &mut BufReader<TcpStream>) -> String {
     }
 }
 
-/// Sends a line and returns its answer (`ok` or `error:N`) and the lines before it.
-fn send(w: &mut TcpStream, r: &mut BufReader<TcpStream>, line: &str) -> Vec<String> {
-    w.write_all(format!("{line}\n").as_bytes()).unwrap();
-    read_until(r, |s| s == "ok" || s.starts_with("error:"))
-}
-
 /// The free ring bytes of a status report with `$10=3` (`Bf:blocks,bytes`).
 fn ring_free(report: &str) -> usize {
     let bf = report
@@ -1104,8 +1098,8 @@ fn a_flood_is_refused_in_step_and_every_line_answered_ok_ran() {
     let mut r = BufReader::new(stream);
     banner(&mut w, &mut r);
     // `$10=3`: the status reports carry `Bf:` (free ring bytes).
-    assert_eq!(send(&mut w, &mut r, "$10=3").last().unwrap(), "ok");
-    assert_eq!(send(&mut w, &mut r, "G20 G91 G1 F30").last().unwrap(), "ok");
+    assert_eq!(ask(&mut w, &mut r, "$10=3").last().unwrap(), "ok");
+    assert_eq!(ask(&mut w, &mut r, "G20 G91 G1 F30").last().unwrap(), "ok");
     // The flood starts on an idle machine with an empty ring. (Without this pause, 2 of about 25
     // runs got no `ok` at all: QEMU's PL011 takes bytes as fast as the guest reads them, with no
     // baud rate, so the RX interrupt (priority 2) can take the whole burst while the loader
@@ -1191,13 +1185,13 @@ fn a_flood_is_refused_in_step_and_every_line_answered_ok_ran() {
     // reply awaited per line, every line `ok`.
     w.write_all(&[0x18]).unwrap();
     read_until(&mut r, |s| s == "[MSG:'$H'|'$X' to unlock]");
-    let unlock = send(&mut w, &mut r, "$X");
+    let unlock = ask(&mut w, &mut r, "$X");
     assert_eq!(unlock, ["[MSG:Caution: Unlocked]", "ok"]);
-    assert_eq!(send(&mut w, &mut r, "G20 G91 G1 F30").last().unwrap(), "ok");
+    assert_eq!(ask(&mut w, &mut r, "G20 G91 G1 F30").last().unwrap(), "ok");
     let after: Vec<(i64, i64)> = (0..20).map(|i| (2, -(i % 3 + 1))).collect();
     for (x, y) in &after {
         let line = format!("X0.000{x} Y-0.000{}", -y);
-        assert_eq!(send(&mut w, &mut r, &line).last().unwrap(), "ok", "{line}");
+        assert_eq!(ask(&mut w, &mut r, &line).last().unwrap(), "ok", "{line}");
     }
     let ran: Vec<(i64, i64)> = (0..oks).map(step).chain(after.iter().copied()).collect();
     let end = ran.iter().fold((0, 0), |a, m| (a.0 + m.0, a.1 + m.1));
@@ -1221,7 +1215,7 @@ fn a_flood_is_refused_in_step_and_every_line_answered_ok_ran() {
         // "$X" (or its start) was refused after the reset: reported; reset and unlock again.
         w.write_all(&[0x18]).unwrap();
         read_until(&mut r, |s| s == "[MSG:'$H'|'$X' to unlock]");
-        assert_eq!(send(&mut w, &mut r, "$X").last().unwrap(), "ok");
+        assert_eq!(ask(&mut w, &mut r, "$X").last().unwrap(), "ok");
     }
     w.write_all(b"?").unwrap();
     let report = read_until(&mut r, |s| s.starts_with('<'));
@@ -1520,7 +1514,7 @@ fn a_half_line_left_by_a_client_is_dropped_and_the_next_client_starts_clean() {
         w.write_all(b"G0 X1").unwrap();
     }
     let (mut w, mut r) = greeted(&addr);
-    assert_eq!(send(&mut w, &mut r, "G0 Y1").last().unwrap(), "ok");
+    assert_eq!(ask(&mut w, &mut r, "G0 Y1").last().unwrap(), "ok");
     let idle = poll_idle(&mut w, &mut r);
     assert!(idle.starts_with("<Idle|MPos:0.000,25.400,0.000|"), "{idle}");
     drop((w, r));
@@ -1553,8 +1547,8 @@ fn a_lone_cr_left_by_a_client_does_not_swallow_the_next_clients_line_end() {
     r.get_ref()
         .set_read_timeout(Some(Duration::from_secs(10)))
         .unwrap();
-    assert_eq!(send(&mut w, &mut r, "").last().unwrap(), "ok");
-    assert_eq!(send(&mut w, &mut r, "G0 Y1").last().unwrap(), "ok");
+    assert_eq!(ask(&mut w, &mut r, "").last().unwrap(), "ok");
+    assert_eq!(ask(&mut w, &mut r, "G0 Y1").last().unwrap(), "ok");
     let idle = poll_idle(&mut w, &mut r);
     assert!(
         idle.starts_with("<Idle|MPos:25.400,25.400,0.000|"),
@@ -1578,7 +1572,7 @@ fn a_second_client_is_refused_and_its_bytes_never_run() {
         server,
     } = start("second");
     let (mut w, mut r) = greeted(&addr);
-    assert_eq!(send(&mut w, &mut r, "G20 G91").last().unwrap(), "ok");
+    assert_eq!(ask(&mut w, &mut r, "G20 G91").last().unwrap(), "ok");
     let mut other = connect(&addr);
     other.write_all(b"G0 X1\n").unwrap();
     other
@@ -1592,7 +1586,7 @@ fn a_second_client_is_refused_and_its_bytes_never_run() {
         told,
         format!("{}\r\n", millac_qemu::emulator::port::REFUSED)
     );
-    let got = send(&mut w, &mut r, "G0 Y0.1");
+    let got = ask(&mut w, &mut r, "G0 Y0.1");
     assert_eq!(got, ["ok"]);
     let idle = poll_idle(&mut w, &mut r);
     assert!(idle.starts_with("<Idle|MPos:0.000,2.540,0.000|"), "{idle}");
@@ -1616,7 +1610,7 @@ fn a_session_that_ends_in_an_alarm_with_lines_not_run_is_not_completed() {
     } = start("alarm-end");
     let (mut w, mut r) = greeted(&addr);
     for line in ["G20 G91 G1 F10 X1", "G1 Y0.5"] {
-        assert_eq!(send(&mut w, &mut r, line).last().unwrap(), "ok", "{line}");
+        assert_eq!(ask(&mut w, &mut r, line).last().unwrap(), "ok", "{line}");
     }
     let t0 = Instant::now();
     loop {
