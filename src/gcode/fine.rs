@@ -28,6 +28,12 @@ pub fn fine_to_blu(st: &Settings, fine: i128) -> Option<i32> {
     i32::try_from(super::number::div_round(n, d)?).ok()
 }
 
+/// BLU of `um` micrometres (the set-up's lengths, `crate::settings::Setup`), rounded as a word
+/// is ([`fine_to_blu`]); None when it does not fit i32.
+pub fn blu_of_um(st: &Settings, um: i64) -> Option<i32> {
+    fine_to_blu(st, fine_of_pm(um.checked_mul(1_000_000)?))
+}
+
 /// The fine position of a machine coordinate: exact (1 BLU = 2.54e16 or 1e16 fine units).
 pub fn fine_of_blu(st: &Settings, blu: i32) -> i128 {
     let (num, den) = st.blu.per_mm();

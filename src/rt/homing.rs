@@ -179,8 +179,10 @@ impl Cycle {
 /// Where a homed axis stands, BLU: its soft limit on the switch's side less the pull-off (rounded
 /// to the nearest BLU), so the switch closes at the soft limit.
 pub fn home_position(axis: usize, setup: &Setup, nc: &Settings) -> i32 {
-    let nm = i64::from(nc.blu.nm());
-    let pulloff = (i64::from(setup.homing_pulloff_um) * 1000 + nm / 2) / nm;
+    // Setup::validate keeps the pull-off within the travel: it fits.
+    let pulloff = i64::from(
+        crate::gcode::fine::blu_of_um(nc, i64::from(setup.homing_pulloff_um)).unwrap_or(i32::MAX),
+    );
     let k = axis.min(2);
     let at = if setup.homing_dir_mask & (1 << k) != 0 {
         i64::from(nc.soft_min[k]) + pulloff

@@ -1020,16 +1020,10 @@ where
                     until_switch,
                 } => {
                     run.under_way = Some((axis, until_switch));
-                    let nm = i64::from(self.settings.blu.nm());
                     let here = self.tape.parser().position();
-                    let to = here
-                        .get(axis)
-                        .map(|&p| {
-                            // um in BLU, rounded half away from zero.
-                            let d = (um.abs() * 1000 + nm / 2) / nm;
-                            i64::from(p) + if um < 0 { -d } else { d }
-                        })
-                        .and_then(|t| i32::try_from(t).ok());
+                    let to = here.get(axis).and_then(|&p| {
+                        p.checked_add(crate::gcode::fine::blu_of_um(&self.settings, um)?)
+                    });
                     let mut target = [None; 3];
                     if let (Some(t), Some(to)) = (target.get_mut(axis), to) {
                         *t = Some(to);

@@ -22,7 +22,9 @@
 //! [`Change::reference`], across changes); a probe that finds no contact fails the change with
 //! `ALARM:5`.
 
+use crate::gcode::fine::{blu_of_um, fine_of_pm, fine_to_blu};
 use crate::protocol::codes::alarm;
+use crate::protocol::report::pm_per_blu;
 use crate::settings::{Settings, Setup};
 
 /// What the loader does next.
@@ -106,11 +108,14 @@ pub struct Change {
     distance: i32,
     /// Picometres per BLU.
     pm_per_blu: i64,
-    /// The tool length offset before the change and the new tool's, picometres.
+    /// The tool length offset before the change, picometres.
     tlo_old_pm: i64,
-    tlo_new_pm: i64,
     /// The tool table's length of the new tool, picometres.
     table_pm: i64,
+    /// How much higher (BLU) the spindle stands for the new tool's tip to be where the old one's
+    /// was: the table's length less the old offset (`$341=1`; rounded as a word is), then the
+    /// measured difference (`$341=2`).
+    rise: i32,
     /// Where the tool in the spindle touched the setter (machine Z, BLU).
     reference: Option<i32>,
     phase: Phase,
@@ -131,22 +136,25 @@ impl Change {
         setup: &Setup,
         nc: &Settings,
     ) -> Change {
-        let nm = i64::from(nc.blu.nm());
-        let pm_per_blu = nm * 1000;
-        let blu_of_pm = |pm: i64| div_round(pm, pm_per_blu);
-        let blu_of_um = |um: i64| div_round(um * 1000, nm);
+        // As the parser rounds a word, saturated at the counters' range (a move there is refused
+        // by the soft limits).
+        let saturate = |v: Option<i32>, negative: bool| {
+            v.unwrap_or(if negative { i32::MIN } else { i32::MAX })
+        };
+        let of_pm = |pm: i64| saturate(fine_to_blu(nc, fine_of_pm(pm)), pm < 0);
+        let of_um = |um: i64| saturate(blu_of_um(nc, um), um < 0);
         Change {
             setup: *setup,
             tool,
             start,
-            g30: g30_pm.map(blu_of_pm),
-            setter: setup.setter_um.map(|um| blu_of_um(i64::from(um))),
-            backoff: blu_of_um(i64::from(setup.homing_pulloff_um)).max(1),
-            distance: blu_of_um(i64::from(setup.probe_distance_um)).max(1),
-            pm_per_blu,
+            g30: g30_pm.map(of_pm),
+            setter: setup.setter_um.map(|um| of_um(i64::from(um))),
+            backoff: of_um(i64::from(setup.homing_pulloff_um)).max(1),
+            distance: of_um(i64::from(setup.probe_distance_um)).max(1),
+            pm_per_blu: pm_per_blu(nc.blu),
             tlo_old_pm: tlo_pm,
-            tlo_new_pm: tlo_pm,
             table_pm,
+            rise: of_pm(table_pm.saturating_sub(tlo_pm)),
             reference,
             phase: Phase::Start,
         }
@@ -202,21 +210,19 @@ impl Change {
                 // that much further from the spindle.
                 let old = self.reference.unwrap_or(z);
                 let d = i64::from(z) - i64::from(old);
-                self.tlo_new_pm = self.tlo_old_pm.saturating_add(d * self.pm_per_blu);
+                self.rise = d.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
                 self.reference = Some(z);
                 (
                     Phase::Measured,
                     Step::Length {
-                        tlo_pm: self.tlo_new_pm,
+                        tlo_pm: self.tlo_old_pm.saturating_add(d * self.pm_per_blu),
                         table: false,
                     },
                 )
             }
-            (Phase::Seek { .. } | Phase::Slow { .. }, Ended::Probed(None)) => {
-                (Phase::End, Step::Fail(alarm::PROBE_NO_CONTACT))
-            }
-            // A probing phase ended by anything but a probe: not a sequence the loader makes.
-            (Phase::Seek { .. } | Phase::Slow { .. }, Ended::Done) => {
+            // No contact (or, not a sequence the loader makes, a probing phase ended by anything
+            // but a probe).
+            (Phase::Seek { .. } | Phase::Slow { .. }, _) => {
                 (Phase::End, Step::Fail(alarm::PROBE_NO_CONTACT))
             }
             (Phase::AtChange, _) => (Phase::Fitted, Step::Fit { tool: self.tool }),
@@ -227,7 +233,6 @@ impl Change {
             (Phase::Fitted, _) => {
                 // Measured nowhere: the reference contact belongs to the old tool.
                 self.reference = None;
-                self.tlo_new_pm = self.table_pm;
                 (
                     Phase::Measured,
                     Step::Length {
@@ -245,8 +250,7 @@ impl Change {
                 Step::Rapid([Some(self.start[0]), Some(self.start[1]), None]),
             ),
             (Phase::Back, _) => {
-                let d = div_round(self.tlo_new_pm - self.tlo_old_pm, self.pm_per_blu);
-                let z = i64::from(self.start[2]) + i64::from(d);
+                let z = i64::from(self.start[2]) + i64::from(self.rise);
                 let z = z.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
                 (Phase::End, Step::Rapid([None, None, Some(z)]))
             }
@@ -255,16 +259,6 @@ impl Change {
         self.phase = phase;
         step
     }
-}
-
-/// `a / b` rounded half away from zero (b > 0).
-fn div_round(a: i64, b: i64) -> i32 {
-    let q = if a >= 0 {
-        (a + b / 2) / b
-    } else {
-        -((-a + b / 2) / b)
-    };
-    q.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
 }
 
 #[cfg(test)]
