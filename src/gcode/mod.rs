@@ -484,6 +484,27 @@ impl Parser {
         p
     }
 
+    /// Plans `text` on a copy of this parser (`free`: without soft limits), which is left as it
+    /// was: the block the line makes (None: it makes none) and where the copy then stands, with
+    /// its SIGN lines. Loader task (jogs, the homing cycle's and the tool change's moves); host
+    /// (their replay).
+    pub fn plan_aside(
+        &self,
+        text: &str,
+        free: bool,
+    ) -> Result<(Option<Block>, [i32; 3], u8), GcodeError> {
+        let mut p = if free {
+            self.without_soft_limits()
+        } else {
+            self.clone()
+        };
+        let block = match p.line(0, text)? {
+            Parsed::Block(b) => Some(b),
+            _ => None,
+        };
+        Ok((block, p.position, p.signs))
+    }
+
     /// The tool table.
     pub fn tools(&self) -> &ToolTable {
         &self.tools

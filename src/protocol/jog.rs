@@ -5,7 +5,7 @@
 
 use super::codes::GrblError;
 use crate::gcode::words::{self, Words};
-use crate::gcode::{Decimal, Distance, ErrorKind, Parsed, Parser, Units};
+use crate::gcode::{Decimal, Distance, ErrorKind, Parser, Units};
 use crate::nc::Block;
 use core::fmt::{self, Write};
 
@@ -121,16 +121,8 @@ impl JogRequest {
         line.push_str("G94 ").map_err(|_| GrblError::OVERFLOW)?;
         self.write_gcode(&mut line)
             .map_err(|_| GrblError::OVERFLOW)?;
-        let mut p = parser.clone();
-        match p.line(0, &line) {
-            Ok(Parsed::Block(b)) => Ok(JogPlan {
-                block: Some(b),
-                end: p.position(),
-            }),
-            Ok(_) => Ok(JogPlan {
-                block: None,
-                end: p.position(),
-            }),
+        match parser.plan_aside(&line, false) {
+            Ok((block, end, _)) => Ok(JogPlan { block, end }),
             Err(e) => Err(match e.kind {
                 ErrorKind::SoftLimit { .. } => GrblError::TRAVEL_EXCEEDED,
                 k => GrblError::from(&k),

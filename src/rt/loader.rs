@@ -1207,18 +1207,15 @@ where
     /// parser (without soft limits when `free`), logged as such; the modes stay, the parser
     /// stands at its end.
     fn direct_line(&mut self, line: &str, free: bool) -> Result<(), Refused> {
-        let mut p = if free {
-            self.tape.parser().without_soft_limits()
-        } else {
-            self.tape.parser().clone()
-        };
-        let parsed = p
-            .line(0, line)
+        let (block, end, signs) = self
+            .tape
+            .parser()
+            .plan_aside(line, free)
             .map_err(|e| Refused::Tape(TapeError::Gcode(e)))?;
         // Nothing to queue when the machine is already there.
-        if let Parsed::Block(b) = parsed {
+        if let Some(b) = block {
             self.queue_direct(b);
-            self.tape.jogged_to(p.position(), p.signs());
+            self.tape.jogged_to(end, signs);
             self.board.log_move(line);
         }
         Ok(())

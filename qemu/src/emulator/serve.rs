@@ -29,7 +29,6 @@ use crate::emulator::runner::{self, AcRun};
 use crate::{analysis, analysis::vcd, emulator::cosim, emulator::firmware};
 use anyhow::{anyhow, Context, Result};
 use millac::gcode::tape::{finish_block, Tape};
-use millac::gcode::Parsed;
 use millac::nc::{FrameConfig, Motion, Sealed};
 use millac::protocol::jog::JogRequest;
 use millac::wire::SessionLine;
@@ -331,10 +330,13 @@ pub fn replay(log: &str, settings: &Settings) -> Result<Replayed> {
                 }
             }
             SessionLine::Move(line) => {
-                let mut p = tape.parser().without_soft_limits();
-                if let Parsed::Block(b) = p.line(n, line).map_err(|e| anyhow!("line {n}: {e}"))? {
+                let (block, end, signs) = tape
+                    .parser()
+                    .plan_aside(line, true)
+                    .map_err(|e| anyhow!("line {n}: {}", e.kind))?;
+                if let Some(b) = block {
                     blocks.push(finish_block(b, None, &cfg, settings.q0));
-                    tape.jogged_to(p.position(), p.signs());
+                    tape.jogged_to(end, signs);
                 }
             }
             SessionLine::Stop { at, signs, cut } => {
