@@ -600,25 +600,23 @@ where
             self.dwelling = false;
             self.console.reply(Ok(()));
         }
-        if self.homing.is_some() || self.probing.is_some() || self.change.is_some() {
-            if self.homing.is_some() {
-                self.homing_turn(self.stands());
-            }
-            if self.probing.is_some() {
-                self.probe_turn(self.stands());
-            }
-            if self.change.is_some() {
-                self.change_turn(self.stands());
-            }
-            // A cycle that ended this turn: the reports and the `$` commands of this turn see
-            // the machine as it is now (a `?` right after `$H`'s `ok` says Idle, not Home).
-            if self.homing.is_none() && self.now.state == State::Home {
-                self.now.state = if self.stands() {
-                    State::Idle
-                } else {
-                    State::Run
-                };
-            }
+        if self.homing.is_some() {
+            self.homing_turn(self.stands());
+        }
+        if self.probing.is_some() {
+            self.probe_turn(self.stands());
+        }
+        if self.change.is_some() {
+            self.change_turn(self.stands());
+        }
+        // A cycle that ended this turn: the reports and the `$` commands of this turn see the
+        // machine as it is now (a `?` right after `$H`'s `ok` says Idle, not Home).
+        if self.homing.is_none() && self.now.state == State::Home {
+            self.now.state = if self.stands() {
+                State::Idle
+            } else {
+                State::Run
+            };
         }
         let state = self.now.state;
         // A canned cycle still expanding fills the queue as it empties; no line is taken until
@@ -1055,12 +1053,9 @@ where
                         homing::home_position(axis, &self.table.settings.setup, &self.settings);
                     let raw = self.status.position().get(axis).copied().unwrap_or(0);
                     self.status.set_origin(axis, home.wrapping_sub(raw));
-                    let at = self.status.machine_position();
-                    let signs = self.status.next_signs.get();
-                    self.replan.restart(at);
-                    self.tape.jogged_to(at, signs);
-                    self.board.log_stop(at, signs, false);
                     run.under_way = None;
+                    let at = self.status.machine_position();
+                    self.stand_at(at, self.status.next_signs.get(), false);
                 }
                 HomingStep::Done | HomingStep::Fail(_) => return self.homing_ended(step),
             }
@@ -1125,14 +1120,8 @@ where
         let Some(p) = self.probing else {
             return;
         };
-        let changed = self.probe_contact() == p.toward;
-        if !changed && !idle {
+        let Some((at, changed)) = self.probe_move_ended(p.toward, idle) else {
             return;
-        }
-        let at = if idle {
-            self.status.machine_position()
-        } else {
-            self.stop_here()
         };
         self.probing = None;
         self.last_probe = (at, changed);
@@ -1147,6 +1136,22 @@ where
         } else {
             self.console.reply(Ok(()));
         }
+    }
+
+    /// Whether a probing move (toward the work: `toward`) has ended: the probe changed (the move
+    /// stopped at once, here) or the move ran out (`idle`). Then where it stands and whether the
+    /// probe changed; None while it moves unchanged. G38 and the tool setter's probes.
+    fn probe_move_ended(&mut self, toward: bool, idle: bool) -> Option<([i32; 3], bool)> {
+        let changed = self.probe_contact() == toward;
+        if !changed && !idle {
+            return None;
+        }
+        let at = if idle {
+            self.status.machine_position()
+        } else {
+            self.stop_here()
+        };
+        Some((at, changed))
     }
 
     /// A probing line failed with `code` (4, 5): the alarm, then the line's answer: `ok` on a
@@ -1167,10 +1172,16 @@ where
     /// that position (machine BLU).
     fn stop_here(&mut self) -> [i32; 3] {
         let (at, signs) = abort(self.blocks, self.status, self.board);
+        self.stand_at(at, signs, true);
+        at
+    }
+
+    /// The re-plan's record and the parser stand at `at` with `signs` (logged; `cut`: a move was
+    /// stopped short): after a stop, or when an axis is homed (its coordinates changed).
+    fn stand_at(&mut self, at: [i32; 3], signs: u8, cut: bool) {
         self.replan.restart(at);
         self.tape.jogged_to(at, signs);
-        self.board.log_stop(at, signs, true);
-        at
+        self.board.log_stop(at, signs, cut);
     }
 
     /// Queues a move to machine coordinates `target` (BLU; the axes given only): a rapid, or
@@ -1265,18 +1276,10 @@ where
             None => ChangeEnded::Done,
             Some(ChangeWait::Move) if !idle => return,
             Some(ChangeWait::Move) => ChangeEnded::Done,
-            Some(ChangeWait::Probe) => {
-                let contact = self.probe_contact();
-                if !contact && !idle {
-                    return;
-                }
-                let at = if idle {
-                    self.status.machine_position()
-                } else {
-                    self.stop_here()
-                };
-                ChangeEnded::Probed(contact.then_some(at[2]))
-            }
+            Some(ChangeWait::Probe) => match self.probe_move_ended(true, idle) {
+                None => return,
+                Some((at, contact)) => ChangeEnded::Probed(contact.then_some(at[2])),
+            },
             Some(ChangeWait::Fit(_)) if self.hold => return,
             Some(ChangeWait::Fit(tool)) => {
                 self.board.tool_fitted(tool);
