@@ -113,7 +113,8 @@ impl PartialEq for Bound {
     }
 }
 
-/// The highest top of `top` (`NEG_INFINITY` when every cell is empty).
+/// The highest top of `top` (`NEG_INFINITY` when every cell is empty: an empty cell's top is
+/// `NEG_INFINITY`, the only value that is not finite).
 fn highest(top: &[f64]) -> Bound {
     Bound(top.iter().copied().fold(f64::NEG_INFINITY, f64::max))
 }
@@ -366,12 +367,7 @@ impl Stock {
     /// description, issue 11): every cell of a blank filled to the stock's highest top, as if
     /// no hole, pocket or terrace had been made. Cells outside every blank stay empty.
     pub fn envelope(&self) -> Stock {
-        let top = self
-            .top
-            .iter()
-            .copied()
-            .filter(|t| t.is_finite())
-            .fold(f64::NEG_INFINITY, f64::max);
+        let top = highest(&self.top).0;
         Stock {
             top: self
                 .top
