@@ -68,6 +68,12 @@ pub struct OraclePoint {
     /// The fastest feed change on the move arriving here, ipm/s (up and down): the machine's path
     /// acceleration in that direction.
     pub accel_ipm_s: f64,
+    /// The length of the programmed path from the point before to this one, mm (None: the
+    /// straight distance between the two positions). The positions of a pulse train are a
+    /// staircase (at a low feed the axes step in different frames): its length exceeds the
+    /// path's, by up to the sum of the axes' over the diagonal, and a schedule timed along it
+    /// would be slower than the machine running the program.
+    pub step_mm: Option<f64>,
 }
 
 /// The constraints of the schedule.
@@ -344,7 +350,7 @@ pub fn oracle_time(
         let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         if i > 0 {
-            s[i] = len;
+            s[i] = path[i].step_mm.unwrap_or(len);
         }
         // Descending over the window: the window's direction.
         let mut dir = d;

@@ -403,6 +403,7 @@ fn line(a: [i64; 3], b: [i64; 3], step: i64, ipm: f64) -> Vec<OraclePoint> {
             pos_blu: [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * i / n),
             feed_ipm: ipm,
             accel_ipm_s: ACCEL_IPM_S,
+            step_mm: None,
         })
         .collect()
 }
@@ -630,6 +631,7 @@ fn z_line(x: i64, y: i64, z0: i64, z1: i64, ipm: f64) -> Vec<OraclePoint> {
             pos_blu: [x, y, z0 + step * i],
             feed_ipm: ipm,
             accel_ipm_s: ACCEL_IPM_S,
+            step_mm: None,
         })
         .collect()
 }

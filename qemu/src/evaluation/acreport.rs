@@ -27,6 +27,24 @@ fn is_feed(b: &ProgBlock) -> bool {
     matches!(b.block.motion, Motion::Linear(_) | Motion::Arc(_))
 }
 
+/// The programmed path length of a feed block, BLU: a line's straight length, an arc's (its
+/// commands, one per BLU of arc) with its helix.
+fn path_length_blu(b: &ProgBlock) -> f64 {
+    match b.block.motion {
+        Motion::Arc(a) => f64::from(a.length).hypot(f64::from(a.helix)),
+        _ => {
+            let d = [0, 1, 2].map(|k| f64::from(b.end[k]) - f64::from(b.start[k]));
+            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+        }
+    }
+}
+
+/// The straight distance between two positions, BLU.
+fn dist_blu(a: [i64; 3], b: [i64; 3]) -> f64 {
+    let d = [0, 1, 2].map(|k| (b[k] - a[k]) as f64);
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+}
+
 /// The feed blocks of `prog` as the AC with `acs` runs them: its ceiling applied (the programmed
 /// feed, or FRM with [`millac::ac::FeedCeiling::Frm`]) and sealed, by the firmware's own
 /// `finish_block`. One rule for every compared schedule: the oracle's ceilings and the safe
@@ -138,15 +156,34 @@ pub fn oracle_walk(
         }
         let pts = &programmed.path[start..pulse];
         if is_feed(b) {
-            let point = |pos_blu| OraclePoint {
+            let point = |pos_blu, step_mm| OraclePoint {
                 pos_blu,
                 feed_ipm: ceiling_ipm.get(i).copied().unwrap_or(0.0),
                 accel_ipm_s: acsim::ramp_ipm_s(settings, &b.block),
+                step_mm,
             };
             if seg.is_empty() {
-                seg.push((i, point(pos)));
+                seg.push((i, point(pos, None)));
             }
-            seg.extend(pts.iter().map(|p| (i, point(p.0))));
+            // The pulse positions are a staircase: each step's length is scaled so that the
+            // block's steps add up to its programmed path (the schedule runs along the path, as
+            // the frame's feed does).
+            let stair: f64 = pts
+                .iter()
+                .scan(pos, |prev, p| {
+                    Some(dist_blu(std::mem::replace(prev, p.0), p.0))
+                })
+                .sum();
+            let scale = if stair > 0.0 {
+                path_length_blu(b) / stair
+            } else {
+                1.0
+            };
+            let mut prev = pos;
+            seg.extend(pts.iter().map(|p| {
+                let step = dist_blu(std::mem::replace(&mut prev, p.0), p.0);
+                (i, point(p.0, Some(step * scale * millac_plant::MM_PER_BLU)))
+            }));
         } else {
             flush(&mut seg, &mut stock, &mut out)?;
             if let Some(&(_, t0, t1)) = programmed.spans.get(i) {
