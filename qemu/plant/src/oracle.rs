@@ -85,7 +85,18 @@ pub struct OracleLimits {
     pub t0_nm: f64,
     /// Start and end at rest (feed 0) instead of at the point limits.
     pub from_rest: bool,
+    /// Path length between the points evaluated in full, mm (0: every point of the path). The
+    /// points between, on a straight stretch of one move, take the figures of the key point
+    /// before or after them, whichever allows the lower feed, and the stock is cut along the
+    /// chord between key points; a corner, a change of move or the path's ends are always key
+    /// points. [`ORACLE_STRIDE_MM`] by default.
+    pub stride_mm: f64,
 }
+
+/// The default [`OracleLimits::stride_mm`]: 0.2 mm (79 BLU, under the stock's default cell of
+/// 0.25 mm): about 15 to 35 times fewer points evaluated than every pulse (docs/dev/simulation.md,
+/// "The bound", gives its error against every point; `qemu/tests/bound.rs` tests it).
+pub const ORACLE_STRIDE_MM: f64 = 0.2;
 
 impl OracleLimits {
     /// The paper's constraints for `tool`: F0, T0 = 0.9 x permissible ("around 90 percent"),
@@ -96,6 +107,7 @@ impl OracleLimits {
             f0_n: 0.9 * tool.f_max_n,
             t0_nm: 0.9 * tool.t_max_nm,
             from_rest: true,
+            stride_mm: ORACLE_STRIDE_MM,
         }
     }
 }
@@ -116,6 +128,8 @@ pub struct OracleResult {
     /// Peak force and torque at each point at the scheduled feed, N and N*m.
     pub f_peak_n: Vec<f64>,
     pub t_peak_nm: Vec<f64>,
+    /// The stock as the path left it.
+    pub stock: Stock,
 }
 
 /// Path length over which a descending tip's direction is averaged, mm (see the module docs).
@@ -214,6 +228,21 @@ fn peak_within(cut: &Cutter, contacts: &Contacts, c: f64, end: EndCut, f0: f64, 
 #[inline]
 fn surely_below(x: f64, y: f64, f: f64) -> bool {
     x.abs() + y.abs() <= f * (1.0 - 1e-12)
+}
+
+/// Whether `m` lies within 1 BLU of the chord from `w` to `w + d`: a point of the pulse train
+/// that a capsule along the chord cuts as its own (a staircase along a straight line stays within
+/// a BLU of it; an arc's points leave its chord where the sagitta grows past a BLU).
+fn on_chord(m: &[f64; 3], w: &[f64; 3], d: &[f64; 3]) -> bool {
+    let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let e = [m[0] - w[0], m[1] - w[1], m[2] - w[2]];
+    let s = if d2 > 0.0 {
+        ((e[0] * d[0] + e[1] * d[1] + e[2] * d[2]) / d2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let dev2: f64 = (0..3).map(|k| (e[k] - s * d[k]).powi(2)).sum();
+    dev2 <= MM_PER_BLU * MM_PER_BLU
 }
 
 /// Whether `m` lies within 2 BLU of the line through `w` along `d` (a window of the path without
@@ -337,6 +366,13 @@ pub fn oracle_time(
     let mut capped = vec![false; n];
     let c_of = |v_ipm: f64| v_ipm * MM_S_PER_IPM / teeth_hz;
     let mut end_engaged = false;
+    // The points evaluated in full (see [`OracleLimits::stride_mm`]); every other point takes
+    // the figures of the key point before or after it, whichever allows less.
+    let stride = if l.stride_mm > 0.0 { l.stride_mm } else { 0.0 };
+    let mut keys: Vec<usize> = Vec::new();
+    let mut key_of = vec![0usize; n];
+    // The stock is cut along the path up to this point; path length since the last key point.
+    let (mut cut_to, mut since) = (0usize, 0.0);
     for i in 0..n {
         let p = mm(&path[i]);
         // Direction: the segment arriving here (the first point looks at the next one).
@@ -351,6 +387,26 @@ pub fn oracle_time(
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         if i > 0 {
             s[i] = path[i].step_mm.unwrap_or(len);
+        }
+        if let (Some(&k), true) = (keys.last(), stride > 0.0 && i + 1 < n) {
+            since += s[i];
+            let same_move = path[i].feed_ipm == path[i - 1].feed_ipm
+                && path[i].accel_ipm_s == path[i - 1].accel_ipm_s;
+            let w = mm(&path[k]);
+            let chord = [p[0] - w[0], p[1] - w[1], p[2] - w[2]];
+            if since < stride
+                && same_move
+                && on_chord(&a, &w, &chord)
+                && on_chord(&mm(&path[(k + i) / 2]), &w, &chord)
+            {
+                continue;
+            }
+        }
+        since = 0.0;
+        // The stock cut up to the point before this one: along the chord from the last point
+        // cut (the points between lie on it).
+        if i > 0 && cut_to + 1 < i {
+            stock.cut_capsule(mm(&path[cut_to]), a, cut.r_mm);
         }
         // Descending over the window: the window's direction.
         let mut dir = d;
@@ -440,8 +496,22 @@ pub fn oracle_time(
         pcs.push(pc);
         cut_limit[i] = v;
         limit[i] = v.min(path[i].feed_ipm);
-        let from = if i > 0 { mm(&path[i - 1]) } else { p };
+        // The points since the last key point take the figures of the one that allows less.
+        if let Some(&k) = keys.last() {
+            let from = if cut_limit[k] <= v { k } else { i };
+            for j in k + 1..i {
+                key_of[j] = from;
+                cut_limit[j] = cut_limit[from];
+                limit[j] = cut_limit[from].min(path[j].feed_ipm);
+                per_c[j] = per_c[from];
+                capped[j] = capped[from];
+            }
+        }
+        key_of[i] = i;
+        keys.push(i);
+        let from = if i > 0 { a } else { p };
         stock.cut_capsule(from, p, cut.r_mm);
+        cut_to = i;
     }
     // Acceleration passes, in ipm and ipm/s: v^2 grows by at most 2 a s with s in inches; the
     // move arriving at point i has the acceleration of point i.
@@ -474,15 +544,29 @@ pub fn oracle_time(
     let mut f_peak_n: Vec<f64> = (0..n).map(|i| per_c[i].0 * c(i)).collect();
     let mut t_peak_nm: Vec<f64> = (0..n).map(|i| per_c[i].1 * c(i)).collect();
     if kienzle || capped.iter().any(|&c| c) {
+        // The same cuts as the first walk, the key points re-evaluated.
         let mut stock = start_stock;
-        for i in 0..n {
+        let mut cut_to = 0usize;
+        for (pc, &i) in pcs.iter().zip(&keys) {
             let p = mm(&path[i]);
+            let from = if i > 0 { mm(&path[i - 1]) } else { p };
+            if i > 0 && cut_to + 1 < i {
+                stock.cut_capsule(mm(&path[cut_to]), from, cut.r_mm);
+            }
             if (kienzle || capped[i]) && v[i] > 0.0 {
-                let pk = pcs[i].peak(&cut, &pcs[i].contacts(&cut, &stock), c_of(v[i]));
+                let pk = pc.peak(&cut, &pc.contacts(&cut, &stock), c_of(v[i]));
                 (f_peak_n[i], t_peak_nm[i]) = (pk.f, pk.t);
             }
-            let from = if i > 0 { mm(&path[i - 1]) } else { p };
             stock.cut_capsule(from, p, cut.r_mm);
+            cut_to = i;
+        }
+        // The points between take their key point's peaks (not linear in the feed: as they
+        // are).
+        for j in 0..n {
+            let k = key_of[j];
+            if k != j && (kienzle || capped[j]) {
+                (f_peak_n[j], t_peak_nm[j]) = (f_peak_n[k], t_peak_nm[k]);
+            }
         }
     }
     Ok(OracleResult {
@@ -492,5 +576,6 @@ pub fn oracle_time(
         feed_profile: v,
         limit_ipm: limit,
         cut_limit_ipm: cut_limit,
+        stock,
     })
 }

@@ -560,23 +560,38 @@ impl Stock {
                 continue;
             }
             let row = j * self.nx;
-            for i in ia as usize..=ib as usize {
-                if self.top[row + i] <= z_lo {
+            let (ia, ib) = (ia as usize, ib as usize);
+            // Eight cells at a time passed over where none is above `z_lo` (most of a disc the
+            // tool has already cut): one comparison the compiler unrolls, not eight branches.
+            let mut chunk = ia;
+            while chunk <= ib {
+                let end = (chunk + 8).min(ib + 1);
+                let first = chunk;
+                chunk = end;
+                let above = self.top[row + first..row + end]
+                    .iter()
+                    .fold(false, |any, &t| any | (t > z_lo));
+                if !above {
                     continue;
                 }
-                let (x, y) = self.center(i, j);
-                let s = if len2 > 0.0 {
-                    (((x - a[0]) * dx + (y - a[1]) * dy) / len2).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                let (px, py) = (a[0] + s * dx - x, a[1] + s * dy - y);
-                if px * px + py * py <= r2 {
-                    let z = a[2] + s * (b[2] - a[2]);
-                    let k = j * self.nx + i;
-                    if z < self.top[k] {
-                        self.top[k] = z;
-                        self.lowered_at[k] = odo + s * len;
+                for i in first..end {
+                    if self.top[row + i] <= z_lo {
+                        continue;
+                    }
+                    let (x, y) = self.center(i, j);
+                    let s = if len2 > 0.0 {
+                        (((x - a[0]) * dx + (y - a[1]) * dy) / len2).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    let (px, py) = (a[0] + s * dx - x, a[1] + s * dy - y);
+                    if px * px + py * py <= r2 {
+                        let z = a[2] + s * (b[2] - a[2]);
+                        let k = j * self.nx + i;
+                        if z < self.top[k] {
+                            self.top[k] = z;
+                            self.lowered_at[k] = odo + s * len;
+                        }
                     }
                 }
             }

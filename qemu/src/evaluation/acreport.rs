@@ -131,14 +131,7 @@ pub fn oracle_walk(
                 });
             }
             // The stock after this segment, for the next one.
-            for w in pts.windows(2) {
-                let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
-                stock.cut_capsule(
-                    mm(w[0].pos_blu),
-                    mm(w[1].pos_blu),
-                    cut.tool.diameter_mm / 2.0,
-                );
-            }
+            *stock = r.stock;
         }
         seg.clear();
         Ok(())
@@ -203,6 +196,32 @@ pub fn oracle_walk(
     Ok(out)
 }
 
+/// The bound's limits: F0 and T0, the controller's fraction of the tool's true limits.
+pub fn bound_limits(cut: &Cut, acs: &AcSettings) -> OracleLimits {
+    let fraction = f64::from(acs.optimal_fraction);
+    OracleLimits {
+        f0_n: fraction * cut.tool.f_max_n,
+        t0_nm: fraction * cut.tool.t_max_nm,
+        ..OracleLimits::for_tool(&cut.tool)
+    }
+}
+
+/// The largest constant feed (the frame's feed number) that is safe everywhere along `walk`: the
+/// smallest force or torque limit of the oracle's points (FRM where nothing is cut).
+pub fn safe_feed(walk: &OracleWalk, settings: &Settings) -> u32 {
+    let min_limit = walk
+        .points
+        .iter()
+        .map(|p| p.cut_limit_ipm)
+        .fold(f64::INFINITY, f64::min);
+    let max_f = settings.q0;
+    if min_limit.is_finite() {
+        ((min_limit / acsim::feed_ipm(settings, 1)).floor() as u32).clamp(1, max_f)
+    } else {
+        max_f
+    }
+}
+
 /// Runs the constant-feed references and the oracle.
 ///
 /// The bound (the oracle) and the safe constant feed honour the same ceilings as the AC run
@@ -220,12 +239,7 @@ pub fn compare(
     let programmed_load =
         acsim::load_figures(&programmed.samples, &cut.tool, fraction, acs.sample_hz);
     let ceilings = ceiling_blocks(prog, settings, acs);
-    // F0 and T0: the controller's fraction of the tool's true limits.
-    let limits = OracleLimits {
-        f0_n: fraction * cut.tool.f_max_n,
-        t0_nm: fraction * cut.tool.t_max_nm,
-        ..OracleLimits::for_tool(&cut.tool)
-    };
+    let limits = bound_limits(cut, acs);
     let ceiling_ipm: Vec<f64> = ceilings
         .iter()
         .map(|c| acsim::programmed_ipm(settings, &c.block))
@@ -233,19 +247,7 @@ pub fn compare(
     crate::progress::stage("oracle (bound)");
     let walk = oracle_walk(prog, settings, cut, &programmed, &limits, &ceiling_ipm)?;
     let oracle_s = walk.time_s;
-    let min_limit = walk
-        .points
-        .iter()
-        .map(|p| p.cut_limit_ipm)
-        .fold(f64::INFINITY, f64::min);
-    // The largest constant feed that is safe everywhere: the smallest force or torque limit of
-    // the oracle's points, in every block below the block's ceiling.
-    let max_f = settings.q0;
-    let safe_f = if min_limit.is_finite() {
-        ((min_limit / acsim::feed_ipm(settings, 1)).floor() as u32).clamp(1, max_f)
-    } else {
-        max_f
-    };
+    let safe_f = safe_feed(&walk, settings);
     let safe_prog = acsim::with_constant_feed(&ceilings, safe_f, settings);
     crate::progress::stage("safe constant feed");
     let safe = acsim::run(&safe_prog, settings, cut, None)?;

@@ -8,4 +8,5 @@ pub mod chatterlab;
 pub mod model;
 pub mod optimise;
 pub mod plot;
+pub mod raster;
 pub mod repro;

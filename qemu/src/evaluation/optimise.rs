@@ -433,6 +433,7 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
         // Each run of feed blocks from its limit at the first point, not from rest: the frame
         // starts a block at its feed (the piece takes the smallest over its points anyway).
         from_rest: false,
+        ..OracleLimits::for_tool(&cut.tool)
     };
     let frm = acsim::feed_ipm(settings, settings.q0);
     let ceiling = vec![frm; prog.len()];
