@@ -9,7 +9,7 @@
 //! Writes `out/scale/scale.svg` (wall time against blocks) and the table as markdown.
 //!
 //! ```text
-//! cargo run -p millac-qemu --release --example scale_bench [-- --blocks 1000,3000,10000] [--run] [--no-commands]
+//! cargo run -p millac-qemu --release --example scale_bench [-- --blocks 1000,3000,10000] [--only NAME] [--run] [--no-commands]
 //! ```
 //!
 //! Not a test: wall times depend on the machine (docs/dev/results-scale.md has this machine's).
@@ -44,6 +44,7 @@ fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut sizes = vec![1000, 3000, 10_000];
     let (mut with_run, mut commands) = (false, true);
+    let mut only: Option<String> = None;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -58,8 +59,17 @@ fn main() -> Result<()> {
                     .with_context(|| format!("--blocks {v}"))?;
             }
             "--run" => with_run = true,
+            "--only" => {
+                only = Some(
+                    it.next()
+                        .context("--only needs a part of a program's name")?
+                        .clone(),
+                )
+            }
             "--no-commands" => commands = false,
-            other => bail!("unknown option {other} (--blocks LIST, --run, --no-commands)"),
+            other => {
+                bail!("unknown option {other} (--blocks LIST, --only NAME, --run, --no-commands)")
+            }
         }
     }
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -90,6 +100,9 @@ fn main() -> Result<()> {
             text,
             stock: Some(stock),
         });
+    }
+    if let Some(o) = &only {
+        programs.retain(|p| p.name.contains(o.as_str()));
     }
     let exe = millac_qemu_binary()?;
     println!("| program | blocks | cutting s | schedule | wall s | x real time |");

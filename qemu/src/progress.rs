@@ -3,7 +3,8 @@
 //! [`stage`]). Each bar shows the blocks done of the total, the virtual time simulated, the
 //! ratio to real time and the time left. Bars draw on stderr only when it is a terminal
 //! (indicatif hides them otherwise) and never with `--quiet` ([`set_quiet`]); without a bar
-//! (the library in tests, a pipe) [`update`] is one thread-local read.
+//! (the library in tests, a pipe) [`update`] is one thread-local read. Runs under QEMU show
+//! their virtual time against `check`'s estimate ([`with_clock`], [`clock`]).
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -90,14 +91,69 @@ pub fn stage(label: &str) {
     });
 }
 
+/// The bar of a run under QEMU (its plant samples on the co-simulation's bridge thread, not on
+/// the thread that opened the bar), with when it started and the virtual time it last showed.
+static CLOCK: std::sync::Mutex<Option<(ProgressBar, Instant, f64)>> = std::sync::Mutex::new(None);
+
+/// Runs `f`, a run under QEMU of a program the frame takes `estimate_s` seconds to run (`check`'s
+/// estimate; 0: unknown), with a bar of its virtual time against the estimate (none with
+/// `--quiet`); [`clock`] moves it from any thread. Cleared when `f` returns.
+pub fn with_clock<T>(label: &str, estimate_s: f64, f: impl FnOnce() -> T) -> T {
+    if QUIET.load(Ordering::Relaxed) {
+        return f();
+    }
+    // In tenths of a second of virtual time.
+    let bar = bars().add(ProgressBar::new((estimate_s * 10.0).ceil().max(0.0) as u64));
+    bar.set_style(
+        ProgressStyle::with_template("{prefix:>22} [{bar:24}] {msg}  elapsed {elapsed}  eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_prefix(label.to_string());
+    bar.set_message(format!("0 of {estimate_s:.0} s virtual (estimated)"));
+    if let Ok(mut c) = CLOCK.lock() {
+        *c = Some((bar.clone(), Instant::now(), 0.0));
+    }
+    let out = f();
+    if let Ok(mut c) = CLOCK.lock() {
+        *c = None;
+    }
+    bar.finish_and_clear();
+    out
+}
+
+/// The run under QEMU has simulated `virtual_s` seconds (from any thread; the bar moves every
+/// tenth of a second of virtual time).
+pub fn clock(virtual_s: f64) {
+    let Ok(mut c) = CLOCK.lock() else { return };
+    let Some((bar, started, shown)) = c.as_mut() else {
+        return;
+    };
+    if virtual_s < *shown + 0.1 {
+        return;
+    }
+    *shown = virtual_s;
+    bar.set_position((virtual_s * 10.0) as u64);
+    let wall = started.elapsed().as_secs_f64();
+    let estimate = bar.length().unwrap_or(0) as f64 / 10.0;
+    bar.set_message(format!(
+        "{virtual_s:.1} of {estimate:.0} s virtual (estimated), {:.2}x real time",
+        virtual_s / wall.max(1e-9)
+    ));
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `--quiet` is global: the tests that open bars take turns.
+    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
     /// Without a bar, updates do nothing; with one, the run's result comes back and the bar is
     /// gone afterwards (it draws nowhere: the tests' stderr is not a terminal).
     #[test]
     fn a_bar_lives_only_around_its_run() {
+        let _turn = SERIAL.lock().unwrap_or_else(|p| p.into_inner());
         update(3, 1.0);
         assert!(BAR.with(|b| b.borrow().is_none()));
         let r = with_bar("test", 10, || {
@@ -115,5 +171,36 @@ mod tests {
         let r = with_bar("quiet", 10, || BAR.with(|b| b.borrow().is_none()));
         set_quiet(false);
         assert!(r, "--quiet: no bar");
+    }
+
+    /// The clock moves from another thread while its run is open and by tenths of a second; it
+    /// is gone afterwards.
+    #[test]
+    fn the_clock_moves_from_any_thread_while_its_run_is_open() {
+        let _turn = SERIAL.lock().unwrap_or_else(|p| p.into_inner());
+        clock(5.0);
+        let shown = || {
+            CLOCK
+                .lock()
+                .unwrap()
+                .as_ref()
+                .map(|c| (c.0.position(), c.2))
+        };
+        assert_eq!(shown(), None);
+        let r = with_clock("run", 60.0, || {
+            std::thread::spawn(|| {
+                clock(2.55);
+                clock(2.6);
+            })
+            .join()
+            .unwrap();
+            shown()
+        });
+        assert_eq!(
+            r,
+            Some((25, 2.55)),
+            "moved to 2.55 s, not again 0.05 s later"
+        );
+        assert_eq!(shown(), None);
     }
 }

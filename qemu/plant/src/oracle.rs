@@ -181,9 +181,11 @@ impl Contacts {
         let steps = (360 / cut.flutes).max(8);
         let mut teeth = vec![Contact::default(); steps as usize * flutes];
         let mut end_ok = false;
+        // What the teeth can read near the tool, once for all the angles.
+        let near = cut.near_top(stock, tip);
         for (i, at) in teeth.chunks_exact_mut(flutes).enumerate() {
             let theta = pitch * i as f64 / steps as f64;
-            end_ok = cut.contacts(stock, tip, theta, u, reach, z_min, at);
+            end_ok = cut.contacts(stock, tip, theta, u, reach, z_min, near, at);
         }
         Contacts {
             flutes,

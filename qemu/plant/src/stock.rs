@@ -444,6 +444,35 @@ impl Stock {
         self.max_top.0
     }
 
+    /// The highest top (mm) of the cells that hold a point of the square of half-width `half`
+    /// (mm) around (x, y) (`NEG_INFINITY` where all of it is air or outside the grid).
+    pub fn max_top_near(&self, x_mm: f64, y_mm: f64, half: f64) -> f64 {
+        let idx = |v: f64, o: f64, n: usize| {
+            let f = ((v - o) / self.cell_mm).floor();
+            f.clamp(0.0, n as f64 - 1.0) as usize
+        };
+        let (fx0, fx1) = ((x_mm - half - self.x0_mm), (x_mm + half - self.x0_mm));
+        let (fy0, fy1) = ((y_mm - half - self.y0_mm), (y_mm + half - self.y0_mm));
+        let (w, h) = (self.nx as f64 * self.cell_mm, self.ny as f64 * self.cell_mm);
+        if fx1 < 0.0 || fy1 < 0.0 || fx0 >= w || fy0 >= h {
+            return f64::NEG_INFINITY;
+        }
+        let (i0, i1) = (
+            idx(x_mm - half, self.x0_mm, self.nx),
+            idx(x_mm + half, self.x0_mm, self.nx),
+        );
+        let (j0, j1) = (
+            idx(y_mm - half, self.y0_mm, self.ny),
+            idx(y_mm + half, self.y0_mm, self.ny),
+        );
+        let mut top = f64::NEG_INFINITY;
+        for j in j0..=j1 {
+            let row = &self.top[j * self.nx + i0..=j * self.nx + i1];
+            top = row.iter().fold(top, |m, &t| if t > m { t } else { m });
+        }
+        top
+    }
+
     /// The XY path length the tool has swept over this stock, mm (see the module docs).
     pub fn odometer_mm(&self) -> f64 {
         self.odometer_mm

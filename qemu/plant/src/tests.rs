@@ -1635,6 +1635,7 @@ fn forces_from_contacts_are_the_forces_read_from_the_stock() {
                         u,
                         reach,
                         Some(end.z_min),
+                        cut.near_top(p.stock(), tip),
                         &mut contacts,
                     );
                     for c in [0.0, 0.05, C_30IPM, 1.0] {

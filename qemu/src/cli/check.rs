@@ -10,8 +10,7 @@
 //! frame's own arithmetic at the settings' W0 and rapid rate, the feeds as programmed (no adaptive
 //! control, 100 % override).
 use anyhow::{Context, Result};
-use millac::nc::sim::Sim;
-use millac::nc::{Frame, FrameConfig, Motion};
+use millac::nc::Motion;
 use millac::Settings;
 use millac_qemu::analysis::{program_of_blocks, read_lines};
 use millac_qemu::host::acsim;
@@ -85,12 +84,7 @@ pub(crate) fn command(args: CheckArgs) -> Result<bool> {
     let rapids = count(|m| matches!(m, Motion::Rapid(_)));
     let lines = count(|m| matches!(m, Motion::Linear(_)));
     let arcs = count(|m| matches!(m, Motion::Arc(_)));
-    // The time: the frame's own frames over the blocks, each at the rate it ran at.
-    let mut frame = Frame::new(FrameConfig::from_settings(&settings));
-    let ns: u64 = Sim::new(&mut frame, prog.iter().map(|b| b.block), u32::MAX, u64::MAX)
-        .map(|f| acsim::period_ns(&settings, f.rate))
-        .sum();
-    let seconds = ns as f64 * 1e-9;
+    let seconds = acsim::estimated_time_s(&prog, &settings);
     let first = report.refused.first();
     if args.json {
         let v = json!({

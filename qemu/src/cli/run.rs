@@ -51,10 +51,17 @@ pub(crate) fn run(text: &str, out: &Path, shift: u32, cut: Option<&CutArgs>) -> 
         None => None,
     };
     let stop = millac_qemu::interrupt::flag();
+    // The bar: virtual time against check's estimate (0 for a program the run will refuse).
+    let settings = millac::Settings::default();
+    let estimate = millac_qemu::analysis::load_program(text, &settings).map_or(0.0, |p| {
+        millac_qemu::host::acsim::estimated_time_s(&p, &settings)
+    });
     let o = reported(
         out,
         false,
-        runner::run_until(text, out, shift, ac.as_ref(), Some(stop)),
+        millac_qemu::progress::with_clock("QEMU run", estimate, || {
+            runner::run_until(text, out, shift, ac.as_ref(), Some(stop))
+        }),
     )?;
     if o.report.is_some() {
         runner::print_summary(&o.summary, out);

@@ -241,6 +241,7 @@ struct ProcessPlant {
 
 impl cosim::Plant for ProcessPlant {
     fn sample(&mut self, _index: u32, t_s: f64, pos_blu: [i64; 3]) -> Option<[u16; 3]> {
+        crate::progress::clock(t_s);
         let s = self.process.sample(t_s, pos_blu);
         if let Ok(mut v) = self.truth.lock() {
             v.push((s.f_true_n, s.t_true_nm));

@@ -381,6 +381,17 @@ pub fn period_ns(settings: &Settings, rate: Rate) -> u64 {
     crate::host::board::reload_ns(reloads.of(rate))
 }
 
+/// The time the frame takes over `prog` at the programmed feeds, s: its own frames, each at the
+/// rate it ran at (`check`'s estimate; a run under QEMU shows its virtual time against it).
+pub fn estimated_time_s(prog: &[ProgBlock], settings: &Settings) -> f64 {
+    let mut frame = millac::nc::Frame::new(FrameConfig::from_settings(settings));
+    let blocks = prog.iter().map(|b| b.block);
+    let ns: u64 = millac::nc::sim::Sim::new(&mut frame, blocks, u32::MAX, u64::MAX)
+        .map(|f| period_ns(settings, f.rate))
+        .sum();
+    ns as f64 * 1e-9
+}
+
 /// Path speed (ipm, or the program's unit per minute) of a position change `d` over one period:
 /// the `feed_ipm` of ac.csv, for host runs and QEMU logs alike.
 pub fn path_feed_ipm(settings: &Settings, d: [i64; 3], period_ms: u32) -> f64 {
