@@ -1,6 +1,6 @@
 //! The scale benchmark (host): how the host simulation, the bound and the commands a user runs
 //! grow with the program. For each program (the Fig. 1 cavity, the pocket, FreeCAD's 3D surface
-//! job on its block, and finishing rasters of 1 000 to 10 000 blocks (any with `--blocks`) made by
+//! job on its block, and finishing rasters of 1 000 to 35 000 blocks (any with `--blocks`) made by
 //! `millac_qemu::evaluation::raster`): blocks, virtual cutting time, the wall time of each host
 //! schedule on one thread (the programmed feeds, the AC, the bound, the safe constant feed) and
 //! its ratio to real time; then the wall time and peak memory (the child's max RSS) of
@@ -9,7 +9,7 @@
 //! Writes `out/scale/scale.svg` (wall time against blocks) and the table as markdown.
 //!
 //! ```text
-//! cargo run -p millac-qemu --release --example scale_bench [-- --blocks 1000,3000,10000] [--only NAME] [--run] [--no-commands]
+//! cargo run -p millac-qemu --release --example scale_bench [-- --blocks 1000,3000,10000,35000] [--only NAME] [--run] [--no-commands]
 //! ```
 //!
 //! Not a test: wall times depend on the machine (docs/dev/results-scale.md has this machine's).
@@ -42,7 +42,7 @@ struct Measured {
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let mut sizes = vec![1000, 3000, 10_000];
+    let mut sizes = vec![1000, 3000, 10_000, 35_000];
     let (mut with_run, mut commands) = (false, true);
     let mut only: Option<String> = None;
     let mut it = args.iter();
@@ -217,7 +217,8 @@ fn measure(p: &Program, out: &Path, exe: Option<&Path>, with_run: bool) -> Resul
     m.schedules.push(("bound (oracle)", w, v));
     let walk = walk.context("the oracle's walk")?;
     let safe = acsim::with_constant_feed(&ceilings, acreport::safe_feed(&walk, &s), &s);
-    drop(walk);
+    // Memory back before the next runs (the children's peaks are their own).
+    drop((walk, programmed));
     let (w, v) = timed(&mut || Ok(acsim::run(&safe, &s, &cut, None)?.machining_time_s))?;
     m.schedules.push(("safe constant feed", w, v));
     let Some(exe) = exe else { return Ok(m) };

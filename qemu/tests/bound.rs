@@ -288,3 +288,22 @@ fn the_bound_from_key_points_is_within_its_tolerance_of_every_pulse() {
         );
     }
 }
+
+/// The frames alone (`acsim::pulses`, what the optimiser plans on) put out the same pulses, in
+/// the same frames and block spans, as the run with the process at the programmed feeds.
+#[test]
+fn the_pulses_without_the_process_are_the_programmed_runs() {
+    let s = Settings::default();
+    for case in bench::CASES {
+        let prog = case.load(&s).unwrap();
+        let cut = case.cut(&s, DriveModel::Stepper, Material::STEEL).unwrap();
+        let full = acsim::run(&prog, &s, &cut, None).unwrap();
+        let bare = acsim::pulses(&prog, &s, &cut).unwrap();
+        assert!(bare.samples.is_empty() && bare.stock.is_none());
+        assert!(full.path.len() > 1000, "{}", case.name);
+        assert_eq!(bare.path, full.path, "{}", case.name);
+        assert_eq!(bare.spans, full.spans, "{}", case.name);
+        assert_eq!(bare.machining_time_s, full.machining_time_s);
+        assert_eq!(bare.final_position, full.final_position);
+    }
+}

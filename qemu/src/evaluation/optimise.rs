@@ -424,9 +424,35 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
         );
     }
     let prog = analysis::load_program(text, settings).map_err(|e| anyhow!("{e}"))?;
+    // The program cut at its programmed feeds (for the caller's comparison) on a thread of its
+    // own: the plan needs only its pulses.
+    std::thread::scope(|s| {
+        let programmed = s.spawn(|| acsim::run(&prog, settings, cut, None));
+        let plan = plan(text, &prog, settings, cut, opts);
+        let programmed = programmed
+            .join()
+            .unwrap_or_else(|p| std::panic::resume_unwind(p))?;
+        let o = Optimised {
+            programmed,
+            ..plan?
+        };
+        check(&prog, &o, settings)?;
+        Ok(o)
+    })
+}
+
+/// [`optimise`]'s plan of `prog`, the blocks of `text` (its `programmed` run left empty: the
+/// caller's).
+fn plan(
+    text: &str,
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    opts: &Options,
+) -> Result<Optimised> {
     crate::progress::set_total(prog.len());
-    crate::progress::stage("programmed feeds");
-    let programmed = acsim::run(&prog, settings, cut, None)?;
+    crate::progress::stage("pulses");
+    let programmed = acsim::pulses(&prog, settings, cut)?;
     let limits = OracleLimits {
         f0_n: opts.fraction * cut.tool.f_max_n,
         t0_nm: opts.fraction * cut.tool.t_max_nm,
@@ -707,15 +733,13 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
     }
     out.push_str(&body);
     let _ = writeln!(out, "M2");
-    let o = Optimised {
+    Ok(Optimised {
         text: out,
         pieces,
         f0_n: limits.f0_n,
         t0_nm: limits.t0_nm,
-        programmed,
-    };
-    check(&prog, &o, settings)?;
-    Ok(o)
+        programmed: HostRun::default(),
+    })
 }
 
 /// The optimised program parses, every original end point is reached in order, and every axis

@@ -417,6 +417,14 @@ pub fn run(
     run_with(prog, settings, cut, ac, true)
 }
 
+/// The pulses of `prog` at its programmed feeds without the process: the frames alone, the same
+/// `path`, `spans`, machining time and final position as [`run`] with `ac` None (no sample, no
+/// row, no stock cut). What the oracle walks and the optimiser plans on, for a fraction of the
+/// process' time.
+pub fn pulses(prog: &[ProgBlock], settings: &Settings, cut: &Cut) -> Result<HostRun> {
+    run_inner(prog, settings, cut, None, true, &[], false)
+}
+
 /// As [`run`]; `anti_windup` false runs the paper's FRC exactly (no achieved feed).
 pub fn run_with(
     prog: &[ProgBlock],
@@ -442,6 +450,19 @@ pub fn run_with_faults(
     ac: Option<AcSettings>,
     anti_windup: bool,
     faults: &[crate::host::fault::Fault],
+) -> Result<HostRun> {
+    run_inner(prog, settings, cut, ac, anti_windup, faults, true)
+}
+
+/// [`run_with_faults`]; `plant` false: no sample is taken ([`pulses`], without AC).
+fn run_inner(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    ac: Option<AcSettings>,
+    anti_windup: bool,
+    faults: &[crate::host::fault::Fault],
+    plant: bool,
 ) -> Result<HostRun> {
     // The firmware's frame ISR and pulse end on the host board, and its status words (the
     // contexts' handles: the frame's and the pulse end's in the host board, the others below).
@@ -589,7 +610,7 @@ pub fn run_with_faults(
         }
         let mut halt = false;
         // The samples up to the next frame interrupt (one at the same instant runs after it).
-        while next_sample < t {
+        while plant && next_sample < t {
             next_sample += sample_ns;
             let (codes, due, sound) = sample(&mut adc, &w.sampler, per_period, trip.as_ref());
             if let (Some(ac), Some(codes)) = (period.as_mut(), codes) {
@@ -682,7 +703,7 @@ pub fn run_with_faults(
             break;
         }
     }
-    out.stock = Some(adc.process.into_stock());
+    out.stock = plant.then(|| adc.process.into_stock());
     out.samples = adc.truth;
     out.codes = adc.codes;
     out.machining_time_s = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);
