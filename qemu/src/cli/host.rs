@@ -47,9 +47,9 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
         false,
         (|| -> Result<bool> {
             std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-            // The AC's run and the comparison's (programmed feeds, then the oracle, then the
-            // safe constant feed: each needs the one before) are independent: two threads, the
-            // same results as one after the other.
+            // The AC's run and the comparison's (the programmed feeds on a thread of their own,
+            // the oracle on the pulses, then the safe constant feed, which needs the oracle)
+            // are independent: threads, the same results as one after the other.
             let (run, cmp) = std::thread::scope(|s| {
                 let comparison = s.spawn(|| {
                     millac_qemu::progress::with_bar("comparison", prog.len(), || {

@@ -234,23 +234,34 @@ pub fn compare(
     acs: &AcSettings,
 ) -> Result<Comparison> {
     let fraction = acs.optimal_fraction as f64;
-    crate::progress::stage("programmed feeds");
-    let programmed = acsim::run(prog, settings, cut, None)?;
+    // The programmed feeds cut on a thread of their own: the bound needs only their pulses
+    // (`acsim::pulses`, the same path), and the safe constant feed only the bound.
+    let (programmed, (oracle_s, safe_f, safe)) = std::thread::scope(|s| {
+        let programmed = s.spawn(|| acsim::run(prog, settings, cut, None));
+        let bound = (|| -> Result<_> {
+            crate::progress::stage("pulses");
+            let pulses = acsim::pulses(prog, settings, cut)?;
+            let ceilings = ceiling_blocks(prog, settings, acs);
+            let limits = bound_limits(cut, acs);
+            let ceiling_ipm: Vec<f64> = ceilings
+                .iter()
+                .map(|c| acsim::programmed_ipm(settings, &c.block))
+                .collect();
+            crate::progress::stage("oracle (bound)");
+            let walk = oracle_walk(prog, settings, cut, &pulses, &limits, &ceiling_ipm)?;
+            let safe_f = safe_feed(&walk, settings);
+            let safe_prog = acsim::with_constant_feed(&ceilings, safe_f, settings);
+            crate::progress::stage("safe constant feed");
+            let safe = acsim::run(&safe_prog, settings, cut, None)?;
+            Ok((walk.time_s, safe_f, safe))
+        })();
+        let programmed = programmed
+            .join()
+            .unwrap_or_else(|p| std::panic::resume_unwind(p));
+        Ok::<_, anyhow::Error>((programmed?, bound?))
+    })?;
     let programmed_load =
         acsim::load_figures(&programmed.samples, &cut.tool, fraction, acs.sample_hz);
-    let ceilings = ceiling_blocks(prog, settings, acs);
-    let limits = bound_limits(cut, acs);
-    let ceiling_ipm: Vec<f64> = ceilings
-        .iter()
-        .map(|c| acsim::programmed_ipm(settings, &c.block))
-        .collect();
-    crate::progress::stage("oracle (bound)");
-    let walk = oracle_walk(prog, settings, cut, &programmed, &limits, &ceiling_ipm)?;
-    let oracle_s = walk.time_s;
-    let safe_f = safe_feed(&walk, settings);
-    let safe_prog = acsim::with_constant_feed(&ceilings, safe_f, settings);
-    crate::progress::stage("safe constant feed");
-    let safe = acsim::run(&safe_prog, settings, cut, None)?;
     let safe_load = acsim::load_figures(&safe.samples, &cut.tool, fraction, acs.sample_hz);
     Ok(Comparison {
         programmed,

@@ -452,7 +452,7 @@ fn plan(
 ) -> Result<Optimised> {
     crate::progress::set_total(prog.len());
     crate::progress::stage("pulses");
-    let programmed = acsim::pulses(&prog, settings, cut)?;
+    let programmed = acsim::pulses(prog, settings, cut)?;
     let limits = OracleLimits {
         f0_n: opts.fraction * cut.tool.f_max_n,
         t0_nm: opts.fraction * cut.tool.t_max_nm,
@@ -464,11 +464,11 @@ fn plan(
     let frm = acsim::feed_ipm(settings, settings.q0);
     let ceiling = vec![frm; prog.len()];
     crate::progress::stage("limits along the path");
-    let mut walk = oracle_walk(&prog, settings, cut, &programmed, &limits, &ceiling)?;
+    let mut walk = oracle_walk(prog, settings, cut, &programmed, &limits, &ceiling)?;
     let guarded = if opts.guard > 0.0 {
         guard(
             &mut walk,
-            &prog,
+            prog,
             settings,
             cut,
             &programmed,
