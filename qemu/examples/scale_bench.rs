@@ -128,11 +128,11 @@ fn main() -> Result<()> {
         println!("| --- | ---: | ---: | --- | ---: | ---: | ---: |");
         for (name, m) in &all {
             for (command, wall, rss) in &m.commands {
+                let ratio = m.virtual_s / wall;
+                let digits = usize::from(ratio < 10.0);
                 println!(
-                    "| {name} | {} | {:.0} | {command} | {wall:.1} | {:.0} | {rss:.0} |",
-                    m.blocks,
-                    m.virtual_s,
-                    m.virtual_s / wall
+                    "| {name} | {} | {:.0} | {command} | {wall:.1} | {ratio:.digits$} | {rss:.0} |",
+                    m.blocks, m.virtual_s,
                 );
             }
         }
