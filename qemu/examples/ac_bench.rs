@@ -90,8 +90,12 @@ fn main() -> Result<()> {
     let mut all: Vec<Row> = Vec::new();
     for case in &cases {
         for &drive in &drives {
+            // A bar on a terminal (stderr) while the program's schedules run.
+            let label = format!("{} ({})", case.name, bench::drive_name(drive));
             let (rows, cmp) =
-                bench::rows(case, &settings, drive, material, &strategies, published)?;
+                millac_qemu::progress::with_bar(&label, case.load(&settings)?.len(), || {
+                    bench::rows(case, &settings, drive, material, &strategies, published)
+                })?;
             for r in &rows {
                 println!("{}", bench::markdown(r));
             }

@@ -184,10 +184,16 @@ fn measure(p: &Program, out: &Path, exe: Option<&Path>, with_run: bool) -> Resul
         blocks: prog.len(),
         ..Measured::default()
     };
+    // Each schedule under a bar on a terminal (stderr; the bar's drawing is in its wall time,
+    // as a user's is).
+    let blocks = prog.len();
+    let label = p.name.clone();
     let timed = |f: &mut dyn FnMut() -> Result<f64>| -> Result<(f64, f64)> {
-        let t = Instant::now();
-        let v = f()?;
-        Ok((t.elapsed().as_secs_f64(), v))
+        millac_qemu::progress::with_bar(&label, blocks, || {
+            let t = Instant::now();
+            let v = f()?;
+            Ok((t.elapsed().as_secs_f64(), v))
+        })
     };
     let mut programmed = None;
     let (w, v) = timed(&mut || {
