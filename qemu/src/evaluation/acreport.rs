@@ -101,25 +101,26 @@ pub fn oracle_walk(
         points: Vec::new(),
         time_s: 0.0,
     };
-    let mut seg: Vec<(usize, OraclePoint)> = Vec::new();
+    // The run of feed blocks being gathered: its points and each point's block.
+    let mut seg: (Vec<OraclePoint>, Vec<usize>) = (Vec::new(), Vec::new());
     let mut pulse = 0usize;
-    let flush = |seg: &mut Vec<(usize, OraclePoint)>,
+    let flush = |seg: &mut (Vec<OraclePoint>, Vec<usize>),
                  stock: &mut millac_plant::Stock,
                  out: &mut OracleWalk|
      -> Result<()> {
-        if seg.len() > 1 {
-            let pts: Vec<OraclePoint> = seg.iter().map(|p| p.1).collect();
+        if seg.0.len() > 1 {
             let r = oracle_time(
                 stock.clone(),
                 &cut.tool,
                 &cut.material,
                 cut.spindle_rpm,
-                &pts,
+                &seg.0,
                 limits,
             )
             .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))?;
             out.time_s += r.time_s;
-            for (k, (b, p)) in seg.iter().enumerate() {
+            out.points.reserve(seg.0.len());
+            for (k, (p, b)) in seg.0.iter().zip(&seg.1).enumerate() {
                 out.points.push(WalkPoint {
                     block: *b,
                     pos_blu: p.pos_blu,
@@ -133,7 +134,8 @@ pub fn oracle_walk(
             // The stock after this segment, for the next one.
             *stock = r.stock;
         }
-        seg.clear();
+        seg.0.clear();
+        seg.1.clear();
         Ok(())
     };
     let mut pos = [0i64; 3];
@@ -155,8 +157,9 @@ pub fn oracle_walk(
                 accel_ipm_s: acsim::ramp_ipm_s(settings, &b.block),
                 step_mm,
             };
-            if seg.is_empty() {
-                seg.push((i, point(pos, None)));
+            if seg.0.is_empty() {
+                seg.0.push(point(pos, None));
+                seg.1.push(i);
             }
             // The pulse positions are a staircase: each step's length is scaled so that the
             // block's steps add up to its programmed path (the schedule runs along the path, as
@@ -173,10 +176,11 @@ pub fn oracle_walk(
                 1.0
             };
             let mut prev = pos;
-            seg.extend(pts.iter().map(|p| {
+            seg.0.extend(pts.iter().map(|p| {
                 let step = dist_blu(std::mem::replace(&mut prev, p.0), p.0);
-                (i, point(p.0, Some(step * scale * millac_plant::MM_PER_BLU)))
+                point(p.0, Some(step * scale * millac_plant::MM_PER_BLU))
             }));
+            seg.1.resize(seg.0.len(), i);
         } else {
             flush(&mut seg, &mut stock, &mut out)?;
             if let Some(&(_, t0, t1)) = programmed.spans.get(i) {
@@ -249,11 +253,13 @@ pub fn compare(
                 .collect();
             crate::progress::stage("oracle (bound)");
             let walk = oracle_walk(prog, settings, cut, &pulses, &limits, &ceiling_ipm)?;
-            let safe_f = safe_feed(&walk, settings);
+            let (oracle_s, safe_f) = (walk.time_s, safe_feed(&walk, settings));
+            // Memory back before the safe feed's run: it needs neither.
+            drop((pulses, walk));
             let safe_prog = acsim::with_constant_feed(&ceilings, safe_f, settings);
             crate::progress::stage("safe constant feed");
             let safe = acsim::run(&safe_prog, settings, cut, None)?;
-            Ok((walk.time_s, safe_f, safe))
+            Ok((oracle_s, safe_f, safe))
         })();
         let programmed = programmed
             .join()
