@@ -183,9 +183,13 @@ impl Contacts {
         let mut end_ok = false;
         // What the teeth can read near the tool, once for all the angles.
         let near = cut.near_top(stock, tip);
+        // The end face's cells read once for all the angles, where it can meet material.
+        let mask = z_min
+            .filter(|&z| z < near)
+            .map(|z| stock.disc_mask(tip[0], tip[1], cut.r_mm, z));
         for (i, at) in teeth.chunks_exact_mut(flutes).enumerate() {
             let theta = pitch * i as f64 / steps as f64;
-            end_ok = cut.contacts(stock, tip, theta, u, reach, z_min, near, at);
+            end_ok = cut.contacts(stock, tip, theta, u, reach, z_min, near, mask.as_ref(), at);
         }
         Contacts {
             flutes,

@@ -293,6 +293,22 @@ impl Cutter {
         z_min: f64,
         top_bound: f64,
     ) -> EndTooth {
+        self.end_tooth_by(tip, psi, z_min, top_bound, |x, y| {
+            stock.top_in_disc(x, y, tip[0], tip[1], self.r_mm) > z_min
+        })
+    }
+
+    /// [`Cutter::end_tooth`] with `above(x, y)`: the cell holding (x, y) under the disc is above
+    /// `z_min`.
+    #[inline(always)]
+    fn end_tooth_by(
+        &self,
+        tip: [f64; 3],
+        psi: f64,
+        z_min: f64,
+        top_bound: f64,
+        above: impl Fn(f64, f64) -> bool,
+    ) -> EndTooth {
         // Each end tooth's edge sampled at (about) cell spacing from the axis to the rim.
         let n = (self.r_mm / self.probe_mm).ceil().max(1.0);
         let dr = self.r_mm / n;
@@ -303,8 +319,7 @@ impl Cutter {
         let edge = if z_min >= top_bound { 0 } else { n as usize };
         for j in 0..edge {
             let r = (j as f64 + 0.5) * dr;
-            let top = stock.top_in_disc(tip[0] + r * co, tip[1] + r * s, tip[0], tip[1], self.r_mm);
-            if top > z_min {
+            if above(tip[0] + r * co, tip[1] + r * s) {
                 w += dr;
                 moment += r * dr;
             }
@@ -369,6 +384,7 @@ impl Cutter {
         reach: f64,
         z_min: Option<f64>,
         top_bound: f64,
+        mask: Option<&crate::stock::DiscMask>,
         out: &mut [Contact],
     ) -> bool {
         let pitch = std::f64::consts::TAU / self.flutes as f64;
@@ -378,7 +394,12 @@ impl Cutter {
             *slot = Contact {
                 side: self.side_tooth_below(stock, tip, psi, u, reach, top_bound),
                 end: match z_min {
-                    Some(z) if end_ok => self.end_tooth(stock, tip, psi, z, top_bound),
+                    Some(z) if end_ok => match mask {
+                        Some(m) => self.end_tooth_by(tip, psi, z, top_bound, |x, y| {
+                            stock.above_in_disc(m, x, y)
+                        }),
+                        None => self.end_tooth(stock, tip, psi, z, top_bound),
+                    },
                     _ => EndTooth::default(),
                 },
             };

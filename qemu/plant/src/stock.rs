@@ -83,6 +83,19 @@ impl core::fmt::Display for StockError {
 
 impl std::error::Error for StockError {}
 
+/// The cells under a tool's disc above a height ([`Stock::disc_mask`]).
+pub struct DiscMask {
+    i0: usize,
+    j0: usize,
+    w: usize,
+    h: usize,
+    bits: Vec<bool>,
+    cx: f64,
+    cy: f64,
+    r_mm: f64,
+    z: f64,
+}
+
 /// The height map.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Stock {
@@ -436,6 +449,59 @@ impl Stock {
             return f64::NEG_INFINITY;
         }
         self.top[j * self.nx + i]
+    }
+
+    /// Which cells of the square of half-width `r_mm` around (cx, cy) hold material above `z`
+    /// as [`Stock::top_in_disc`] reads them (their centre within `r_mm` of (cx, cy)): read once
+    /// for a point, asked many times by [`Stock::above_in_disc`].
+    pub fn disc_mask(&self, cx: f64, cy: f64, r_mm: f64, z: f64) -> DiscMask {
+        let idx = |v: f64, o: f64, n: usize| {
+            (((v - o) / self.cell_mm).floor()).clamp(0.0, n as f64 - 1.0) as usize
+        };
+        let (i0, i1) = (
+            idx(cx - r_mm, self.x0_mm, self.nx),
+            idx(cx + r_mm, self.x0_mm, self.nx),
+        );
+        let (j0, j1) = (
+            idx(cy - r_mm, self.y0_mm, self.ny),
+            idx(cy + r_mm, self.y0_mm, self.ny),
+        );
+        let (w, h) = (i1 + 1 - i0, j1 + 1 - j0);
+        let mut bits = vec![false; w * h];
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                let (x, y) = self.center(i, j);
+                let (px, py) = (cx - x, cy - y);
+                bits[(j - j0) * w + (i - i0)] =
+                    px * px + py * py <= r_mm * r_mm && self.top[j * self.nx + i] > z;
+            }
+        }
+        DiscMask {
+            i0,
+            j0,
+            w,
+            h,
+            bits,
+            cx,
+            cy,
+            r_mm,
+            z,
+        }
+    }
+
+    /// `top_in_disc(x, y, cx, cy, r_mm) > z` for the mask's disc and height, from the mask.
+    #[inline]
+    pub fn above_in_disc(&self, m: &DiscMask, x_mm: f64, y_mm: f64) -> bool {
+        let fx = (x_mm - self.x0_mm) / self.cell_mm;
+        let fy = (y_mm - self.y0_mm) / self.cell_mm;
+        if fx < 0.0 || fy < 0.0 || fx >= self.nx as f64 || fy >= self.ny as f64 {
+            return false;
+        }
+        let (i, j) = (fx as usize, fy as usize);
+        if i < m.i0 || j < m.j0 || i - m.i0 >= m.w || j - m.j0 >= m.h {
+            return self.top_in_disc(x_mm, y_mm, m.cx, m.cy, m.r_mm) > m.z;
+        }
+        m.bits[(j - m.j0) * m.w + (i - m.i0)]
     }
 
     /// No cell's top is above this (mm): the highest top when the stock was made (cuts only

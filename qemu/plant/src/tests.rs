@@ -1636,6 +1636,7 @@ fn forces_from_contacts_are_the_forces_read_from_the_stock() {
                         reach,
                         Some(end.z_min),
                         cut.near_top(p.stock(), tip),
+                        Some(&p.stock().disc_mask(tip[0], tip[1], cut.r_mm, end.z_min)),
                         &mut contacts,
                     );
                     for c in [0.0, 0.05, C_30IPM, 1.0] {
