@@ -207,21 +207,17 @@ fn measure(p: &Program, out: &Path, exe: Option<&Path>, with_run: bool) -> Resul
     m.schedules.push(("programmed feeds", w, v));
     let (w, v) = timed(&mut || Ok(acsim::run(&prog, &s, &cut, Some(acs))?.machining_time_s))?;
     m.schedules.push(("AC (GPC)", w, v));
-    let ceilings = acreport::ceiling_blocks(&prog, &s, &acs);
-    let ceiling_ipm: Vec<f64> = ceilings
-        .iter()
-        .map(|c| acsim::programmed_ipm(&s, &c.block))
-        .collect();
     let limits = acreport::bound_limits(&cut, &acs);
     let mut walk = None;
     let (w, v) = timed(&mut || {
-        let r = acreport::oracle_walk(&prog, &s, &cut, &programmed, &limits, &ceiling_ipm)?;
+        let r = acreport::bound_walk(&prog, &s, &cut, &acs, &programmed, &limits)?;
         let v = r.time_s;
         walk = Some(r);
         Ok(v)
     })?;
     m.schedules.push(("bound (oracle)", w, v));
     let walk = walk.context("the oracle's walk")?;
+    let ceilings = acreport::ceiling_blocks(&prog, &s, &acs);
     let safe = acsim::with_constant_feed(&ceilings, acreport::safe_feed(&walk, &s), &s);
     // Memory back before the next runs (the children's peaks are their own).
     drop((walk, programmed));

@@ -261,25 +261,12 @@ fn the_bound_from_key_points_is_within_its_tolerance_of_every_pulse() {
     cases.push((name, prog, cut, AcSettings::default()));
     for (name, prog, cut, acs) in cases {
         let programmed = acsim::run(&prog, &s, &cut, None).unwrap();
-        let ceilings = acreport::ceiling_blocks(&prog, &s, &acs);
-        let ceiling_ipm: Vec<f64> = ceilings
-            .iter()
-            .map(|c| acsim::programmed_ipm(&s, &c.block))
-            .collect();
-        let limits = |stride_mm| millac_plant::oracle::OracleLimits {
-            stride_mm,
-            ..acreport::bound_limits(&cut, &acs)
-        };
         let walk = |stride_mm| {
-            acreport::oracle_walk(
-                &prog,
-                &s,
-                &cut,
-                &programmed,
-                &limits(stride_mm),
-                &ceiling_ipm,
-            )
-            .unwrap()
+            let limits = millac_plant::oracle::OracleLimits {
+                stride_mm,
+                ..acreport::bound_limits(&cut, &acs)
+            };
+            acreport::bound_walk(&prog, &s, &cut, &acs, &programmed, &limits).unwrap()
         };
         let (keyed, every) = (walk(millac_plant::oracle::ORACLE_STRIDE_MM), walk(0.0));
         let safe = |w: &acreport::OracleWalk| {

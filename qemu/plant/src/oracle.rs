@@ -240,25 +240,28 @@ fn surely_below(x: f64, y: f64, f: f64) -> bool {
 /// that a capsule along the chord cuts as its own (a staircase along a straight line stays within
 /// a BLU of it; an arc's points leave its chord where the sagitta grows past a BLU).
 fn on_chord(m: &[f64; 3], w: &[f64; 3], d: &[f64; 3]) -> bool {
-    let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    let e = [m[0] - w[0], m[1] - w[1], m[2] - w[2]];
-    let s = if d2 > 0.0 {
-        ((e[0] * d[0] + e[1] * d[1] + e[2] * d[2]) / d2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let dev2: f64 = (0..3).map(|k| (e[k] - s * d[k]).powi(2)).sum();
-    dev2 <= MM_PER_BLU * MM_PER_BLU
+    off_line2(m, w, d, true) <= MM_PER_BLU * MM_PER_BLU
 }
 
 /// Whether `m` lies within 2 BLU of the line through `w` along `d` (a window of the path without
 /// a corner: a plunge followed by a side move is not a ramp).
 fn straight(m: &[f64; 3], w: &[f64; 3], d: &[f64; 3]) -> bool {
+    off_line2(m, w, d, false) <= (2.0 * MM_PER_BLU).powi(2)
+}
+
+/// The squared distance (mm^2) of `m` from the line through `w` along `d`, or with `segment`
+/// from the segment `w` to `w + d` (from `w` when `d` is zero).
+fn off_line2(m: &[f64; 3], w: &[f64; 3], d: &[f64; 3], segment: bool) -> f64 {
     let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     let e = [m[0] - w[0], m[1] - w[1], m[2] - w[2]];
-    let s = (e[0] * d[0] + e[1] * d[1] + e[2] * d[2]) / d2;
-    let dev2: f64 = (0..3).map(|k| (e[k] - s * d[k]).powi(2)).sum();
-    dev2 <= (2.0 * MM_PER_BLU).powi(2)
+    let s = if !segment {
+        (e[0] * d[0] + e[1] * d[1] + e[2] * d[2]) / d2
+    } else if d2 > 0.0 {
+        ((e[0] * d[0] + e[1] * d[1] + e[2] * d[2]) / d2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (0..3).map(|k| (e[k] - s * d[k]).powi(2)).sum()
 }
 
 /// The cut at one point per mm of feed per tooth along the path: XY direction, XY share, -Z share

@@ -83,6 +83,9 @@ impl core::fmt::Display for StockError {
 
 impl std::error::Error for StockError {}
 
+/// A run of cell columns or rows.
+type Cells = std::ops::RangeInclusive<usize>;
+
 /// The cells under a tool's disc above a height ([`Stock::disc_mask`]).
 pub struct DiscMask {
     i0: usize,
@@ -455,21 +458,27 @@ impl Stock {
     /// as [`Stock::top_in_disc`] reads them (their centre within `r_mm` of (cx, cy)): read once
     /// for a point, asked many times by [`Stock::above_in_disc`].
     pub fn disc_mask(&self, cx: f64, cy: f64, r_mm: f64, z: f64) -> DiscMask {
-        let idx = |v: f64, o: f64, n: usize| {
-            (((v - o) / self.cell_mm).floor()).clamp(0.0, n as f64 - 1.0) as usize
+        let mask = DiscMask {
+            i0: 0,
+            j0: 0,
+            w: 0,
+            h: 0,
+            bits: Vec::new(),
+            cx,
+            cy,
+            r_mm,
+            z,
         };
-        let (i0, i1) = (
-            idx(cx - r_mm, self.x0_mm, self.nx),
-            idx(cx + r_mm, self.x0_mm, self.nx),
-        );
-        let (j0, j1) = (
-            idx(cy - r_mm, self.y0_mm, self.ny),
-            idx(cy + r_mm, self.y0_mm, self.ny),
-        );
-        let (w, h) = (i1 + 1 - i0, j1 + 1 - j0);
+        // A square off the grid holds no cell: the empty mask, every question answered by
+        // `top_in_disc` (NEG_INFINITY there).
+        let Some((cols, rows)) = self.cells_near(cx, cy, r_mm) else {
+            return mask;
+        };
+        let (i0, j0) = (*cols.start(), *rows.start());
+        let (w, h) = (cols.clone().count(), rows.clone().count());
         let mut bits = vec![false; w * h];
-        for j in j0..=j1 {
-            for i in i0..=i1 {
+        for j in rows {
+            for i in cols.clone() {
                 let (x, y) = self.center(i, j);
                 let (px, py) = (cx - x, cy - y);
                 bits[(j - j0) * w + (i - i0)] =
@@ -482,10 +491,7 @@ impl Stock {
             w,
             h,
             bits,
-            cx,
-            cy,
-            r_mm,
-            z,
+            ..mask
         }
     }
 
@@ -513,30 +519,31 @@ impl Stock {
     /// The highest top (mm) of the cells that hold a point of the square of half-width `half`
     /// (mm) around (x, y) (`NEG_INFINITY` where all of it is air or outside the grid).
     pub fn max_top_near(&self, x_mm: f64, y_mm: f64, half: f64) -> f64 {
-        let idx = |v: f64, o: f64, n: usize| {
-            let f = ((v - o) / self.cell_mm).floor();
-            f.clamp(0.0, n as f64 - 1.0) as usize
-        };
-        let (fx0, fx1) = ((x_mm - half - self.x0_mm), (x_mm + half - self.x0_mm));
-        let (fy0, fy1) = ((y_mm - half - self.y0_mm), (y_mm + half - self.y0_mm));
-        let (w, h) = (self.nx as f64 * self.cell_mm, self.ny as f64 * self.cell_mm);
-        if fx1 < 0.0 || fy1 < 0.0 || fx0 >= w || fy0 >= h {
+        let Some((cols, rows)) = self.cells_near(x_mm, y_mm, half) else {
             return f64::NEG_INFINITY;
-        }
-        let (i0, i1) = (
-            idx(x_mm - half, self.x0_mm, self.nx),
-            idx(x_mm + half, self.x0_mm, self.nx),
-        );
-        let (j0, j1) = (
-            idx(y_mm - half, self.y0_mm, self.ny),
-            idx(y_mm + half, self.y0_mm, self.ny),
-        );
+        };
         let mut top = f64::NEG_INFINITY;
-        for j in j0..=j1 {
-            let row = &self.top[j * self.nx + i0..=j * self.nx + i1];
+        for j in rows {
+            let row = &self.top[j * self.nx + cols.start()..=j * self.nx + cols.end()];
             top = row.iter().fold(top, |m, &t| if t > m { t } else { m });
         }
         top
+    }
+
+    /// The columns and rows of the cells that hold a point of the square of half-width `half`
+    /// (mm) around (x, y); None when the square misses the grid.
+    fn cells_near(&self, x_mm: f64, y_mm: f64, half: f64) -> Option<(Cells, Cells)> {
+        let (fx0, fx1) = (x_mm - half - self.x0_mm, x_mm + half - self.x0_mm);
+        let (fy0, fy1) = (y_mm - half - self.y0_mm, y_mm + half - self.y0_mm);
+        let (w, h) = (self.nx as f64 * self.cell_mm, self.ny as f64 * self.cell_mm);
+        if fx1 < 0.0 || fy1 < 0.0 || fx0 >= w || fy0 >= h {
+            return None;
+        }
+        let idx = |f: f64, n: usize| (f / self.cell_mm).floor().clamp(0.0, n as f64 - 1.0) as usize;
+        Some((
+            idx(fx0, self.nx)..=idx(fx1, self.nx),
+            idx(fy0, self.ny)..=idx(fy1, self.ny),
+        ))
     }
 
     /// The XY path length the tool has swept over this stock, mm (see the module docs).

@@ -32,10 +32,7 @@ fn is_feed(b: &ProgBlock) -> bool {
 fn path_length_blu(b: &ProgBlock) -> f64 {
     match b.block.motion {
         Motion::Arc(a) => f64::from(a.length).hypot(f64::from(a.helix)),
-        _ => {
-            let d = [0, 1, 2].map(|k| f64::from(b.end[k]) - f64::from(b.start[k]));
-            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
-        }
+        _ => dist_blu(b.start.map(i64::from), b.end.map(i64::from)),
     }
 }
 
@@ -200,6 +197,23 @@ pub fn oracle_walk(
     Ok(out)
 }
 
+/// The bound's walk of `prog` over its pulses `pulses` (the programmed run's path) with `limits`
+/// and the ceilings the AC with `acs` honours ([`ceiling_blocks`]).
+pub fn bound_walk(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    acs: &AcSettings,
+    pulses: &HostRun,
+    limits: &OracleLimits,
+) -> Result<OracleWalk> {
+    let ceiling_ipm: Vec<f64> = ceiling_blocks(prog, settings, acs)
+        .iter()
+        .map(|c| acsim::programmed_ipm(settings, &c.block))
+        .collect();
+    oracle_walk(prog, settings, cut, pulses, limits, &ceiling_ipm)
+}
+
 /// The bound's limits: F0 and T0, the controller's fraction of the tool's true limits.
 pub fn bound_limits(cut: &Cut, acs: &AcSettings) -> OracleLimits {
     let fraction = f64::from(acs.optimal_fraction);
@@ -245,17 +259,13 @@ pub fn compare(
         let bound = (|| -> Result<_> {
             crate::progress::stage("pulses");
             let pulses = acsim::pulses(prog, settings, cut)?;
-            let ceilings = ceiling_blocks(prog, settings, acs);
-            let limits = bound_limits(cut, acs);
-            let ceiling_ipm: Vec<f64> = ceilings
-                .iter()
-                .map(|c| acsim::programmed_ipm(settings, &c.block))
-                .collect();
             crate::progress::stage("oracle (bound)");
-            let walk = oracle_walk(prog, settings, cut, &pulses, &limits, &ceiling_ipm)?;
+            let limits = bound_limits(cut, acs);
+            let walk = bound_walk(prog, settings, cut, acs, &pulses, &limits)?;
             let (oracle_s, safe_f) = (walk.time_s, safe_feed(&walk, settings));
             // Memory back before the safe feed's run: it needs neither.
             drop((pulses, walk));
+            let ceilings = ceiling_blocks(prog, settings, acs);
             let safe_prog = acsim::with_constant_feed(&ceilings, safe_f, settings);
             crate::progress::stage("safe constant feed");
             let safe = acsim::run(&safe_prog, settings, cut, None)?;
