@@ -41,7 +41,7 @@ pub mod teeth;
 mod tests;
 
 pub use drive::{Drive, DriveModel};
-pub use oracle::{oracle_time, OracleLimits, OraclePoint, OracleResult};
+pub use oracle::{oracle_time, OracleLimits, OracleOut, OraclePoint, OracleResult, OracleStream};
 pub use process::{Process, Sample};
 pub use stock::{Envelope, Stock, StockError};
 pub use teeth::{Damage, Teeth, ToothEvent};

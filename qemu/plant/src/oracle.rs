@@ -327,107 +327,258 @@ impl PointCut {
     }
 }
 
-/// The fastest schedule along `path` cutting `stock` (taken by value: it is cut along the way).
-pub fn oracle_time(
-    mut stock: Stock,
-    tool: &Tool,
-    material: &Material,
-    spindle_rpm: f64,
-    path: &[OraclePoint],
-    limits: &OracleLimits,
-) -> Result<OracleResult, CutError> {
-    validate(tool, material, spindle_rpm)?;
-    let l = limits;
-    if !(l.f0_n > 0.0 && l.t0_nm > 0.0) {
-        return Err(CutError("oracle limits F0 and T0 must be > 0".into()));
+/// One point's figures as [`OracleStream`] settles them (the per-point entries of
+/// [`OracleResult`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OracleOut {
+    /// The schedule's feed, ipm.
+    pub feed_ipm: f64,
+    /// The largest feed force, torque and the ceiling allow (before the acceleration passes);
+    /// force and torque alone (infinite where nothing is cut), ipm.
+    pub limit_ipm: f64,
+    pub cut_limit_ipm: f64,
+    /// Peak force (N) and torque (N*m) at the scheduled feed.
+    pub f_peak_n: f64,
+    pub t_peak_nm: f64,
+}
+
+/// A point the stream holds: its input, what the first walk found there and, once the forward
+/// pass has reached it, its forward feed.
+struct Held {
+    p: OraclePoint,
+    mm: [f64; 3],
+    /// Length of the segment arriving here, mm.
+    s: f64,
+    /// `2 a s` of the segment arriving here (ipm^2: v^2 changes by at most this over it), and
+    /// its sum from the first point to this one (the backward pass's reach).
+    a2: f64,
+    cum: f64,
+    /// (F per c, T per c, multiplier), constant Ks.
+    per_c: (f64, f64, f64),
+    capped: bool,
+    limit: f64,
+    cut_limit: f64,
+    /// The key point whose figures this point takes (its own index for a key point).
+    key_of: usize,
+    /// A key point's cut and, where its peaks are re-evaluated at the schedule's feed, what they
+    /// read of the stock (the same contacts a second walk of the path would read).
+    key: Option<(PointCut, Option<Contacts>)>,
+    /// Forward pass, then (settled) the schedule's feed.
+    v: f64,
+    /// A key point's peaks at the schedule's feed, once settled.
+    peaks: (f64, f64),
+}
+
+/// The oracle as a stream (host): points go in one at a time ([`OracleStream::push`]) and come
+/// out settled, in order, as soon as nothing further along the path can change them
+/// ([`OracleStream::finish`] settles the rest), so the memory it holds is its window, not the
+/// path: the points since the last key point and the direction window behind the newest, and
+/// the points the backward acceleration pass can still lower (those within braking distance of
+/// the newest point with a forward feed, `v^2 <= sum 2 a s` ahead of them). The same figures,
+/// to the bit, as running the passes over the whole path: every pass is the same arithmetic in
+/// the same order, and the backward pass's value at a point is the smallest of the chains
+/// `sqrt(v_j^2 + 2 a s ...)` from every point ahead of it (each step is monotone, so the
+/// minimum passes through it exactly); a point is settled only when the chains from beyond the
+/// window are above its forward feed with a margin far above the roundings.
+pub struct OracleStream {
+    cut: Cutter,
+    stock: Stock,
+    limits: OracleLimits,
+    teeth_hz: f64,
+    kienzle: bool,
+    expo: f64,
+    stride: f64,
+    /// Points from global index `base` on.
+    held: std::collections::VecDeque<Held>,
+    base: usize,
+    /// Points pushed; evaluated (each waits for the next, which gives the first point its
+    /// direction and says whether it is the last); with a forward feed (up to the last key
+    /// point); settled; put out.
+    pushed: usize,
+    evaluated: usize,
+    forward: usize,
+    settled: usize,
+    emitted: usize,
+    /// The largest forward feed squared over the points not settled.
+    vmax2: f64,
+    last_key: Option<usize>,
+    cut_to: usize,
+    since: f64,
+    end_engaged: bool,
+    /// The settled feed of the last point put out, and the time so far.
+    prev_v: f64,
+    time_s: f64,
+}
+
+/// Margin of the settling rule: a point is settled when the backward pass's reach ahead of it
+/// exceeds its forward feed squared by this factor plus [`SETTLE_MARGIN_IPM2`].
+const SETTLE_FACTOR: f64 = 1.001;
+const SETTLE_MARGIN_IPM2: f64 = 1.0;
+
+impl OracleStream {
+    /// A stream cutting `stock` (taken by value: it is cut along the way) with `tool`,
+    /// `material` at `spindle_rpm` within `limits`.
+    pub fn new(
+        stock: Stock,
+        tool: &Tool,
+        material: &Material,
+        spindle_rpm: f64,
+        limits: &OracleLimits,
+    ) -> Result<OracleStream, CutError> {
+        validate(tool, material, spindle_rpm)?;
+        let l = *limits;
+        if !(l.f0_n > 0.0 && l.t0_nm > 0.0) {
+            return Err(CutError("oracle limits F0 and T0 must be > 0".into()));
+        }
+        Ok(OracleStream {
+            cut: Cutter::new(tool, material, &stock),
+            stock,
+            limits: l,
+            teeth_hz: tool.flutes as f64 * spindle_rpm / 60.0,
+            kienzle: material.ks_exponent > 0.0,
+            expo: 1.0 / (1.0 - material.ks_exponent),
+            stride: if l.stride_mm > 0.0 { l.stride_mm } else { 0.0 },
+            held: std::collections::VecDeque::new(),
+            base: 0,
+            pushed: 0,
+            evaluated: 0,
+            forward: 0,
+            settled: 0,
+            emitted: 0,
+            vmax2: 0.0,
+            last_key: None,
+            cut_to: 0,
+            since: 0.0,
+            end_engaged: false,
+            prev_v: 0.0,
+            time_s: 0.0,
+        })
     }
-    if let Some(p) = path
-        .iter()
-        .find(|p| !(p.feed_ipm >= 0.0 && p.feed_ipm.is_finite()))
-    {
-        return Err(CutError(format!(
-            "oracle: programmed feed must be finite and >= 0, got {} at {:?}",
-            p.feed_ipm, p.pos_blu
-        )));
+
+    fn at(&self, i: usize) -> &Held {
+        &self.held[i - self.base]
     }
-    if let Some(p) = path
-        .iter()
-        .find(|p| !(p.accel_ipm_s > 0.0 && p.accel_ipm_s.is_finite()))
-    {
-        return Err(CutError(format!(
-            "oracle: acceleration must be finite and > 0, got {} ipm/s at {:?}",
-            p.accel_ipm_s, p.pos_blu
-        )));
+
+    fn at_mut(&mut self, i: usize) -> &mut Held {
+        &mut self.held[i - self.base]
     }
-    let cut = Cutter::new(tool, material, &stock);
-    let n = path.len();
-    let mm = |p: &OraclePoint| p.pos_blu.map(|v| v as f64 * MM_PER_BLU);
-    // Tooth passes per second: feed per tooth c = v / teeth_hz.
-    let teeth_hz = tool.flutes as f64 * spindle_rpm / 60.0;
-    let mut s = vec![0.0; n]; // length of the segment arriving at each point, mm
-    let mut per_c = vec![(0.0, 0.0, 0.0); n]; // (F per c, T per c, multiplier), constant Ks
-    let mut pcs = Vec::with_capacity(n);
-    let mut limit = vec![0.0; n];
-    let mut cut_limit = vec![f64::INFINITY; n];
-    let kienzle = material.ks_exponent > 0.0;
-    let expo = 1.0 / (1.0 - material.ks_exponent);
-    let start_stock = stock.clone();
-    let mut capped = vec![false; n];
-    let c_of = |v_ipm: f64| v_ipm * MM_S_PER_IPM / teeth_hz;
-    let mut end_engaged = false;
-    // The points evaluated in full (see [`OracleLimits::stride_mm`]); every other point takes
-    // the figures of the key point before or after it, whichever allows less.
-    let stride = if l.stride_mm > 0.0 { l.stride_mm } else { 0.0 };
-    let mut keys: Vec<usize> = Vec::new();
-    let mut key_of = vec![0usize; n];
-    // The stock is cut along the path up to this point; path length since the last key point.
-    let (mut cut_to, mut since) = (0usize, 0.0);
-    for i in 0..n {
-        let p = mm(&path[i]);
+
+    /// The points held now (the window; for the memory tests).
+    pub fn held(&self) -> usize {
+        self.held.len()
+    }
+
+    /// The next point of the path; `out` gets every point settled by it (index along the path
+    /// and figures), in order.
+    pub fn push(
+        &mut self,
+        p: OraclePoint,
+        out: &mut impl FnMut(usize, OracleOut),
+    ) -> Result<(), CutError> {
+        if !(p.feed_ipm >= 0.0 && p.feed_ipm.is_finite()) {
+            return Err(CutError(format!(
+                "oracle: programmed feed must be finite and >= 0, got {} at {:?}",
+                p.feed_ipm, p.pos_blu
+            )));
+        }
+        if !(p.accel_ipm_s > 0.0 && p.accel_ipm_s.is_finite()) {
+            return Err(CutError(format!(
+                "oracle: acceleration must be finite and > 0, got {} ipm/s at {:?}",
+                p.accel_ipm_s, p.pos_blu
+            )));
+        }
+        self.held.push_back(Held {
+            p,
+            mm: p.pos_blu.map(|v| v as f64 * MM_PER_BLU),
+            s: 0.0,
+            a2: 0.0,
+            cum: 0.0,
+            per_c: (0.0, 0.0, 0.0),
+            capped: false,
+            limit: 0.0,
+            cut_limit: f64::INFINITY,
+            key_of: self.pushed,
+            key: None,
+            v: 0.0,
+            peaks: (0.0, 0.0),
+        });
+        self.pushed += 1;
+        if self.pushed >= 2 {
+            self.evaluate(false);
+            self.settle(false, out);
+        }
+        Ok(())
+    }
+
+    /// The end of the path: settles and puts out the rest; the schedule's time (infinite when
+    /// some limit is 0 on a segment of length > 0) and the stock as the path left it.
+    pub fn finish(mut self, out: &mut impl FnMut(usize, OracleOut)) -> (f64, Stock) {
+        if self.evaluated < self.pushed {
+            self.evaluate(true);
+        }
+        self.settle(true, out);
+        (self.time_s, self.stock)
+    }
+
+    /// The first walk at the next point (`last`: no point follows it).
+    fn evaluate(&mut self, last: bool) {
+        let i = self.evaluated;
+        self.evaluated += 1;
+        let n_known = self.pushed;
+        let l = self.limits;
+        let p = self.at(i).mm;
         // Direction: the segment arriving here (the first point looks at the next one).
         let (a, b) = if i > 0 {
-            (mm(&path[i - 1]), p)
-        } else if n > 1 {
-            (p, mm(&path[1]))
+            (self.at(i - 1).mm, p)
+        } else if n_known > 1 {
+            (p, self.at(1).mm)
         } else {
             (p, p)
         };
         let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         if i > 0 {
-            s[i] = path[i].step_mm.unwrap_or(len);
+            let s = self.at(i).p.step_mm.unwrap_or(len);
+            let a2 = 2.0 * self.at(i).p.accel_ipm_s * 60.0 * s / 25.4;
+            let cum = self.at(i - 1).cum + a2;
+            let h = self.at_mut(i);
+            h.s = s;
+            h.a2 = a2;
+            h.cum = cum;
         }
-        if let (Some(&k), true) = (keys.last(), stride > 0.0 && i + 1 < n) {
-            since += s[i];
-            let same_move = path[i].feed_ipm == path[i - 1].feed_ipm
-                && path[i].accel_ipm_s == path[i - 1].accel_ipm_s;
-            let w = mm(&path[k]);
+        if let (Some(k), true) = (self.last_key, self.stride > 0.0 && !last) {
+            self.since += self.at(i).s;
+            let (cur, prev) = (self.at(i).p, self.at(i - 1).p);
+            let same_move = cur.feed_ipm == prev.feed_ipm && cur.accel_ipm_s == prev.accel_ipm_s;
+            let w = self.at(k).mm;
             let chord = [p[0] - w[0], p[1] - w[1], p[2] - w[2]];
-            if since < stride
+            if self.since < self.stride
                 && same_move
                 && on_chord(&a, &w, &chord)
-                && on_chord(&mm(&path[(k + i) / 2]), &w, &chord)
+                && on_chord(&self.at((k + i) / 2).mm, &w, &chord)
             {
-                continue;
+                return;
             }
         }
-        since = 0.0;
+        self.since = 0.0;
+        let cut = self.cut;
         // The stock cut up to the point before this one: along the chord from the last point
         // cut (the points between lie on it).
-        if i > 0 && cut_to + 1 < i {
-            stock.cut_capsule(mm(&path[cut_to]), a, cut.r_mm);
+        if i > 0 && self.cut_to + 1 < i {
+            let from = self.at(self.cut_to).mm;
+            self.stock.cut_capsule(from, a, cut.r_mm);
         }
         // Descending over the window: the window's direction.
         let mut dir = d;
         if i > 0 {
             let (mut j, mut acc) = (i, 0.0);
             while j > 0 && acc < DIR_WINDOW_MM {
-                acc += s[j];
+                acc += self.at(j).s;
                 j -= 1;
             }
-            let w = mm(&path[j]);
+            let w = self.at(j).mm;
             let dw = [p[0] - w[0], p[1] - w[1], p[2] - w[2]];
-            if dw[2] < 0.0 && straight(&mm(&path[(i + j) / 2]), &w, &dw) {
+            if dw[2] < 0.0 && straight(&self.at((i + j) / 2).mm, &w, &dw) {
                 dir = dw;
             }
         }
@@ -443,8 +594,11 @@ pub fn oracle_time(
         } else {
             (0.0, 0.0)
         };
-        let hold = end_engaged && i > 0 && a[2] == p[2];
-        let c_ceil = c_of(path[i].feed_ipm);
+        let hold = self.end_engaged && i > 0 && a[2] == p[2];
+        let teeth_hz = self.teeth_hz;
+        let c_of = |v_ipm: f64| v_ipm * MM_S_PER_IPM / teeth_hz;
+        let feed_ipm = self.at(i).p.feed_ipm;
+        let c_ceil = c_of(feed_ipm);
         let pc = PointCut {
             tip: p,
             u,
@@ -455,23 +609,24 @@ pub fn oracle_time(
         };
         // The force and torque limit alone (infinite where nothing is cut), then the ceiling.
         let mut v = f64::INFINITY;
+        let (mut per_c, mut capped) = ((0.0, 0.0, 0.0), false);
         // What the peaks read of the stock here, read once for all the feeds tried.
-        let contacts = (dxy > 0.0 || share_z > 0.0).then(|| pc.contacts(&cut, &stock));
-        if !kienzle {
+        let contacts = (dxy > 0.0 || share_z > 0.0).then(|| pc.contacts(&cut, &self.stock));
+        if !self.kienzle {
             let (pk, mult) = match &contacts {
                 Some(ct) if share_z > 0.0 => (pc.peak(&cut, ct, 1.0), 1.0),
                 Some(ct) => (peak(&cut, ct, 1.0, EndCut::NONE), share),
                 None => (Peak::default(), share),
             };
-            end_engaged = pk.engaged;
+            self.end_engaged = pk.engaged;
             if let (true, Some(ct)) = (pk.capped, &contacts) {
                 // Not linear in c: searched, and re-evaluated at the schedule's feed.
-                capped[i] = true;
+                capped = true;
                 let c = pc.limit_c(&cut, ct, c_ceil, l.f0_n, l.t0_nm);
                 v = c * teeth_hz / MM_S_PER_IPM;
             } else {
                 let (fc, tc) = (pk.f, pk.t);
-                per_c[i] = (fc, tc, mult);
+                per_c = (fc, tc, mult);
                 if fc * mult > 0.0 {
                     v = v.min(l.f0_n / (fc * mult) * teeth_hz / MM_S_PER_IPM);
                 }
@@ -487,11 +642,11 @@ pub fn oracle_time(
             if f == 0.0 && t == 0.0 {
                 v = f64::INFINITY;
             }
-            end_engaged = pk.engaged;
+            self.end_engaged = pk.engaged;
             let mut steps = 0;
             while (f > l.f0_n || t > l.t0_nm) && steps < 50 {
                 let ratio = (l.f0_n / f).min(l.t0_nm / t);
-                v *= ratio.powf(expo) * (1.0 - 1e-12);
+                v *= ratio.powf(self.expo) * (1.0 - 1e-12);
                 let pk = pc.peak(&cut, ct, c_of(v));
                 (f, t) = (pk.f, pk.t);
                 steps += 1;
@@ -500,91 +655,207 @@ pub fn oracle_time(
                 v = 0.0;
             }
         } else {
-            end_engaged = false;
+            self.end_engaged = false;
         }
-        pcs.push(pc);
-        cut_limit[i] = v;
-        limit[i] = v.min(path[i].feed_ipm);
+        // The peaks at the schedule's feed are re-evaluated from the same contacts.
+        let keep = (self.kienzle || capped).then_some(contacts).flatten();
+        let h = self.at_mut(i);
+        h.per_c = per_c;
+        h.capped = capped;
+        h.cut_limit = v;
+        h.limit = v.min(feed_ipm);
+        h.key = Some((pc, keep));
         // The points since the last key point take the figures of the one that allows less.
-        if let Some(&k) = keys.last() {
-            let from = if cut_limit[k] <= v { k } else { i };
-            for j in k + 1..i {
-                key_of[j] = from;
-                cut_limit[j] = cut_limit[from];
-                limit[j] = cut_limit[from].min(path[j].feed_ipm);
-                per_c[j] = per_c[from];
-                capped[j] = capped[from];
-            }
-        }
-        key_of[i] = i;
-        keys.push(i);
-        let from = if i > 0 { a } else { p };
-        stock.cut_capsule(from, p, cut.r_mm);
-        cut_to = i;
-    }
-    // Acceleration passes, in ipm and ipm/s: v^2 grows by at most 2 a s with s in inches; the
-    // move arriving at point i has the acceleration of point i.
-    let a2 = |i: usize| 2.0 * path[i].accel_ipm_s * 60.0 * s[i] / 25.4;
-    let mut v = limit.clone();
-    if n > 0 && l.from_rest {
-        v[0] = 0.0;
-        v[n - 1] = 0.0;
-    }
-    for i in 1..n {
-        v[i] = v[i].min((v[i - 1] * v[i - 1] + a2(i)).sqrt());
-    }
-    for i in (0..n.saturating_sub(1)).rev() {
-        v[i] = v[i].min((v[i + 1] * v[i + 1] + a2(i + 1)).sqrt());
-    }
-    let mut time_s = 0.0;
-    for i in 1..n {
-        if s[i] > 0.0 {
-            let vm = (v[i - 1] + v[i]) * MM_S_PER_IPM;
-            time_s += if vm > 0.0 {
-                2.0 * s[i] / vm
-            } else {
-                f64::INFINITY
+        if let Some(k) = self.last_key {
+            let from = if self.at(k).cut_limit <= v { k } else { i };
+            let (cl, pcf, cp) = {
+                let f = self.at(from);
+                (f.cut_limit, f.per_c, f.capped)
             };
+            for j in k + 1..i {
+                let h = self.at_mut(j);
+                h.key_of = from;
+                h.cut_limit = cl;
+                h.limit = cl.min(h.p.feed_ipm);
+                h.per_c = pcf;
+                h.capped = cp;
+            }
+        }
+        self.last_key = Some(i);
+        let from = if i > 0 { a } else { p };
+        self.stock.cut_capsule(from, p, cut.r_mm);
+        self.cut_to = i;
+        // The forward pass up to this key point (v^2 grows by at most 2 a s).
+        for j in self.forward..=i {
+            let mut v = self.at(j).limit;
+            if l.from_rest && (j == 0 || (last && j == i)) {
+                v = 0.0;
+            }
+            if j > 0 {
+                let prev = self.at(j - 1).v;
+                v = v.min((prev * prev + self.at(j).a2).sqrt());
+            }
+            self.vmax2 = self.vmax2.max(v * v);
+            self.at_mut(j).v = v;
+        }
+        self.forward = i + 1;
+    }
+
+    /// The backward pass over the points with a forward feed, settling those it can (all of
+    /// them at the end), then putting out those whose key point is settled.
+    fn settle(&mut self, end: bool, out: &mut impl FnMut(usize, OracleOut)) {
+        if self.forward > self.settled {
+            let f = self.forward - 1;
+            let reach = |s: &Self, j: usize| s.at(f).cum - s.at(j).cum;
+            // Sweep when the window is twice what settles its front: amortised, each sweep
+            // settles about half of what it walks.
+            let due = end
+                || reach(self, self.settled)
+                    >= 2.0 * (SETTLE_FACTOR * self.vmax2 + SETTLE_MARGIN_IPM2);
+            if due {
+                // The backward pass from the newest forward point: its chain values.
+                let mut bw = Vec::with_capacity(f + 1 - self.settled);
+                let mut next = self.at(f).v;
+                bw.push(next);
+                for j in (self.settled..f).rev() {
+                    next = self.at(j).v.min((next * next + self.at(j + 1).a2).sqrt());
+                    bw.push(next);
+                }
+                bw.reverse();
+                let mut upto = self.settled;
+                for (k, &v) in bw.iter().enumerate() {
+                    let j = self.settled + k;
+                    let fw = self.at(j).v;
+                    if !end && reach(self, j) < SETTLE_FACTOR * fw * fw + SETTLE_MARGIN_IPM2 {
+                        break;
+                    }
+                    self.at_mut(j).v = v;
+                    upto = j + 1;
+                }
+                // Settled key points: their peaks at the schedule's feed.
+                for j in self.settled..upto {
+                    let (v, per_c) = (self.at(j).v, self.at(j).per_c);
+                    let c = v * MM_S_PER_IPM * per_c.2 / self.teeth_hz;
+                    let mut pk = (per_c.0 * c, per_c.1 * c);
+                    if let Some((pc, Some(ct))) = &self.at(j).key {
+                        if v > 0.0 {
+                            let r = pc.peak(&self.cut, ct, v * MM_S_PER_IPM / self.teeth_hz);
+                            pk = (r.f, r.t);
+                        }
+                    }
+                    let h = self.at_mut(j);
+                    h.peaks = pk;
+                    // What the points between key points need of it kept, the contacts not.
+                    if let Some((_, ct)) = &mut h.key {
+                        *ct = None;
+                    }
+                }
+                self.settled = upto;
+                self.vmax2 = (self.settled..self.forward)
+                    .map(|j| self.at(j).v * self.at(j).v)
+                    .fold(0.0, f64::max);
+            }
+        }
+        // Out in order, each point once its key point's peaks are known.
+        while self.emitted < self.settled && self.at(self.emitted).key_of < self.settled {
+            let j = self.emitted;
+            let (k, capped, v, per_c, own) = {
+                let h = self.at(j);
+                (h.key_of, h.capped, h.v, h.per_c, h.peaks)
+            };
+            let (f_peak_n, t_peak_nm) = if k != j && (self.kienzle || capped) {
+                self.at(k).peaks
+            } else if k == j {
+                own
+            } else {
+                let c = v * MM_S_PER_IPM * per_c.2 / self.teeth_hz;
+                (per_c.0 * c, per_c.1 * c)
+            };
+            let h = self.at(j);
+            let (s, limit, cut_limit) = (h.s, h.limit, h.cut_limit);
+            if j > 0 && s > 0.0 {
+                let vm = (self.prev_v + v) * MM_S_PER_IPM;
+                self.time_s += if vm > 0.0 {
+                    2.0 * s / vm
+                } else {
+                    f64::INFINITY
+                };
+            }
+            self.prev_v = v;
+            out(
+                j,
+                OracleOut {
+                    feed_ipm: v,
+                    limit_ipm: limit,
+                    cut_limit_ipm: cut_limit,
+                    f_peak_n,
+                    t_peak_nm,
+                },
+            );
+            self.emitted += 1;
+        }
+        self.trim();
+    }
+
+    /// Lets go of the points nothing will read again: behind the points not yet put out (and
+    /// their key points), the last key point and the direction window of the next point.
+    fn trim(&mut self) {
+        let mut keep = self.emitted.min(self.evaluated.saturating_sub(1));
+        if self.emitted < self.pushed && self.emitted < self.evaluated {
+            keep = keep.min(self.at(self.emitted).key_of);
+        }
+        if let Some(k) = self.last_key {
+            keep = keep.min(k);
+        }
+        // The direction window: from the newest evaluated point back over DIR_WINDOW_MM.
+        if self.evaluated > 0 {
+            let (mut j, mut acc) = (self.evaluated - 1, 0.0);
+            while j > self.base && acc < DIR_WINDOW_MM {
+                acc += self.at(j).s;
+                j -= 1;
+            }
+            keep = keep.min(j);
+        }
+        while self.base < keep {
+            self.held.pop_front();
+            self.base += 1;
         }
     }
-    // Linear in c: scaled; otherwise (Kienzle's Ks, chips limited by the material)
-    // re-evaluated at the scheduled feed along a second walk.
-    let c = |i: usize| v[i] * MM_S_PER_IPM * per_c[i].2 / teeth_hz;
-    let mut f_peak_n: Vec<f64> = (0..n).map(|i| per_c[i].0 * c(i)).collect();
-    let mut t_peak_nm: Vec<f64> = (0..n).map(|i| per_c[i].1 * c(i)).collect();
-    if kienzle || capped.iter().any(|&c| c) {
-        // The same cuts as the first walk, the key points re-evaluated.
-        let mut stock = start_stock;
-        let mut cut_to = 0usize;
-        for (pc, &i) in pcs.iter().zip(&keys) {
-            let p = mm(&path[i]);
-            let from = if i > 0 { mm(&path[i - 1]) } else { p };
-            if i > 0 && cut_to + 1 < i {
-                stock.cut_capsule(mm(&path[cut_to]), from, cut.r_mm);
-            }
-            if (kienzle || capped[i]) && v[i] > 0.0 {
-                let pk = pc.peak(&cut, &pc.contacts(&cut, &stock), c_of(v[i]));
-                (f_peak_n[i], t_peak_nm[i]) = (pk.f, pk.t);
-            }
-            stock.cut_capsule(from, p, cut.r_mm);
-            cut_to = i;
-        }
-        // The points between take their key point's peaks (not linear in the feed: as they
-        // are).
-        for j in 0..n {
-            let k = key_of[j];
-            if k != j && (kienzle || capped[j]) {
-                (f_peak_n[j], t_peak_nm[j]) = (f_peak_n[k], t_peak_nm[k]);
-            }
-        }
+}
+
+/// The fastest schedule along `path` cutting `stock` (taken by value: it is cut along the way):
+/// [`OracleStream`] over the whole path, its figures gathered per point.
+pub fn oracle_time(
+    stock: Stock,
+    tool: &Tool,
+    material: &Material,
+    spindle_rpm: f64,
+    path: &[OraclePoint],
+    limits: &OracleLimits,
+) -> Result<OracleResult, CutError> {
+    let mut stream = OracleStream::new(stock, tool, material, spindle_rpm, limits)?;
+    let n = path.len();
+    let mut r = OracleResult {
+        time_s: 0.0,
+        feed_profile: Vec::with_capacity(n),
+        limit_ipm: Vec::with_capacity(n),
+        cut_limit_ipm: Vec::with_capacity(n),
+        f_peak_n: Vec::with_capacity(n),
+        t_peak_nm: Vec::with_capacity(n),
+        stock: Stock::default(),
+    };
+    let mut gather = |_: usize, o: OracleOut| {
+        r.feed_profile.push(o.feed_ipm);
+        r.limit_ipm.push(o.limit_ipm);
+        r.cut_limit_ipm.push(o.cut_limit_ipm);
+        r.f_peak_n.push(o.f_peak_n);
+        r.t_peak_nm.push(o.t_peak_nm);
+    };
+    for p in path {
+        stream.push(*p, &mut gather)?;
     }
-    Ok(OracleResult {
-        time_s,
-        f_peak_n,
-        t_peak_nm,
-        feed_profile: v,
-        limit_ipm: limit,
-        cut_limit_ipm: cut_limit,
-        stock,
-    })
+    let (time_s, stock) = stream.finish(&mut gather);
+    r.time_s = time_s;
+    r.stock = stock;
+    Ok(r)
 }

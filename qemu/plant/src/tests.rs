@@ -1662,3 +1662,115 @@ fn forces_from_contacts_are_the_forces_read_from_the_stock() {
     }
     assert!(checked > 1000, "only {checked} loaded cases");
 }
+
+/// A raster of `passes` unit-step passes across the blank, each lower than the one before, with
+/// three moves per pass at different feeds and accelerations (the last move's steps given as
+/// path lengths, as the walk over a pulse staircase gives them).
+fn raster_path(passes: i64) -> Vec<OraclePoint> {
+    let mut path = Vec::new();
+    let mut pos = [-3000i64, 2000, 500];
+    for pass in 0..passes {
+        let x = if pass % 2 == 0 { 15000 } else { -3000 };
+        let target = [x, 2000 + pass * 3000, -1500 - 100 * pass];
+        for k in 0..3i64 {
+            let t = [0, 1, 2].map(|a| pos[a] + (target[a] - pos[a]) * (k + 1) / 3);
+            let n = (0..3).map(|a| (t[a] - pos[a]).abs()).max().unwrap().max(1);
+            for i in 1..=n {
+                path.push(OraclePoint {
+                    pos_blu: [0, 1, 2].map(|a| pos[a] + (t[a] - pos[a]) * i / n),
+                    feed_ipm: [30.0, 60.0, 15.0][((pass + k) % 3) as usize],
+                    accel_ipm_s: if k == 1 { 300.0 } else { ACCEL_IPM_S },
+                    step_mm: (k == 2).then_some(0.0027),
+                });
+            }
+            pos = t;
+        }
+    }
+    path
+}
+
+/// The oracle as a stream holds a window of the path, not the path (the most it holds over a
+/// raster of 12 passes is what it holds over 3: about twice the braking distance from the
+/// fastest ceiling, a small part of either), and its schedule is, to the bit, the acceleration
+/// passes run over the whole path at once on its own limits: forward from rest, backward from
+/// rest at the end, each point's feed the smallest of its limit and its neighbours' reach.
+#[test]
+fn the_streamed_oracle_holds_a_window_and_its_schedule_is_the_whole_paths() {
+    let tool = Tool::default();
+    let kienzle = Material {
+        ks_exponent: 0.25,
+        ..Material::STEEL
+    };
+    for (m, stride) in [
+        (Material::STEEL, oracle::ORACLE_STRIDE_MM),
+        (Material::STEEL, 0.0),
+        (kienzle, oracle::ORACLE_STRIDE_MM),
+    ] {
+        let lim = OracleLimits {
+            stride_mm: stride,
+            ..OracleLimits::for_tool(&tool)
+        };
+        let stream = |path: &[OraclePoint]| {
+            let mut stream = OracleStream::new(blank(), &tool, &m, 600.0, &lim).unwrap();
+            let (mut out, mut most) = (Vec::new(), 0);
+            let mut take = |i: usize, o: OracleOut| {
+                assert_eq!(i, out.len(), "in order, each once");
+                out.push(o);
+            };
+            for p in path {
+                stream.push(*p, &mut take).unwrap();
+                most = most.max(stream.held());
+            }
+            let (time_s, _) = stream.finish(&mut take);
+            assert_eq!(out.len(), path.len());
+            (out, most, time_s)
+        };
+        let (_, most_short, _) = stream(&raster_path(3));
+        let path = raster_path(12);
+        let (out, most, time_s) = stream(&path);
+        assert!(
+            most <= most_short && most * 50 < path.len(),
+            "held {most} of {} points (of a quarter of the path: {most_short})",
+            path.len()
+        );
+        // The passes over the whole path, on the stream's own limits.
+        let mm = |p: &OraclePoint| p.pos_blu.map(|v| v as f64 * MM_PER_BLU);
+        let s: Vec<f64> = (0..path.len())
+            .map(|i| match i {
+                0 => 0.0,
+                _ => path[i].step_mm.unwrap_or_else(|| {
+                    let (a, b) = (mm(&path[i - 1]), mm(&path[i]));
+                    (0..3).map(|k| (b[k] - a[k]).powi(2)).sum::<f64>().sqrt()
+                }),
+            })
+            .collect();
+        let a2 = |i: usize| 2.0 * path[i].accel_ipm_s * 60.0 * s[i] / 25.4;
+        let mut v: Vec<f64> = out.iter().map(|o| o.limit_ipm).collect();
+        let n = v.len();
+        v[0] = 0.0;
+        v[n - 1] = 0.0;
+        for i in 1..n {
+            v[i] = v[i].min((v[i - 1] * v[i - 1] + a2(i)).sqrt());
+        }
+        for i in (0..n - 1).rev() {
+            v[i] = v[i].min((v[i + 1] * v[i + 1] + a2(i + 1)).sqrt());
+        }
+        let mut t = 0.0;
+        for i in 1..n {
+            if s[i] > 0.0 {
+                t += 2.0 * s[i] / ((v[i - 1] + v[i]) * MM_S_PER_IPM);
+            }
+        }
+        let feeds: Vec<f64> = out.iter().map(|o| o.feed_ipm).collect();
+        assert!(feeds == v, "stride {stride}, m {}", m.ks_exponent);
+        assert_eq!(time_s, t);
+        // Something was cut and limited below its ceiling: not trivially the ceilings' passes.
+        assert!(out.iter().zip(&path).any(|(o, p)| o.limit_ipm < p.feed_ipm));
+        println!(
+            "m {} stride {stride}: {} points, at most {most} held ({most_short} of a quarter), \
+             {time_s:.3} s",
+            m.ks_exponent,
+            path.len()
+        );
+    }
+}
