@@ -195,33 +195,28 @@ fn measure(p: &Program, out: &Path, exe: Option<&Path>, with_run: bool) -> Resul
             Ok((t.elapsed().as_secs_f64(), v))
         })
     };
-    let mut programmed = None;
-    let (w, v) = timed(&mut || {
-        let r = acsim::run(&prog, &s, &cut, None)?;
-        let v = r.machining_time_s;
-        programmed = Some(r);
-        Ok(v)
-    })?;
-    let programmed = programmed.context("the programmed run")?;
+    // Each run keeps its figures alone, as `host` and `optimise` run them.
+    let record = acsim::Record::figures(f64::from(acs.optimal_fraction));
+    let run = |prog: &[analysis::ProgBlock], ac| -> Result<f64> {
+        Ok(acsim::run_recorded(prog, &s, &cut, ac, &[], record)?.machining_time_s)
+    };
+    let (w, v) = timed(&mut || run(&prog, None))?;
     m.virtual_s = v;
     m.schedules.push(("programmed feeds", w, v));
-    let (w, v) = timed(&mut || Ok(acsim::run(&prog, &s, &cut, Some(acs))?.machining_time_s))?;
+    let (w, v) = timed(&mut || run(&prog, Some(acs)))?;
     m.schedules.push(("AC (GPC)", w, v));
     let limits = acreport::bound_limits(&cut, &acs);
-    let mut walk = None;
+    let mut min_limit = f64::INFINITY;
     let (w, v) = timed(&mut || {
-        let r = acreport::bound_walk(&prog, &s, &cut, &acs, &programmed, &limits)?;
-        let v = r.time_s;
-        walk = Some(r);
-        Ok(v)
+        // The frames on a thread of their own feeding the walk (as `host` runs it).
+        let b = acreport::bound_summary(&prog, &s, &cut, &acs, &limits)?;
+        min_limit = b.min_cut_limit_ipm;
+        Ok(b.time_s)
     })?;
     m.schedules.push(("bound (oracle)", w, v));
-    let walk = walk.context("the oracle's walk")?;
     let ceilings = acreport::ceiling_blocks(&prog, &s, &acs);
-    let safe = acsim::with_constant_feed(&ceilings, acreport::safe_feed(&walk, &s), &s);
-    // Memory back before the next runs (the children's peaks are their own).
-    drop((walk, programmed));
-    let (w, v) = timed(&mut || Ok(acsim::run(&safe, &s, &cut, None)?.machining_time_s))?;
+    let safe = acsim::with_constant_feed(&ceilings, acreport::safe_feed(min_limit, &s), &s);
+    let (w, v) = timed(&mut || run(&safe, None))?;
     m.schedules.push(("safe constant feed", w, v));
     let Some(exe) = exe else { return Ok(m) };
     // The commands, on files as a user has them.

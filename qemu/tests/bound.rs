@@ -260,21 +260,15 @@ fn the_bound_from_key_points_is_within_its_tolerance_of_every_pulse() {
     let prog = millac_qemu::analysis::load_program(&text, &s).unwrap();
     cases.push((name, prog, cut, AcSettings::default()));
     for (name, prog, cut, acs) in cases {
-        let programmed = acsim::run(&prog, &s, &cut, None).unwrap();
         let walk = |stride_mm| {
             let limits = millac_plant::oracle::OracleLimits {
                 stride_mm,
                 ..acreport::bound_limits(&cut, &acs)
             };
-            acreport::bound_walk(&prog, &s, &cut, &acs, &programmed, &limits).unwrap()
+            acreport::bound_summary(&prog, &s, &cut, &acs, &limits).unwrap()
         };
         let (keyed, every) = (walk(millac_plant::oracle::ORACLE_STRIDE_MM), walk(0.0));
-        let safe = |w: &acreport::OracleWalk| {
-            w.points
-                .iter()
-                .map(|p| p.cut_limit_ipm)
-                .fold(f64::INFINITY, f64::min)
-        };
+        let safe = |w: &acreport::BoundSummary| w.min_cut_limit_ipm;
         let dt = keyed.time_s / every.time_s - 1.0;
         println!(
             "{name}: bound {:.3} s from key points, {:.3} s from every pulse ({:+.3} %); safe \

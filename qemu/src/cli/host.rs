@@ -53,7 +53,8 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
             let (run, cmp) = std::thread::scope(|s| {
                 let comparison = s.spawn(|| {
                     millac_qemu::progress::with_bar("comparison", prog.len(), || {
-                        acreport::compare(&prog, &settings, &cut, &acs)
+                        let record = acsim::Record::figures(f64::from(acs.optimal_fraction));
+                        acreport::compare_recorded(&prog, &settings, &cut, &acs, record)
                     })
                 });
                 let label = if args.no_ac {
@@ -62,13 +63,18 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                     "AC run"
                 };
                 let run = millac_qemu::progress::with_bar(label, prog.len(), || {
-                    acsim::run_with_faults(
+                    // The rows for ac.csv and the plot; the samples only as their load figures.
+                    let record = acsim::Record {
+                        rows: true,
+                        ..acsim::Record::figures(f64::from(acs.optimal_fraction))
+                    };
+                    acsim::run_recorded(
                         &prog,
                         &settings,
                         &cut,
                         (!args.no_ac).then_some(acs),
-                        true,
                         &args.faults,
+                        record,
                     )
                 });
                 let cmp = comparison
@@ -90,12 +96,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 1.0 / acs.optimal_fraction as f64,
                 acsim::feed_ipm(&settings, settings.q0),
             )?;
-            let load = acsim::load_figures(
-                &run.samples,
-                &cut.tool,
-                acs.optimal_fraction as f64,
-                acs.sample_hz,
-            );
+            let load = run.load;
             // The comparison's runs (constant feeds, the oracle) are left out once a signal has come:
             // they were cut short too.
             let signal = millac_qemu::interrupt::received().map(millac_qemu::interrupt::name);
@@ -130,7 +131,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
             };
             summary["ac"]["enabled"] = serde_json::json!(!args.no_ac);
             summary["ac"]["strategy"] = serde_json::json!(acs.strategy.name());
-            summary["ac"]["samples"] = serde_json::json!(run.samples.len());
+            summary["ac"]["samples"] = serde_json::json!(run.sample_count);
             summary["ac"]["holds"] = serde_json::json!(run
                 .rows
                 .iter()

@@ -126,11 +126,10 @@ fn optimise(
     optimise::plot(&svg, &name, &o)?;
     let prog = analysis::load_program(&o.text, &settings).map_err(|e| anyhow::anyhow!("{e}"))?;
     let run = millac_qemu::progress::with_bar("optimised program", prog.len(), || {
-        acsim::run(&prog, &settings, &cut, None)
+        let record = acsim::Record::figures(opts.fraction);
+        acsim::run_recorded(&prog, &settings, &cut, None, &[], record)
     })?;
-    let hz = millac::ac::AcSettings::default().sample_hz;
-    let before = acsim::load_figures(&o.programmed.samples, &cut.tool, opts.fraction, hz);
-    let after = acsim::load_figures(&run.samples, &cut.tool, opts.fraction, hz);
+    let (before, after) = (o.programmed.load, run.load);
     println!(
         "millac optimise: {} -> {} ({} pieces; {}, {})",
         program.display(),

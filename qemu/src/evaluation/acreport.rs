@@ -9,7 +9,7 @@ use millac::ac::AcSettings;
 use millac::gcode::tape::finish_block;
 use millac::nc::{FrameConfig, Motion};
 use millac::Settings;
-use millac_plant::oracle::{oracle_time, OracleLimits, OraclePoint};
+use millac_plant::oracle::{OracleLimits, OracleOut, OraclePoint, OracleStream};
 use serde_json::{json, Value};
 
 /// The comparison runs (all on the host, same process model and seed).
@@ -56,8 +56,8 @@ pub fn ceiling_blocks(prog: &[ProgBlock], settings: &Settings, acs: &AcSettings)
         .collect()
 }
 
-/// One point of [`oracle_walk`]: a pulse of a feed block (or the first block's start point of a
-/// run of feed blocks) with the oracle's figures there.
+/// One point of the oracle's walk ([`Walker`]): a pulse of a feed block (or the first block's
+/// start point of a run of feed blocks) with the oracle's figures there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WalkPoint {
     /// Index of the block in the program.
@@ -73,90 +73,81 @@ pub struct WalkPoint {
     pub t_peak_nm: f64,
 }
 
-/// The oracle along a program: its feed blocks as runs of pulse points (the pulses of the
-/// programmed run `programmed`), each run of consecutive feed blocks scheduled by
-/// `millac_plant::oracle::oracle_time` on the stock as the blocks before it left it, with each
-/// block's ceiling `ceiling_ipm[i]` and acceleration; rapids and dwells take their programmed
-/// run's time. Host: the bound (`compare`) and the offline optimiser (`crate::evaluation::optimise`).
-#[derive(Clone, Debug)]
-pub struct OracleWalk {
-    pub points: Vec<WalkPoint>,
-    /// The schedule's time: the oracle's over the feed runs and the programmed rapids and dwells.
-    pub time_s: f64,
+/// A term of the walk's time, in the program's order: a run of feed blocks' oracle time, or the
+/// programmed span of a rapid or dwell block (known when the pulses have all been put out).
+enum Term {
+    Run(f64),
+    Span(usize),
 }
 
-pub fn oracle_walk(
-    prog: &[ProgBlock],
-    settings: &Settings,
-    cut: &Cut,
-    programmed: &HostRun,
-    limits: &OracleLimits,
-    ceiling_ipm: &[f64],
-) -> Result<OracleWalk> {
-    let mut stock = cut.stock.clone();
-    let mut out = OracleWalk {
-        points: Vec::new(),
-        time_s: 0.0,
-    };
-    // The run of feed blocks being gathered: its points and each point's block.
-    let mut seg: (Vec<OraclePoint>, Vec<usize>) = (Vec::new(), Vec::new());
-    let mut pulse = 0usize;
-    let flush = |seg: &mut (Vec<OraclePoint>, Vec<usize>),
-                 stock: &mut millac_plant::Stock,
-                 out: &mut OracleWalk|
-     -> Result<()> {
-        if seg.0.len() > 1 {
-            let r = oracle_time(
-                stock.clone(),
-                &cut.tool,
-                &cut.material,
-                cut.spindle_rpm,
-                &seg.0,
-                limits,
-            )
-            .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))?;
-            out.time_s += r.time_s;
-            out.points.reserve(seg.0.len());
-            for (k, (p, b)) in seg.0.iter().zip(&seg.1).enumerate() {
-                out.points.push(WalkPoint {
-                    block: *b,
-                    pos_blu: p.pos_blu,
-                    feed_ipm: r.feed_profile[k],
-                    limit_ipm: r.limit_ipm[k],
-                    cut_limit_ipm: r.cut_limit_ipm[k],
-                    f_peak_n: r.f_peak_n[k],
-                    t_peak_nm: r.t_peak_nm[k],
-                });
-            }
-            // The stock after this segment, for the next one.
-            *stock = r.stock;
+/// The oracle along a program, block by block as the pulses of its programmed run come
+/// ([`Walker::block`]): each run of consecutive feed blocks scheduled by
+/// [`millac_plant::OracleStream`] on the stock as the blocks before it left it, with each
+/// block's ceiling `ceiling_ipm[i]` and acceleration; rapids and dwells take their programmed
+/// run's time. Its points go out as the stream settles them, so it holds a window of the path,
+/// not the path. Host: the bound ([`bound_summary`]) and the offline optimiser
+/// (`crate::evaluation::optimise`).
+pub struct Walker<'a> {
+    prog: &'a [ProgBlock],
+    settings: &'a Settings,
+    cut: &'a Cut,
+    limits: OracleLimits,
+    ceiling_ipm: &'a [f64],
+    /// The stock between runs (inside the stream during one).
+    stock: Option<millac_plant::Stock>,
+    /// The run being walked: its first point until a second one starts the stream; the blocks
+    /// and positions of the points pushed and not yet put out.
+    first: Option<(OraclePoint, usize)>,
+    stream: Option<OracleStream>,
+    pending: std::collections::VecDeque<(usize, [i64; 3])>,
+    pos: [i64; 3],
+    terms: Vec<Term>,
+}
+
+impl<'a> Walker<'a> {
+    pub fn new(
+        prog: &'a [ProgBlock],
+        settings: &'a Settings,
+        cut: &'a Cut,
+        limits: &OracleLimits,
+        ceiling_ipm: &'a [f64],
+    ) -> Walker<'a> {
+        Walker {
+            prog,
+            settings,
+            cut,
+            limits: *limits,
+            ceiling_ipm,
+            stock: Some(cut.stock.clone()),
+            first: None,
+            stream: None,
+            pending: std::collections::VecDeque::new(),
+            pos: [0; 3],
+            terms: Vec::new(),
         }
-        seg.0.clear();
-        seg.1.clear();
-        Ok(())
-    };
-    let mut pos = [0i64; 3];
-    for (i, b) in prog.iter().enumerate() {
-        // A signal: the caller discards the comparison (it runs beside the AC's run).
-        if crate::interrupt::received().is_some() {
-            break;
-        }
-        crate::progress::update(i, f64::NAN);
-        let start = pulse;
-        while programmed.path.get(pulse).is_some_and(|p| p.2 == i) {
-            pulse += 1;
-        }
-        let pts = &programmed.path[start..pulse];
+    }
+
+    /// Block `i` with its pulses `pts` (the programmed run's positions after each of its pulsed
+    /// frames); `out` gets the walk's points as they settle, in order.
+    pub fn block(
+        &mut self,
+        i: usize,
+        pts: &[[i64; 3]],
+        out: &mut impl FnMut(WalkPoint),
+    ) -> Result<()> {
+        let Some(b) = self.prog.get(i) else {
+            return Ok(());
+        };
+        let pos = self.pos;
         if is_feed(b) {
             let point = |pos_blu, step_mm| OraclePoint {
                 pos_blu,
-                feed_ipm: ceiling_ipm.get(i).copied().unwrap_or(0.0),
-                accel_ipm_s: acsim::ramp_ipm_s(settings, &b.block),
+                feed_ipm: self.ceiling_ipm.get(i).copied().unwrap_or(0.0),
+                accel_ipm_s: acsim::ramp_ipm_s(self.settings, &b.block),
                 step_mm,
             };
-            if seg.0.is_empty() {
-                seg.0.push(point(pos, None));
-                seg.1.push(i);
+            if self.first.is_none() && self.stream.is_none() {
+                self.first = Some((point(pos, None), i));
             }
             // The pulse positions are a staircase: each step's length is scaled so that the
             // block's steps add up to its programmed path (the schedule runs along the path, as
@@ -164,7 +155,7 @@ pub fn oracle_walk(
             let stair: f64 = pts
                 .iter()
                 .scan(pos, |prev, p| {
-                    Some(dist_blu(std::mem::replace(prev, p.0), p.0))
+                    Some(dist_blu(std::mem::replace(prev, *p), *p))
                 })
                 .sum();
             let scale = if stair > 0.0 {
@@ -173,45 +164,213 @@ pub fn oracle_walk(
                 1.0
             };
             let mut prev = pos;
-            seg.0.extend(pts.iter().map(|p| {
-                let step = dist_blu(std::mem::replace(&mut prev, p.0), p.0);
-                point(p.0, Some(step * scale * millac_plant::MM_PER_BLU))
-            }));
-            seg.1.resize(seg.0.len(), i);
-        } else {
-            flush(&mut seg, &mut stock, &mut out)?;
-            if let Some(&(_, t0, t1)) = programmed.spans.get(i) {
-                out.time_s += (t1 - t0) as f64 * 1e-9;
+            for p in pts {
+                let step = dist_blu(std::mem::replace(&mut prev, *p), *p);
+                self.push(
+                    point(*p, Some(step * scale * millac_plant::MM_PER_BLU)),
+                    i,
+                    out,
+                )?;
             }
+        } else {
+            self.flush(out)?;
+            self.terms.push(Term::Span(i));
             // Rapids cut nothing in a sane program; keep the stock in step anyway.
             let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
-            if let Some(last) = pts.last() {
-                stock.cut_capsule(mm(pos), mm(last.0), cut.tool.diameter_mm / 2.0);
+            if let (Some(last), Some(stock)) = (pts.last(), self.stock.as_mut()) {
+                stock.cut_capsule(mm(pos), mm(*last), self.cut.tool.diameter_mm / 2.0);
             }
         }
         if let Some(last) = pts.last() {
-            pos = last.0;
+            self.pos = *last;
         }
+        Ok(())
     }
-    flush(&mut seg, &mut stock, &mut out)?;
-    Ok(out)
+
+    /// The next point of the run of feed blocks.
+    fn push(
+        &mut self,
+        p: OraclePoint,
+        block: usize,
+        out: &mut impl FnMut(WalkPoint),
+    ) -> Result<()> {
+        if self.stream.is_none() {
+            let stock = self.stock.take().context("the walk's stock")?;
+            let c = self.cut;
+            let mut stream =
+                OracleStream::new(stock, &c.tool, &c.material, c.spindle_rpm, &self.limits)
+                    .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))?;
+            if let Some((q, b)) = self.first.take() {
+                self.pending.push_back((b, q.pos_blu));
+                stream
+                    .push(q, &mut |_, _| {})
+                    .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))?;
+            }
+            self.stream = Some(stream);
+        }
+        self.pending.push_back((block, p.pos_blu));
+        let (stream, pending) = (
+            self.stream.as_mut().context("the walk's stream")?,
+            &mut self.pending,
+        );
+        stream
+            .push(p, &mut |_, o| emit(pending, o, out))
+            .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))
+    }
+
+    /// The end of a run of feed blocks: the rest of its points, its time, the stock it left.
+    fn flush(&mut self, out: &mut impl FnMut(WalkPoint)) -> Result<()> {
+        self.first = None;
+        if let Some(stream) = self.stream.take() {
+            let pending = &mut self.pending;
+            let (time_s, stock) = stream.finish(&mut |_, o| emit(pending, o, out));
+            self.terms.push(Term::Run(time_s));
+            self.stock = Some(stock);
+        }
+        Ok(())
+    }
+
+    /// The end of the program: the last run's points; the schedule's time, the oracle's over
+    /// the feed runs and the programmed run's `spans` over rapids and dwells.
+    pub fn finish(
+        mut self,
+        spans: &[(usize, u64, u64)],
+        out: &mut impl FnMut(WalkPoint),
+    ) -> Result<f64> {
+        self.flush(out)?;
+        let mut time_s = 0.0;
+        for t in &self.terms {
+            match *t {
+                Term::Run(s) => time_s += s,
+                Term::Span(i) => {
+                    if let Some(&(_, t0, t1)) = spans.get(i) {
+                        time_s += (t1 - t0) as f64 * 1e-9;
+                    }
+                }
+            }
+        }
+        Ok(time_s)
+    }
 }
 
-/// The bound's walk of `prog` over its pulses `pulses` (the programmed run's path) with `limits`
-/// and the ceilings the AC with `acs` honours ([`ceiling_blocks`]).
-pub fn bound_walk(
+/// One settled point of the stream out as a walk point (its block and position from `pending`).
+fn emit(
+    pending: &mut std::collections::VecDeque<(usize, [i64; 3])>,
+    o: OracleOut,
+    out: &mut impl FnMut(WalkPoint),
+) {
+    if let Some((block, pos_blu)) = pending.pop_front() {
+        out(WalkPoint {
+            block,
+            pos_blu,
+            feed_ipm: o.feed_ipm,
+            limit_ipm: o.limit_ipm,
+            cut_limit_ipm: o.cut_limit_ipm,
+            f_peak_n: o.f_peak_n,
+            t_peak_nm: o.t_peak_nm,
+        });
+    }
+}
+
+/// The pulses of `prog` at its programmed feeds ([`acsim::pulses_to`], the frames alone, on a
+/// thread of their own) given to `f` block by block: every block of the program in order with
+/// the positions of its pulsed frames (none for a block that pulsed none). Returns the frames'
+/// run (its spans; no path kept). Stops early on a signal, as the walks it feeds.
+pub fn by_block(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    mut f: impl FnMut(usize, &[[i64; 3]]) -> Result<()>,
+) -> Result<HostRun> {
+    // Batches of pulses: the frames run ahead of the walk by at most a few of them.
+    const BATCH: usize = 8192;
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<([i64; 3], usize)>>(4);
+    std::thread::scope(|s| {
+        let frames = s.spawn(move || {
+            let mut batch = Vec::with_capacity(BATCH);
+            let r = acsim::pulses_to(prog, settings, cut, &mut |p, b| {
+                batch.push((p, b));
+                if batch.len() == BATCH {
+                    // A closed channel: the walk stopped; the frames run on to their end.
+                    let _ = tx.send(std::mem::replace(&mut batch, Vec::with_capacity(BATCH)));
+                }
+            });
+            let _ = tx.send(batch);
+            r
+        });
+        let walked = (|| -> Result<()> {
+            let (mut next, mut pts) = (0usize, Vec::new());
+            for batch in rx.iter() {
+                for (p, b) in batch {
+                    while next < b && next < prog.len() {
+                        crate::progress::update(next, f64::NAN);
+                        f(next, &pts)?;
+                        pts.clear();
+                        next += 1;
+                        // A signal: the caller discards the walk (it runs beside the AC's run).
+                        if crate::interrupt::received().is_some() {
+                            return Ok(());
+                        }
+                    }
+                    if b == next {
+                        pts.push(p);
+                    }
+                }
+            }
+            while next < prog.len() {
+                f(next, &pts)?;
+                pts.clear();
+                next += 1;
+            }
+            Ok(())
+        })();
+        drop(rx);
+        let frames = frames
+            .join()
+            .unwrap_or_else(|p| std::panic::resume_unwind(p));
+        walked?;
+        frames
+    })
+}
+
+/// The bound's figures over a program: its time and the smallest force or torque limit along
+/// it (infinite where nothing is cut), the largest constant feed safe everywhere.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundSummary {
+    pub time_s: f64,
+    pub min_cut_limit_ipm: f64,
+}
+
+/// The ceilings the AC with `acs` honours ([`ceiling_blocks`]) as feeds, ipm, per block.
+pub fn bound_ceilings(prog: &[ProgBlock], settings: &Settings, acs: &AcSettings) -> Vec<f64> {
+    ceiling_blocks(prog, settings, acs)
+        .iter()
+        .map(|c| acsim::programmed_ipm(settings, &c.block))
+        .collect()
+}
+
+/// The bound's walk of `prog` over its programmed pulses ([`by_block`]) with `limits` and the
+/// ceilings the AC with `acs` honours ([`bound_ceilings`]): its time and smallest limit, the
+/// points not kept.
+pub fn bound_summary(
     prog: &[ProgBlock],
     settings: &Settings,
     cut: &Cut,
     acs: &AcSettings,
-    pulses: &HostRun,
     limits: &OracleLimits,
-) -> Result<OracleWalk> {
-    let ceiling_ipm: Vec<f64> = ceiling_blocks(prog, settings, acs)
-        .iter()
-        .map(|c| acsim::programmed_ipm(settings, &c.block))
-        .collect();
-    oracle_walk(prog, settings, cut, pulses, limits, &ceiling_ipm)
+) -> Result<BoundSummary> {
+    let ceiling_ipm = bound_ceilings(prog, settings, acs);
+    let mut walker = Walker::new(prog, settings, cut, limits, &ceiling_ipm);
+    let mut min_cut_limit_ipm = f64::INFINITY;
+    let mut take = |p: WalkPoint| min_cut_limit_ipm = min_cut_limit_ipm.min(p.cut_limit_ipm);
+    let frames = by_block(prog, settings, cut, |i, pts| {
+        walker.block(i, pts, &mut take)
+    })?;
+    let time_s = walker.finish(&frames.spans, &mut take)?;
+    Ok(BoundSummary {
+        time_s,
+        min_cut_limit_ipm,
+    })
 }
 
 /// The bound's limits: F0 and T0, the controller's fraction of the tool's true limits.
@@ -224,17 +383,12 @@ pub fn bound_limits(cut: &Cut, acs: &AcSettings) -> OracleLimits {
     }
 }
 
-/// The largest constant feed (the frame's feed number) that is safe everywhere along `walk`: the
-/// smallest force or torque limit of the oracle's points (FRM where nothing is cut).
-pub fn safe_feed(walk: &OracleWalk, settings: &Settings) -> u32 {
-    let min_limit = walk
-        .points
-        .iter()
-        .map(|p| p.cut_limit_ipm)
-        .fold(f64::INFINITY, f64::min);
+/// The largest constant feed (the frame's feed number) that is safe everywhere along a walk
+/// whose smallest force or torque limit is `min_limit_ipm` (FRM where nothing is cut).
+pub fn safe_feed(min_limit_ipm: f64, settings: &Settings) -> u32 {
     let max_f = settings.q0;
-    if min_limit.is_finite() {
-        ((min_limit / acsim::feed_ipm(settings, 1)).floor() as u32).clamp(1, max_f)
+    if min_limit_ipm.is_finite() {
+        ((min_limit_ipm / acsim::feed_ipm(settings, 1)).floor() as u32).clamp(1, max_f)
     } else {
         max_f
     }
@@ -251,24 +405,35 @@ pub fn compare(
     cut: &Cut,
     acs: &AcSettings,
 ) -> Result<Comparison> {
-    let fraction = acs.optimal_fraction as f64;
-    // The programmed feeds cut on a thread of their own: the bound needs only their pulses
-    // (`acsim::pulses`, the same path), and the safe constant feed only the bound.
+    compare_recorded(prog, settings, cut, acs, acsim::Record::ALL)
+}
+
+/// As [`compare`], its runs keeping what `record` says (their load against the AC's F0).
+pub fn compare_recorded(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    acs: &AcSettings,
+    record: acsim::Record,
+) -> Result<Comparison> {
+    let record = acsim::Record {
+        load_fraction: f64::from(acs.optimal_fraction),
+        ..record
+    };
+    let run = |p: &[ProgBlock]| acsim::run_recorded(p, settings, cut, None, &[], record);
+    // The programmed feeds cut on a thread of their own: the bound walks the pulses of the same
+    // path (the frames alone), and the safe constant feed needs only the bound.
     let (programmed, (oracle_s, safe_f, safe)) = std::thread::scope(|s| {
-        let programmed = s.spawn(|| acsim::run(prog, settings, cut, None));
+        let programmed = s.spawn(|| run(prog));
         let bound = (|| -> Result<_> {
-            crate::progress::stage("pulses");
-            let pulses = acsim::pulses(prog, settings, cut)?;
             crate::progress::stage("oracle (bound)");
             let limits = bound_limits(cut, acs);
-            let walk = bound_walk(prog, settings, cut, acs, &pulses, &limits)?;
-            let (oracle_s, safe_f) = (walk.time_s, safe_feed(&walk, settings));
-            // Memory back before the safe feed's run: it needs neither.
-            drop((pulses, walk));
+            let b = bound_summary(prog, settings, cut, acs, &limits)?;
+            let (oracle_s, safe_f) = (b.time_s, safe_feed(b.min_cut_limit_ipm, settings));
             let ceilings = ceiling_blocks(prog, settings, acs);
             let safe_prog = acsim::with_constant_feed(&ceilings, safe_f, settings);
             crate::progress::stage("safe constant feed");
-            let safe = acsim::run(&safe_prog, settings, cut, None)?;
+            let safe = run(&safe_prog)?;
             Ok((oracle_s, safe_f, safe))
         })();
         let programmed = programmed
@@ -276,15 +441,12 @@ pub fn compare(
             .unwrap_or_else(|p| std::panic::resume_unwind(p));
         Ok::<_, anyhow::Error>((programmed?, bound?))
     })?;
-    let programmed_load =
-        acsim::load_figures(&programmed.samples, &cut.tool, fraction, acs.sample_hz);
-    let safe_load = acsim::load_figures(&safe.samples, &cut.tool, fraction, acs.sample_hz);
     Ok(Comparison {
+        programmed_load: programmed.load,
         programmed,
-        programmed_load,
         safe_feed_ipm: acsim::feed_ipm(settings, safe_f),
+        safe_load: safe.load,
         safe,
-        safe_load,
         oracle_time_s: oracle_s,
     })
 }

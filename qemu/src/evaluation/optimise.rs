@@ -22,13 +22,14 @@
 //! - The machine's rapid rate FRM caps every feed; the air-cut feed caps the pieces that cut
 //!   nothing anywhere along them.
 use crate::analysis::{self, ProgBlock};
-use crate::evaluation::acreport::{oracle_walk, WalkPoint};
+use crate::evaluation::acreport::{by_block, WalkPoint, Walker};
 use crate::host::acsim::{self, Cut, HostRun};
 use anyhow::{anyhow, bail, Context, Result};
 use millac::nc::{Motion, Plane, X, Y, Z};
 use millac::Blu;
 use millac::Settings;
 use millac_plant::oracle::OracleLimits;
+use std::collections::VecDeque;
 use std::fmt::Write as _;
 
 /// How to optimise.
@@ -224,36 +225,44 @@ fn model_of(c: &[Option<bool>]) -> Option<bool> {
         .fold(None, |acc, &v| Some(acc.unwrap_or(true) && v))
 }
 
-/// The axial depth of cut (mm) at every walk point: the highest material above the tip under the
-/// tool's disc grown by one and a half cells (the stock is a grid of cells: the crescent a point
-/// adds to the cut is narrower than a cell, so the disc alone, after the cut up to the point
-/// before, would find nothing most of the time), the stock cut along the points as they come.
-fn depths_mm(points: &[WalkPoint], cut: &Cut) -> Vec<f64> {
-    let mut stock = cut.stock.clone();
-    let r = cut.tool.diameter_mm / 2.0;
-    let cell = stock.cell_mm();
-    let reach = r + 1.5 * cell;
-    let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
-    let mut prev: Option<[f64; 3]> = None;
-    points
-        .iter()
-        .map(|p| {
-            let t = mm(p.pos_blu);
-            let n = (reach / cell).ceil() as i64;
-            let mut top = f64::NEG_INFINITY;
-            for i in -n..=n {
-                for j in -n..=n {
-                    let (x, y) = (t[0] + i as f64 * cell, t[1] + j as f64 * cell);
-                    top = top.max(stock.top_in_disc(x, y, t[0], t[1], reach));
-                }
+/// The axial depth of cut (mm) at each walk point in turn: the highest material above the tip
+/// under the tool's disc grown by one and a half cells (the stock is a grid of cells: the
+/// crescent a point adds to the cut is narrower than a cell, so the disc alone, after the cut up
+/// to the point before, would find nothing most of the time), the stock cut along the points as
+/// they come.
+struct Depths {
+    stock: millac_plant::Stock,
+    r: f64,
+    prev: Option<[f64; 3]>,
+}
+
+impl Depths {
+    fn new(cut: &Cut) -> Depths {
+        Depths {
+            stock: cut.stock.clone(),
+            r: cut.tool.diameter_mm / 2.0,
+            prev: None,
+        }
+    }
+
+    fn next(&mut self, p: &WalkPoint) -> f64 {
+        let cell = self.stock.cell_mm();
+        let reach = self.r + 1.5 * cell;
+        let t = p.pos_blu.map(|c| c as f64 * millac_plant::MM_PER_BLU);
+        let n = (reach / cell).ceil() as i64;
+        let mut top = f64::NEG_INFINITY;
+        for i in -n..=n {
+            for j in -n..=n {
+                let (x, y) = (t[0] + i as f64 * cell, t[1] + j as f64 * cell);
+                top = top.max(self.stock.top_in_disc(x, y, t[0], t[1], reach));
             }
-            if let Some(q) = prev {
-                stock.cut_capsule(q, t, r);
-            }
-            prev = Some(t);
-            (top - t[2]).max(0.0)
-        })
-        .collect()
+        }
+        if let Some(q) = self.prev {
+            self.stock.cut_capsule(q, t, self.r);
+        }
+        self.prev = Some(t);
+        (top - t[2]).max(0.0)
+    }
 }
 
 /// The path a feed of `v_ipm` covers in two tooth periods of `tooth_s`, mm: how far the chip lags
@@ -279,41 +288,19 @@ fn dist_mm(a: [i64; 3], b: [i64; 3]) -> f64 {
         .sqrt()
 }
 
-/// Lowers the schedule's feed at every point of `walk` that cuts nothing on the described stock
-/// but would cut on its envelope (see [`Options::guard`]) to the envelope's feed for F0 scaled
-/// to the guard's fraction (force grows as feed^(1 - m), Kienzle's m), with the walk's own
-/// ceilings. Returns the number of points lowered.
-#[allow(clippy::too_many_arguments)] // the walk's inputs, as `oracle_walk` takes them
-fn guard(
-    walk: &mut crate::evaluation::acreport::OracleWalk,
-    prog: &[analysis::ProgBlock],
-    settings: &Settings,
-    cut: &acsim::Cut,
-    programmed: &acsim::HostRun,
-    limits: &OracleLimits,
-    ceiling: &[f64],
-    opts: &Options,
-) -> Result<usize> {
-    let envelope = acsim::Cut {
-        stock: cut.stock.envelope(),
-        ..cut.clone()
-    };
-    let worst = oracle_walk(prog, settings, &envelope, programmed, limits, ceiling)?;
-    if worst.points.len() != walk.points.len() {
-        bail!("the envelope's walk has other points than the stock's");
-    }
-    let scale = (opts.guard / opts.fraction).powf(1.0 / (1.0 - cut.material.ks_exponent));
-    let mut n = 0;
-    for (p, w) in walk.points.iter_mut().zip(&worst.points) {
-        if p.cut_limit_ipm.is_infinite() && w.cut_limit_ipm.is_finite() {
-            let v = w.cut_limit_ipm * scale;
-            if v < p.feed_ipm {
-                p.feed_ipm = v;
-                n += 1;
-            }
+/// The guard at one point (see [`Options::guard`]): where it cuts nothing on the described
+/// stock but would cut on its envelope (`worst`, the same point walked on the envelope), the
+/// schedule's feed at most the envelope's feed for F0 scaled by `scale` (the guard's fraction
+/// over F0's, to the 1 / (1 - m) of Kienzle's m). Whether it lowered the feed.
+fn guard(p: &mut WalkPoint, worst: &WalkPoint, scale: f64) -> bool {
+    if p.cut_limit_ipm.is_infinite() && worst.cut_limit_ipm.is_finite() {
+        let v = worst.cut_limit_ipm * scale;
+        if v < p.feed_ipm {
+            p.feed_ipm = v;
+            return true;
         }
     }
-    Ok(n)
+    false
 }
 
 /// A piece's feed before the lag: the smallest of the schedule over its points, capped by the
@@ -427,7 +414,16 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
     // The program cut at its programmed feeds (for the caller's comparison) on a thread of its
     // own: the plan needs only its pulses.
     std::thread::scope(|s| {
-        let programmed = s.spawn(|| acsim::run(&prog, settings, cut, None));
+        let programmed = s.spawn(|| {
+            acsim::run_recorded(
+                &prog,
+                settings,
+                cut,
+                None,
+                &[],
+                acsim::Record::figures(opts.fraction),
+            )
+        });
         let plan = plan(text, &prog, settings, cut, opts);
         let programmed = programmed
             .join()
@@ -443,116 +439,115 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
 
 /// [`optimise`]'s plan of `prog`, the blocks of `text` (its `programmed` run left empty: the
 /// caller's).
-fn plan(
-    text: &str,
-    prog: &[ProgBlock],
-    settings: &Settings,
-    cut: &Cut,
-    opts: &Options,
-) -> Result<Optimised> {
-    crate::progress::set_total(prog.len());
-    crate::progress::stage("pulses");
-    let programmed = acsim::pulses(prog, settings, cut)?;
-    let limits = OracleLimits {
-        f0_n: opts.fraction * cut.tool.f_max_n,
-        t0_nm: opts.fraction * cut.tool.t_max_nm,
-        // Each run of feed blocks from its limit at the first point, not from rest: the frame
-        // starts a block at its feed (the piece takes the smallest over its points anyway).
-        from_rest: false,
-        ..OracleLimits::for_tool(&cut.tool)
-    };
-    let frm = acsim::feed_ipm(settings, settings.q0);
-    let ceiling = vec![frm; prog.len()];
-    crate::progress::stage("limits along the path");
-    let mut walk = oracle_walk(prog, settings, cut, &programmed, &limits, &ceiling)?;
-    let guarded = if opts.guard > 0.0 {
-        guard(
-            &mut walk,
-            prog,
-            settings,
-            cut,
-            &programmed,
-            &limits,
-            &ceiling,
-            opts,
-        )?
-    } else {
-        0
-    };
-    // With a fitted model: its feed at every point that cuts, the full model's where it does not
-    // cover the depth (remembered per point); the full model's peak scaled to the new feed.
-    let covered: Vec<Option<bool>> = match opts.model {
-        None => vec![None; walk.points.len()],
-        Some(m) => {
-            let depths = depths_mm(&walk.points, cut);
-            let expo = 1.0 - cut.material.ks_exponent;
-            walk.points
-                .iter_mut()
-                .zip(depths)
-                .map(|(p, a)| {
-                    if p.cut_limit_ipm.is_infinite() {
-                        return None;
-                    }
-                    let Some(f) = m.feed_for(a, limits.f0_n) else {
-                        return Some(false);
-                    };
-                    if p.feed_ipm > 0.0 {
-                        p.f_peak_n *= (f / p.feed_ipm).powf(expo);
-                    }
-                    p.feed_ipm = f;
-                    Some(true)
-                })
-                .collect()
+/// The plan of the blocks in order as the walk's points come (host, [`plan`]): `buf` holds the
+/// points of the blocks not yet planned (and the last point before them, where the next block
+/// starts); a block is planned once its points are all in and those after it reach as far as
+/// the chip's lag can look ahead ([`ahead`]), then its points but the last are let go.
+struct Planner<'a> {
+    prog: &'a [ProgBlock],
+    settings: &'a Settings,
+    opts: &'a Options,
+    frm: f64,
+    tooth_s: f64,
+    /// Kienzle's 1 - m.
+    kienzle: f64,
+    /// The farthest the chip's lag looks ahead (at FRM), mm.
+    lag_max_mm: f64,
+    u: Units,
+    pieces: Vec<Piece>,
+    body: String,
+    at_mm: f64,
+    plane: Plane,
+    pos: [i64; 3],
+    /// The next block to plan.
+    next: usize,
+    buf: Vec<WalkPoint>,
+    cov: Vec<Option<bool>>,
+}
+
+impl Planner<'_> {
+    /// Plans the blocks whose points are all in (every one when the walk has `ended`).
+    fn ready(&mut self, ended: bool) {
+        while self.next < self.prog.len() {
+            let i = self.next;
+            // The block's points: w0..w (the buffer starts with the point before, if any).
+            let w0 = self
+                .buf
+                .iter()
+                .position(|p| p.block >= i)
+                .unwrap_or(self.buf.len());
+            let w = w0 + self.buf[w0..].iter().take_while(|p| p.block == i).count();
+            if !ended && (w == self.buf.len() || (w > w0 && !self.reaches(w - 1))) {
+                break;
+            }
+            self.block(i, w0, w);
+            // Keep the block's last point (the next block's start), let go of the rest.
+            let keep = w.saturating_sub(1);
+            self.buf.drain(..keep);
+            self.cov.drain(..keep);
+            self.next += 1;
         }
-    };
-    let kienzle = 1.0 - cut.material.ks_exponent;
-    let tooth_s = 60.0 / (cut.spindle_rpm * f64::from(cut.tool.flutes));
-    let u = units(settings);
-    let mut pieces = Vec::new();
-    let mut body = String::new();
-    let mut at_mm = 0.0;
-    let mut plane = Plane::XY;
-    let mut pos = [0i64; 3];
-    let mut w = 0usize;
-    for (i, b) in prog.iter().enumerate() {
-        let w0 = w;
-        while walk.points.get(w).is_some_and(|p| p.block == i) {
-            w += 1;
+    }
+
+    /// Whether the points after `buf[from]` reach as far as [`ahead`] can look: past the
+    /// longest lag, or to where the path jumps.
+    fn reaches(&self, from: usize) -> bool {
+        let mut travelled = 0.0;
+        for w in self.buf.get(from..).unwrap_or(&[]).windows(2) {
+            let d = dist_mm(w[0].pos_blu, w[1].pos_blu);
+            if d > 2.0 * millac_plant::MM_PER_BLU {
+                return true;
+            }
+            travelled += d;
+            if travelled >= self.lag_max_mm {
+                return true;
+            }
         }
+        false
+    }
+
+    /// Block `i`, its points `buf[w0..w]`.
+    fn block(&mut self, i: usize, w0: usize, w: usize) {
+        let (b, buf, cov) = (&self.prog[i], &self.buf[..], &self.cov[..]);
         // The block's points: from its start (the point before, or its own first) to its end.
-        let base = if w0 > 0 && walk.points[w0 - 1].pos_blu == pos {
+        let base = if w0 > 0 && buf[w0 - 1].pos_blu == self.pos {
             w0 - 1
         } else {
             w0
         };
-        let pts: &[WalkPoint] = &walk.points[base..w];
+        let pts: &[WalkPoint] = &buf[base..w];
         let end = b.end.map(i64::from);
         match &b.block.motion {
             Motion::Rapid(_) => {
-                let _ = writeln!(body, "G0 {}", u.xyz(end));
+                let _ = writeln!(self.body, "G0 {}", self.u.xyz(end));
             }
             Motion::Dwell(d) => {
                 let _ = writeln!(
-                    body,
+                    self.body,
                     "G4 P{:.4}",
-                    f64::from(d.frames) / f64::from(settings.frame_hz)
+                    f64::from(d.frames) / f64::from(self.settings.frame_hz)
                 );
             }
             Motion::Linear(l) => {
-                let programmed_ipm = acsim::feed_ipm(settings, l.f);
+                let programmed_ipm = acsim::feed_ipm(self.settings, l.f);
                 if pts.len() < 2 {
                     // No pulses seen (a block of zero length): as programmed.
-                    let _ = writeln!(body, "G1 {} {}", u.xyz(end), u.feed(settings, l.f));
+                    let _ = writeln!(
+                        self.body,
+                        "G1 {} {}",
+                        self.u.xyz(end),
+                        self.u.feed(self.settings, l.f)
+                    );
                 }
                 let plan = if pts.len() >= 2 {
-                    let ranges = split(pts, opts.split, opts.min_piece_mm);
+                    let ranges = split(pts, self.opts.split, self.opts.min_piece_mm);
                     lagged(
                         pts,
-                        &walk.points,
+                        buf,
                         base,
                         ranges,
-                        &|seg: &[WalkPoint]| piece_feed(seg, opts.air_feed_ipm, frm),
-                        tooth_s,
+                        &|seg: &[WalkPoint]| piece_feed(seg, self.opts.air_feed_ipm, self.frm),
+                        self.tooth_s,
                     )
                 } else {
                     Vec::new()
@@ -564,53 +559,58 @@ fn plan(
                     } else {
                         seg[seg.len() - 1].pos_blu
                     };
-                    let piece_start = if k == 0 { pos } else { seg[0].pos_blu };
+                    let piece_start = if k == 0 { self.pos } else { seg[0].pos_blu };
                     let air = seg.iter().all(|p| p.cut_limit_ipm.is_infinite());
-                    let f = feed_number(settings, v.min(frm));
-                    let feed_ipm = acsim::feed_ipm(settings, f);
-                    let predicted_f_n = predicted_peak(seg, feed_ipm, kienzle);
+                    let f = feed_number(self.settings, v.min(self.frm));
+                    let feed_ipm = acsim::feed_ipm(self.settings, f);
+                    let predicted_f_n = predicted_peak(seg, feed_ipm, self.kienzle);
                     let length_mm = dist_mm(piece_start, piece_end);
-                    let _ = writeln!(body, "G1 {} {}", u.xyz(piece_end), u.feed(settings, f));
-                    pieces.push(Piece {
+                    let _ = writeln!(
+                        self.body,
+                        "G1 {} {}",
+                        self.u.xyz(piece_end),
+                        self.u.feed(self.settings, f)
+                    );
+                    self.pieces.push(Piece {
                         block: i,
                         line: b.block.line,
                         start: piece_start,
                         end: piece_end,
-                        at_mm,
+                        at_mm: self.at_mm,
                         length_mm,
                         programmed_ipm,
                         feed_ipm,
                         air,
                         predicted_f_n,
-                        model: model_of(&covered[base + s..=base + e]),
+                        model: model_of(&cov[base + s..=base + e]),
                     });
-                    at_mm += length_mm;
+                    self.at_mm += length_mm;
                 }
             }
             Motion::Arc(c) => {
-                let programmed_ipm = acsim::feed_ipm(settings, c.f);
+                let programmed_ipm = acsim::feed_ipm(self.settings, c.f);
                 let air = pts.iter().all(|p| p.cut_limit_ipm.is_infinite());
-                let mut v = piece_feed(pts, opts.air_feed_ipm, frm);
+                let mut v = piece_feed(pts, self.opts.air_feed_ipm, self.frm);
                 if v.is_finite() && !pts.is_empty() {
                     v = v.min(ahead(
-                        &walk.points,
+                        buf,
                         base + pts.len() - 1,
-                        lag_mm(v.min(frm), tooth_s),
+                        lag_mm(v.min(self.frm), self.tooth_s),
                     ));
                 }
                 let f = if v.is_finite() {
-                    feed_number(settings, v.min(frm))
+                    feed_number(self.settings, v.min(self.frm))
                 } else {
                     c.f
                 };
-                let feed_ipm = acsim::feed_ipm(settings, f);
-                let predicted_f_n = predicted_peak(pts, feed_ipm, kienzle);
-                if c.plane != plane {
-                    plane = c.plane;
+                let feed_ipm = acsim::feed_ipm(self.settings, f);
+                let predicted_f_n = predicted_peak(pts, feed_ipm, self.kienzle);
+                if c.plane != self.plane {
+                    self.plane = c.plane;
                     let _ = writeln!(
-                        body,
+                        self.body,
                         "{}",
-                        match plane {
+                        match self.plane {
                             Plane::XY => "G17",
                             Plane::ZX => "G18",
                             Plane::YZ => "G19",
@@ -624,38 +624,151 @@ fn plan(
                 off[bb] = -i64::from(c.start[1]);
                 let words = ["I", "J", "K"];
                 let _ = writeln!(
-                    body,
+                    self.body,
                     "{} {} {}{} {}{} {}",
                     if c.ccw { "G3" } else { "G2" },
-                    u.xyz(end),
+                    self.u.xyz(end),
                     words[a],
-                    u.coord(off[a]),
+                    self.u.coord(off[a]),
                     words[bb],
-                    u.coord(off[bb]),
-                    u.feed(settings, f)
+                    self.u.coord(off[bb]),
+                    self.u.feed(self.settings, f)
                 );
                 let length_mm = pts
                     .windows(2)
                     .map(|p| dist_mm(p[0].pos_blu, p[1].pos_blu))
                     .sum::<f64>();
-                pieces.push(Piece {
+                self.pieces.push(Piece {
                     block: i,
                     line: b.block.line,
-                    start: pos,
+                    start: self.pos,
                     end,
-                    at_mm,
+                    at_mm: self.at_mm,
                     length_mm,
                     programmed_ipm,
                     feed_ipm,
                     air,
                     predicted_f_n,
-                    model: model_of(&covered[base..w]),
+                    model: model_of(&cov[base..w]),
                 });
-                at_mm += length_mm;
+                self.at_mm += length_mm;
             }
         }
-        pos = end;
+        self.pos = end;
     }
+}
+
+fn plan(
+    text: &str,
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    opts: &Options,
+) -> Result<Optimised> {
+    crate::progress::set_total(prog.len());
+    let limits = OracleLimits {
+        f0_n: opts.fraction * cut.tool.f_max_n,
+        t0_nm: opts.fraction * cut.tool.t_max_nm,
+        // Each run of feed blocks from its limit at the first point, not from rest: the frame
+        // starts a block at its feed (the piece takes the smallest over its points anyway).
+        from_rest: false,
+        ..OracleLimits::for_tool(&cut.tool)
+    };
+    let frm = acsim::feed_ipm(settings, settings.q0);
+    let ceiling = vec![frm; prog.len()];
+    crate::progress::stage("limits along the path");
+    // The walk on the described stock and, for the guard, on its envelope: the same points.
+    let envelope = (opts.guard > 0.0).then(|| acsim::Cut {
+        stock: cut.stock.envelope(),
+        ..cut.clone()
+    });
+    let mut walker = Walker::new(prog, settings, cut, &limits, &ceiling);
+    let mut worst = envelope
+        .as_ref()
+        .map(|e| Walker::new(prog, settings, e, &limits, &ceiling));
+    let scale = (opts.guard / opts.fraction).powf(1.0 / (1.0 - cut.material.ks_exponent));
+    let mut depths = opts.model.map(|_| Depths::new(cut));
+    let expo = 1.0 - cut.material.ks_exponent;
+    let mut guarded = 0usize;
+    let mut planner = Planner {
+        prog,
+        settings,
+        opts,
+        frm,
+        tooth_s: 60.0 / (cut.spindle_rpm * f64::from(cut.tool.flutes)),
+        kienzle: expo,
+        lag_max_mm: lag_mm(frm, 60.0 / (cut.spindle_rpm * f64::from(cut.tool.flutes))),
+        u: units(settings),
+        pieces: Vec::new(),
+        body: String::new(),
+        at_mm: 0.0,
+        plane: Plane::XY,
+        pos: [0; 3],
+        next: 0,
+        buf: Vec::new(),
+        cov: Vec::new(),
+    };
+    let (mut ours, mut theirs) = (VecDeque::new(), VecDeque::new());
+    let guarding = worst.is_some();
+    // The points of both walks, paired, through the guard and the model to the planner.
+    let mut settle = |ours: &mut VecDeque<WalkPoint>,
+                      theirs: &mut VecDeque<WalkPoint>,
+                      planner: &mut Planner,
+                      ended: bool|
+     -> Result<()> {
+        while let Some(mut p) = ours.front().copied() {
+            if guarding {
+                let Some(w) = theirs.pop_front() else { break };
+                if (w.block, w.pos_blu) != (p.block, p.pos_blu) {
+                    bail!("the envelope's walk has other points than the stock's");
+                }
+                guarded += usize::from(guard(&mut p, &w, scale));
+            }
+            ours.pop_front();
+            // With a fitted model: its feed at every point that cuts, the full model's where it
+            // does not cover the depth (remembered per point); the full model's peak scaled to
+            // the new feed.
+            let covered = match (opts.model, depths.as_mut()) {
+                (Some(m), Some(d)) => {
+                    let a = d.next(&p);
+                    if p.cut_limit_ipm.is_infinite() {
+                        None
+                    } else if let Some(f) = m.feed_for(a, limits.f0_n) {
+                        if p.feed_ipm > 0.0 {
+                            p.f_peak_n *= (f / p.feed_ipm).powf(expo);
+                        }
+                        p.feed_ipm = f;
+                        Some(true)
+                    } else {
+                        Some(false)
+                    }
+                }
+                _ => None,
+            };
+            planner.buf.push(p);
+            planner.cov.push(covered);
+        }
+        if ended && (!ours.is_empty() || !theirs.is_empty()) {
+            bail!("the envelope's walk has other points than the stock's");
+        }
+        planner.ready(ended);
+        Ok(())
+    };
+    let frames = by_block(prog, settings, cut, |i, pts| {
+        walker.block(i, pts, &mut |p| ours.push_back(p))?;
+        if let Some(w) = worst.as_mut() {
+            w.block(i, pts, &mut |p| theirs.push_back(p))?;
+        }
+        settle(&mut ours, &mut theirs, &mut planner, false)
+    })?;
+    walker.finish(&frames.spans, &mut |p| ours.push_back(p))?;
+    if let Some(w) = worst {
+        w.finish(&frames.spans, &mut |p| theirs.push_back(p))?;
+    }
+    settle(&mut ours, &mut theirs, &mut planner, true)?;
+    let Planner {
+        pieces, body, u, ..
+    } = planner;
     let rpm = analysis::spindle_rpm(text, settings);
     let feed_blocks = prog
         .iter()

@@ -259,14 +259,19 @@ pub fn load_stock(path: &std::path::Path) -> Result<Stock> {
 #[derive(Clone, Debug, Default)]
 pub struct HostRun {
     pub rows: Vec<AcRow>,
-    /// True force and torque of every ADC sample.
+    /// True force and torque of every ADC sample ([`Record::samples`]).
     pub samples: Vec<(f64, f64)>,
+    /// The load figures over every ADC sample, against [`Record::load_fraction`] x F_max, and
+    /// the number of samples.
+    pub load: LoadFigures,
+    pub sample_count: usize,
     /// The codes [T, Fu, Fv] the controller got at every sample (None: a missed conversion).
     pub codes: Vec<Option<[u16; 3]>>,
     /// Virtual time from the first to the last pulse (s).
     pub machining_time_s: f64,
     pub final_position: [i64; 3],
-    /// Position after every frame that pulsed, with the programmed feed (ipm) and the block index.
+    /// Position after every frame that pulsed, with the programmed feed (ipm) and the block index
+    /// ([`Record::path`]).
     pub path: Vec<([i64; 3], f64, usize)>,
     pub held: bool,
     /// The alarm that first held the feed (None: no hold); its text is what the firmware prints
@@ -295,6 +300,42 @@ pub struct HostRun {
     pub interrupted: bool,
 }
 
+/// What a run keeps of itself besides its figures: each of these grows with the program (the
+/// path by 40 bytes a pulsed frame, the samples by 24 bytes an ADC sample, the rows by about 200
+/// bytes an AC period), so a long program's runs keep only what their caller reads.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Record {
+    /// [`HostRun::path`].
+    pub path: bool,
+    /// [`HostRun::samples`] and [`HostRun::codes`].
+    pub samples: bool,
+    /// [`HostRun::rows`].
+    pub rows: bool,
+    /// F0 as a fraction of the tool's F_max for [`HostRun::load`] (its time above F0).
+    pub load_fraction: f64,
+}
+
+impl Record {
+    /// Everything (the labs, the tests), the load against the paper's F0 = 0.9 F_max.
+    pub const ALL: Record = Record {
+        path: true,
+        samples: true,
+        rows: true,
+        load_fraction: 0.9,
+    };
+
+    /// The figures alone: the time, the load against `load_fraction` x F_max, the block spans,
+    /// the stock (memory bounded by the stock grid and the block count).
+    pub fn figures(load_fraction: f64) -> Record {
+        Record {
+            path: false,
+            samples: false,
+            rows: false,
+            load_fraction,
+        }
+    }
+}
+
 /// The host's block queue: as many blocks as the QEMU board's (its 16-slot SPSC queue holds
 /// 15), so the loader's record sees the same queue.
 pub const HOST_QUEUE: usize = 15;
@@ -320,9 +361,15 @@ struct HostAdc {
     process: Process,
     injector: crate::host::fault::Injector,
     sample_hz: u32,
+    /// True force and torque of the samples: every one with [`Record::samples`], else the last
+    /// AC period's (what its row reports).
     truth: Vec<(f64, f64)>,
-    /// The codes the controller got at every sample (None: a missed conversion).
+    /// The codes the controller got at every sample (None: a missed conversion), with
+    /// [`Record::samples`].
     codes: Vec<Option<[u16; 3]>>,
+    keep: bool,
+    tally: LoadTally,
+    count: usize,
 }
 
 impl HostAdc {
@@ -360,8 +407,12 @@ impl ForceTorqueAdc for HostAdc {
         let t_s = self.time_s(index);
         let s = self.process.sample(t_s, encoder.map(i64::from));
         self.truth.push((s.f_true_n, s.t_true_nm));
+        self.tally.add(s.f_true_n, s.t_true_nm);
+        self.count += 1;
         let codes = self.injector.apply(t_s, s.codes);
-        self.codes.push(codes);
+        if self.keep {
+            self.codes.push(codes);
+        }
         match codes {
             Some(codes) => Conversion::Fresh(codes),
             None => Conversion::Missed,
@@ -422,7 +473,45 @@ pub fn run(
 /// row, no stock cut). What the oracle walks and the optimiser plans on, for a fraction of the
 /// process' time.
 pub fn pulses(prog: &[ProgBlock], settings: &Settings, cut: &Cut) -> Result<HostRun> {
-    run_inner(prog, settings, cut, None, true, &[], false)
+    let record = Record {
+        path: true,
+        ..Record::figures(Record::ALL.load_fraction)
+    };
+    run_inner(prog, settings, cut, None, true, &[], false, record, None)
+}
+
+/// As [`pulses`], each pulse given to `on_pulse` (position and block index) as the frame puts it
+/// out instead of kept in the path.
+pub fn pulses_to(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    on_pulse: &mut dyn FnMut([i64; 3], usize),
+) -> Result<HostRun> {
+    let record = Record::figures(Record::ALL.load_fraction);
+    run_inner(
+        prog,
+        settings,
+        cut,
+        None,
+        true,
+        &[],
+        false,
+        record,
+        Some(on_pulse),
+    )
+}
+
+/// As [`run_with_faults`] with anti-windup, keeping what `record` says.
+pub fn run_recorded(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    ac: Option<AcSettings>,
+    faults: &[crate::host::fault::Fault],
+    record: Record,
+) -> Result<HostRun> {
+    run_inner(prog, settings, cut, ac, true, faults, true, record, None)
 }
 
 /// As [`run`]; `anti_windup` false runs the paper's FRC exactly (no achieved feed).
@@ -451,10 +540,22 @@ pub fn run_with_faults(
     anti_windup: bool,
     faults: &[crate::host::fault::Fault],
 ) -> Result<HostRun> {
-    run_inner(prog, settings, cut, ac, anti_windup, faults, true)
+    run_inner(
+        prog,
+        settings,
+        cut,
+        ac,
+        anti_windup,
+        faults,
+        true,
+        Record::ALL,
+        None,
+    )
 }
 
-/// [`run_with_faults`]; `plant` false: no sample is taken ([`pulses`], without AC).
+/// [`run_with_faults`]; `plant` false: no sample is taken ([`pulses`], without AC); `record`:
+/// what the run keeps; `on_pulse` gets every pulsed frame's position and block index.
+#[allow(clippy::too_many_arguments)] // the public entry points' inputs, one body
 fn run_inner(
     prog: &[ProgBlock],
     settings: &Settings,
@@ -463,6 +564,8 @@ fn run_inner(
     anti_windup: bool,
     faults: &[crate::host::fault::Fault],
     plant: bool,
+    record: Record,
+    mut on_pulse: Option<&mut dyn FnMut([i64; 3], usize)>,
 ) -> Result<HostRun> {
     // The firmware's frame ISR and pulse end on the host board, and its status words (the
     // contexts' handles: the frame's and the pulse end's in the host board, the others below).
@@ -523,6 +626,9 @@ fn run_inner(
         sample_hz: acs.sample_hz,
         truth: Vec::new(),
         codes: Vec::new(),
+        keep: record.samples,
+        tally: LoadTally::new(&cut.tool, record.load_fraction, acs.sample_hz),
+        count: 0,
     };
     let per_period = acs.samples_per_period();
     let sample_ns = 1_000_000_000 / acs.sample_hz as u64;
@@ -584,7 +690,12 @@ fn run_inner(
             pos = status.encoder().map(i64::from);
             first.get_or_insert(t);
             last = t;
-            out.path.push((pos, computed.0, computed.1));
+            if record.path {
+                out.path.push((pos, computed.0, computed.1));
+            }
+            if let Some(f) = on_pulse.as_mut() {
+                f(pos, computed.1);
+            }
         }
         let t0 = t;
         t += irq.period_ns;
@@ -666,7 +777,7 @@ fn run_inner(
                 .truth
                 .get(adc.truth.len().saturating_sub(per_period as usize)..)
                 .unwrap_or(&[]);
-            out.rows.push(AcRow {
+            let row = record.rows.then(|| AcRow {
                 t_ms: u64::from(due) * 1000 / u64::from(acs.sample_hz),
                 pos_blu: pos,
                 feed_ipm: path_feed_ipm(settings, d, acs.period_ms),
@@ -679,6 +790,12 @@ fn run_inner(
                 feed_cap: logged_cap,
                 estimates,
             });
+            out.rows.extend(row);
+            // Without the samples kept: the last period's are all a row reads.
+            if !adc.keep && adc.truth.len() > 2 * per_period as usize {
+                let drop = adc.truth.len() - per_period as usize;
+                adc.truth.drain(..drop);
+            }
             period_start = pos;
         }
         // The loader's turn: chatter suppression.
@@ -704,7 +821,11 @@ fn run_inner(
         }
     }
     out.stock = plant.then(|| adc.process.into_stock());
-    out.samples = adc.truth;
+    out.load = adc.tally.figures();
+    out.sample_count = adc.count;
+    if adc.keep {
+        out.samples = adc.truth;
+    }
     out.codes = adc.codes;
     out.machining_time_s = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);
     out.last_pulse_ns = last;
@@ -738,7 +859,7 @@ pub fn csv(rows: &[AcRow]) -> String {
 }
 
 /// Force/torque figures of a run against the tool's limits (F0, T0 = fraction x limits).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LoadFigures {
     pub peak_force_ratio: f64,
     pub peak_torque_ratio: f64,
@@ -752,17 +873,56 @@ pub fn load_figures(
     fraction: f64,
     sample_hz: u32,
 ) -> LoadFigures {
-    let dt = 1.0 / sample_hz as f64;
-    let f0 = fraction * tool.f_max_n;
-    LoadFigures {
-        peak_force_ratio: samples.iter().map(|s| s.0).fold(0.0, f64::max) / tool.f_max_n,
-        peak_torque_ratio: samples.iter().map(|s| s.1.abs()).fold(0.0, f64::max) / tool.t_max_nm,
-        time_above_f0_s: samples.iter().filter(|s| s.0 > f0).count() as f64 * dt,
-        time_above_limit_s: samples
-            .iter()
-            .filter(|s| s.0 > tool.f_max_n || s.1.abs() > tool.t_max_nm)
-            .count() as f64
-            * dt,
+    let mut tally = LoadTally::new(tool, fraction, sample_hz);
+    for &(f, t) in samples {
+        tally.add(f, t);
+    }
+    tally.figures()
+}
+
+/// [`LoadFigures`] one sample at a time (a run's, without keeping its samples).
+#[derive(Clone, Copy, Debug)]
+pub struct LoadTally {
+    f_max: f64,
+    t_max: f64,
+    f0: f64,
+    dt: f64,
+    peak_f: f64,
+    peak_t: f64,
+    above_f0: u64,
+    above_limit: u64,
+}
+
+impl LoadTally {
+    /// Against `tool`'s limits, F0 = `fraction` x F_max, samples at `sample_hz`.
+    pub fn new(tool: &Tool, fraction: f64, sample_hz: u32) -> LoadTally {
+        LoadTally {
+            f_max: tool.f_max_n,
+            t_max: tool.t_max_nm,
+            f0: fraction * tool.f_max_n,
+            dt: 1.0 / sample_hz as f64,
+            peak_f: 0.0,
+            peak_t: 0.0,
+            above_f0: 0,
+            above_limit: 0,
+        }
+    }
+
+    /// One sample's true force (N) and torque (N*m).
+    pub fn add(&mut self, f: f64, t: f64) {
+        self.peak_f = self.peak_f.max(f);
+        self.peak_t = self.peak_t.max(t.abs());
+        self.above_f0 += u64::from(f > self.f0);
+        self.above_limit += u64::from(f > self.f_max || t.abs() > self.t_max);
+    }
+
+    pub fn figures(&self) -> LoadFigures {
+        LoadFigures {
+            peak_force_ratio: self.peak_f / self.f_max,
+            peak_torque_ratio: self.peak_t / self.t_max,
+            time_above_f0_s: self.above_f0 as f64 * self.dt,
+            time_above_limit_s: self.above_limit as f64 * self.dt,
+        }
     }
 }
 
