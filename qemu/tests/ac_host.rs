@@ -442,3 +442,35 @@ fn an_overload_hold_stops_a_rapid_plunge() {
     println!("rapid plunge held at Z {z} BLU (programmed -5000)");
     assert!(z > -2000, "the rapid went on to Z {z} BLU");
 }
+
+/// A run that keeps only its figures (`acsim::Record::figures`, what `host` and `optimise` run
+/// on long programs) is the run that keeps everything, without the per-frame and per-sample
+/// records: the same time, spans, rows where asked, and its running load figures are those of
+/// the kept samples; its memory does not hold the path or the samples.
+#[test]
+fn a_run_that_keeps_only_its_figures_is_the_same_run() {
+    let settings = Settings::default();
+    let text = include_str!("../programs/fig1-cavity.nc");
+    let prog = analysis::load_program(text, &settings).unwrap();
+    let c = Cut::steel(Stock::default(), 3);
+    for (ac, fraction) in [(None, 0.9), (Some(AcSettings::default()), 0.8)] {
+        let all = acsim::run(&prog, &settings, &c, ac).unwrap();
+        let record = acsim::Record {
+            rows: true,
+            ..acsim::Record::figures(fraction)
+        };
+        let lean = acsim::run_recorded(&prog, &settings, &c, ac, &[], record).unwrap();
+        assert!(lean.path.is_empty() && lean.samples.is_empty() && lean.codes.is_empty());
+        assert!(!all.path.is_empty() && !all.samples.is_empty());
+        assert_eq!(lean.rows, all.rows);
+        assert_eq!(lean.spans, all.spans);
+        assert_eq!(lean.machining_time_s, all.machining_time_s);
+        assert_eq!(lean.final_position, all.final_position);
+        assert_eq!(lean.sample_count, all.samples.len());
+        assert_eq!(
+            lean.load,
+            acsim::load_figures(&all.samples, &c.tool, fraction, 1000)
+        );
+        assert!(lean.load.peak_force_ratio > 0.1, "{:?}", lean.load);
+    }
+}
