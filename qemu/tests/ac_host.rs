@@ -474,3 +474,44 @@ fn a_run_that_keeps_only_its_figures_is_the_same_run() {
         assert!(lean.load.peak_force_ratio > 0.1, "{:?}", lean.load);
     }
 }
+
+/// The plot's rows of a long run stay bounded and keep the loads: every row of a run up to twice
+/// the bound, then one per stride, the one with the highest true force of its stride (a single
+/// overload period in a long run still shows).
+#[test]
+fn the_plots_rows_are_bounded_and_keep_the_highest_load() {
+    let row = |i: u64, f: f64| acsim::AcRow {
+        t_ms: i * 10,
+        pos_blu: [i as i64, 0, 0],
+        feed_ipm: 10.0,
+        f_meas_n: f,
+        t_meas_nm: 0.0,
+        f_true_n: f,
+        t_true_nm: 0.0,
+        e: 0.0,
+        state: "run".into(),
+        feed_cap: 0,
+        estimates: None,
+    };
+    // Short: every row, as it came.
+    let mut short = acsim::PlotRows::new(100);
+    let rows: Vec<_> = (0..150).map(|i| row(i, (i % 7) as f64)).collect();
+    rows.iter().for_each(|r| short.push(r));
+    let short = short.finish();
+    assert_eq!((short.rows, short.stride), (rows, 1));
+    // Long: bounded, in order, and the one overload is kept.
+    let mut long = acsim::PlotRows::new(100);
+    let n = 100_000u64;
+    for i in 0..n {
+        long.push(&row(i, if i == 61_234 { 5000.0 } else { 100.0 }));
+    }
+    let long = long.finish();
+    assert!(
+        long.rows.len() <= 200 && long.rows.len() >= 100,
+        "{}",
+        long.rows.len()
+    );
+    assert!(long.stride >= 512, "{}", long.stride);
+    assert!(long.rows.windows(2).all(|w| w[0].t_ms < w[1].t_ms));
+    assert!(long.rows.iter().any(|r| r.f_true_n == 5000.0));
+}

@@ -7,6 +7,10 @@ use millac::Settings;
 use millac_qemu::{analysis, emulator::runner};
 use std::path::{Path, PathBuf};
 
+/// The AC periods ac.svg draws in full (`acsim::PlotRows`: up to twice this, 1000 s of cutting;
+/// a longer run's plot shows the highest load of each stretch of periods).
+const PLOT_ROWS: usize = 50_000;
+
 /// `host`'s options.
 #[derive(clap::Args)]
 pub(crate) struct HostArgs {
@@ -50,6 +54,15 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
             // The AC's run and the comparison's (the programmed feeds on a thread of their own,
             // the oracle on the pulses, then the safe constant feed, which needs the oracle)
             // are independent: threads, the same results as one after the other.
+            // ac.csv is written as the run goes; the plot keeps a bounded number of rows; the
+            // holds are counted: a long program's rows are not held in memory.
+            let csv = out.join("ac.csv");
+            let file = std::fs::File::create(&csv)
+                .with_context(|| format!("writing {}", csv.display()))?;
+            let mut writer = std::io::BufWriter::new(file);
+            let mut written = std::io::Write::write_all(&mut writer, acsim::CSV_HEADER.as_bytes());
+            let mut plot_rows = acsim::PlotRows::new(PLOT_ROWS);
+            let mut holds = 0usize;
             let (run, cmp) = std::thread::scope(|s| {
                 let comparison = s.spawn(|| {
                     millac_qemu::progress::with_bar("comparison", prog.len(), || {
@@ -63,18 +76,25 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                     "AC run"
                 };
                 let run = millac_qemu::progress::with_bar(label, prog.len(), || {
-                    // The rows for ac.csv and the plot; the samples only as their load figures.
-                    let record = acsim::Record {
-                        rows: true,
-                        ..acsim::Record::figures(f64::from(acs.optimal_fraction))
-                    };
-                    acsim::run_recorded(
+                    // The rows to ac.csv and the plot; the samples as their load figures.
+                    let record = acsim::Record::figures(f64::from(acs.optimal_fraction));
+                    acsim::run_rows_to(
                         &prog,
                         &settings,
                         &cut,
                         (!args.no_ac).then_some(acs),
                         &args.faults,
                         record,
+                        &mut |r| {
+                            if written.is_ok() {
+                                written = std::io::Write::write_all(
+                                    &mut writer,
+                                    acsim::csv_line(r).as_bytes(),
+                                );
+                            }
+                            holds += usize::from(r.state.starts_with("hold"));
+                            plot_rows.push(r);
+                        },
                     )
                 });
                 let cmp = comparison
@@ -83,14 +103,15 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 (run, cmp)
             });
             let run = run?;
-            let csv = out.join("ac.csv");
-            std::fs::write(&csv, acsim::csv(&run.rows))
+            written
+                .and_then(|()| std::io::Write::flush(&mut writer))
                 .with_context(|| format!("writing {}", csv.display()))?;
+            let plot_rows = plot_rows.finish();
             let f0 = acs.f0_n() as f64;
             let t0 = acs.t0_nm() as f64;
             acreport::plot(
                 &out.join("ac.svg"),
-                &run.rows,
+                &plot_rows.rows,
                 f0,
                 t0,
                 1.0 / acs.optimal_fraction as f64,
@@ -132,11 +153,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
             summary["ac"]["enabled"] = serde_json::json!(!args.no_ac);
             summary["ac"]["strategy"] = serde_json::json!(acs.strategy.name());
             summary["ac"]["samples"] = serde_json::json!(run.sample_count);
-            summary["ac"]["holds"] = serde_json::json!(run
-                .rows
-                .iter()
-                .filter(|r| r.state.starts_with("hold"))
-                .count());
+            summary["ac"]["holds"] = serde_json::json!(holds);
             let hold = (!completed).then(|| runner::Hold {
                 alarm: run.alarm.map(|a| a.to_string()).unwrap_or_default(),
                 blocks_done: run.blocks_done,
@@ -176,6 +193,12 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 out.display(),
                 out.display()
             );
+            if plot_rows.stride > 1 {
+                println!(
+                    "  ac.svg: one AC period in {} (the highest true force of each {}); ac.csv has them all",
+                    plot_rows.stride, plot_rows.stride
+                );
+            }
             let end = prog.last().map_or([0; 3], |b| b.end).map(i64::from);
             Ok(completed && run.final_position == end)
         })(),

@@ -477,7 +477,8 @@ pub fn pulses(prog: &[ProgBlock], settings: &Settings, cut: &Cut) -> Result<Host
         path: true,
         ..Record::figures(Record::ALL.load_fraction)
     };
-    run_inner(prog, settings, cut, None, true, &[], false, record, None)
+    let taps = Taps::default();
+    run_inner(prog, settings, cut, None, true, &[], false, record, taps)
 }
 
 /// As [`pulses`], each pulse given to `on_pulse` (position and block index) as the frame puts it
@@ -489,17 +490,11 @@ pub fn pulses_to(
     on_pulse: &mut dyn FnMut([i64; 3], usize),
 ) -> Result<HostRun> {
     let record = Record::figures(Record::ALL.load_fraction);
-    run_inner(
-        prog,
-        settings,
-        cut,
-        None,
-        true,
-        &[],
-        false,
-        record,
-        Some(on_pulse),
-    )
+    let taps = Taps {
+        pulse: Some(on_pulse),
+        row: None,
+    };
+    run_inner(prog, settings, cut, None, true, &[], false, record, taps)
 }
 
 /// As [`run_with_faults`] with anti-windup, keeping what `record` says.
@@ -511,7 +506,34 @@ pub fn run_recorded(
     faults: &[crate::host::fault::Fault],
     record: Record,
 ) -> Result<HostRun> {
-    run_inner(prog, settings, cut, ac, true, faults, true, record, None)
+    let taps = Taps::default();
+    run_inner(prog, settings, cut, ac, true, faults, true, record, taps)
+}
+
+/// As [`run_recorded`], each AC period's row given to `on_row` as it is made (kept in the run
+/// only with [`Record::rows`]): `host` writes ac.csv as the run goes.
+pub fn run_rows_to(
+    prog: &[ProgBlock],
+    settings: &Settings,
+    cut: &Cut,
+    ac: Option<AcSettings>,
+    faults: &[crate::host::fault::Fault],
+    record: Record,
+    on_row: &mut dyn FnMut(&AcRow),
+) -> Result<HostRun> {
+    let taps = Taps {
+        pulse: None,
+        row: Some(on_row),
+    };
+    run_inner(prog, settings, cut, ac, true, faults, true, record, taps)
+}
+
+/// What a run hands its caller as it goes: every pulsed frame's position and block index, every
+/// AC period's row.
+#[derive(Default)]
+struct Taps<'a> {
+    pulse: Option<&'a mut dyn FnMut([i64; 3], usize)>,
+    row: Option<&'a mut dyn FnMut(&AcRow)>,
 }
 
 /// As [`run`]; `anti_windup` false runs the paper's FRC exactly (no achieved feed).
@@ -549,12 +571,12 @@ pub fn run_with_faults(
         faults,
         true,
         Record::ALL,
-        None,
+        Taps::default(),
     )
 }
 
 /// [`run_with_faults`]; `plant` false: no sample is taken ([`pulses`], without AC); `record`:
-/// what the run keeps; `on_pulse` gets every pulsed frame's position and block index.
+/// what the run keeps; `taps` get every pulse and row as they come.
 #[allow(clippy::too_many_arguments)] // the public entry points' inputs, one body
 fn run_inner(
     prog: &[ProgBlock],
@@ -565,7 +587,7 @@ fn run_inner(
     faults: &[crate::host::fault::Fault],
     plant: bool,
     record: Record,
-    mut on_pulse: Option<&mut dyn FnMut([i64; 3], usize)>,
+    mut taps: Taps,
 ) -> Result<HostRun> {
     // The firmware's frame ISR and pulse end on the host board, and its status words (the
     // contexts' handles: the frame's and the pulse end's in the host board, the others below).
@@ -693,7 +715,7 @@ fn run_inner(
             if record.path {
                 out.path.push((pos, computed.0, computed.1));
             }
-            if let Some(f) = on_pulse.as_mut() {
+            if let Some(f) = taps.pulse.as_mut() {
                 f(pos, computed.1);
             }
         }
@@ -777,7 +799,7 @@ fn run_inner(
                 .truth
                 .get(adc.truth.len().saturating_sub(per_period as usize)..)
                 .unwrap_or(&[]);
-            let row = record.rows.then(|| AcRow {
+            let row = (record.rows || taps.row.is_some()).then(|| AcRow {
                 t_ms: u64::from(due) * 1000 / u64::from(acs.sample_hz),
                 pos_blu: pos,
                 feed_ipm: path_feed_ipm(settings, d, acs.period_ms),
@@ -790,7 +812,10 @@ fn run_inner(
                 feed_cap: logged_cap,
                 estimates,
             });
-            out.rows.extend(row);
+            if let (Some(f), Some(r)) = (taps.row.as_mut(), &row) {
+                f(r);
+            }
+            out.rows.extend(row.filter(|_| record.rows));
             // Without the samples kept: the last period's are all a row reads.
             if !adc.keep && adc.truth.len() > 2 * per_period as usize {
                 let drop = adc.truth.len() - per_period as usize;
@@ -834,28 +859,100 @@ fn run_inner(
     Ok(out)
 }
 
-/// The ac.csv text (header + one row per AC period); column names are stable.
+/// The ac.csv header; column names are stable.
+pub const CSV_HEADER: &str =
+    "t_ms,x_blu,y_blu,z_blu,feed_ipm,f_meas_n,t_meas_nm,f_true_n,t_true_nm,e,state\n";
+
+/// One row of ac.csv (with its newline).
+pub fn csv_line(r: &AcRow) -> String {
+    format!(
+        "{},{},{},{},{:.3},{:.1},{:.3},{:.1},{:.3},{:.4},{}\n",
+        r.t_ms,
+        r.pos_blu[0],
+        r.pos_blu[1],
+        r.pos_blu[2],
+        r.feed_ipm,
+        r.f_meas_n,
+        r.t_meas_nm,
+        r.f_true_n,
+        r.t_true_nm,
+        r.e,
+        r.state
+    )
+}
+
+/// The ac.csv text (header + one row per AC period).
 pub fn csv(rows: &[AcRow]) -> String {
-    let mut s = String::from(
-        "t_ms,x_blu,y_blu,z_blu,feed_ipm,f_meas_n,t_meas_nm,f_true_n,t_true_nm,e,state\n",
-    );
+    let mut s = String::from(CSV_HEADER);
     for r in rows {
-        s += &format!(
-            "{},{},{},{},{:.3},{:.1},{:.3},{:.1},{:.3},{:.4},{}\n",
-            r.t_ms,
-            r.pos_blu[0],
-            r.pos_blu[1],
-            r.pos_blu[2],
-            r.feed_ipm,
-            r.f_meas_n,
-            r.t_meas_nm,
-            r.f_true_n,
-            r.t_true_nm,
-            r.e,
-            r.state
-        );
+        s += &csv_line(r);
     }
     s
+}
+
+/// The rows of a run for its plot, at most `2 x max` of them whatever its length: every row
+/// until there are `2 x max`, then one row for each `stride` rows of the run (doubled as
+/// needed), the one with the highest true force among them (the plot shows the load against
+/// the limits).
+#[derive(Clone, Debug)]
+pub struct PlotRows {
+    pub rows: Vec<AcRow>,
+    /// Rows of the run per row kept.
+    pub stride: usize,
+    max: usize,
+    bucket: Option<AcRow>,
+    in_bucket: usize,
+}
+
+impl PlotRows {
+    pub fn new(max: usize) -> PlotRows {
+        PlotRows {
+            rows: Vec::new(),
+            stride: 1,
+            max: max.max(1),
+            bucket: None,
+            in_bucket: 0,
+        }
+    }
+
+    fn louder(a: AcRow, b: AcRow) -> AcRow {
+        if b.f_true_n > a.f_true_n {
+            b
+        } else {
+            a
+        }
+    }
+
+    pub fn push(&mut self, r: &AcRow) {
+        let r = r.clone();
+        self.bucket = Some(match self.bucket.take() {
+            Some(b) => Self::louder(b, r),
+            None => r,
+        });
+        self.in_bucket += 1;
+        if self.in_bucket < self.stride {
+            return;
+        }
+        self.in_bucket = 0;
+        self.rows.extend(self.bucket.take());
+        if self.rows.len() >= 2 * self.max {
+            let rows = std::mem::take(&mut self.rows);
+            let mut it = rows.into_iter();
+            while let Some(a) = it.next() {
+                self.rows.push(match it.next() {
+                    Some(b) => Self::louder(a, b),
+                    None => a,
+                });
+            }
+            self.stride *= 2;
+        }
+    }
+
+    /// The rows kept (the last, partial stride's included).
+    pub fn finish(mut self) -> PlotRows {
+        self.rows.extend(self.bucket.take());
+        self
+    }
 }
 
 /// Force/torque figures of a run against the tool's limits (F0, T0 = fraction x limits).
