@@ -198,7 +198,7 @@ fn measure(p: &Program, out: &Path, exe: Option<&Path>, with_run: bool) -> Resul
     // Each run keeps its figures alone, as `host` and `optimise` run them.
     let record = acsim::Record::figures(f64::from(acs.optimal_fraction));
     let run = |prog: &[analysis::ProgBlock], ac| -> Result<f64> {
-        Ok(acsim::run_recorded(prog, &s, &cut, ac, &[], record)?.machining_time_s)
+        Ok(acsim::run_recorded(prog, &s, &cut, ac, &[], record, None)?.machining_time_s)
     };
     let (w, v) = timed(&mut || run(&prog, None))?;
     m.virtual_s = v;

@@ -459,7 +459,7 @@ fn a_run_that_keeps_only_its_figures_is_the_same_run() {
             rows: true,
             ..acsim::Record::figures(fraction)
         };
-        let lean = acsim::run_recorded(&prog, &settings, &c, ac, &[], record).unwrap();
+        let lean = acsim::run_recorded(&prog, &settings, &c, ac, &[], record, None).unwrap();
         assert!(lean.path.is_empty() && lean.samples.is_empty() && lean.codes.is_empty());
         assert!(!all.path.is_empty() && !all.samples.is_empty());
         assert_eq!(lean.rows, all.rows);

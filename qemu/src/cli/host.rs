@@ -78,14 +78,14 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 let run = millac_qemu::progress::with_bar(label, prog.len(), || {
                     // The rows to ac.csv and the plot; the samples as their load figures.
                     let record = acsim::Record::figures(f64::from(acs.optimal_fraction));
-                    acsim::run_rows_to(
+                    acsim::run_recorded(
                         &prog,
                         &settings,
                         &cut,
                         (!args.no_ac).then_some(acs),
                         &args.faults,
                         record,
-                        &mut |r| {
+                        Some(&mut |r| {
                             if written.is_ok() {
                                 written = std::io::Write::write_all(
                                     &mut writer,
@@ -94,7 +94,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                             }
                             holds += usize::from(r.state.starts_with("hold"));
                             plot_rows.push(r);
-                        },
+                        }),
                     )
                 });
                 let cmp = comparison

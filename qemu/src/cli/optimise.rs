@@ -127,7 +127,7 @@ fn optimise(
     let prog = analysis::load_program(&o.text, &settings).map_err(|e| anyhow::anyhow!("{e}"))?;
     let run = millac_qemu::progress::with_bar("optimised program", prog.len(), || {
         let record = acsim::Record::figures(opts.fraction);
-        acsim::run_recorded(&prog, &settings, &cut, None, &[], record)
+        acsim::run_recorded(&prog, &settings, &cut, None, &[], record, None)
     })?;
     let (before, after) = (o.programmed.load, run.load);
     println!(

@@ -420,7 +420,7 @@ pub fn compare_recorded(
         load_fraction: f64::from(acs.optimal_fraction),
         ..record
     };
-    let run = |p: &[ProgBlock]| acsim::run_recorded(p, settings, cut, None, &[], record);
+    let run = |p: &[ProgBlock]| acsim::run_recorded(p, settings, cut, None, &[], record, None);
     // The programmed feeds cut on a thread of their own: the bound walks the pulses of the same
     // path (the frames alone), and the safe constant feed needs only the bound.
     let (programmed, (oracle_s, safe_f, safe)) = std::thread::scope(|s| {

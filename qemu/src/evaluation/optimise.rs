@@ -422,6 +422,7 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
                 None,
                 &[],
                 acsim::Record::figures(opts.fraction),
+                None,
             )
         });
         let plan = plan(text, &prog, settings, cut, opts);

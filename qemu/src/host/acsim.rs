@@ -497,7 +497,9 @@ pub fn pulses_to(
     run_inner(prog, settings, cut, None, true, &[], false, record, taps)
 }
 
-/// As [`run_with_faults`] with anti-windup, keeping what `record` says.
+/// As [`run_with_faults`] with anti-windup, keeping what `record` says; `on_row` (if any) gets
+/// each AC period's row as it is made (kept in the run only with [`Record::rows`]): `host` writes
+/// ac.csv as the run goes.
 pub fn run_recorded(
     prog: &[ProgBlock],
     settings: &Settings,
@@ -505,25 +507,11 @@ pub fn run_recorded(
     ac: Option<AcSettings>,
     faults: &[crate::host::fault::Fault],
     record: Record,
-) -> Result<HostRun> {
-    let taps = Taps::default();
-    run_inner(prog, settings, cut, ac, true, faults, true, record, taps)
-}
-
-/// As [`run_recorded`], each AC period's row given to `on_row` as it is made (kept in the run
-/// only with [`Record::rows`]): `host` writes ac.csv as the run goes.
-pub fn run_rows_to(
-    prog: &[ProgBlock],
-    settings: &Settings,
-    cut: &Cut,
-    ac: Option<AcSettings>,
-    faults: &[crate::host::fault::Fault],
-    record: Record,
-    on_row: &mut dyn FnMut(&AcRow),
+    on_row: Option<&mut dyn FnMut(&AcRow)>,
 ) -> Result<HostRun> {
     let taps = Taps {
         pulse: None,
-        row: Some(on_row),
+        row: on_row,
     };
     run_inner(prog, settings, cut, ac, true, faults, true, record, taps)
 }
