@@ -28,6 +28,7 @@ pub mod frc;
 pub mod law;
 pub mod plaus;
 pub mod settings;
+pub mod strength;
 #[cfg(test)]
 mod tests;
 

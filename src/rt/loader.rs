@@ -295,8 +295,10 @@ pub struct Loader<
     homing: Option<HomingRun>,
     /// The axes homed since power-up (bit k: axis k); a lost position clears them all.
     homed: u8,
-    /// A probing move under way (its `ok` waits for it).
+    /// A probing move under way (its `ok` waits for it), and where it ended and whether the
+    /// probe changed, once it has (the answer waits for the machine to stand).
     probing: Option<Probe>,
+    probe_end: Option<([i32; 3], bool)>,
     /// Where the last probing move stopped (machine BLU) and whether the probe changed.
     last_probe: ([i32; 3], bool),
     /// The tool change (`$341` = 1, 2), while it runs.
@@ -452,6 +454,7 @@ where
             homing: None,
             homed: 0,
             probing: None,
+            probe_end: None,
             last_probe: ([0; 3], false),
             change: None,
             setter_ref: None,
@@ -1114,13 +1117,24 @@ where
         }
     }
 
-    /// One turn of a probing move (`idle`: it has ended): the probe's change stops it at once;
-    /// then `[PRB:...]` and its answer (`ALARM:5` when a G38.2/.4 ended without the change).
+    /// One turn of a probing move (`idle`: the machine stands): the probe's change stops it at
+    /// once; once the machine stands, `[PRB:...]` and its answer (`ALARM:5` when a G38.2/.4
+    /// ended without the change). As grbl's G38, which returns after the motion has stopped: the
+    /// line after the `ok` (`$#`, any `$` command that needs Idle) finds the machine Idle.
     fn probe_turn(&mut self, idle: bool) {
         let Some(p) = self.probing else {
             return;
         };
-        let Some((at, changed)) = self.probe_move_ended(p.toward, idle) else {
+        if self.probe_end.is_none() {
+            let Some(end) = self.probe_move_ended(p.toward, idle) else {
+                return;
+            };
+            self.probe_end = Some(end);
+        }
+        if !idle {
+            return;
+        }
+        let Some((at, changed)) = self.probe_end.take() else {
             return;
         };
         self.probing = None;
@@ -1521,6 +1535,7 @@ where
         // after a soft reset; a trip says its own alarm).
         let homing = self.homing.take();
         let probing = self.probing.take();
+        self.probe_end = None;
         let changing = self.change.take();
         if moving || homing.is_some() {
             self.homed = 0;

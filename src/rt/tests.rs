@@ -2219,3 +2219,29 @@ fn a_measure_only_ac_tells_its_verdicts_without_an_alarm() {
     // The AC, held by its verdict, is asked to resume, so its next verdict is told too.
     assert!(b.status.ac_resume.pending(), "the AC stays deaf");
 }
+
+/// A probing move's `ok` comes once the machine stands, as grbl's (its G38 returns after the
+/// motion has stopped): a `$#` sent while the probe moves, answered after that `ok`, lists the
+/// parameters, not `error:8` (not idle). Before, the `ok` came at the contact, a few frames
+/// before the stop, and a sender's `$#` right after it (bCNC's tool change under `serve`) was
+/// refused.
+#[test]
+fn a_probes_ok_comes_once_the_machine_stands() {
+    on_plate(-1_000);
+    // From well before the contact (at about 3 830) to just after it.
+    for t in (3_000..3_900).step_by(50) {
+        let b = session(
+            &[(1, "G21 G91 G38.2 Z-10 F200\n"), (t, "$#\n")],
+            &[],
+            None,
+            8_000,
+        );
+        assert!(
+            b.out.contains("[PRB:0.000,0.000,-2.540:1]\r\nok\r\n[G54:"),
+            "$# at {t}: {}",
+            b.out
+        );
+        assert!(!b.out.contains("error:"), "$# at {t}: {}", b.out);
+    }
+    MACHINE.with(|m| m.set(None));
+}

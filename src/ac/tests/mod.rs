@@ -4,6 +4,7 @@
 
 mod faults;
 mod plan;
+mod strength;
 
 use super::frc::{dead_zone, fdot, next_feed};
 use super::*;
