@@ -1,5 +1,5 @@
-//! A cutter's permissible radial force and spindle torque from its geometry (loader task, at a
-//! tool change; host: listings and the simulated cutters). The paper: "the end milling cutter may
+//! A cutter's permissible radial force and spindle torque from its geometry (core, no context of
+//! its own: host tests today; the loader task is to apply it at a tool change). The paper: "the end milling cutter may
 //! break in bending or in twist or its tooth may break away"; it left the limits to a strength
 //! study "still in the initial stage". Here the first two, as beams:
 //!
