@@ -365,7 +365,8 @@ struct Held {
     key: Option<(PointCut, Option<Contacts>)>,
     /// Forward pass, then (settled) the schedule's feed.
     v: f64,
-    /// A key point's peaks at the schedule's feed, once settled.
+    /// The peaks at the schedule's feed, once settled (a point between key points whose peaks
+    /// are not linear in c takes its key point's instead).
     peaks: (f64, f64),
 }
 
@@ -732,7 +733,8 @@ impl OracleStream {
                     self.at_mut(j).v = v;
                     upto = j + 1;
                 }
-                // Settled key points: their peaks at the schedule's feed.
+                // Settled points: their peaks at the schedule's feed (linear in c; a key point's
+                // whose chip is not, re-evaluated from its contacts).
                 for j in self.settled..upto {
                     let (v, per_c) = (self.at(j).v, self.at(j).per_c);
                     let c = v * MM_S_PER_IPM * per_c.2 / self.teeth_hz;
@@ -759,17 +761,14 @@ impl OracleStream {
         // Out in order, each point once its key point's peaks are known.
         while self.emitted < self.settled && self.at(self.emitted).key_of < self.settled {
             let j = self.emitted;
-            let (k, capped, v, per_c, own) = {
+            let (k, capped, v, own) = {
                 let h = self.at(j);
-                (h.key_of, h.capped, h.v, h.per_c, h.peaks)
+                (h.key_of, h.capped, h.v, h.peaks)
             };
             let (f_peak_n, t_peak_nm) = if k != j && (self.kienzle || capped) {
                 self.at(k).peaks
-            } else if k == j {
-                own
             } else {
-                let c = v * MM_S_PER_IPM * per_c.2 / self.teeth_hz;
-                (per_c.0 * c, per_c.1 * c)
+                own
             };
             let h = self.at(j);
             let (s, limit, cut_limit) = (h.s, h.limit, h.cut_limit);

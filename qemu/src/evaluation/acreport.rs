@@ -15,11 +15,10 @@ use serde_json::{json, Value};
 /// The comparison runs (all on the host, same process model and seed).
 #[derive(Clone, Debug)]
 pub struct Comparison {
+    /// The runs' load figures (`HostRun::load`) are against the AC's F0.
     pub programmed: HostRun,
-    pub programmed_load: LoadFigures,
     pub safe_feed_ipm: f64,
     pub safe: HostRun,
-    pub safe_load: LoadFigures,
     pub oracle_time_s: f64,
 }
 
@@ -442,10 +441,8 @@ pub fn compare_recorded(
         Ok::<_, anyhow::Error>((programmed?, bound?))
     })?;
     Ok(Comparison {
-        programmed_load: programmed.load,
         programmed,
         safe_feed_ipm: acsim::feed_ipm(settings, safe_f),
-        safe_load: safe.load,
         safe,
         oracle_time_s: oracle_s,
     })
@@ -467,8 +464,8 @@ pub fn ac_json(time_s: f64, load: &LoadFigures, c: &Comparison) -> Value {
         "time_above_f0_s": r3(load.time_above_f0_s),
         "time_above_limit_s": r3(load.time_above_limit_s),
         "safe_constant_feed_ipm": r3(c.safe_feed_ipm),
-        "programmed_peak_force_ratio": r3(c.programmed_load.peak_force_ratio),
-        "programmed_time_above_limit_s": r3(c.programmed_load.time_above_limit_s),
+        "programmed_peak_force_ratio": r3(c.programmed.load.peak_force_ratio),
+        "programmed_time_above_limit_s": r3(c.programmed.load.time_above_limit_s),
     })
 }
 
@@ -514,13 +511,13 @@ pub fn print_table(
     row(
         "constant, programmed feeds",
         c.programmed.machining_time_s,
-        Some(&c.programmed_load),
+        Some(&c.programmed.load),
         None,
     );
     row(
         &format!("constant, safe feed {:.2} ipm", c.safe_feed_ipm),
         c.safe.machining_time_s,
-        Some(&c.safe_load),
+        Some(&c.safe.load),
         None,
     );
     row("oracle (bound)", c.oracle_time_s, None, None);

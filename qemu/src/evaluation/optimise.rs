@@ -438,8 +438,6 @@ pub fn optimise(text: &str, settings: &Settings, cut: &Cut, opts: &Options) -> R
     })
 }
 
-/// [`optimise`]'s plan of `prog`, the blocks of `text` (its `programmed` run left empty: the
-/// caller's).
 /// The plan of the blocks in order as the walk's points come (host, [`plan`]): `buf` holds the
 /// points of the blocks not yet planned (and the last point before them, where the next block
 /// starts); a block is planned once its points are all in and those after it reach as far as
@@ -659,6 +657,8 @@ impl Planner<'_> {
     }
 }
 
+/// [`optimise`]'s plan of `prog`, the blocks of `text` (its `programmed` run left empty: the
+/// caller's).
 fn plan(
     text: &str,
     prog: &[ProgBlock],
@@ -687,18 +687,20 @@ fn plan(
     let mut worst = envelope
         .as_ref()
         .map(|e| Walker::new(prog, settings, e, &limits, &ceiling));
-    let scale = (opts.guard / opts.fraction).powf(1.0 / (1.0 - cut.material.ks_exponent));
-    let mut depths = opts.model.map(|_| Depths::new(cut));
+    // Kienzle's 1 - m: force grows as the feed to it.
     let expo = 1.0 - cut.material.ks_exponent;
+    let scale = (opts.guard / opts.fraction).powf(1.0 / expo);
+    let mut depths = opts.model.map(|_| Depths::new(cut));
+    let tooth_s = 60.0 / (cut.spindle_rpm * f64::from(cut.tool.flutes));
     let mut guarded = 0usize;
     let mut planner = Planner {
         prog,
         settings,
         opts,
         frm,
-        tooth_s: 60.0 / (cut.spindle_rpm * f64::from(cut.tool.flutes)),
+        tooth_s,
         kienzle: expo,
-        lag_max_mm: lag_mm(frm, 60.0 / (cut.spindle_rpm * f64::from(cut.tool.flutes))),
+        lag_max_mm: lag_mm(frm, tooth_s),
         u: units(settings),
         pieces: Vec::new(),
         body: String::new(),

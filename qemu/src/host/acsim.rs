@@ -369,7 +369,6 @@ struct HostAdc {
     codes: Vec<Option<[u16; 3]>>,
     keep: bool,
     tally: LoadTally,
-    count: usize,
 }
 
 impl HostAdc {
@@ -408,7 +407,6 @@ impl ForceTorqueAdc for HostAdc {
         let s = self.process.sample(t_s, encoder.map(i64::from));
         self.truth.push((s.f_true_n, s.t_true_nm));
         self.tally.add(s.f_true_n, s.t_true_nm);
-        self.count += 1;
         let codes = self.injector.apply(t_s, s.codes);
         if self.keep {
             self.codes.push(codes);
@@ -638,7 +636,6 @@ fn run_inner(
         codes: Vec::new(),
         keep: record.samples,
         tally: LoadTally::new(&cut.tool, record.load_fraction, acs.sample_hz),
-        count: 0,
     };
     let per_period = acs.samples_per_period();
     let sample_ns = 1_000_000_000 / acs.sample_hz as u64;
@@ -835,7 +832,7 @@ fn run_inner(
     }
     out.stock = plant.then(|| adc.process.into_stock());
     out.load = adc.tally.figures();
-    out.sample_count = adc.count;
+    out.sample_count = adc.tally.samples();
     if adc.keep {
         out.samples = adc.truth;
     }
@@ -976,6 +973,7 @@ pub struct LoadTally {
     peak_t: f64,
     above_f0: u64,
     above_limit: u64,
+    samples: usize,
 }
 
 impl LoadTally {
@@ -990,6 +988,7 @@ impl LoadTally {
             peak_t: 0.0,
             above_f0: 0,
             above_limit: 0,
+            samples: 0,
         }
     }
 
@@ -999,6 +998,12 @@ impl LoadTally {
         self.peak_t = self.peak_t.max(t.abs());
         self.above_f0 += u64::from(f > self.f0);
         self.above_limit += u64::from(f > self.f_max || t.abs() > self.t_max);
+        self.samples += 1;
+    }
+
+    /// The samples added.
+    pub fn samples(&self) -> usize {
+        self.samples
     }
 
     pub fn figures(&self) -> LoadFigures {
