@@ -402,6 +402,12 @@ impl AcController {
         &self.s
     }
 
+    /// The settings as they came in, checked ([`AcController::new`] takes them validated and
+    /// nothing changes them).
+    pub fn valid_settings(&self) -> Valid<AcSettings> {
+        Valid::checked(self.s)
+    }
+
     /// Whether the DRR holds a jumped sample back until the next one tells a spike from load
     /// (see [`drr`]). AC task.
     pub fn judging(&self) -> bool {

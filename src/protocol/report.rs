@@ -132,6 +132,9 @@ pub struct StatusData {
     pub spindle_rpm: u32,
     /// Free blocks in the block queue (the `Bf:` field's first value).
     pub blocks_free: u16,
+    /// The tool in the spindle (the last M6's `T`): the `T:` field; 0: none fitted since
+    /// power-up, no field.
+    pub tool: u8,
     /// The `AC:` field, when the adaptive control is enabled.
     pub ac: Option<AcReport>,
     /// The frame ISR's (fewest, most) CPU cycles for the `FC:` field, when the board measures
@@ -222,7 +225,8 @@ pub struct StatusContext {
     pub wco: bool,
 }
 
-/// `<State|MPos:x,y,z|Bf:b,r|FS:f,s|WCO:..|Ov:f,r,s|AC:..|FC:min,max>` and its line end.
+/// `<State|MPos:x,y,z|Bf:b,r|FS:f,s|WCO:..|Ov:f,r,s|T:n|AC:..|FC:min,max>` and its line end.
+/// `T:n`: the tool in the spindle, once an M6 has fitted one.
 /// `FC:min,max`: the frame ISR's fewest and most CPU cycles, only when measured.
 pub fn write_status(out: &mut dyn Write, d: &StatusData, cx: &StatusContext) -> fmt::Result {
     let inches = cx.options.inches;
@@ -260,6 +264,9 @@ pub fn write_status(out: &mut dyn Write, d: &StatusData, cx: &StatusContext) -> 
     }
     let o = cx.overrides;
     write!(out, "|Ov:{},{},{}", o.feed, o.rapid, o.spindle)?;
+    if d.tool != 0 {
+        write!(out, "|T:{}", d.tool)?;
+    }
     if let Some(ac) = d.ac {
         write!(out, "|AC:{},", ac.feed_share_pct)?;
         write_fixed(out, ac.f_ratio_milli as i64, 3)?;

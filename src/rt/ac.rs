@@ -61,7 +61,7 @@
 //! thus holds the force at its limit whatever the override (the override acts where the
 //! programmed feed binds, and in air); during a feed hold the achieved feed is 0 and the cap
 //! falls towards f_min, so a resume restarts the cut gently.
-use super::status::{AcWriter, SamplerWriter};
+use super::status::{AcWriter, FittedTool, SamplerWriter};
 use crate::ac::{achieved_feed, AcController, AcOutput, AcState};
 use crate::monitor::chatter::Spectrum;
 use crate::monitor::{Breakage, BreakageDetector, BreakageSettings};
@@ -119,6 +119,91 @@ pub struct Trip {
     /// The force level squared (N^2: no square root per sample) and the torque level (N*m).
     f_sq: f32,
     t_nm: f32,
+}
+
+/// The AC settings for a tool an M6 fitted: its permissible force, its permissible torque where
+/// below the drive's (`$255`: the spindle's torque limits too), its flutes where known (else
+/// `$267`), the rest the machine's. None when the tool has no limits (nobody gave them and its
+/// geometry does not tell, `crate::ac::strength::of_tool`): the AC does not limit it, and says
+/// so. The AC period, the sampler's trip and the loader's status report each take it from
+/// here. Any context but the ISRs.
+pub fn tool_settings(
+    base: &crate::ac::AcSettings,
+    tool: &FittedTool,
+) -> Option<Valid<crate::ac::AcSettings>> {
+    let l = tool.limits?;
+    crate::ac::AcSettings {
+        force_limit_n: l.force_n,
+        torque_limit_nm: l.torque_nm.min(base.torque_limit_nm),
+        flutes: tool.flutes_or(base.flutes),
+        ..*base
+    }
+    .validated()
+    .ok()
+}
+
+/// The AC settings for the tool in the spindle: the machine's before any M6 (`$254`, `$255`,
+/// `$267` describe the tool), else the fitted tool's ([`tool_settings`]; None: no limits).
+/// Rebuilt only when the tool changes (`Status::tool_changes`). The sampler's trip and the AC
+/// period keep one each.
+#[derive(Clone, Copy, Debug)]
+pub struct ToolFollower {
+    base: Valid<crate::ac::AcSettings>,
+    seen: u32,
+}
+
+impl ToolFollower {
+    /// Following the tool from the machine's settings `base` (no M6 seen yet).
+    pub fn new(base: Valid<crate::ac::AcSettings>) -> Self {
+        ToolFollower { base, seen: 0 }
+    }
+
+    /// The machine's settings.
+    pub fn base(&self) -> &Valid<crate::ac::AcSettings> {
+        &self.base
+    }
+
+    /// A tool fitted since the last call, with its settings (None: it has no limits); None
+    /// while the tool is the same (one word read, every sample).
+    #[inline]
+    pub fn changed(
+        &mut self,
+        status: &crate::rt::Status,
+    ) -> Option<(FittedTool, Option<Valid<crate::ac::AcSettings>>)> {
+        if status.tool_changes.get() == self.seen {
+            return None;
+        }
+        let (n, tool) = status.fitted_tool()?;
+        self.seen = n;
+        Some((tool, tool_settings(&self.base, &tool)))
+    }
+}
+
+/// The sampler's trip for the tool in the spindle: [`Trip`] of its settings, rebuilt when an M6
+/// fits another ([`ToolFollower`]); none for a tool without limits. Sampler task (with the AC
+/// applied).
+#[derive(Clone, Copy, Debug)]
+pub struct ToolTrip {
+    follower: ToolFollower,
+    trip: Option<Trip>,
+}
+
+impl ToolTrip {
+    pub fn new(base: Valid<crate::ac::AcSettings>) -> Self {
+        ToolTrip {
+            follower: ToolFollower::new(base),
+            trip: Some(Trip::new(&base)),
+        }
+    }
+
+    /// The trip of the tool in the spindle now.
+    #[inline]
+    pub fn follow(&mut self, status: &crate::rt::Status) -> Option<&Trip> {
+        if let Some((_, s)) = self.follower.changed(status) {
+            self.trip = s.map(|s| Trip::new(&s));
+        }
+        self.trip.as_ref()
+    }
 }
 
 impl Trip {
@@ -296,6 +381,11 @@ pub struct AcPeriod {
     breakage: Option<BreakageMonitor>,
     /// The overload hold's level per sample (the sampler's trip, see the module doc).
     trip: Trip,
+    /// The tool in the spindle: its limits, flutes ([`ToolFollower`]).
+    tool: ToolFollower,
+    /// The tool has limits: the AC applies its cap when `enabled` (a tool without runs measure
+    /// only, and the loader has said so).
+    limited: bool,
     /// The first sample above it since the last period in Run: its F and T.
     tripped: Option<(f32, f32)>,
 }
@@ -338,7 +428,10 @@ impl AcPeriod {
             publish(status, ctl.feed_cap(), ctl.settings());
         }
         let trip = Trip::new(ctl.settings());
+        let tool = ToolFollower::new(ctl.valid_settings());
         AcPeriod {
+            tool,
+            limited: true,
             ctl,
             nc,
             enabled,
@@ -387,6 +480,41 @@ impl AcPeriod {
         self
     }
 
+    /// The cap is applied: the AC is enabled and the tool in the spindle has limits.
+    fn applied(&self) -> bool {
+        self.enabled && self.limited
+    }
+
+    /// An M6 fitted another tool (`s`: its settings, None: it has no limits): the controller
+    /// starts afresh with its limits, as at a job start (plan ratio, the law's estimates, the
+    /// held peak: `AcController::new`), the trip takes its levels, the breakage monitor its
+    /// flutes (and starts learning anew). A tool without limits is measured against the
+    /// machine's settings and its cap is not applied: the frame runs the programmed feeds.
+    fn fit(&mut self, s: Option<Valid<crate::ac::AcSettings>>, status: &AcWriter) {
+        self.limited = s.is_some();
+        let s = s.unwrap_or(*self.tool.base());
+        self.ctl = AcController::new(s);
+        self.trip = Trip::new(&s);
+        self.tripped = None;
+        self.chatter = None;
+        if let Some(m) = self.breakage.as_mut() {
+            m.teeth =
+                u8::try_from(s.flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1);
+            m.detector.set_spindle(m.rpm as f32, m.teeth);
+            m.detector.reset();
+            m.pending = None;
+        }
+        // The new tool starts at the controller's first cap; a hold the sampler's trip has just
+        // made on the new tool's level stays (this sample is judged by the new trip too, and the
+        // period ends it as an overload). A tool without limits runs uncapped.
+        if self.enabled && !self.limited {
+            status.set_plan_ratio(crate::ports::PLAN_ONE);
+            status.set_feed_cap(u32::MAX);
+        } else if self.enabled && status.feed_cap.get() != 0 {
+            publish(status, self.ctl.feed_cap(), self.ctl.settings());
+        }
+    }
+
     /// The breakage monitor, if on.
     pub fn breakage(&self) -> Option<&BreakageMonitor> {
         self.breakage.as_ref()
@@ -423,9 +551,14 @@ impl AcPeriod {
         self.ctl.settings().samples_per_period()
     }
 
-    /// One conversion into the controller's window (and the breakage monitor's force). AC task
-    /// (from the sampler's queue) or host.
-    pub fn sample(&mut self, codes: Codes) {
+    /// One conversion into the controller's window (and the breakage monitor's force); a tool
+    /// an M6 fitted since the last sample takes over first ([`AcPeriod::fit`]: this sample is
+    /// the new tool's, as the sampler's trip already judged it). AC task (from the sampler's
+    /// queue) or host.
+    pub fn sample(&mut self, codes: Codes, status: &AcWriter) {
+        if let Some((_, s)) = self.tool.changed(status) {
+            self.fit(s, status);
+        }
         self.ctl.sample(codes);
         // The sampler's trip on this sample (see the module doc), judged before the breakage
         // monitor takes the sample in: the tooth periods before it say what made the crossing.
@@ -490,12 +623,12 @@ impl AcPeriod {
         // sample, or the crossing fell before a resume's first window): an overload all the same,
         // at the sample's F and T. The sampler's hold is never lifted by the period's cap.
         if let Some((f_n, t_nm)) = self.tripped.take() {
-            if out.state == AcState::Run && self.enabled && self.ctl.judging() {
+            if out.state == AcState::Run && self.applied() && self.ctl.judging() {
                 // The DRR waits for the next sample to tell a spike from load (a channel at its
                 // rail): the alarm is the next period's, and the sampler's hold stays meanwhile.
                 self.tripped = Some((f_n, t_nm));
                 out.feed_cap = 0;
-            } else if out.state == AcState::Run && self.enabled {
+            } else if out.state == AcState::Run && self.applied() {
                 let s = self.ctl.settings();
                 let a = crate::ac::Alarm::Overload {
                     f_n,
@@ -517,7 +650,7 @@ impl AcPeriod {
             let a = crate::ac::Alarm::ToolBreakage(b);
             self.ctl.hold_over(a);
             held(&mut out, a, &self.ctl);
-            if self.enabled {
+            if self.applied() {
                 status.ask_spindle_stop();
             }
         }
@@ -537,7 +670,7 @@ impl AcPeriod {
             AcState::Hold(a) => crate::protocol::codes::ac_alarm(&a),
         });
         status.set_measured(out.f_n, out.t_nm);
-        if self.enabled {
+        if self.applied() {
             publish(status, out.feed_cap, self.ctl.settings());
         }
         let held = matches!(out.state, AcState::Hold(_));
@@ -551,7 +684,7 @@ impl AcPeriod {
             out,
             encoder: enc,
             // Only a hold that is applied stops the machine (measure-only runs keep going).
-            halt: self.enabled && held && self.still >= HOLD_EXIT_PERIODS,
+            halt: self.applied() && held && self.still >= HOLD_EXIT_PERIODS,
         }
     }
 }
@@ -607,7 +740,7 @@ mod tests {
                 assert_eq!(codes.is_some(), i < 2 * per, "sample {i}");
                 assert_eq!(due, (k + 1 == per).then_some(i + 1), "sample {i}");
                 if let Some(c) = codes {
-                    period.sample(c);
+                    period.sample(c, &w.ac);
                 }
             }
             let out = period.run(&w.ac);
@@ -653,10 +786,10 @@ mod tests {
     }
 
     /// One period's window of mid-scale codes (as the `Adc` above converts).
-    fn mid_scale_window(period: &mut AcPeriod) {
+    fn mid_scale_window(period: &mut AcPeriod, status: &AcWriter) {
         for k in 0..period.per_period() {
             let d = [0, 3, 0, 5][k as usize % 4];
-            period.sample([2048 + d, 2048 - d, 2048 + d]);
+            period.sample([2048 + d, 2048 - d, 2048 + d], status);
         }
     }
 
@@ -672,7 +805,7 @@ mod tests {
         let period_ms = period.ctl.settings().period_ms as u64;
         let mut x = 0u64;
         for _ in 0..periods {
-            mid_scale_window(&mut period);
+            mid_scale_window(&mut period, &w.ac);
             let cap = status.feed_cap.get() as u64;
             // BLU per period at feed number cap * factor: W0 f / q0 per second.
             x += cap * factor_q8 as u64 / 256 * nc.frame_hz as u64 * period_ms
@@ -719,10 +852,10 @@ mod tests {
         );
         assert_eq!(status.feed_cap.get(), 0);
         // Still held with samples again, until the operator resumes.
-        mid_scale_window(&mut period);
+        mid_scale_window(&mut period, &w.ac);
         assert!(matches!(period.run(&w.ac).out.state, AcState::Hold(_)));
         w.loader.ask_resume();
-        mid_scale_window(&mut period);
+        mid_scale_window(&mut period, &w.ac);
         let out = period.run(&w.ac);
         assert_eq!(out.out.state, AcState::Run);
         assert!(!status.ac_resume.pending(), "the request is taken");
@@ -783,7 +916,7 @@ mod tests {
                 if let Sampled::Codes { codes: Some(c), .. } =
                     sample(&mut adc, &w.sampler, per, Some(&trip))
                 {
-                    period.sample(c);
+                    period.sample(c, &w.ac);
                 }
                 let now = status.feed_cap.get();
                 if i >= 3 && trips {
@@ -802,6 +935,66 @@ mod tests {
             } else {
                 assert_eq!(out.alarm, None);
             }
+        }
+    }
+
+    /// An M6 brings the fitted tool's limits to the sampler's trip and to the AC period: a 400 N
+    /// cut runs under the machine's tool (4000 N), and holds at once with the 3 mm end mill
+    /// fitted (226 N: the trip at the first sample, the period's overload naming its limit);
+    /// a tool without limits releases the cap and is measured only (its holds stop nothing).
+    #[test]
+    fn an_m6_brings_the_tools_limits_to_the_trip_and_the_period() {
+        use crate::ac::strength::{derived, Strength};
+        use crate::gcode::tools::ToolKind;
+        use crate::rt::status::FittedTool;
+        let s = AcSettings::default().validated().unwrap();
+        let status = Status::new();
+        let w = status.split();
+        let mut period = AcPeriod::new(AcController::new(s), Settings::default(), true, &w.ac);
+        let mut trip = ToolTrip::new(s);
+        let per = period.per_period();
+        let mut adc = Step { at: 0, f_n: 400.0 };
+        let mut run = |period: &mut AcPeriod, trip: &mut ToolTrip| {
+            let mut held_at = None;
+            for i in 0..per {
+                let t = trip.follow(&status);
+                if let Sampled::Codes { codes: Some(c), .. } = sample(&mut adc, &w.sampler, per, t)
+                {
+                    period.sample(c, &w.ac);
+                }
+                if status.feed_cap.get() == 0 {
+                    held_at.get_or_insert(i);
+                }
+            }
+            (held_at, period.run(&w.ac))
+        };
+        let (held, p) = run(&mut period, &mut trip);
+        assert_eq!((held, p.out.alarm), (None, None), "the machine's tool");
+        let small = derived(ToolKind::Flat, 3.0, &Strength::HSS).unwrap();
+        w.loader.set_tool(&FittedTool {
+            number: 2,
+            flutes: 2,
+            limits: Some(small),
+        });
+        let (held, p) = run(&mut period, &mut trip);
+        assert_eq!(held, Some(0), "the trip at the first sample");
+        match p.out.alarm {
+            Some(Alarm::Overload { force_limit_n, .. }) => {
+                assert_eq!(force_limit_n, small.force_n)
+            }
+            a => panic!("{a:?}"),
+        }
+        assert_eq!(period.ctl.settings().flutes, 2);
+        w.loader.set_tool(&FittedTool {
+            number: 3,
+            flutes: 0,
+            limits: None,
+        });
+        for _ in 0..2 * HOLD_EXIT_PERIODS {
+            let (held, p) = run(&mut period, &mut trip);
+            assert_eq!(held, None, "no trip without limits");
+            assert!(!p.halt);
+            assert_eq!(status.feed_cap.get(), u32::MAX, "the cap is released");
         }
     }
 
@@ -855,7 +1048,7 @@ mod tests {
                 if let Sampled::Codes { codes: Some(c), .. } =
                     sample(&mut adc, &w.sampler, per, Some(&trip))
                 {
-                    period.sample(c);
+                    period.sample(c, &w.ac);
                 }
             }
             let out = period.run(&w.ac).out;
@@ -903,7 +1096,7 @@ mod tests {
         assert_eq!(status.plan_ratio.get(), k);
         // The resume publishes the ratio with the cap again.
         w.loader.ask_resume();
-        mid_scale_window(&mut period);
+        mid_scale_window(&mut period, &w.ac);
         assert_eq!(period.run(&w.ac).out.state, AcState::Run);
         assert_eq!(status.feed_cap.get(), s.f_max);
         assert_eq!(status.plan_ratio.get(), k);
@@ -929,7 +1122,7 @@ mod tests {
         // The job ends; the next period (still the same cut) starts from PLAN_START again.
         w.loader.ask_new_job();
         for _ in 0..10 {
-            period.sample([2048; 3]);
+            period.sample([2048; 3], &w.ac);
         }
         period.run(&w.ac);
         assert_eq!(status.plan_ratio.get(), start);
@@ -953,11 +1146,14 @@ mod tests {
             let f = loads[(i / 25 % 4) as usize];
             let d = [0.0, 2.0, 0.0, -2.0][(i % 4) as usize];
             let t = f * s.tool_radius_mm * 1e-3;
-            period.sample([
-                code(t, s.cal[0].gain, d),
-                code(f, s.cal[1].gain, d),
-                code(0.0, s.cal[2].gain, -d),
-            ]);
+            period.sample(
+                [
+                    code(t, s.cal[0].gain, d),
+                    code(f, s.cal[1].gain, d),
+                    code(0.0, s.cal[2].gain, -d),
+                ],
+                status,
+            );
             if i % 10 == 9 {
                 let out = period.run(status);
                 *from_period += 1;

@@ -56,8 +56,9 @@ pub struct Sampler<D: ForceTorqueAdc> {
     /// The chatter monitor's sound queue (None: no chatter monitor).
     sound: Option<Producer<'static, Sound, SOUND_QUEUE>>,
     per_period: u32,
-    /// The overload trip when the AC is applied (`crate::rt::ac::Trip`; None: measure only).
-    trip: Option<crate::rt::ac::Trip>,
+    /// The overload trip when the AC is applied, for the tool in the spindle
+    /// (`crate::rt::ac::ToolTrip`; None: measure only).
+    trip: Option<crate::rt::ac::ToolTrip>,
 }
 
 /// What the app does after a sample: spawn the AC period when `due` (its deadline base, the
@@ -89,7 +90,7 @@ impl<D: ForceTorqueAdc> Sampler<D> {
 
     /// Holds the feed from the sampler on the first sample above the overload hold's level (the
     /// AC applied: its feed cap is the frame's). Init context.
-    pub fn with_trip(mut self, trip: crate::rt::ac::Trip) -> Self {
+    pub fn with_trip(mut self, trip: crate::rt::ac::ToolTrip) -> Self {
         self.trip = Some(trip);
         self
     }
@@ -110,12 +111,9 @@ impl<D: ForceTorqueAdc> Sampler<D> {
     /// monitor's (a full queue counts `samples_dropped`, or `sound_dropped`; a missed conversion
     /// queues no codes, so the period sees no fresh sample for it). Sampler task.
     pub fn sample(&mut self) -> SampleTick {
-        match body::sample(
-            &mut self.adc,
-            &self.status,
-            self.per_period,
-            self.trip.as_ref(),
-        ) {
+        let status: &Status = &self.status;
+        let trip = self.trip.as_mut().and_then(|t| t.follow(status));
+        match body::sample(&mut self.adc, &self.status, self.per_period, trip) {
             body::Sampled::Lost { due } => SampleTick { due, lost: true },
             body::Sampled::Codes { codes, due, sound } => {
                 if let Some(c) = codes {
@@ -197,7 +195,7 @@ pub fn start<D: ForceTorqueAdc, W: LogSink>(
     let task = AcTask::new(status, period, rx, alarms, log);
     let mut sampler = Sampler::new(sampler_status, adc, tx, task.per_period());
     if enabled {
-        sampler = sampler.with_trip(body::Trip::new(ac));
+        sampler = sampler.with_trip(body::ToolTrip::new(*ac));
     }
     (sampler, task)
 }
@@ -262,7 +260,7 @@ impl<W: LogSink> AcTask<W> {
     /// One AC period with deadline base `due` (the sample count when it was spawned). AC task.
     pub fn run(&mut self, due: u32) -> Period {
         while let Some(codes) = self.samples.dequeue() {
-            self.period.sample(codes);
+            self.period.sample(codes, &self.status);
         }
         if let Some(v) = self.verdicts.as_mut() {
             while let Some(s) = v.dequeue() {

@@ -8,6 +8,7 @@ use core::fmt;
 
 use heapless::spsc::Producer;
 
+use crate::ac::strength::{Limits, Source};
 use crate::ac::Alarm;
 use crate::gcode::tape::TapeError;
 use crate::gcode::Stop;
@@ -92,6 +93,44 @@ pub enum News<'a> {
     ProbeFailed(u8),
     /// The probe touched outside a probing move: the feed is held (`ALARM:13`).
     ProbeProtection,
+    /// An M6 fitted `tool`: its limits and where they come from (None: it has none, the AC
+    /// measures only), and the torque the AC holds it to (the tool's or the drive's `$255`,
+    /// whichever is lower).
+    ToolFitted {
+        tool: u8,
+        limits: Option<(Limits, Source)>,
+        torque_nm: f32,
+    },
+}
+
+/// The words of [`News::ToolFitted`], one text for every console: `T2: F max 226 N, T max 1.57
+/// N*m (its geometry)`, or why the AC measures only.
+pub struct ToolLimits {
+    pub tool: u8,
+    pub limits: Option<(Limits, Source)>,
+    pub torque_nm: f32,
+}
+
+impl core::fmt::Display for ToolLimits {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let t = self.tool;
+        match self.limits {
+            Some((l, source)) => write!(
+                f,
+                "T{t}: F max {:.0} N, T max {:.2} N*m ({})",
+                l.force_n,
+                self.torque_nm,
+                match source {
+                    Source::Table => "its table entry",
+                    Source::Geometry => "its geometry",
+                }
+            ),
+            None => write!(
+                f,
+                "T{t} has no limits (give it a diameter or $T{t} F.. M..): the AC measures only"
+            ),
+        }
+    }
 }
 
 /// What the loader needs of its line source and its voice. Loader task.
@@ -306,6 +345,18 @@ impl<const T: usize> Console for Serial<'_, T> {
             } => {
                 let _ = crate::protocol::report::write_probe(&mut self.out, at, ok, unit, inches);
             }
+            News::ToolFitted {
+                tool,
+                limits,
+                torque_nm,
+            } => self.message(format_args!(
+                "{}",
+                ToolLimits {
+                    tool,
+                    limits,
+                    torque_nm
+                }
+            )),
         }
     }
 

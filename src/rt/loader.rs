@@ -38,6 +38,7 @@
 //! realtime requests only (`Console::poll` without room: `Protocol::poll_realtime`), so `?`, `!`, `~` and a reset are served at
 //! once whatever the queue holds, and a hold with a full queue cannot stall it.
 
+use crate::ac::strength::{self, Strength};
 use crate::ac::AcSettings;
 use crate::ac::{Alarm, FeedCeiling};
 use crate::gcode::tape::{finish_block, Tape, TapeError};
@@ -52,7 +53,7 @@ use crate::rt::ac::AC_RUN;
 use crate::rt::console::{trip_alarm, Console, News, Refused};
 use crate::rt::homing::{self, Step as HomingStep};
 use crate::rt::replan::{self, Replan};
-use crate::rt::status::LoaderWriter;
+use crate::rt::status::{FittedTool, LoaderWriter};
 use crate::rt::toolchange::{self, Ended as ChangeEnded, Step as ChangeStep};
 use crate::settings::Settings;
 use heapless::spsc::{Consumer, Producer};
@@ -260,8 +261,13 @@ pub struct Loader<
     /// (and `$$` lists) at once takes effect for the NC settings at the next start.
     settings: Settings,
     cfg: FrameConfig,
-    /// The AC's limits F0, T0 for the `AC:` field, as the AC task started with them.
+    /// The AC's limits F0, T0 for the `AC:` field: the tool's in the spindle
+    /// (`rt::ac::tool_settings`), before any M6 those the AC task started with (`ac_base`).
     ac_settings: AcSettings,
+    ac_base: AcSettings,
+    /// The tool in the spindle has limits (none fitted since power-up: the settings' tool has):
+    /// without, the AC measures only.
+    tool_limited: bool,
     /// The AC caps the feed (the boards give the ceiling only then): the status report's `AC:`
     /// field is about that, so a measure-only AC has none.
     ac_enabled: bool,
@@ -424,6 +430,8 @@ where
             blocks,
             replan,
             ac_settings: table.settings.ac,
+            ac_base: table.settings.ac,
+            tool_limited: true,
             table,
             console,
             ac_alarms,
@@ -579,7 +587,7 @@ where
             return;
         }
         // A measure-only AC's verdict holds nothing (its state is only logged).
-        let ac_held = self.ac_enabled && status.ac_state.get() > AC_RUN;
+        let ac_held = self.ac_applied() && status.ac_state.get() > AC_RUN;
         let state = if self.homing.is_some() {
             State::Home
         } else if self.hold || ac_held {
@@ -774,7 +782,7 @@ where
     /// reaction set is answered (by the re-planner), not an alarm, unless the reaction is
     /// refused.
     fn ac_alarm(&mut self, a: Alarm) {
-        if !self.ac_enabled {
+        if !self.ac_applied() {
             // A measure-only AC holds nothing: what it would have held for is told, and the
             // machine goes on unlocked (an alarm would refuse the sender's next line). The AC's
             // controller entered its hold with the verdict: with an operator it resumes at once,
@@ -846,9 +854,12 @@ where
         let result = self.queue_line(d.no, &d.line);
         let ok = result.is_ok();
         if let Some(Stop::ToolChange { tool }) = sync.stop.filter(|_| ok) {
-            // Whatever the mode, the next cut is a new tool's: the AC starts it afresh.
+            // Whatever the mode, the next cut is a new tool's: the AC takes its limits and
+            // starts it afresh.
+            self.fit_tool(tool);
             self.status.ask_new_job();
             if self.table.settings.setup.tool_change != 0 {
+                self.say_tool(tool);
                 // The M6's `ok` comes when the change is done.
                 return self.change_start(tool, d.no);
             }
@@ -879,6 +890,9 @@ where
                 self.publish();
             }
             self.console.say(News::Stop { stop, line: d.no });
+            if let Stop::ToolChange { tool } = stop {
+                self.say_tool(tool);
+            }
         }
     }
 
@@ -1246,6 +1260,38 @@ where
         Ok(())
     }
 
+    /// The AC caps the feed: enabled, and the tool in the spindle has limits.
+    fn ac_applied(&self) -> bool {
+        self.ac_enabled && self.tool_limited
+    }
+
+    /// The limits of tool `tool` in the table as it stands: its own, or from its geometry
+    /// (`crate::ac::strength::of_tool`).
+    fn limits_of(&self, tool: u8) -> Option<(strength::Limits, strength::Source)> {
+        let entry = self.tape.parser().tools().get(u32::from(tool))?;
+        strength::of_tool(entry, &Strength::HSS)
+    }
+
+    /// An M6 fits `tool`: its limits, flutes and number go to the AC task, the sampler and the
+    /// status report through the status words.
+    fn fit_tool(&mut self, tool: u8) {
+        let fitted = FittedTool::of(tool, self.tape.parser().tools().get(u32::from(tool)));
+        self.status.set_tool(&fitted);
+        let s = crate::rt::ac::tool_settings(&self.ac_base, &fitted);
+        self.tool_limited = s.is_some();
+        self.ac_settings = s.map_or(self.ac_base, |s| s.get());
+    }
+
+    /// Says the limits the AC holds the fitted `tool` to, or that it has none.
+    fn say_tool(&mut self, tool: u8) {
+        let limits = self.limits_of(tool).filter(|_| self.tool_limited);
+        self.console.say(News::ToolFitted {
+            tool,
+            limits,
+            torque_nm: self.ac_settings.torque_limit_nm,
+        });
+    }
+
     /// An M6 with `$341` = 1 or 2 has been parsed (the machine stands): the spindle stops and
     /// the change's first step runs ([`toolchange`]).
     fn change_start(&mut self, tool: u8, line: u32) {
@@ -1464,7 +1510,7 @@ where
         let options = self.table.report_options();
         let v = status.velocity_q8.get();
         let ac = match status.ac_state.get() {
-            _ if !self.ac_enabled => None,
+            _ if !self.ac_applied() => None,
             0 => None,
             n => {
                 let (f, t) = status.ac_measured();
@@ -1497,6 +1543,7 @@ where
             },
             spindle_rpm: self.tape.parser().spindle_rpm(),
             blocks_free: (Q - 1 - self.blocks.len()) as u16,
+            tool: status.fitted_tool().map_or(0, |t| t.1.number),
             ac,
             wco_pm: self.tape.parser().work_origin_pm(),
             frame_cycles: status.frame_cycles(),

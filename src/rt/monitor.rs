@@ -6,6 +6,7 @@
 //! every AC period; it hands each record's verdict to the AC task, which holds the feed at its
 //! next period ([`crate::rt::ac::AcPeriod::heard`]). Host: the simulation calls it per sample.
 
+use super::ac::ToolFollower;
 use super::status::Status;
 use crate::ac::AcSettings;
 use crate::monitor::chatter::{ChatterDetector, Spectrum};
@@ -24,6 +25,8 @@ pub struct ChatterTask {
     pub last: Option<Spectrum>,
     /// `Status::resumes` and `Status::sound_dropped` as last seen: a change restarts the record.
     seen: (u32, u32),
+    /// The tool in the spindle: an M6 brings its flutes (the tooth harmonics to leave out).
+    tool: ToolFollower,
 }
 
 impl ChatterTask {
@@ -38,6 +41,7 @@ impl ChatterTask {
             flutes: s.flutes,
             last: None,
             seen: (0, 0),
+            tool: ToolFollower::new(*s),
         })
     }
 
@@ -49,6 +53,10 @@ impl ChatterTask {
         let rpm = status.spindle_rpm.get();
         if rpm != 0 {
             self.rpm = rpm;
+        }
+        if let Some((tool, _)) = self.tool.changed(status) {
+            self.flutes = tool.flutes_or(self.tool.base().flutes);
+            self.detector.restart();
         }
         let seen = (status.resumes.get(), status.sound_dropped.get());
         if seen != self.seen {

@@ -209,6 +209,21 @@ impl<F: ProgramFile> Console for Program<F> {
                 Said::Alarm,
                 format_args!("probe contact outside a probing move: held"),
             ),
+            News::ToolFitted {
+                tool,
+                limits,
+                torque_nm,
+            } => f.result(
+                Said::Stop,
+                format_args!(
+                    "{}",
+                    crate::rt::console::ToolLimits {
+                        tool,
+                        limits,
+                        torque_nm
+                    }
+                ),
+            ),
             // The AC task writes its own holds (`alarm: ...`) as they come; no operator, no
             // trips, no serial line, no `$H`.
             News::AcHold { .. }

@@ -22,7 +22,10 @@
 //! assert_eq!(status.feed_cap.get(), 0);
 //! ```
 use core::ops::Deref;
-use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicU8, Ordering::Relaxed};
+use core::sync::atomic::{
+    compiler_fence, AtomicBool, AtomicI32, AtomicU32, AtomicU8,
+    Ordering::{Relaxed, SeqCst},
+};
 
 macro_rules! word {
     ($(#[$m:meta])* $name:ident, $t:ty, $atomic:ty) => {
@@ -199,8 +202,58 @@ pub struct Status {
     /// monitor restarts its record when it changes (a record with a gap is not judged). Written
     /// by the sampler.
     pub sound_dropped: U32,
+    /// The tool in the spindle (`T` of the last M6; 0: none fitted since power-up, the AC
+    /// settings' tool), its flutes (0: not known) and its permissible force and torque (N, N*m,
+    /// `f32` bits; 0: no limits), for the AC period, the sampler's trip and the status report
+    /// ([`Status::fitted_tool`]). Written by the loader at each M6, between two counts of
+    /// `tool_changes`.
+    tool: U8,
+    tool_flutes: U8,
+    tool_force: U32,
+    tool_torque: U32,
+    /// Twice the M6s since power-up, odd while the loader writes the tool's words (a sequence
+    /// lock: the words are one record, not each meaningful on its own): a reader follows the
+    /// tool when the count changes and takes the words read between two equal even counts
+    /// ([`Status::fitted_tool`]).
+    pub tool_changes: U32,
     /// The writers have been handed out ([`Status::split`]).
     split: AtomicBool,
+}
+
+/// The tool an M6 fitted, as the status words carry it ([`Status::fitted_tool`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FittedTool {
+    /// Its number (`T`).
+    pub number: u8,
+    /// Its cutting edges (0: not known).
+    pub flutes: u8,
+    /// Its permissible cutting force and torque (`crate::ac::strength`); None: nobody said and
+    /// its geometry does not tell (the AC does not limit it).
+    pub limits: Option<crate::ac::strength::Limits>,
+}
+
+impl FittedTool {
+    /// Tool `number` as its table entry describes it (None: no entry, T0): its flutes, and its
+    /// limits, the table's own or from its geometry (`crate::ac::strength::of_tool`, high-speed
+    /// steel). The loader at an M6, and the host's runs at a program's M6.
+    pub fn of(number: u8, entry: Option<&crate::gcode::tools::Tool>) -> FittedTool {
+        use crate::ac::strength::{of_tool, Strength};
+        FittedTool {
+            number,
+            flutes: entry.map_or(0, |t| t.flutes),
+            limits: entry
+                .and_then(|t| of_tool(t, &Strength::HSS))
+                .map(|l| l.0),
+        }
+    }
+
+    /// Its flutes, or the machine's (`$267`) where the table does not know them.
+    pub fn flutes_or(&self, machine: u32) -> u32 {
+        match self.flutes {
+            0 => machine,
+            n => u32::from(n),
+        }
+    }
 }
 
 impl Default for Status {
@@ -239,6 +292,11 @@ impl Status {
             chatter_hz: U32::new(0),
             resumes: U32::new(0),
             sound_dropped: U32::new(0),
+            tool: U8::new(0),
+            tool_flutes: U8::new(0),
+            tool_force: U32::new(0),
+            tool_torque: U32::new(0),
+            tool_changes: U32::new(0),
             split: AtomicBool::new(false),
         }
     }
@@ -291,6 +349,29 @@ impl Status {
         let min = self.frame_cycles_min.get();
         let max = self.frame_cycles_max.get();
         (min != 0 && max != 0).then_some((min, max))
+    }
+
+    /// The tool the last M6 fitted and the count it was read at (`tool_changes`); None before
+    /// any M6 (the AC settings describe the tool) and while the loader writes it (its context
+    /// is the lowest: a reader preempted it; read again at the next period).
+    pub fn fitted_tool(&self) -> Option<(u32, FittedTool)> {
+        let n = self.tool_changes.get();
+        // One core: the compiler must not move the words' loads across the counts'.
+        compiler_fence(SeqCst);
+        let (f, t) = (
+            f32::from_bits(self.tool_force.get()),
+            f32::from_bits(self.tool_torque.get()),
+        );
+        let tool = FittedTool {
+            number: self.tool.get(),
+            flutes: self.tool_flutes.get(),
+            limits: (f > 0.0 && t > 0.0).then_some(crate::ac::strength::Limits {
+                force_n: f,
+                torque_nm: t,
+            }),
+        };
+        compiler_fence(SeqCst);
+        (n != 0 && n % 2 == 0 && self.tool_changes.get() == n).then_some((n, tool))
     }
 
     /// The encoder counts X, Y, Z.
@@ -554,6 +635,19 @@ impl LoaderWriter<'_> {
     }
     pub fn set_spindle_rpm(&self, rpm: u32) {
         self.0.spindle_rpm.set(rpm)
+    }
+    /// An M6 has fitted `tool`: its words, then the count (readers follow the count).
+    pub fn set_tool(&self, tool: &FittedTool) {
+        let s = self.0;
+        s.tool_changes.bump();
+        compiler_fence(SeqCst);
+        s.tool.set(tool.number);
+        s.tool_flutes.set(tool.flutes);
+        let (f, t) = tool.limits.map_or((0.0, 0.0), |l| (l.force_n, l.torque_nm));
+        s.tool_force.set(f32::to_bits(f));
+        s.tool_torque.set(f32::to_bits(t));
+        compiler_fence(SeqCst);
+        s.tool_changes.bump();
     }
     /// Asks the AC to leave its hold at its next period.
     pub fn ask_resume(&self) {

@@ -926,10 +926,90 @@ G1 X0.01
         results,
         [
             "stop: tool change (M6) at line 2: T3",
+            "stop: T3 has no limits (give it a diameter or $T3 F.. M..): the AC measures only",
             "stop: pause (M0) at line 4"
         ]
     );
     assert_eq!(b.status.encoder(), [300, 0, 0]);
+}
+
+/// An M6 tells the AC task, the sampler and the status report the fitted tool through the status
+/// words (`Status::fitted_tool`): its number, flutes and limits (the table's own, else from its
+/// geometry: `ac::strength::of_tool`), and says them; a tool with neither is said to have none
+/// (the AC measures only) and the status report's `AC:` field goes (nothing caps the feed).
+#[test]
+fn an_m6_publishes_the_tools_limits_and_says_them() {
+    use crate::ac::strength::{derived, Limits, Strength};
+    use crate::gcode::tools::ToolKind;
+    AC_TASK.with(|c| c.set(Some(Some(crate::ac::FeedCeiling::Programmed))));
+    let b = session(
+        &[
+            (1, "$T2=D3 N2 K0\n$T4=D12.7 N4 K0 F900 M12\nT2 M6\n"),
+            (300, "~"),
+            (400, "?"),
+            (500, "T4 M6\n"),
+            (700, "~"),
+            (800, "T5 M6\n"),
+            (1000, "~"),
+            (1100, "?"),
+        ],
+        &[],
+        None,
+        1200,
+    );
+    AC_TASK.with(|c| c.set(None));
+    let out = &b.out;
+    assert!(!out.contains("error"), "{out}");
+    let small = derived(ToolKind::Flat, 3.0, &Strength::HSS).unwrap();
+    assert!(
+        out.contains(&std::format!(
+            "[MSG:T2: F max {:.0} N, T max {:.2} N*m (its geometry)]",
+            small.force_n,
+            small.torque_nm
+        )),
+        "{out}"
+    );
+    assert!(
+        out.contains("[MSG:T4: F max 900 N, T max 12.00 N*m (its table entry)]"),
+        "{out}"
+    );
+    assert!(
+        out.contains(
+            "[MSG:T5 has no limits (give it a diameter or $T5 F.. M..): the AC measures only]"
+        ),
+        "{out}"
+    );
+    let reports: Vec<&str> = out.split('<').skip(1).collect();
+    assert!(reports[0].contains("|T:2|AC:"), "{out}");
+    assert!(
+        reports[1].contains("|T:5|") && !reports[1].contains("|AC:"),
+        "T5 is not capped: {out}"
+    );
+    let (n, t) = b.status.fitted_tool().unwrap();
+    assert_eq!(n, 6, "three M6s, each counted twice");
+    assert_eq!((t.number, t.flutes, t.limits), (5, 0, None));
+    // The words as the AC task reads them, for T2 and T4.
+    let status = Status::new();
+    let w = status.split();
+    for (tool, flutes, limits) in [
+        (2, 2, small),
+        (
+            4,
+            4,
+            Limits {
+                force_n: 900.0,
+                torque_nm: 12.0,
+            },
+        ),
+    ] {
+        let fitted = super::status::FittedTool {
+            number: tool,
+            flutes,
+            limits: Some(limits),
+        };
+        w.loader.set_tool(&fitted);
+        assert_eq!(status.fitted_tool().map(|f| f.1), Some(fitted));
+    }
 }
 
 /// A peck cycle of many more blocks than the queue holds streams through it: the line's `ok`

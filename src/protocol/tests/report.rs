@@ -15,6 +15,7 @@ fn data() -> StatusData {
         feed_blu_per_min: 0,
         spindle_rpm: 0,
         blocks_free: 15,
+        tool: 0,
         ac: None,
         frame_cycles: None,
         wco_pm: [0; 3],
@@ -231,6 +232,11 @@ fn the_frame_cycles_field_appears_only_when_measured() {
         ..d
     };
     assert!(status(&mut r, &d).ends_with("|AC:100,0.500,0.250,run|FC:96,1234>\r\n"));
+    // The tool in the spindle, once fitted, before the AC field.
+    let d = StatusData { tool: 12, ..d };
+    assert!(
+        status(&mut r, &d).ends_with("|Ov:100,100,100|T:12|AC:100,0.500,0.250,run|FC:96,1234>\r\n")
+    );
 }
 
 #[test]
