@@ -167,7 +167,8 @@ impl Response {
 }
 
 /// Header row of `ac.log` (with its newline).
-pub const AC_LOG_HEADER: &str = "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns\n";
+pub const AC_LOG_HEADER: &str =
+    "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns,tool\n";
 
 /// The state of one AC period in the log.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -179,7 +180,8 @@ pub enum LogState<'a> {
 
 /// One line of `ac.log`: `t_ms` the period's deadline (sample count * 1000 / sample_hz), the
 /// encoder counts in BLU at the end of the period's work, the controller's feed number, E, F (N)
-/// and T (N*m) as Rust's shortest round-trip f32 text, the state, the running overrun count.
+/// and T (N*m) as Rust's shortest round-trip f32 text, the state, the running overrun count, the
+/// tool in the spindle (the last M6's T; 0: none fitted).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AcLogLine<'a> {
     pub t_ms: u64,
@@ -190,6 +192,7 @@ pub struct AcLogLine<'a> {
     pub t_nm: f32,
     pub state: LogState<'a>,
     pub overruns: u32,
+    pub tool: u8,
 }
 
 impl AcLogLine<'_> {
@@ -205,7 +208,7 @@ impl AcLogLine<'_> {
             LogState::Run => w.write_str("run")?,
             LogState::Hold(m) => write!(w, "hold:{m}")?,
         }
-        writeln!(w, ",{}", self.overruns)
+        writeln!(w, ",{},{}", self.overruns, self.tool)
     }
 }
 
@@ -229,6 +232,7 @@ impl<'a> AcLogLine<'a> {
             s => LogState::Hold(s.strip_prefix("hold:")?),
         };
         let overruns = next()?.parse().ok()?;
+        let tool = next()?.parse().ok()?;
         if next().is_some() {
             return None;
         }
@@ -241,6 +245,7 @@ impl<'a> AcLogLine<'a> {
             t_nm,
             state,
             overruns,
+            tool,
         })
     }
 }
@@ -375,12 +380,12 @@ mod tests {
         fn log_lines_round_trip(
             t_ms: u64, pos: [i32; 3], feed_cap: u32,
             e in -1e6f32..1e6, f_n in 0f32..1e6, t_nm in -1e4f32..1e4,
-            hold: bool, overruns: u32,
+            hold: bool, overruns: u32, tool: u8,
         ) {
             let l = AcLogLine {
                 t_ms, pos_blu: pos, feed_cap, e, f_n, t_nm,
                 state: if hold { LogState::Hold("overload: cutting force above the limit") } else { LogState::Run },
-                overruns,
+                overruns, tool,
             };
             let mut s = String::new();
             l.emit(&mut s).unwrap();
@@ -418,7 +423,7 @@ mod tests {
         assert_eq!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,ran,0"), None);
         assert_eq!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0,7"), None);
         assert!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0").is_some());
-        assert_eq!(AC_LOG_HEADER.trim_end().split(',').count(), 10);
+        assert_eq!(AC_LOG_HEADER.trim_end().split(',').count(), 11);
     }
 
     proptest! {

@@ -492,6 +492,7 @@ fn the_plots_rows_are_bounded_and_keep_the_highest_load() {
         state: "run".into(),
         feed_cap: 0,
         estimates: None,
+        tool: 0,
     };
     // Short: every row, as it came.
     let mut short = acsim::PlotRows::new(100);

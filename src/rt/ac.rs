@@ -150,17 +150,28 @@ pub fn tool_settings(
 pub struct ToolFollower {
     base: Valid<crate::ac::AcSettings>,
     seen: u32,
+    /// The tool's number (0: none fitted).
+    number: u8,
 }
 
 impl ToolFollower {
     /// Following the tool from the machine's settings `base` (no M6 seen yet).
     pub fn new(base: Valid<crate::ac::AcSettings>) -> Self {
-        ToolFollower { base, seen: 0 }
+        ToolFollower {
+            base,
+            seen: 0,
+            number: 0,
+        }
     }
 
     /// The machine's settings.
     pub fn base(&self) -> &Valid<crate::ac::AcSettings> {
         &self.base
+    }
+
+    /// The number of the tool followed (0: none fitted).
+    pub fn number(&self) -> u8 {
+        self.number
     }
 
     /// A tool fitted since the last call, with its settings (None: it has no limits); None
@@ -175,6 +186,7 @@ impl ToolFollower {
         }
         let (n, tool) = status.fitted_tool()?;
         self.seen = n;
+        self.number = tool.number;
         Some((tool, tool_settings(&self.base, &tool)))
     }
 }
@@ -513,6 +525,11 @@ impl AcPeriod {
         } else if self.enabled && status.feed_cap.get() != 0 {
             publish(status, self.ctl.feed_cap(), self.ctl.settings());
         }
+    }
+
+    /// The tool the period judges for (the last M6's T; 0: none fitted, the settings' tool).
+    pub fn tool(&self) -> u8 {
+        self.tool.number()
     }
 
     /// The breakage monitor, if on.

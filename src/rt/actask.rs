@@ -284,6 +284,7 @@ impl<W: LogSink> AcTask<W> {
                 AcState::Hold(a) => LogState::Hold(a.message()),
             },
             overruns: self.late + self.status.ac_missed.get(),
+            tool: self.period.tool(),
         };
         let mut text: heapless::String<192> = heapless::String::new();
         let _ = line.emit(&mut text);

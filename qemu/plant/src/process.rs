@@ -524,6 +524,7 @@ impl Cutter {
 pub struct Process {
     stock: Stock,
     tool: Tool,
+    material: Material,
     rpm: f64,
     transducer: Transducer,
     cutter: Cutter,
@@ -604,6 +605,7 @@ impl Process {
         Ok(Process {
             stock,
             tool,
+            material,
             rpm: spindle_rpm,
             transducer,
             cutter,
@@ -753,6 +755,22 @@ impl Process {
     pub fn set_spindle_rpm(&mut self, rpm: f64) -> Result<(), CutError> {
         crate::validate_rpm(rpm)?;
         self.rpm = rpm;
+        Ok(())
+    }
+
+    /// A tool change: `tool` cuts from the next sample on, at `rpm`, the stock as the tool before
+    /// left it. What belonged to the old tool goes with it: its teeth's run-out and damage, its
+    /// modes (the new tool is rigid), the feed history of its last tooth period. Refused (nothing
+    /// changed) for a tool or speed [`Process::new`] would refuse.
+    pub fn change_tool(&mut self, tool: Tool, rpm: f64) -> Result<(), CutError> {
+        crate::validate(&tool, &self.material, rpm)?;
+        self.cutter = Cutter::new(&tool, &self.material, &self.stock);
+        self.tool = tool;
+        self.rpm = rpm;
+        self.teeth = Teeth::default();
+        self.flex = None;
+        self.hist.clear();
+        self.end_engaged = false;
         Ok(())
     }
 

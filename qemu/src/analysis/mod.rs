@@ -63,6 +63,8 @@ pub struct Reading {
     pub refused: Vec<Refusal>,
     pub tool_changes: Vec<ToolChange>,
     pub origins: Vec<(u32, [i64; 3])>,
+    /// The spindle speed (rpm) the parser holds from each line on where it changes.
+    pub spindle: Vec<(u32, u32)>,
 }
 
 impl Reading {
@@ -80,7 +82,22 @@ impl Reading {
 /// listed; the program's end (M2/M30) ends the reading. `check` and the rs274 comparison read
 /// programs with it.
 pub fn read_lines(text: &[u8], settings: &Settings) -> Reading {
+    read_lines_with(text, settings, &millac::gcode::tools::ToolTable::default())
+}
+
+/// [`read_lines`] on a machine whose tool table is `tools` (as the settings record restores it
+/// at start: the operator's `$T` lines), as the host's multi-tool runs read a program.
+pub fn read_lines_with(
+    text: &[u8],
+    settings: &Settings,
+    tools: &millac::gcode::tools::ToolTable,
+) -> Reading {
     let mut tape = Tape::new(*settings);
+    tape.set_work(&millac::gcode::Work {
+        tools: *tools,
+        ..Default::default()
+    });
+    let mut spindle = Vec::new();
     let mut blocks = Vec::new();
     let mut refused = Vec::new();
     let mut tool_changes = Vec::new();
@@ -116,6 +133,10 @@ pub fn read_lines(text: &[u8], settings: &Settings) -> Reading {
                         if origins.last().map(|l| l.1) != Some(o) {
                             origins.push((n, o));
                         }
+                        let rpm = tape.parser().spindle_rpm();
+                        if spindle.last().map_or(0, |l: &(u32, u32)| l.1) != rpm {
+                            spindle.push((n, rpm));
+                        }
                     }
                 }
             }
@@ -132,6 +153,7 @@ pub fn read_lines(text: &[u8], settings: &Settings) -> Reading {
         refused,
         tool_changes,
         origins,
+        spindle,
     }
 }
 

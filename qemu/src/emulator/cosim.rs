@@ -243,6 +243,8 @@ pub struct AcRecord {
     pub hold: Option<String>,
     /// Running overrun count.
     pub overruns: u32,
+    /// The tool in the spindle (0: none fitted).
+    pub tool: u8,
 }
 
 /// Parses `ac.log` (header row + one line per period; the format is `millac::wire::AcLogLine`).
@@ -270,6 +272,7 @@ pub fn parse_ac_log(text: &str) -> Result<Vec<AcRecord>> {
                     LogState::Hold(m) => Some(m.to_string()),
                 },
                 overruns: r.overruns,
+                tool: r.tool,
             })
         })
         .collect()

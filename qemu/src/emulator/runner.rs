@@ -561,6 +561,7 @@ pub fn ac_rows(
                     .map_or("run".to_string(), |h| format!("hold:{h}")),
                 feed_cap: r.feed_cap,
                 estimates: None,
+                tool: r.tool,
             }
         })
         .collect()

@@ -674,6 +674,7 @@ mod tests {
                 state: "run".into(),
                 feed_cap: u32::MAX,
                 estimates: None,
+                tool: 0,
             })
             .collect();
         super::plot(&svg, &rows, 3600.0, 72.0, 1.111, 30.0).unwrap();

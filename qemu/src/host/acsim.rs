@@ -41,6 +41,8 @@ pub struct AcRow {
     /// [a1, a2, b0, b1, b2], MRAC's [p^, b^, 0, 0, 0]); None for the fixed laws, without AC and
     /// in the QEMU runs' rows (the firmware does not log them).
     pub estimates: Option<[f32; 5]>,
+    /// The tool in the spindle (the last M6's T; 0: none fitted, the cut's tool).
+    pub tool: u8,
 }
 
 /// The process set-up of a run.
@@ -65,6 +67,27 @@ pub struct Cut {
         Vec<millac_plant::lobes::Mode>,
         Vec<millac_plant::lobes::Mode>,
     )>,
+    /// The program's tool changes ([`Cut::with_tool_changes`]; empty: one tool, `tool`, for
+    /// the whole program).
+    pub changes: Vec<ToolChangeAt>,
+}
+
+/// A tool change of a program (M6) as a host run makes it: once the blocks before it have run
+/// and the machine stands (the firmware's loader runs an M6 so), the AC task, the sampler and the
+/// monitors get `fitted` through the status words, as from the firmware's loader; the process
+/// cuts on with `plant` at `rpm`, the stock as the tool before left it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToolChangeAt {
+    /// The blocks that run before it.
+    pub at_block: usize,
+    /// Its line in the program.
+    pub line: u32,
+    pub fitted: millac::rt::status::FittedTool,
+    /// The plant's tool: the table entry's diameter and flutes, its limits (the torque no higher
+    /// than the cut's tool's: the drive's); the cut's `tool` where the entry has no diameter.
+    pub plant: Tool,
+    /// The spindle speed of its part of the program (the last S before the next change).
+    pub rpm: f64,
 }
 
 /// The sound channel's sample rate of a flexible tool's microphone, Hz (the chatter detector's
@@ -86,6 +109,7 @@ impl Cut {
             runout_mm: Vec::new(),
             modes: None,
             tooth_events: Vec::new(),
+            changes: Vec::new(),
         }
     }
 
@@ -97,6 +121,75 @@ impl Cut {
         Cut {
             spindle_rpm: program_rpm(text, settings),
             ..self
+        }
+    }
+
+    /// This cut following the tool changes of program `text` (its M6s) on a machine whose tool
+    /// table is `tools` (the operator's `$T` lines; a G10 L1 in the program changes it as it
+    /// goes): each tool's part of the program at its own spindle speed, and the part before the
+    /// first change at the S set before it (else the cut's). A program without M6 is cut as it
+    /// was (the same bytes).
+    pub fn with_tool_changes(
+        mut self,
+        text: &str,
+        settings: &Settings,
+        tools: &millac::gcode::tools::ToolTable,
+    ) -> Cut {
+        let r = crate::analysis::read_lines_with(text.as_bytes(), settings, tools);
+        // The S in force just before line `before` (0: none yet).
+        let rpm_before = |before: u32| {
+            r.spindle
+                .iter()
+                .take_while(|(l, _)| *l < before)
+                .last()
+                .map_or(0, |s| s.1)
+        };
+        let Some(first) = r.tool_changes.first() else {
+            return self;
+        };
+        if let rpm @ 1.. = rpm_before(first.line) {
+            self.spindle_rpm = f64::from(rpm);
+        }
+        let mut rpm = self.spindle_rpm;
+        self.changes = r
+            .tool_changes
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let next = r.tool_changes.get(i + 1).map_or(u32::MAX, |n| n.line);
+                if let s @ 1.. = rpm_before(next) {
+                    rpm = f64::from(s);
+                }
+                let fitted = millac::rt::status::FittedTool::of(c.tool, c.entry.as_ref());
+                ToolChangeAt {
+                    at_block: c.after_blocks,
+                    line: c.line,
+                    fitted,
+                    plant: self.plant_tool(&fitted, c.entry.as_ref()),
+                    rpm,
+                }
+            })
+            .collect();
+        self
+    }
+
+    /// The plant's tool for a fitted tool (see [`ToolChangeAt::plant`]).
+    fn plant_tool(
+        &self,
+        fitted: &millac::rt::status::FittedTool,
+        entry: Option<&millac::gcode::tools::Tool>,
+    ) -> Tool {
+        let Some(e) = entry.filter(|e| e.diameter_pm > 0) else {
+            return self.tool;
+        };
+        let limits = fitted.limits;
+        Tool {
+            diameter_mm: e.diameter_pm as f64 * 1e-9,
+            flutes: fitted.flutes_or(self.tool.flutes),
+            f_max_n: limits.map_or(self.tool.f_max_n, |l| f64::from(l.force_n)),
+            t_max_nm: limits.map_or(self.tool.t_max_nm, |l| {
+                f64::from(l.torque_nm).min(self.tool.t_max_nm)
+            }),
         }
     }
 
@@ -298,6 +391,56 @@ pub struct HostRun {
     /// The run was cut short by the host tool's SIGINT or SIGTERM ([`crate::interrupt`]): what
     /// ran until then.
     pub interrupted: bool,
+    /// Each tool's part of the run ([`Cut::changes`]), in order: the part before the first
+    /// change (tool 0, the cut's tool) when blocks ran in it, then one per change made.
+    pub tools: Vec<ToolRun>,
+}
+
+/// The tool cutting in a host run, until the next change.
+struct ToolPart {
+    tool: u8,
+    from_block: usize,
+    start_ns: u64,
+    limited: bool,
+    alarm: Option<millac::ac::Alarm>,
+}
+
+impl ToolPart {
+    /// Its part, ended at `t` (ns) with `blocks` done, its samples tallied in `tally`; none for
+    /// the part before the first change when it ran no block.
+    fn end(self, t: u64, blocks: usize, tally: &LoadTally) -> Option<ToolRun> {
+        (self.tool != 0 || blocks > 0).then(|| ToolRun {
+            tool: self.tool,
+            from_block: self.from_block,
+            blocks: blocks - self.from_block,
+            start_ns: self.start_ns,
+            end_ns: t,
+            load: tally.figures(),
+            samples: tally.samples(),
+            limited: self.limited,
+            alarm: self.alarm,
+        })
+    }
+}
+
+/// One tool's part of a host run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ToolRun {
+    /// Its number (0: before any M6, the cut's tool).
+    pub tool: u8,
+    /// The first block it ran, and the number of blocks.
+    pub from_block: usize,
+    pub blocks: usize,
+    /// Virtual time (ns) when it took over, and when the next one did or the run ended.
+    pub start_ns: u64,
+    pub end_ns: u64,
+    /// Its load figures, against its own limits, and its samples.
+    pub load: LoadFigures,
+    pub samples: usize,
+    /// It had limits (else its AC measured only).
+    pub limited: bool,
+    /// The alarm that first held the feed while it cut (None: no hold).
+    pub alarm: Option<millac::ac::Alarm>,
 }
 
 /// What a run keeps of itself besides its figures: each of these grows with the program (the
@@ -368,7 +511,10 @@ struct HostAdc {
     /// [`Record::samples`].
     codes: Vec<Option<[u16; 3]>>,
     keep: bool,
+    /// The run's load figures, each sample against the limits of the tool that cut it.
     tally: LoadTally,
+    /// The same for the tool in the spindle alone ([`ToolRun::load`]).
+    part: LoadTally,
 }
 
 impl HostAdc {
@@ -407,6 +553,7 @@ impl ForceTorqueAdc for HostAdc {
         let s = self.process.sample(t_s, encoder.map(i64::from));
         self.truth.push((s.f_true_n, s.t_true_nm));
         self.tally.add(s.f_true_n, s.t_true_nm);
+        self.part.add(s.f_true_n, s.t_true_nm);
         let codes = self.injector.apply(t_s, s.codes);
         if self.keep {
             self.codes.push(codes);
@@ -622,8 +769,9 @@ fn run_inner(
         }
         None => None,
     };
-    // The sampler's overload trip (the AC is applied here whenever it runs).
-    let trip = ac.map(|s| rt_ac::Trip::new(&s));
+    // The sampler's overload trip for the tool in the spindle (the AC is applied here whenever
+    // it runs).
+    let mut trip = ac.map(rt_ac::ToolTrip::new);
     let mut chatter = ac
         .as_ref()
         .and_then(millac::rt::monitor::ChatterTask::from_settings);
@@ -636,6 +784,7 @@ fn run_inner(
         codes: Vec::new(),
         keep: record.samples,
         tally: LoadTally::new(&cut.tool, record.load_fraction, acs.sample_hz),
+        part: LoadTally::new(&cut.tool, record.load_fraction, acs.sample_hz),
     };
     let per_period = acs.samples_per_period();
     let sample_ns = 1_000_000_000 / acs.sample_hz as u64;
@@ -653,16 +802,61 @@ fn run_inner(
     // out at the next one).
     let mut computed = (0.0, 0usize);
     let mut ticks = 0u32;
+    // The program's tool changes still to make, the blocks offered so far, the tool cutting
+    // (its part of the run: the tally against its limits, its first block and time).
+    let mut changes = cut.changes.iter().peekable();
+    let mut offered = 0usize;
+    let mut part = ToolPart {
+        tool: 0,
+        from_block: 0,
+        start_ns: 0,
+        limited: true,
+        alarm: None,
+    };
     loop {
         ticks = ticks.wrapping_add(1);
         if ticks % 4096 == 0 {
             crate::progress::update(frames.frame().blocks_done() as usize, t as f64 * 1e-9);
         }
-        while let Some(b) = program.pop_front() {
+        // An M6: once the blocks before it have run and the machine stands (a sync line of the
+        // firmware's loader), the tool is fitted, told as the loader tells it, and cut with.
+        if let Some(c) = changes.peek().filter(|c| {
+            c.at_block == offered
+                && queue.blocks.is_empty()
+                && status.idle.get()
+                && !replan.pending()
+                && !replan.aborting()
+        }) {
+            w.loader.set_tool(&c.fitted);
+            w.loader.ask_new_job();
+            w.loader.set_spindle_rpm(c.rpm.round() as u32);
+            if plant {
+                adc.process
+                    .change_tool(c.plant, c.rpm)
+                    .map_err(|e| anyhow!("T{} at line {}: {}", c.fitted.number, c.line, e.0))?;
+                adc.tally.retool(&c.plant);
+            }
+            let blocks = frames.frame().blocks_done() as usize;
+            let next = ToolPart {
+                tool: c.fitted.number,
+                from_block: blocks,
+                start_ns: t,
+                limited: c.fitted.limits.is_some(),
+                alarm: None,
+            };
+            let tally = LoadTally::new(&c.plant, record.load_fraction, acs.sample_hz);
+            let done = std::mem::replace(&mut adc.part, tally);
+            out.tools
+                .extend(std::mem::replace(&mut part, next).end(t, blocks, &done));
+            changes.next();
+        }
+        while changes.peek().is_none_or(|c| offered < c.at_block) {
+            let Some(b) = program.pop_front() else { break };
             if let Err(b) = replan.offer(&mut queue, b) {
                 program.push_front(b);
                 break;
             }
+            offered += 1;
         }
         let frame = frames.frame();
         if frame.idle() {
@@ -730,9 +924,10 @@ fn run_inner(
         // The samples up to the next frame interrupt (one at the same instant runs after it).
         while plant && next_sample < t {
             next_sample += sample_ns;
-            let (codes, due, sound) = sample(&mut adc, &w.sampler, per_period, trip.as_ref());
+            let trip = trip.as_mut().and_then(|t| t.follow(&status));
+            let (codes, due, sound) = sample(&mut adc, &w.sampler, per_period, trip);
             if let (Some(ac), Some(codes)) = (period.as_mut(), codes) {
-                ac.sample(codes);
+                ac.sample(codes, &w.ac);
             }
             // The sampler's trip writes the frame's cap between periods (the frame reads it every
             // frame).
@@ -769,6 +964,9 @@ fn run_inner(
                     if out.alarm.is_none() {
                         out.alarm = o.alarm;
                     }
+                    if part.alarm.is_none() {
+                        part.alarm = o.alarm;
+                    }
                     let state = match o.state {
                         AcState::Run => "run".to_string(),
                         AcState::Hold(a) => {
@@ -796,6 +994,7 @@ fn run_inner(
                 state,
                 feed_cap: logged_cap,
                 estimates,
+                tool: part.tool,
             });
             if let (Some(f), Some(r)) = (taps.row.as_mut(), &row) {
                 f(r);
@@ -830,6 +1029,10 @@ fn run_inner(
             break;
         }
     }
+    let blocks = frames.frame().blocks_done() as usize;
+    if !cut.changes.is_empty() {
+        out.tools.extend(part.end(t, blocks, &adc.part));
+    }
     out.stock = plant.then(|| adc.process.into_stock());
     out.load = adc.tally.figures();
     out.sample_count = adc.tally.samples();
@@ -846,12 +1049,12 @@ fn run_inner(
 
 /// The ac.csv header; column names are stable.
 pub const CSV_HEADER: &str =
-    "t_ms,x_blu,y_blu,z_blu,feed_ipm,f_meas_n,t_meas_nm,f_true_n,t_true_nm,e,state\n";
+    "t_ms,x_blu,y_blu,z_blu,feed_ipm,f_meas_n,t_meas_nm,f_true_n,t_true_nm,e,state,tool\n";
 
 /// One row of ac.csv (with its newline).
 pub fn csv_line(r: &AcRow) -> String {
     format!(
-        "{},{},{},{},{:.3},{:.1},{:.3},{:.1},{:.3},{:.4},{}\n",
+        "{},{},{},{},{:.3},{:.1},{:.3},{:.1},{:.3},{:.4},{},{}\n",
         r.t_ms,
         r.pos_blu[0],
         r.pos_blu[1],
@@ -862,7 +1065,8 @@ pub fn csv_line(r: &AcRow) -> String {
         r.f_true_n,
         r.t_true_nm,
         r.e,
-        r.state
+        r.state,
+        r.tool
     )
 }
 
@@ -968,7 +1172,9 @@ pub struct LoadTally {
     f_max: f64,
     t_max: f64,
     f0: f64,
+    fraction: f64,
     dt: f64,
+    /// The highest force and torque over the limits of the tool that met them.
     peak_f: f64,
     peak_t: f64,
     above_f0: u64,
@@ -983,6 +1189,7 @@ impl LoadTally {
             f_max: tool.f_max_n,
             t_max: tool.t_max_nm,
             f0: fraction * tool.f_max_n,
+            fraction,
             dt: 1.0 / sample_hz as f64,
             peak_f: 0.0,
             peak_t: 0.0,
@@ -994,8 +1201,10 @@ impl LoadTally {
 
     /// One sample's true force (N) and torque (N*m).
     pub fn add(&mut self, f: f64, t: f64) {
-        self.peak_f = self.peak_f.max(f);
-        self.peak_t = self.peak_t.max(t.abs());
+        // Over the limits sample by sample (division is monotone: the same as the peak over the
+        // limit while the tool stays).
+        self.peak_f = self.peak_f.max(f / self.f_max);
+        self.peak_t = self.peak_t.max(t.abs() / self.t_max);
         self.above_f0 += u64::from(f > self.f0);
         self.above_limit += u64::from(f > self.f_max || t.abs() > self.t_max);
         self.samples += 1;
@@ -1006,10 +1215,17 @@ impl LoadTally {
         self.samples
     }
 
+    /// The samples from now on are `tool`'s, against its limits (a tool change).
+    pub fn retool(&mut self, tool: &Tool) {
+        self.f_max = tool.f_max_n;
+        self.t_max = tool.t_max_nm;
+        self.f0 = self.fraction * tool.f_max_n;
+    }
+
     pub fn figures(&self) -> LoadFigures {
         LoadFigures {
-            peak_force_ratio: self.peak_f / self.f_max,
-            peak_torque_ratio: self.peak_t / self.t_max,
+            peak_force_ratio: self.peak_f,
+            peak_torque_ratio: self.peak_t,
             time_above_f0_s: self.above_f0 as f64 * self.dt,
             time_above_limit_s: self.above_limit as f64 * self.dt,
         }
