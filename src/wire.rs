@@ -74,17 +74,19 @@ impl Header {
     }
 }
 
-/// One sample request: the sample index, the encoder counts at the sample and the spindle speed
-/// in effect (rpm; 0: none commanded, the plant keeps its own).
+/// One sample request: the sample index, the encoder counts at the sample, the spindle speed
+/// in effect (rpm; 0: none commanded, the plant keeps its own) and the tool in the spindle (the
+/// last M6's T; 0: none fitted, the plant keeps its own).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Request {
     pub index: u32,
     pub encoder: [i32; 3],
     pub spindle_rpm: u32,
+    pub tool: u32,
 }
 
 impl Request {
-    pub const LEN: usize = 20;
+    pub const LEN: usize = 24;
 
     pub fn emit(&self) -> [u8; Self::LEN] {
         let mut q = [0u8; Self::LEN];
@@ -93,6 +95,7 @@ impl Request {
             q[4 + 4 * k..8 + 4 * k].copy_from_slice(&e.to_le_bytes());
         }
         q[16..20].copy_from_slice(&self.spindle_rpm.to_le_bytes());
+        q[20..24].copy_from_slice(&self.tool.to_le_bytes());
         q
     }
 
@@ -102,6 +105,7 @@ impl Request {
             index: u32::from_le_bytes(le(0)),
             encoder: [4, 8, 12].map(|i| i32::from_le_bytes(le(i))),
             spindle_rpm: u32::from_le_bytes(le(16)),
+            tool: u32::from_le_bytes(le(20)),
         }
     }
 }
@@ -167,8 +171,7 @@ impl Response {
 }
 
 /// Header row of `ac.log` (with its newline).
-pub const AC_LOG_HEADER: &str =
-    "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns,tool\n";
+pub const AC_LOG_HEADER: &str = "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns,tool\n";
 
 /// The state of one AC period in the log.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -361,11 +364,11 @@ mod tests {
     proptest! {
         #[test]
         fn adc_messages_round_trip(
-            flags: u32, index: u32, enc: [i32; 3], rpm: u32, codes: [u16; 3]
+            flags: u32, index: u32, enc: [i32; 3], rpm: u32, tool: u32, codes: [u16; 3]
         ) {
             let h = Header { flags };
             prop_assert_eq!(Header::parse(&h.emit()), Some(h));
-            let q = Request { index, encoder: enc, spindle_rpm: rpm };
+            let q = Request { index, encoder: enc, spindle_rpm: rpm, tool };
             prop_assert_eq!(Request::parse(&q.emit()), q);
             prop_assert_eq!(parse_codes(&emit_codes(codes)), codes);
             let expect = (codes != NO_CONVERSION).then_some(codes);

@@ -516,3 +516,158 @@ fn the_plots_rows_are_bounded_and_keep_the_highest_load() {
     assert!(long.rows.windows(2).all(|w| w[0].t_ms < w[1].t_ms));
     assert!(long.rows.iter().any(|r| r.f_true_n == 5000.0));
 }
+
+/// The tools of [`an_m6_gives_the_small_tool_its_own_limits`]: T1 the Fig. 1 cutter with its
+/// table limits (4000 N, 80 N m), T2 a 3 mm two-flute end mill described by its geometry alone
+/// (its limits derived: 226 N, 1.57 N m).
+fn two_tools() -> millac::gcode::tools::ToolTable {
+    use millac::gcode::tools::{Tool, ToolKind, ToolTable};
+    let mut t = ToolTable::default();
+    t.set(
+        1,
+        Tool {
+            diameter_pm: 12_700_000_000,
+            flutes: 4,
+            kind: ToolKind::Flat,
+            force_limit_n: 4000.0,
+            torque_limit_nm: 80.0,
+            ..Tool::default()
+        },
+    );
+    t.set(
+        2,
+        Tool {
+            diameter_pm: 3_000_000_000,
+            flutes: 2,
+            kind: ToolKind::Flat,
+            ..Tool::default()
+        },
+    );
+    t
+}
+
+/// Runs `program` on the two tools' table at its programmed feeds and with the AC; prints and
+/// returns both.
+fn two_tool_runs(program: &str) -> (acsim::HostRun, acsim::HostRun, Cut) {
+    let settings = Settings::default();
+    let prog = analysis::load_program(program, &settings).unwrap();
+    let c = cut("blank X0 Y0 W3 H3 Z0\n", Material::STEEL).with_tool_changes(
+        program,
+        &settings,
+        &two_tools(),
+    );
+    let programmed = acsim::run(&prog, &settings, &c, None).unwrap();
+    let ac = acsim::run(&prog, &settings, &c, Some(AcSettings::default())).unwrap();
+    for (name, r) in [("programmed", &programmed), ("AC", &ac)] {
+        let t: Vec<_> = r
+            .tools
+            .iter()
+            .map(|t| {
+                (
+                    t.tool,
+                    t.blocks,
+                    t.load.peak_force_ratio,
+                    t.load.time_above_limit_s,
+                    (t.end_ns - t.start_ns) as f64 * 1e-9,
+                )
+            })
+            .collect();
+        println!("{name}: (tool, blocks, peak F/Fmax, s above the limit, s) {t:.3?}");
+    }
+    (programmed, ac, c)
+}
+
+/// A slot with the 0.5 in cutter, then T2 M6 and the 3 mm end mill at the same 20 ipm (at its
+/// 3000 rpm about 0.085 mm a tooth: more than its strength allows 2 mm deep). At the programmed
+/// feeds the small tool is loaded far beyond its limit. With the AC following the tool (its
+/// limits from the M6 on): a ramp into the depth is slowed and stays within them, with no hold;
+/// a head-on entry at full depth (full load at the first tooth: a slot's tooth at 90 degrees
+/// takes the whole feed per tooth however little of it is engaged) is held at once on the small
+/// tool's limit, while at the big tool's limits it would have run on. The big tool's slot runs
+/// at its programmed feed.
+#[test]
+fn an_m6_gives_the_small_tool_its_own_limits() {
+    // The big tool's slot along X at Y `y`, then the small tool's from Y -0.5 in along X 1 in.
+    let head = |y: f64| {
+        format!(
+            "G20 G90 G94\nT1 M6\nM3 S600\nG0 X-0.5 Y{y}\nG0 Z-0.3\nG1 X2.5 F20\nG0 Z0.2\n\
+             T2 M6\nM3 S1500\nG0 X1.0 Y-0.5\n"
+        )
+    };
+    // The ramp: from 0.25 mm to 3 mm deep, clear of the big tool's slot.
+    let ramp = format!("{}G0 Z-0.01\nG1 Y2.0 Z-0.12 F6\nG0 Z0.2\nM2\n", head(2.5));
+    let (programmed, ac, c) = two_tool_runs(&ramp);
+    assert_eq!(c.changes.len(), 2);
+    assert_eq!(
+        (c.changes[0].rpm, c.changes[1].rpm),
+        (600.0, 1500.0),
+        "each tool's part at its own S"
+    );
+    let small = c.changes[1].plant;
+    assert!((small.f_max_n - 226.2).abs() < 0.5, "{small:?}");
+    let (p1, p2) = (&programmed.tools[0], &programmed.tools[1]);
+    let (a1, a2) = (&ac.tools[0], &ac.tools[1]);
+    assert_eq!((p1.tool, p2.tool, a1.tool, a2.tool), (1, 2, 1, 2));
+    assert!(
+        p2.load.peak_force_ratio > 1.3,
+        "the small tool at the programmed feed: {:?}",
+        p2.load
+    );
+    assert!(
+        a2.load.peak_force_ratio <= 1.0 && a2.load.time_above_limit_s == 0.0,
+        "the small tool with the AC: {:?}",
+        a2.load
+    );
+    // Slowed to its F0 as the depth grows; where the measured peak (its noise is 2 % of this
+    // tool's F0) crosses the overload level, held there on its own limit.
+    let slowed = ac.rows.iter().filter(|r| r.tool == 2 && r.state == "run");
+    let slowest = slowed.map(|r| r.feed_ipm).fold(f64::MAX, f64::min);
+    assert!(slowest < 5.0, "slowest {slowest} ipm of the programmed 6");
+    match ac.alarm {
+        None => assert_eq!(ac.final_position, programmed.final_position),
+        Some(millac::ac::Alarm::Overload { force_limit_n, .. }) => {
+            assert_eq!(force_limit_n, small.f_max_n as f32)
+        }
+        a => panic!("{a:?}"),
+    }
+    // The big tool's slot is well within its limits: its part runs as programmed (but for the
+    // AC's first periods from f_min).
+    assert!(a1.load.peak_force_ratio < 0.9, "{:?}", a1.load);
+    assert!(((a1.end_ns - a1.start_ns) as f64) < 1.1 * (p1.end_ns - p1.start_ns) as f64);
+    // The rows name the tool that cut.
+    assert!(ac.rows.iter().any(|r| r.tool == 1) && ac.rows.last().unwrap().tool == 2);
+
+    // Head on at full depth, across the big tool's slot: held at the entry, on the small tool's
+    // limit. At the programmed feeds it runs on, and cuts air where the big tool's slot is: the
+    // stock the first tool left is the one the second cuts.
+    let head_on = format!("{}G0 Z-0.08\nG1 Y2.0 F20\nG0 Z0.2\nM2\n", head(0.5));
+    let (programmed, ac, _) = two_tool_runs(&head_on);
+    assert!(programmed.tools[1].load.time_above_limit_s > 1.0);
+    let small_rows = |from_in: f64, to_in: f64| {
+        programmed
+            .rows
+            .iter()
+            .filter(|r| r.tool == 2 && r.pos_blu[0] == 10_000)
+            .filter(|r| (from_in * 1e4..to_in * 1e4).contains(&(r.pos_blu[1] as f64)))
+            .map(|r| r.f_true_n)
+            .collect::<Vec<_>>()
+    };
+    let (solid, slot) = (small_rows(0.05, 0.15), small_rows(0.35, 0.65));
+    assert!(solid.len() > 5 && slot.len() > 5, "{solid:?} {slot:?}");
+    assert!(solid.iter().all(|&f| f > 100.0), "{solid:?}");
+    assert!(
+        slot.iter().all(|&f| f < 1.0),
+        "air in the big tool's slot: {slot:?}"
+    );
+    match ac.alarm {
+        Some(millac::ac::Alarm::Overload { force_limit_n, .. }) => {
+            assert_eq!(force_limit_n, small.f_max_n as f32)
+        }
+        a => panic!("{a:?}"),
+    }
+    assert!(
+        ac.tools[1].load.time_above_limit_s <= 0.005,
+        "{:?}",
+        ac.tools[1].load
+    );
+}

@@ -304,6 +304,18 @@ impl MachineSettings {
         new.validated(board).map_err(SetError::Invalid)
     }
 
+    /// A `$T<n>=<words>` line as an operator types it (spaces, comments and case as the protocol
+    /// takes them), into the tool table as the protocol's `$T` sets it: the host's tool files.
+    /// Err: grbl's error number, as the protocol would answer the line.
+    pub fn tool_line(&mut self, line: &str) -> Result<(), u8> {
+        let cmd = super::compact(line);
+        let cmd = cmd
+            .strip_prefix("$T")
+            .filter(|c| c.contains('='))
+            .ok_or(super::GrblError::INVALID_STATEMENT.0)?;
+        <Self as super::SettingsTable>::tool(self, cmd, &mut NoListing)
+    }
+
     /// [`parse_assignment`] then [`MachineSettings::set`].
     pub fn set_line(&mut self, stmt: &str) -> Result<(), SetError> {
         let (n, v) = parse_assignment(stmt)?;
@@ -483,6 +495,15 @@ impl super::SettingsTable for MachineSettings {
             status_mask: self.report.status_mask,
             inches: self.report.inches,
         }
+    }
+}
+
+/// Nowhere to list to ([`MachineSettings::tool_line`] sets, never lists).
+struct NoListing;
+
+impl Write for NoListing {
+    fn write_str(&mut self, _: &str) -> fmt::Result {
+        Ok(())
     }
 }
 

@@ -241,9 +241,7 @@ impl FittedTool {
         FittedTool {
             number,
             flutes: entry.map_or(0, |t| t.flutes),
-            limits: entry
-                .and_then(|t| of_tool(t, &Strength::HSS))
-                .map(|l| l.0),
+            limits: entry.and_then(|t| of_tool(t, &Strength::HSS)).map(|l| l.0),
         }
     }
 

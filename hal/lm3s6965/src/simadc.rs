@@ -29,6 +29,8 @@ pub struct SimAdc {
     lost: bool,
     /// The sound codes of the last response, until taken.
     sound: Option<[u16; wire::SOUND_PER_SAMPLE]>,
+    /// The tool in the simulated spindle (the last M6's, as the status words tell it).
+    tool: u8,
 }
 
 impl SimAdc {
@@ -48,6 +50,7 @@ impl SimAdc {
                 resp,
                 lost: false,
                 sound: None,
+                tool: 0,
             },
             header.flags,
         ))
@@ -63,10 +66,16 @@ impl ForceTorqueAdc for SimAdc {
         if self.lost {
             return Conversion::Missed;
         }
+        // The loader writes the tool at an M6 (the machine standing); read while it writes
+        // (this task preempted it), the tool is the one before until the next sample.
+        if let Some((_, t)) = millac::rt::status::STATUS.fitted_tool() {
+            self.tool = t.number;
+        }
         let q = Request {
             index,
             encoder,
             spindle_rpm: crate::loader::spindle_rpm(),
+            tool: u32::from(self.tool),
         }
         .emit();
         let mut r = [0u8; wire::Response::LEN];

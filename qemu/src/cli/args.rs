@@ -19,6 +19,13 @@ pub(crate) struct CutArgs {
     /// Stock description file (default: the Fig. 1 die blank with its drilled start hole).
     #[arg(long)]
     pub(crate) stock: Option<PathBuf>,
+    /// The machine's tool table: `$T` lines as typed at the console (`$T2=D3 N2 K0`, one per
+    /// line; `#` starts a comment line). The program's M6s fit them: the AC takes each tool's
+    /// limits (its F and M, else from its diameter and kind), the simulated cut its diameter and
+    /// flutes, the part of the program after it its S. Without: a tool an M6 fits has no limits
+    /// and the AC only measures it.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) tools: Option<PathBuf>,
     /// Inject a sensor fault into the simulated ADC from KIND@SECONDS of virtual time on (rail,
     /// frozen, dropout, spike, gain; repeatable), e.g. --fault gain@2.5. The same transformation
     /// under QEMU (run, demo) and on the host (host); millac_qemu::host::fault lists each alarm.
@@ -255,6 +262,11 @@ pub(crate) fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::host:
             }
         }
     };
+    let tools = match &args.tools {
+        Some(p) => millac_qemu::host::acsim::load_tools(p)?,
+        None => Default::default(),
+    };
+    let cut = cut.with_tool_changes(text, &Settings::default(), &tools);
     // The plant's own checks (e.g. the Ks exponent's range, the teeth of --break-tooth,
     // --chip-tooth and --runout against the tool's flutes), before anything runs.
     cut.process()?;

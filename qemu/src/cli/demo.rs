@@ -30,6 +30,7 @@ pub(crate) fn bare() -> Result<bool> {
             no_ac: false,
             seed: 1,
             stock: None,
+            tools: None,
             faults: Vec::new(),
             strategy: None,
             drive: DriveArg::Stepper,

@@ -172,6 +172,12 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 // The run itself finished; only the comparison was left out.
                 summary["interrupted"] = serde_json::json!({"signal": s, "left_out": "comparison"});
             }
+            if let Some(cmp) = &cmp {
+                let log = acreport::tool_log(&run, &cmp.programmed);
+                if !log.is_empty() {
+                    summary["tools"] = serde_json::json!(log);
+                }
+            }
             let why = hold.as_ref().map(|h| runner::held_at(&prog, h));
             match &cmp {
                 Some(cmp) => acreport::print_table(
@@ -185,6 +191,9 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 "  interrupted: {}; the comparison with constant feeds and the oracle is left out",
                 why.as_deref().unwrap_or("the run had finished")
             ),
+            }
+            if let Some(log) = summary["tools"].as_array() {
+                acreport::print_tool_log(log);
             }
             runner::write_json(&out.join("summary.json"), &summary)?;
             println!(

@@ -57,6 +57,12 @@ pub trait Plant {
         Ok(())
     }
 
+    /// The firmware's M6 has fitted `tool` (called before the first sample with it). A plant
+    /// with one tool ignores it.
+    fn tool(&mut self, _tool: u8) -> Result<()> {
+        Ok(())
+    }
+
     /// The sound channel's codes since the previous sample (after `sample`), oldest first; all
     /// [`wire::NO_SOUND`] for a plant without a microphone (the default).
     fn sound(&mut self) -> [u16; wire::SOUND_PER_SAMPLE] {
@@ -174,8 +180,8 @@ fn serve(
         return Ok(log);
     }
     let mut q = [0u8; Request::LEN];
-    // The spindle speed of the last request (0: none commanded).
-    let mut rpm = 0;
+    // The spindle speed and the tool of the last request (0: none commanded, none fitted).
+    let (mut rpm, mut tool) = (0, 0);
     loop {
         match input.read_exact(&mut q) {
             Ok(()) => {}
@@ -186,7 +192,12 @@ fn serve(
             index,
             encoder,
             spindle_rpm,
+            tool: fitted,
         } = Request::parse(&q);
+        if fitted != tool {
+            plant.tool(u8::try_from(fitted).context("adc.req: a tool number above 255")?)?;
+            tool = fitted;
+        }
         if spindle_rpm != 0 && spindle_rpm != rpm {
             plant.spindle_rpm(spindle_rpm)?;
             rpm = spindle_rpm;

@@ -120,13 +120,17 @@ fn prepare(text: &str, out: &Path, shift: u32) -> Result<CaptureSpec> {
 struct RunSettings(Option<std::path::PathBuf>);
 
 impl RunSettings {
-    fn write(out: &Path, acs: Option<&millac::ac::AcSettings>) -> Result<RunSettings> {
-        let Some(acs) = acs.filter(|a| **a != millac::ac::AcSettings::default()) else {
+    fn write(
+        out: &Path,
+        acs: &millac::ac::AcSettings,
+        tools: &millac::gcode::tools::ToolTable,
+    ) -> Result<RunSettings> {
+        if *acs == millac::ac::AcSettings::default() && *tools == Default::default() {
             return Ok(RunSettings(None));
-        };
+        }
         acs.validate()
             .map_err(|e| anyhow::anyhow!("AC settings: {}", e.message()))?;
-        let record = millac::protocol::table::record::encode(&run_record(acs));
+        let record = millac::protocol::table::record::encode(&run_record(acs, tools));
         let path = out.join(crate::lm3s_files::SETTINGS_NAME);
         std::fs::write(&path, record).with_context(|| format!("writing {}", path.display()))?;
         Ok(RunSettings(Some(path)))
@@ -141,11 +145,20 @@ impl Drop for RunSettings {
     }
 }
 
-/// The settings a run gives the firmware: the defaults with the run's AC settings.
-pub fn run_record(acs: &millac::ac::AcSettings) -> millac::protocol::table::MachineSettings {
+/// The settings a run gives the firmware: the defaults with the run's AC settings and the
+/// machine's tool table.
+pub fn run_record(
+    acs: &millac::ac::AcSettings,
+    tools: &millac::gcode::tools::ToolTable,
+) -> millac::protocol::table::MachineSettings {
+    let d = millac::protocol::table::MachineSettings::default();
     millac::protocol::table::MachineSettings {
         ac: *acs,
-        ..Default::default()
+        work: millac::gcode::Work {
+            tools: *tools,
+            ..d.work
+        },
+        ..d
     }
 }
 
@@ -174,10 +187,13 @@ pub fn execute_with_plant_settings(
     ac_enabled: bool,
     acs: &millac::ac::AcSettings,
 ) -> Result<(Capture, Vec<cosim::Exchange>)> {
-    execute_with_plant_until(text, out, shift, plant, ac_enabled, acs, None)
+    let tools = Default::default();
+    execute_with_plant_until(text, out, shift, plant, ac_enabled, acs, &tools, None)
 }
 
-/// [`execute_with_plant_settings`], QEMU stopped early once `stop` is set.
+/// [`execute_with_plant_settings`] on a machine with the tool table `tools`, QEMU stopped early
+/// once `stop` is set.
+#[allow(clippy::too_many_arguments)] // the run's inputs, one body
 fn execute_with_plant_until(
     text: &str,
     out: &Path,
@@ -185,12 +201,13 @@ fn execute_with_plant_until(
     plant: Box<dyn cosim::Plant + Send>,
     ac_enabled: bool,
     acs: &millac::ac::AcSettings,
+    tools: &millac::gcode::tools::ToolTable,
     stop: Option<Stop>,
 ) -> Result<(Capture, Vec<cosim::Exchange>)> {
     let mut spec = prepare(text, out, shift)?;
     spec.stop = stop;
     let _ = std::fs::remove_file(out.join(cosim::AC_LOG));
-    let _record = RunSettings::write(out, Some(acs))?;
+    let _record = RunSettings::write(out, acs, tools)?;
     let bridge = cosim::Bridge::start(out, plant, acs.sample_hz, ac_enabled)?;
     let cap = run_capture(&spec);
     let exchanges = bridge.finish();
@@ -237,6 +254,8 @@ pub struct AcRun {
 struct ProcessPlant {
     process: millac_plant::Process,
     truth: std::sync::Arc<std::sync::Mutex<Vec<(f64, f64)>>>,
+    /// The program's tool changes still to come, in order (`Cut::changes`).
+    changes: std::collections::VecDeque<crate::host::acsim::ToolChangeAt>,
 }
 
 impl cosim::Plant for ProcessPlant {
@@ -255,6 +274,21 @@ impl cosim::Plant for ProcessPlant {
             .map_err(|e| anyhow::anyhow!("spindle S{rpm}: {}", e.0))
     }
 
+    /// The firmware's M6: the program's next tool change, which fits this tool (the tool and
+    /// speed the host's run takes there, `Cut::with_tool_changes`).
+    fn tool(&mut self, tool: u8) -> Result<()> {
+        let c = self
+            .changes
+            .pop_front()
+            .filter(|c| c.fitted.number == tool)
+            .ok_or_else(|| {
+                anyhow::anyhow!("the firmware fitted T{tool}, not the program's next tool change")
+            })?;
+        self.process
+            .change_tool(c.plant, c.rpm)
+            .map_err(|e| anyhow::anyhow!("T{tool} at line {}: {}", c.line, e.0))
+    }
+
     fn sound(&mut self) -> [u16; millac::wire::SOUND_PER_SAMPLE] {
         self.process
             .take_sound_block()
@@ -271,6 +305,7 @@ pub fn plant_with_truth(
     let plant = ProcessPlant {
         process: a.cut.process()?,
         truth,
+        changes: a.cut.changes.iter().copied().collect(),
     };
     let acs = a.settings;
     let zero = acs.cal.map(|c| f64::from(c.offset));
@@ -377,7 +412,17 @@ pub fn run_until(
         None => (execute_until(text, out, shift, stop.clone())?, Vec::new()),
         Some(a) => {
             let plant = plant_with_truth(a, truth.clone())?;
-            execute_with_plant_until(text, out, shift, plant, a.ac, &a.settings, stop.clone())?
+            let tools = &a.cut.tools;
+            execute_with_plant_until(
+                text,
+                out,
+                shift,
+                plant,
+                a.ac,
+                &a.settings,
+                tools,
+                stop.clone(),
+            )?
         }
     };
     // A hold the firmware reported is a result (the run did not complete), anything else that

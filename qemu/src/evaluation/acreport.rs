@@ -469,6 +469,78 @@ pub fn ac_json(time_s: f64, load: &LoadFigures, c: &Comparison) -> Value {
     })
 }
 
+/// The AFC-style log of a multi-tool run (Heidenhain's AFC keeps one per tool): for each tool's
+/// part of the AC run, its blocks, its time, the programmed feeds' time of the same part and the
+/// difference in %, the time in the cut and the part of it the AC controlled (slower than
+/// programmed), the highest F/Fmax and T/Tmax against its own limits, the time above them, the
+/// lowest feed in the cut, the holds and the first alarm. `programmed`: the programmed feeds'
+/// run of the same program (its parts in the same order). Empty for a one-tool program.
+pub fn tool_log(ac: &HostRun, programmed: &HostRun) -> Vec<Value> {
+    ac.tools
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let time = (t.end_ns - t.start_ns) as f64 * 1e-9;
+            let prog = programmed.tools.get(i).filter(|p| p.tool == t.tool);
+            // Compared only when the AC's part ran all its blocks.
+            let whole = prog.is_some_and(|p| p.blocks == t.blocks);
+            let prog = prog.map(|p| (p.end_ns - p.start_ns) as f64 * 1e-9);
+            json!({
+                "tool": t.tool,
+                "blocks": t.blocks,
+                "ac": t.limited,
+                "time_s": r3(time),
+                "time_programmed_s": prog.map(r3),
+                "vs_programmed_pct": prog
+                    .filter(|p| *p > 0.0 && whole)
+                    .map(|p| r3((time / p - 1.0) * 100.0)),
+                "cutting_s": r3(t.cutting_s),
+                "controlled_s": r3(t.controlled_s),
+                "peak_force_ratio": r3(t.load.peak_force_ratio),
+                "peak_torque_ratio": r3(t.load.peak_torque_ratio),
+                "time_above_limit_s": r3(t.load.time_above_limit_s),
+                "lowest_feed_ipm": t.lowest_feed_ipm.map(r3),
+                "holds": t.holds,
+                "alarm": t.alarm.map(|a| a.to_string()),
+            })
+        })
+        .collect()
+}
+
+/// Prints [`tool_log`] as a table.
+pub fn print_tool_log(log: &[Value]) {
+    if log.is_empty() {
+        return;
+    }
+    println!("  per tool (AFC log)  blocks  AC    time s  programmed s  vs prog %  cutting s  controlled s  peak F/Fmax  peak T/Tmax  above limit s  lowest ipm  holds");
+    let num = |v: &Value, w: usize, d: usize| match v.as_f64() {
+        Some(x) => format!("{x:>w$.d$}"),
+        None => format!("{:>w$}", "-"),
+    };
+    for t in log {
+        println!(
+            "  T{:<18} {:>6}  {:<4} {} {} {} {} {} {} {} {} {} {:>6}",
+            t["tool"].as_u64().unwrap_or(0),
+            t["blocks"].as_u64().unwrap_or(0),
+            if t["ac"].as_bool() == Some(true) {
+                "on"
+            } else {
+                "off"
+            },
+            num(&t["time_s"], 8, 2),
+            num(&t["time_programmed_s"], 13, 2),
+            num(&t["vs_programmed_pct"], 10, 1),
+            num(&t["cutting_s"], 10, 2),
+            num(&t["controlled_s"], 13, 2),
+            num(&t["peak_force_ratio"], 12, 3),
+            num(&t["peak_torque_ratio"], 12, 3),
+            num(&t["time_above_limit_s"], 14, 3),
+            num(&t["lowest_feed_ipm"], 11, 2),
+            t["holds"].as_u64().unwrap_or(0),
+        );
+    }
+}
+
 /// The AC row's name in the side-by-side table for the run's feed law.
 pub fn ac_label(strategy: millac::ac::law::Strategy) -> &'static str {
     use millac::ac::law::Strategy;

@@ -68,8 +68,10 @@ pub struct Cut {
         Vec<millac_plant::lobes::Mode>,
     )>,
     /// The program's tool changes ([`Cut::with_tool_changes`]; empty: one tool, `tool`, for
-    /// the whole program).
+    /// the whole program), and the machine's tool table they came from (a QEMU run's firmware
+    /// gets it in its settings record).
     pub changes: Vec<ToolChangeAt>,
+    pub tools: millac::gcode::tools::ToolTable,
 }
 
 /// A tool change of a program (M6) as a host run makes it: once the blocks before it have run
@@ -110,6 +112,7 @@ impl Cut {
             modes: None,
             tooth_events: Vec::new(),
             changes: Vec::new(),
+            tools: Default::default(),
         }
     }
 
@@ -135,6 +138,7 @@ impl Cut {
         settings: &Settings,
         tools: &millac::gcode::tools::ToolTable,
     ) -> Cut {
+        self.tools = *tools;
         let r = crate::analysis::read_lines_with(text.as_bytes(), settings, tools);
         // The S in force just before line `before` (0: none yet).
         let rpm_before = |before: u32| {
@@ -348,6 +352,30 @@ pub fn load_stock(path: &std::path::Path) -> Result<Stock> {
     })
 }
 
+/// A tool table file (`--tools`): `$T` lines as an operator types them at the console, each set
+/// as the firmware's protocol sets it (`millac::protocol::table::MachineSettings::tool_line`);
+/// blank lines and lines starting with `#` are skipped. A line the firmware would refuse is
+/// refused with its path, line and grbl error.
+pub fn load_tools(path: &std::path::Path) -> Result<millac::gcode::tools::ToolTable> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow!("reading the tool table {}: {e}", path.display()))?;
+    let mut table = millac::protocol::table::MachineSettings::default();
+    for (n, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.is_empty() || l.starts_with('#') {
+            continue;
+        }
+        table.tool_line(l).map_err(|code| {
+            anyhow!(
+                "{} line {}: `{l}` refused with error:{code} (a $T line: $T<1-16>=L D N K F M)",
+                path.display(),
+                n + 1
+            )
+        })?;
+    }
+    Ok(table.work.tools)
+}
+
 /// Result of a host run.
 #[derive(Clone, Debug, Default)]
 pub struct HostRun {
@@ -397,18 +425,43 @@ pub struct HostRun {
 }
 
 /// The tool cutting in a host run, until the next change.
+#[derive(Default)]
 struct ToolPart {
     tool: u8,
     from_block: usize,
     start_ns: u64,
     limited: bool,
     alarm: Option<millac::ac::Alarm>,
+    /// AC periods in the cut, and those of them slower than programmed; the lowest feed in
+    /// the cut; the holds entered; whether the period before was held.
+    cutting: u32,
+    controlled: u32,
+    lowest_ipm: Option<f64>,
+    holds: u32,
+    was_held: bool,
 }
 
+/// A period is in the cut when its highest true force is above this share of the tool's F_max
+/// (the AFC log's cutting time; air and a tooth's graze are not).
+pub const CUTTING_SHARE: f64 = 0.05;
+
 impl ToolPart {
+    /// One AC period's figures: its highest true force (N), the feed achieved and programmed
+    /// (ipm), whether it held; the period (ms) and the tool.
+    fn period(&mut self, f_true: f64, feed: f64, programmed: f64, held: bool, tool: &Tool) {
+        self.holds += u32::from(held && !self.was_held);
+        self.was_held = held;
+        if f_true > CUTTING_SHARE * tool.f_max_n {
+            self.cutting += 1;
+            // Slower than programmed by more than the frame's own quantisation (a feed number).
+            self.controlled += u32::from(feed < 0.98 * programmed || held);
+            self.lowest_ipm = Some(self.lowest_ipm.map_or(feed, |l| l.min(feed)));
+        }
+    }
+
     /// Its part, ended at `t` (ns) with `blocks` done, its samples tallied in `tally`; none for
     /// the part before the first change when it ran no block.
-    fn end(self, t: u64, blocks: usize, tally: &LoadTally) -> Option<ToolRun> {
+    fn end(self, t: u64, blocks: usize, tally: &LoadTally, period_ms: u32) -> Option<ToolRun> {
         (self.tool != 0 || blocks > 0).then(|| ToolRun {
             tool: self.tool,
             from_block: self.from_block,
@@ -419,8 +472,17 @@ impl ToolPart {
             samples: tally.samples(),
             limited: self.limited,
             alarm: self.alarm,
+            cutting_s: f64::from(self.cutting) * ms_s(period_ms),
+            controlled_s: f64::from(self.controlled) * ms_s(period_ms),
+            lowest_feed_ipm: self.lowest_ipm,
+            holds: self.holds,
         })
     }
+}
+
+/// Milliseconds in seconds.
+fn ms_s(ms: u32) -> f64 {
+    f64::from(ms) * 1e-3
 }
 
 /// One tool's part of a host run.
@@ -441,6 +503,13 @@ pub struct ToolRun {
     pub limited: bool,
     /// The alarm that first held the feed while it cut (None: no hold).
     pub alarm: Option<millac::ac::Alarm>,
+    /// The AFC log's figures: the time in the cut (AC periods whose highest true force is above
+    /// [`CUTTING_SHARE`] of its F_max), the part of it the feed was below the programmed (the
+    /// AC controlling, or held), the lowest feed in the cut (None: it never cut), the holds.
+    pub cutting_s: f64,
+    pub controlled_s: f64,
+    pub lowest_feed_ipm: Option<f64>,
+    pub holds: u32,
 }
 
 /// What a run keeps of itself besides its figures: each of these grows with the program (the
@@ -807,11 +876,8 @@ fn run_inner(
     let mut changes = cut.changes.iter().peekable();
     let mut offered = 0usize;
     let mut part = ToolPart {
-        tool: 0,
-        from_block: 0,
-        start_ns: 0,
         limited: true,
-        alarm: None,
+        ..ToolPart::default()
     };
     loop {
         ticks = ticks.wrapping_add(1);
@@ -842,12 +908,16 @@ fn run_inner(
                 from_block: blocks,
                 start_ns: t,
                 limited: c.fitted.limits.is_some(),
-                alarm: None,
+                ..ToolPart::default()
             };
             let tally = LoadTally::new(&c.plant, record.load_fraction, acs.sample_hz);
             let done = std::mem::replace(&mut adc.part, tally);
-            out.tools
-                .extend(std::mem::replace(&mut part, next).end(t, blocks, &done));
+            out.tools.extend(std::mem::replace(&mut part, next).end(
+                t,
+                blocks,
+                &done,
+                acs.period_ms,
+            ));
             changes.next();
         }
         while changes.peek().is_none_or(|c| offered < c.at_block) {
@@ -982,6 +1052,12 @@ fn run_inner(
                 .truth
                 .get(adc.truth.len().saturating_sub(per_period as usize)..)
                 .unwrap_or(&[]);
+            if plant {
+                let f_true = window.iter().map(|s| s.0).fold(0.0, f64::max);
+                let held = state.starts_with("hold");
+                let feed = path_feed_ipm(settings, d, acs.period_ms);
+                part.period(f_true, feed, block_feed, held, adc.process.tool());
+            }
             let row = (record.rows || taps.row.is_some()).then(|| AcRow {
                 t_ms: u64::from(due) * 1000 / u64::from(acs.sample_hz),
                 pos_blu: pos,
@@ -1031,7 +1107,8 @@ fn run_inner(
     }
     let blocks = frames.frame().blocks_done() as usize;
     if !cut.changes.is_empty() {
-        out.tools.extend(part.end(t, blocks, &adc.part));
+        out.tools
+            .extend(part.end(t, blocks, &adc.part, acs.period_ms));
     }
     out.stock = plant.then(|| adc.process.into_stock());
     out.load = adc.tally.figures();

@@ -178,6 +178,10 @@ impl<P: Plant> Plant for Faulty<P> {
         self.plant.spindle_rpm(rpm)
     }
 
+    fn tool(&mut self, tool: u8) -> anyhow::Result<()> {
+        self.plant.tool(tool)
+    }
+
     fn sound(&mut self) -> [u16; millac::wire::SOUND_PER_SAMPLE] {
         self.plant.sound()
     }
