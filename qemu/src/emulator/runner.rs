@@ -547,9 +547,12 @@ pub fn summarise(
             1.0 / acs.optimal_fraction as f64,
             crate::host::acsim::feed_ipm(settings, settings.q0),
         )?;
-        let load = crate::host::acsim::load_figures(
+        let period_tools: Vec<u8> = records.iter().map(|r| r.tool).collect();
+        let load = crate::host::acsim::load_figures_by_tool(
             a.truth,
-            &a.run.cut.tool,
+            &period_tools,
+            acs.samples_per_period() as usize,
+            &a.run.cut,
             acs.optimal_fraction as f64,
             acs.sample_hz,
         );

@@ -1243,6 +1243,34 @@ pub fn load_figures(
     tally.figures()
 }
 
+/// [`load_figures`] of a multi-tool run whose samples are grouped `per` to an AC period and
+/// whose periods were cut by `period_tools` (a QEMU run's `ac.log` tool column): each sample
+/// against the limits of the tool that cut it (the cut's tool until the first change, then each
+/// of `cut.changes` as its tool comes, in order).
+pub fn load_figures_by_tool(
+    samples: &[(f64, f64)],
+    period_tools: &[u8],
+    per: usize,
+    cut: &Cut,
+    fraction: f64,
+    sample_hz: u32,
+) -> LoadFigures {
+    let mut tally = LoadTally::new(&cut.tool, fraction, sample_hz);
+    let mut changes = cut.changes.iter();
+    let mut tool = 0;
+    for (k, &(f, t)) in samples.iter().enumerate() {
+        let now = period_tools.get(k / per.max(1)).copied().unwrap_or(tool);
+        if now != tool {
+            tool = now;
+            if let Some(c) = changes.by_ref().find(|c| c.fitted.number == now) {
+                tally.retool(&c.plant);
+            }
+        }
+        tally.add(f, t);
+    }
+    tally.figures()
+}
+
 /// [`LoadFigures`] one sample at a time (a run's, without keeping its samples).
 #[derive(Clone, Copy, Debug)]
 pub struct LoadTally {
