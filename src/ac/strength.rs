@@ -1,5 +1,5 @@
-//! A cutter's permissible radial force and spindle torque from its geometry (core, no context of
-//! its own: host tests today; the loader task is to apply it at a tool change). The paper: "the end milling cutter may
+//! A cutter's permissible radial force and spindle torque from its geometry (core: the loader task
+//! at an M6, `crate::rt::status::FittedTool::of`, and the host's runs). The paper: "the end milling cutter may
 //! break in bending or in twist or its tooth may break away"; it left the limits to a strength
 //! study "still in the initial stage". Here the first two, as beams:
 //!
@@ -90,8 +90,8 @@ pub enum Source {
 }
 
 /// The limits of tool `t`: each of the table's own where it gives one (not 0), the rest derived
-/// from its geometry under `s`; None when the table gives neither and the tool has no diameter
-/// (the machine's AC settings apply, `$254`, `$255`).
+/// from its geometry under `s`; None when the table does not give both and the tool has no
+/// diameter (fitted, the AC only measures it).
 pub fn of_tool(t: &crate::gcode::tools::Tool, s: &Strength) -> Option<(Limits, Source)> {
     let (f, m) = (t.force_limit_n, t.torque_limit_nm);
     if f > 0.0 && m > 0.0 {

@@ -46,8 +46,8 @@ impl ToolKind {
 }
 
 /// One tool. An entry nobody described is all zero: length 0 (G43 H of it offsets nothing, as
-/// grblHAL's table), diameter 0, no flute count, and no limits of its own (the machine's AC
-/// settings apply).
+/// grblHAL's table), diameter 0, no flute count, and no limits (fitted by an M6, the AC only
+/// measures it: `crate::ac::strength::of_tool`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Tool {
     /// Length offset (G43 H), picometres.
@@ -57,8 +57,8 @@ pub struct Tool {
     /// Cutting edges (0: not known), at most [`MAX_FLUTES`].
     pub flutes: u8,
     pub kind: ToolKind,
-    /// The permissible cutting force and spindle torque of this cutter (N, N m); 0 = the
-    /// machine's AC settings. Finite, not negative, and listable exactly
+    /// The permissible cutting force and torque of this cutter (N, N m); 0 = from its diameter
+    /// and kind (`crate::ac::strength::of_tool`). Finite, not negative, and listable exactly
     /// ([`crate::gcode::number::listable_f32`]).
     pub force_limit_n: f32,
     pub torque_limit_nm: f32,

@@ -10,8 +10,8 @@
 //! | `D` | diameter, mm | >= 0 |
 //! | `N` | flutes (cutting edges; 0: not known) | whole, 0..=[`MAX_FLUTES`] (32) |
 //! | `K` | kind: 0 flat end mill, 1 ball end mill, 2 drill | whole |
-//! | `F` | permissible cutting force, N (0: the machine's AC settings) | >= 0 |
-//! | `M` | permissible spindle torque, N m (0: the machine's AC settings) | >= 0 |
+//! | `F` | permissible cutting force, N (0: from its diameter and kind, `crate::ac::strength`) | >= 0 |
+//! | `M` | permissible torque, N m (0: likewise; the AC holds it to `$255` at most) | >= 0 |
 //!
 //! Lengths are mm whatever `$13` says, as every `$` setting's; they are kept in picometres
 //! exactly and listed exactly, and the limits are listed as the shortest decimal of their f32, so
