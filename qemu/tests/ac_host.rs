@@ -671,3 +671,39 @@ fn an_m6_gives_the_small_tool_its_own_limits() {
         ac.tools[1].load
     );
 }
+
+/// The bound follows the tool changes too: each tool's runs are scheduled with its own geometry,
+/// speed and limits, the stock as the tool before left it. On the two-tool ramp the small tool
+/// cannot take its programmed 6 ipm at depth (its force limit falls below it), where the big
+/// tool cutting the same path would take twice that; so the two-tool bound is the slower.
+#[test]
+fn the_bound_schedules_each_tool_with_its_own_limits() {
+    use millac_qemu::evaluation::acreport;
+    let program = "G20 G90 G94\nT1 M6\nM3 S600\nG0 X-0.5 Y2.5\nG0 Z-0.3\nG1 X2.5 F20\nG0 Z0.2\n\
+                   T2 M6\nM3 S1500\nG0 X1.0 Y-0.5\nG0 Z-0.01\nG1 Y2.0 Z-0.12 F6\nG0 Z0.2\nM2\n";
+    let settings = Settings::default();
+    let prog = analysis::load_program(program, &settings).unwrap();
+    let acs = AcSettings::default();
+    let two = cut("blank X0 Y0 W3 H3 Z0\n", Material::STEEL).with_tool_changes(
+        program,
+        &settings,
+        &two_tools(),
+    );
+    // The same program cut by the big tool alone (the tool changes not followed).
+    let one = Cut {
+        changes: Vec::new(),
+        ..two.clone()
+    };
+    let bound = |c: &Cut| {
+        acreport::bound_summary(&prog, &settings, c, &acs, &acreport::bound_limits(c, &acs))
+            .unwrap()
+    };
+    let (b2, b1) = (bound(&two), bound(&one));
+    println!(
+        "bound: two tools {:.3} s, smallest limit {:.2} ipm; one tool {:.3} s, {:.2} ipm",
+        b2.time_s, b2.min_cut_limit_ipm, b1.time_s, b1.min_cut_limit_ipm
+    );
+    assert!(b2.min_cut_limit_ipm < 6.0, "{b2:?}");
+    assert!(b1.min_cut_limit_ipm > 12.0, "{b1:?}");
+    assert!(b2.time_s > b1.time_s, "{b2:?} {b1:?}");
+}

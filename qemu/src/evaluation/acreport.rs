@@ -84,13 +84,20 @@ enum Term {
 /// [`millac_plant::OracleStream`] on the stock as the blocks before it left it, with each
 /// block's ceiling `ceiling_ipm[i]` and acceleration; rapids and dwells take their programmed
 /// run's time. Its points go out as the stream settles them, so it holds a window of the path,
-/// not the path. Host: the bound ([`bound_summary`]) and the offline optimiser
-/// (`crate::evaluation::optimise`).
+/// not the path. A program's tool changes (`Cut::changes`) end the run before them; the runs
+/// after a change are scheduled for the tool it fits (its geometry, speed and limits: F0 and T0
+/// the same fraction of its limits as `limits` are of the cut's tool's). Host: the bound
+/// ([`bound_summary`]) and the offline optimiser (`crate::evaluation::optimise`).
 pub struct Walker<'a> {
     prog: &'a [ProgBlock],
     settings: &'a Settings,
     cut: &'a Cut,
+    /// The tool cutting, its speed and limits, and the next of the cut's changes.
+    tool: millac_plant::Tool,
+    rpm: f64,
     limits: OracleLimits,
+    base_limits: OracleLimits,
+    next_change: usize,
     ceiling_ipm: &'a [f64],
     /// The stock between runs (inside the stream during one).
     stock: Option<millac_plant::Stock>,
@@ -115,7 +122,11 @@ impl<'a> Walker<'a> {
             prog,
             settings,
             cut,
+            tool: cut.tool,
+            rpm: cut.spindle_rpm,
             limits: *limits,
+            base_limits: *limits,
+            next_change: 0,
             ceiling_ipm,
             stock: Some(cut.stock.clone()),
             first: None,
@@ -137,6 +148,24 @@ impl<'a> Walker<'a> {
         let Some(b) = self.prog.get(i) else {
             return Ok(());
         };
+        // A tool change before this block: the run before it ends (the machine stands).
+        while let Some(c) = self
+            .cut
+            .changes
+            .get(self.next_change)
+            .filter(|c| c.at_block <= i)
+        {
+            self.flush(out)?;
+            let (base, to) = (&self.cut.tool, &c.plant);
+            self.limits = OracleLimits {
+                f0_n: self.base_limits.f0_n / base.f_max_n * to.f_max_n,
+                t0_nm: self.base_limits.t0_nm / base.t_max_nm * to.t_max_nm,
+                ..self.base_limits
+            };
+            self.tool = c.plant;
+            self.rpm = c.rpm;
+            self.next_change += 1;
+        }
         let pos = self.pos;
         if is_feed(b) {
             let point = |pos_blu, step_mm| OraclePoint {
@@ -177,7 +206,7 @@ impl<'a> Walker<'a> {
             // Rapids cut nothing in a sane program; keep the stock in step anyway.
             let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
             if let (Some(last), Some(stock)) = (pts.last(), self.stock.as_mut()) {
-                stock.cut_capsule(mm(pos), mm(*last), self.cut.tool.diameter_mm / 2.0);
+                stock.cut_capsule(mm(pos), mm(*last), self.tool.diameter_mm / 2.0);
             }
         }
         if let Some(last) = pts.last() {
@@ -195,10 +224,9 @@ impl<'a> Walker<'a> {
     ) -> Result<()> {
         if self.stream.is_none() {
             let stock = self.stock.take().context("the walk's stock")?;
-            let c = self.cut;
-            let mut stream =
-                OracleStream::new(stock, &c.tool, &c.material, c.spindle_rpm, &self.limits)
-                    .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))?;
+            let material = &self.cut.material;
+            let mut stream = OracleStream::new(stock, &self.tool, material, self.rpm, &self.limits)
+                .map_err(|e| anyhow::anyhow!("oracle: {}", e.0))?;
             if let Some((q, b)) = self.first.take() {
                 self.pending.push_back((b, q.pos_blu));
                 stream
