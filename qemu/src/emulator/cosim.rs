@@ -325,12 +325,13 @@ mod tests {
 
     #[test]
     fn parses_the_log() {
-        let t = "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns\n\
-                 10,1,-2,0,750,0.95,180.5,0,run,0\n\
-                 20,3,-2,0,0,-0.2,4320,1.5,hold:sensor stuck at an ADC rail,1\n";
+        let t = "t_ms,x_blu,y_blu,z_blu,feed_cap,e,f_n,t_nm,state,overruns,tool\n\
+                 10,1,-2,0,750,0.95,180.5,0,run,0,0\n\
+                 20,3,-2,0,0,-0.2,4320,1.5,hold:sensor stuck at an ADC rail,1,3\n";
         let r = parse_ac_log(t).unwrap();
         assert_eq!(r.len(), 2);
         assert_eq!(r[0].pos_blu, [1, -2, 0]);
+        assert_eq!((r[0].tool, r[1].tool), (0, 3));
         assert_eq!(r[0].hold, None);
         assert_eq!(r[1].feed_cap, 0);
         assert_eq!(r[1].hold.as_deref(), Some("sensor stuck at an ADC rail"));
