@@ -424,10 +424,16 @@ mod tests {
         assert_eq!(Header::parse(b"MAC2\0\0\0\0"), None);
         assert_eq!(AcLogLine::parse("1,2,3"), None);
         assert_eq!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,ran,0,1"), None);
-        assert_eq!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0,1,7"), None);
+        assert_eq!(
+            AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0,1,7"),
+            None
+        );
         // Without the tool column (a log of before it), or a tool beyond a u8.
         assert_eq!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0"), None);
-        assert_eq!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0,256"), None);
+        assert_eq!(
+            AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0,256"),
+            None
+        );
         assert!(AcLogLine::parse("10,1,-2,0,750,0.95,180.5,0,run,0,1").is_some());
         assert_eq!(AC_LOG_HEADER.trim_end().split(',').count(), 11);
     }

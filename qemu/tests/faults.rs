@@ -120,8 +120,12 @@ fn millac_in(mode: &str, kind: FaultKind, tag: &str) -> Run {
         .skip(1)
         .map(|l| l.split(',').map(str::to_string).collect::<Vec<_>>())
         .collect::<Vec<_>>();
+    let columns = millac_qemu::host::acsim::CSV_HEADER
+        .trim_end()
+        .split(',')
+        .count();
     assert!(
-        rows.iter().all(|r| r.len() == 11),
+        rows.iter().all(|r| r.len() == columns),
         "{mode} {fault}: ac.csv rows"
     );
     Run {

@@ -173,7 +173,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 summary["interrupted"] = serde_json::json!({"signal": s, "left_out": "comparison"});
             }
             if let Some(cmp) = &cmp {
-                let log = acreport::tool_log(&run, &cmp.programmed);
+                let log = acreport::tool_log(&run, cmp);
                 if !log.is_empty() {
                     summary["tools"] = serde_json::json!(log);
                 }

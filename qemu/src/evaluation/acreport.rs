@@ -3,7 +3,7 @@
 //! oracle (the fastest schedule within F0, T0 and fdot_m, computed with full knowledge of the stock).
 //! Also the ac.csv text and the plot. Used by the `run`/demo commands and the benchmark.
 use crate::analysis::ProgBlock;
-use crate::host::acsim::{self, AcRow, Cut, HostRun, LoadFigures};
+use crate::host::acsim::{self, AcRow, Cut, HostRun, LoadFigures, ToolRun};
 use anyhow::{Context, Result};
 use millac::ac::AcSettings;
 use millac::gcode::tape::finish_block;
@@ -17,9 +17,14 @@ use serde_json::{json, Value};
 pub struct Comparison {
     /// The runs' load figures (`HostRun::load`) are against the AC's F0.
     pub programmed: HostRun,
+    /// The largest constant feed safe for the whole program, and for each tool's part (one
+    /// part without tool changes); the safe run cuts each part at its own.
     pub safe_feed_ipm: f64,
+    pub safe_parts_ipm: Vec<f64>,
     pub safe: HostRun,
     pub oracle_time_s: f64,
+    /// The oracle's time of each tool's part (`BoundSummary::parts_s`).
+    pub oracle_parts_s: Vec<f64>,
 }
 
 fn is_feed(b: &ProgBlock) -> bool {
@@ -107,7 +112,9 @@ pub struct Walker<'a> {
     stream: Option<OracleStream>,
     pending: std::collections::VecDeque<(usize, [i64; 3])>,
     pos: [i64; 3],
-    terms: Vec<Term>,
+    /// The terms with the tool's part they belong to (0 before the first change, k after the
+    /// k-th).
+    terms: Vec<(usize, Term)>,
 }
 
 impl<'a> Walker<'a> {
@@ -202,7 +209,7 @@ impl<'a> Walker<'a> {
             }
         } else {
             self.flush(out)?;
-            self.terms.push(Term::Span(i));
+            self.terms.push((self.next_change, Term::Span(i)));
             // Rapids cut nothing in a sane program; keep the stock in step anyway.
             let mm = |v: [i64; 3]| v.map(|c| c as f64 * millac_plant::MM_PER_BLU);
             if let (Some(last), Some(stock)) = (pts.last(), self.stock.as_mut()) {
@@ -251,7 +258,7 @@ impl<'a> Walker<'a> {
         if let Some(stream) = self.stream.take() {
             let pending = &mut self.pending;
             let (time_s, stock) = stream.finish(&mut |_, o| emit(pending, o, out));
-            self.terms.push(Term::Run(time_s));
+            self.terms.push((self.next_change, Term::Run(time_s)));
             self.stock = Some(stock);
         }
         Ok(())
@@ -260,23 +267,37 @@ impl<'a> Walker<'a> {
     /// The end of the program: the last run's points; the schedule's time, the oracle's over
     /// the feed runs and the programmed run's `spans` over rapids and dwells.
     pub fn finish(
-        mut self,
+        self,
         spans: &[(usize, u64, u64)],
         out: &mut impl FnMut(WalkPoint),
     ) -> Result<f64> {
+        self.finish_parts(spans, out).map(|(t, _)| t)
+    }
+
+    /// [`Walker::finish`], with the time of each tool's part (0 before the first change, k
+    /// after the k-th: `Cut::changes.len() + 1` parts).
+    pub fn finish_parts(
+        mut self,
+        spans: &[(usize, u64, u64)],
+        out: &mut impl FnMut(WalkPoint),
+    ) -> Result<(f64, Vec<f64>)> {
         self.flush(out)?;
         let mut time_s = 0.0;
-        for t in &self.terms {
-            match *t {
-                Term::Run(s) => time_s += s,
-                Term::Span(i) => {
-                    if let Some(&(_, t0, t1)) = spans.get(i) {
-                        time_s += (t1 - t0) as f64 * 1e-9;
-                    }
-                }
+        let mut parts = vec![0.0; self.cut.changes.len() + 1];
+        for &(part, ref t) in &self.terms {
+            let s = match *t {
+                Term::Run(s) => s,
+                Term::Span(i) => match spans.get(i) {
+                    Some(&(_, t0, t1)) => (t1 - t0) as f64 * 1e-9,
+                    None => continue,
+                },
+            };
+            time_s += s;
+            if let Some(p) = parts.get_mut(part) {
+                *p += s;
             }
         }
-        Ok(time_s)
+        Ok((time_s, parts))
     }
 }
 
@@ -362,10 +383,13 @@ pub fn by_block(
 
 /// The bound's figures over a program: its time and the smallest force or torque limit along
 /// it (infinite where nothing is cut), the largest constant feed safe everywhere.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct BoundSummary {
     pub time_s: f64,
     pub min_cut_limit_ipm: f64,
+    /// The time and the smallest limit of each tool's part ([`Walker::finish_parts`]).
+    pub parts_s: Vec<f64>,
+    pub parts_min_cut_limit_ipm: Vec<f64>,
 }
 
 /// The ceilings the AC with `acs` honours ([`ceiling_blocks`]) as feeds, ipm, per block.
@@ -389,14 +413,22 @@ pub fn bound_summary(
     let ceiling_ipm = bound_ceilings(prog, settings, acs);
     let mut walker = Walker::new(prog, settings, cut, limits, &ceiling_ipm);
     let mut min_cut_limit_ipm = f64::INFINITY;
-    let mut take = |p: WalkPoint| min_cut_limit_ipm = min_cut_limit_ipm.min(p.cut_limit_ipm);
+    let mut parts_min_cut_limit_ipm = vec![f64::INFINITY; cut.changes.len() + 1];
+    let mut take = |p: WalkPoint| {
+        min_cut_limit_ipm = min_cut_limit_ipm.min(p.cut_limit_ipm);
+        if let Some(m) = parts_min_cut_limit_ipm.get_mut(cut.part_of(p.block)) {
+            *m = m.min(p.cut_limit_ipm);
+        }
+    };
     let frames = by_block(prog, settings, cut, |i, pts| {
         walker.block(i, pts, &mut take)
     })?;
-    let time_s = walker.finish(&frames.spans, &mut take)?;
+    let (time_s, parts_s) = walker.finish_parts(&frames.spans, &mut take)?;
     Ok(BoundSummary {
         time_s,
         min_cut_limit_ipm,
+        parts_s,
+        parts_min_cut_limit_ipm,
     })
 }
 
@@ -450,7 +482,7 @@ pub fn compare_recorded(
     let run = |p: &[ProgBlock]| acsim::run_recorded(p, settings, cut, None, &[], record, None);
     // The programmed feeds cut on a thread of their own: the bound walks the pulses of the same
     // path (the frames alone), and the safe constant feed needs only the bound.
-    let (programmed, (oracle_s, safe_f, safe)) = std::thread::scope(|s| {
+    let (programmed, (oracle_s, oracle_parts_s, safe_f, part_f, safe)) = std::thread::scope(|s| {
         let programmed = s.spawn(|| run(prog));
         let bound = (|| -> Result<_> {
             crate::progress::stage("oracle (bound)");
@@ -458,10 +490,19 @@ pub fn compare_recorded(
             let b = bound_summary(prog, settings, cut, acs, &limits)?;
             let (oracle_s, safe_f) = (b.time_s, safe_feed(b.min_cut_limit_ipm, settings));
             let ceilings = ceiling_blocks(prog, settings, acs);
-            let safe_prog = acsim::with_constant_feed(&ceilings, safe_f, settings);
+            // Each tool's part at the largest constant feed safe for it (one part: the whole
+            // program at one feed).
+            let part_f: Vec<u32> = b
+                .parts_min_cut_limit_ipm
+                .iter()
+                .map(|&l| safe_feed(l, settings))
+                .collect();
+            let parts = b.parts_s;
+            let f_of = |i: usize| part_f.get(cut.part_of(i)).copied().unwrap_or(safe_f);
+            let safe_prog = acsim::with_constant_feeds(&ceilings, f_of, settings);
             crate::progress::stage("safe constant feed");
             let safe = run(&safe_prog)?;
-            Ok((oracle_s, safe_f, safe))
+            Ok((oracle_s, parts, safe_f, part_f, safe))
         })();
         let programmed = programmed
             .join()
@@ -471,8 +512,13 @@ pub fn compare_recorded(
     Ok(Comparison {
         programmed,
         safe_feed_ipm: acsim::feed_ipm(settings, safe_f),
+        safe_parts_ipm: part_f
+            .iter()
+            .map(|&f| acsim::feed_ipm(settings, f))
+            .collect(),
         safe,
         oracle_time_s: oracle_s,
+        oracle_parts_s,
     })
 }
 
@@ -503,13 +549,18 @@ pub fn ac_json(time_s: f64, load: &LoadFigures, c: &Comparison) -> Value {
 /// programmed), the highest F/Fmax and T/Tmax against its own limits, the time above them, the
 /// lowest feed in the cut, the holds and the first alarm. `programmed`: the programmed feeds'
 /// run of the same program (its parts in the same order). Empty for a one-tool program.
-pub fn tool_log(ac: &HostRun, programmed: &HostRun) -> Vec<Value> {
+pub fn tool_log(ac: &HostRun, c: &Comparison) -> Vec<Value> {
+    let part_s = |r: &HostRun, t: &ToolRun| {
+        r.tools
+            .iter()
+            .find(|p| p.part == t.part)
+            .map(|p| (p.end_ns - p.start_ns) as f64 * 1e-9)
+    };
     ac.tools
         .iter()
-        .enumerate()
-        .map(|(i, t)| {
+        .map(|t| {
             let time = (t.end_ns - t.start_ns) as f64 * 1e-9;
-            let prog = programmed.tools.get(i).filter(|p| p.tool == t.tool);
+            let prog = c.programmed.tools.iter().find(|p| p.part == t.part);
             // Compared only when the AC's part ran all its blocks.
             let whole = prog.is_some_and(|p| p.blocks == t.blocks);
             let prog = prog.map(|p| (p.end_ns - p.start_ns) as f64 * 1e-9);
@@ -519,6 +570,9 @@ pub fn tool_log(ac: &HostRun, programmed: &HostRun) -> Vec<Value> {
                 "ac": t.limited,
                 "time_s": r3(time),
                 "time_programmed_s": prog.map(r3),
+                "time_safe_s": part_s(&c.safe, t).map(r3),
+                "safe_feed_ipm": c.safe_parts_ipm.get(t.part).copied().map(r3),
+                "time_bound_s": c.oracle_parts_s.get(t.part).copied().map(r3),
                 "vs_programmed_pct": prog
                     .filter(|p| *p > 0.0 && whole)
                     .map(|p| r3((time / p - 1.0) * 100.0)),
@@ -540,14 +594,14 @@ pub fn print_tool_log(log: &[Value]) {
     if log.is_empty() {
         return;
     }
-    println!("  per tool (AFC log)  blocks  AC    time s  programmed s  vs prog %  cutting s  controlled s  peak F/Fmax  peak T/Tmax  above limit s  lowest ipm  holds");
+    println!("  per tool (AFC log)  blocks  AC    time s  programmed s  vs prog %  safe feed s  bound s  cutting s  controlled s  peak F/Fmax  peak T/Tmax  above limit s  lowest ipm  holds");
     let num = |v: &Value, w: usize, d: usize| match v.as_f64() {
         Some(x) => format!("{x:>w$.d$}"),
         None => format!("{:>w$}", "-"),
     };
     for t in log {
         println!(
-            "  T{:<18} {:>6}  {:<4} {} {} {} {} {} {} {} {} {} {:>6}",
+            "  T{:<18} {:>6}  {:<4} {} {} {} {} {} {} {} {} {} {} {} {:>6}",
             t["tool"].as_u64().unwrap_or(0),
             t["blocks"].as_u64().unwrap_or(0),
             if t["ac"].as_bool() == Some(true) {
@@ -558,6 +612,8 @@ pub fn print_tool_log(log: &[Value]) {
             num(&t["time_s"], 8, 2),
             num(&t["time_programmed_s"], 13, 2),
             num(&t["vs_programmed_pct"], 10, 1),
+            num(&t["time_safe_s"], 12, 2),
+            num(&t["time_bound_s"], 8, 2),
             num(&t["cutting_s"], 10, 2),
             num(&t["controlled_s"], 13, 2),
             num(&t["peak_force_ratio"], 12, 3),
@@ -615,7 +671,10 @@ pub fn print_table(
         None,
     );
     row(
-        &format!("constant, safe feed {:.2} ipm", c.safe_feed_ipm),
+        &match c.safe_parts_ipm.len() {
+            0 | 1 => format!("constant, safe feed {:.2} ipm", c.safe_feed_ipm),
+            _ => "constant per tool, each its safe feed".to_string(),
+        },
         c.safe.machining_time_s,
         Some(&c.safe.load),
         None,

@@ -177,6 +177,12 @@ impl Cut {
         self
     }
 
+    /// The tool's part of the program block `i` belongs to: 0 before the first change, k after
+    /// the k-th.
+    pub fn part_of(&self, i: usize) -> usize {
+        self.changes.partition_point(|c| c.at_block <= i)
+    }
+
     /// The plant's tool for a fitted tool (see [`ToolChangeAt::plant`]).
     fn plant_tool(
         &self,
@@ -428,6 +434,8 @@ pub struct HostRun {
 #[derive(Default)]
 struct ToolPart {
     tool: u8,
+    /// 0 before the first change, k after the k-th.
+    part: usize,
     from_block: usize,
     start_ns: u64,
     limited: bool,
@@ -464,6 +472,7 @@ impl ToolPart {
     fn end(self, t: u64, blocks: usize, tally: &LoadTally, period_ms: u32) -> Option<ToolRun> {
         (self.tool != 0 || blocks > 0).then(|| ToolRun {
             tool: self.tool,
+            part: self.part,
             from_block: self.from_block,
             blocks: blocks - self.from_block,
             start_ns: self.start_ns,
@@ -490,6 +499,9 @@ fn ms_s(ms: u32) -> f64 {
 pub struct ToolRun {
     /// Its number (0: before any M6, the cut's tool).
     pub tool: u8,
+    /// Its part of the program: 0 before the first change, k after the k-th
+    /// ([`Cut::changes`]).
+    pub part: usize,
     /// The first block it ran, and the number of blocks.
     pub from_block: usize,
     pub blocks: usize,
@@ -905,6 +917,7 @@ fn run_inner(
             let blocks = frames.frame().blocks_done() as usize;
             let next = ToolPart {
                 tool: c.fitted.number,
+                part: part.part + 1,
                 from_block: blocks,
                 start_ns: t,
                 limited: c.fitted.limits.is_some(),
@@ -1352,9 +1365,21 @@ pub fn ramp_ipm_s(settings: &Settings, b: &Block) -> f64 {
 /// where that is lower (a feed block's feed is its ceiling: pass the blocks the AC runs,
 /// [`crate::evaluation::acreport::ceiling_blocks`], to honour the AC's ceiling setting).
 pub fn with_constant_feed(prog: &[ProgBlock], f: u32, settings: &Settings) -> Vec<ProgBlock> {
+    with_constant_feeds(prog, |_| f, settings)
+}
+
+/// As [`with_constant_feed`], block `i` at its own feed number `f(i)` (or its own feed when
+/// lower): each tool's part of a program at its own constant feed.
+pub fn with_constant_feeds(
+    prog: &[ProgBlock],
+    f: impl Fn(usize) -> u32,
+    settings: &Settings,
+) -> Vec<ProgBlock> {
     let cfg = FrameConfig::from_settings(settings);
     prog.iter()
-        .map(|b| {
+        .enumerate()
+        .map(|(i, b)| {
+            let f = f(i);
             let mut block = b.block.into_block();
             match &mut block.motion {
                 Motion::Linear(l) => l.f = l.f.min(f),
