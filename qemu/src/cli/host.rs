@@ -117,6 +117,31 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 1.0 / acs.optimal_fraction as f64,
                 acsim::feed_ipm(&settings, settings.q0),
             )?;
+            // Each tool its own figure, against its own F0 and T0 (ac.svg's are the machine's).
+            let mut figures = Vec::new();
+            for c in &cut.changes {
+                let n = c.fitted.number;
+                let rows: Vec<_> = plot_rows
+                    .rows
+                    .iter()
+                    .filter(|r| r.tool == n)
+                    .cloned()
+                    .collect();
+                let name = format!("ac-T{n}.svg");
+                if rows.is_empty() || figures.contains(&name) {
+                    continue;
+                }
+                let s = millac::rt::ac::tool_settings(&acs, &c.fitted).map_or(acs, |s| s.get());
+                acreport::plot(
+                    &out.join(&name),
+                    &rows,
+                    s.f0_n() as f64,
+                    s.t0_nm() as f64,
+                    1.0 / s.optimal_fraction as f64,
+                    acsim::feed_ipm(&settings, settings.q0),
+                )?;
+                figures.push(name);
+            }
             let load = run.load;
             // The comparison's runs (constant feeds, the oracle) are left out once a signal has come:
             // they were cut short too.
@@ -196,6 +221,13 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 acreport::print_tool_log(log);
             }
             runner::write_json(&out.join("summary.json"), &summary)?;
+            if !figures.is_empty() {
+                println!(
+                    "  wrote {}/{} (each tool's feed, F/F0 and T/T0 against its own limits)",
+                    out.display(),
+                    figures.join(", ")
+                );
+            }
             println!(
                 "  wrote {}/ac.csv, {}/ac.svg and {}/summary.json",
                 out.display(),
