@@ -212,7 +212,7 @@ fn ac_against_the_cutting_process_and_host_replay() {
     let csv = std::fs::read_to_string(out.join("ac.csv")).unwrap();
     assert_eq!(
         csv.lines().next().unwrap(),
-        "t_ms,x_blu,y_blu,z_blu,feed_ipm,f_meas_n,t_meas_nm,f_true_n,t_true_nm,e,state"
+        "t_ms,x_blu,y_blu,z_blu,feed_ipm,f_meas_n,t_meas_nm,f_true_n,t_true_nm,e,state,tool"
     );
     assert_eq!(csv.lines().count(), o.ac_log.len() + 1);
     // Replay: the same samples, ten per period, through the host's controller.
