@@ -374,6 +374,11 @@ impl FeedNotice {
     }
 }
 
+/// The breakage monitor's teeth for `flutes` (`$267` or a tool's): 1 ..= `MAX_FLUTES`.
+fn teeth(flutes: u32) -> u8 {
+    u8::try_from(flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1)
+}
+
 /// The AC period's state: the controller and what the period keeps between periods.
 pub struct AcPeriod {
     pub ctl: AcController,
@@ -481,7 +486,7 @@ impl AcPeriod {
         flutes: u32,
     ) -> Self {
         let mut detector = BreakageDetector::new(settings);
-        let teeth = u8::try_from(flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1);
+        let teeth = teeth(flutes);
         detector.set_spindle(rpm as f32, teeth);
         self.breakage = Some(BreakageMonitor {
             detector,
@@ -510,8 +515,7 @@ impl AcPeriod {
         self.tripped = None;
         self.chatter = None;
         if let Some(m) = self.breakage.as_mut() {
-            m.teeth =
-                u8::try_from(s.flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1);
+            m.teeth = teeth(s.flutes);
             m.detector.set_spindle(m.rpm as f32, m.teeth);
             m.detector.reset();
             m.pending = None;

@@ -550,27 +550,25 @@ pub fn ac_json(time_s: f64, load: &LoadFigures, c: &Comparison) -> Value {
 /// lowest feed in the cut, the holds and the first alarm. `programmed`: the programmed feeds'
 /// run of the same program (its parts in the same order). Empty for a one-tool program.
 pub fn tool_log(ac: &HostRun, c: &Comparison) -> Vec<Value> {
-    let part_s = |r: &HostRun, t: &ToolRun| {
-        r.tools
-            .iter()
-            .find(|p| p.part == t.part)
-            .map(|p| (p.end_ns - p.start_ns) as f64 * 1e-9)
-    };
+    // The same tool's part of another run.
+    fn same<'a>(r: &'a HostRun, t: &ToolRun) -> Option<&'a ToolRun> {
+        r.tools.iter().find(|p| p.part == t.part)
+    }
     ac.tools
         .iter()
         .map(|t| {
-            let time = (t.end_ns - t.start_ns) as f64 * 1e-9;
-            let prog = c.programmed.tools.iter().find(|p| p.part == t.part);
+            let time = t.time_s();
+            let prog = same(&c.programmed, t);
             // Compared only when the AC's part ran all its blocks.
             let whole = prog.is_some_and(|p| p.blocks == t.blocks);
-            let prog = prog.map(|p| (p.end_ns - p.start_ns) as f64 * 1e-9);
+            let prog = prog.map(ToolRun::time_s);
             json!({
                 "tool": t.tool,
                 "blocks": t.blocks,
                 "ac": t.limited,
                 "time_s": r3(time),
                 "time_programmed_s": prog.map(r3),
-                "time_safe_s": part_s(&c.safe, t).map(r3),
+                "time_safe_s": same(&c.safe, t).map(ToolRun::time_s).map(r3),
                 "safe_feed_ipm": c.safe_parts_ipm.get(t.part).copied().map(r3),
                 "time_bound_s": c.oracle_parts_s.get(t.part).copied().map(r3),
                 "vs_programmed_pct": prog

@@ -494,6 +494,13 @@ fn ms_s(ms: u32) -> f64 {
     f64::from(ms) * 1e-3
 }
 
+impl ToolRun {
+    /// Its time, s.
+    pub fn time_s(&self) -> f64 {
+        (self.end_ns - self.start_ns) as f64 * 1e-9
+    }
+}
+
 /// One tool's part of a host run.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ToolRun {
@@ -1065,19 +1072,19 @@ fn run_inner(
                 .truth
                 .get(adc.truth.len().saturating_sub(per_period as usize)..)
                 .unwrap_or(&[]);
+            let f_true = window.iter().map(|s| s.0).fold(0.0, f64::max);
+            let feed = path_feed_ipm(settings, d, acs.period_ms);
             if plant {
-                let f_true = window.iter().map(|s| s.0).fold(0.0, f64::max);
                 let held = state.starts_with("hold");
-                let feed = path_feed_ipm(settings, d, acs.period_ms);
                 part.period(f_true, feed, block_feed, held, adc.process.tool());
             }
             let row = (record.rows || taps.row.is_some()).then(|| AcRow {
                 t_ms: u64::from(due) * 1000 / u64::from(acs.sample_hz),
                 pos_blu: pos,
-                feed_ipm: path_feed_ipm(settings, d, acs.period_ms),
+                feed_ipm: feed,
                 f_meas_n: f_meas,
                 t_meas_nm: t_meas,
-                f_true_n: window.iter().map(|s| s.0).fold(0.0, f64::max),
+                f_true_n: f_true,
                 t_true_nm: window.iter().map(|s| s.1.abs()).fold(0.0, f64::max),
                 e,
                 state,
