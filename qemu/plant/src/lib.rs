@@ -56,7 +56,43 @@ pub const MM_S_PER_IPM: f64 = 25.4 / 60.0;
 /// would be used (for steel machining) is 600 rpm").
 pub const DEFAULT_RPM: f64 = 600.0;
 
-/// A flat end mill. The helix is ignored: every flute is a straight line along the tool axis, so
+/// What the cutter's edges are: a flat end mill, a ball end mill or a twist drill (see
+/// [`process`] for how each cuts). Its profile is the height of the cutting edge above the tip at
+/// radius `r` from the axis ([`Shape::lift_mm`]): 0 for the flat end, `R - sqrt(R^2 - r^2)` for
+/// the ball, `r / tan(point / 2)` for the drill's cone.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Shape {
+    /// Side teeth over the whole engaged depth, a flat end face (center cutting).
+    #[default]
+    Flat,
+    /// A hemisphere of the tool's radius at the tip, the cylinder above it: the side edges cut
+    /// in slices up the sphere, each at its own radius; the end edges where the sphere meets
+    /// material below it.
+    Ball,
+    /// A twist drill of point angle `point_deg` (118 for the usual HSS drill): its two lips cut
+    /// on the cone at the end as a center-cutting end face does; its margins do not cut (no side
+    /// teeth: a drill is fed along its axis).
+    Drill { point_deg: f64 },
+}
+
+impl Shape {
+    /// The usual twist drill's point angle, degrees.
+    pub const DRILL_POINT_DEG: f64 = 118.0;
+
+    /// Height of the cutting edge above the tip at `r_mm` from the axis (mm) on a tool of radius
+    /// `radius_mm` (`r_mm` beyond the radius: the rim's).
+    #[inline]
+    pub fn lift_mm(&self, radius_mm: f64, r_mm: f64) -> f64 {
+        let r = r_mm.min(radius_mm);
+        match *self {
+            Shape::Flat => 0.0,
+            Shape::Ball => radius_mm - (radius_mm * radius_mm - r * r).max(0.0).sqrt(),
+            Shape::Drill { point_deg } => r / (point_deg.to_radians() / 2.0).tan(),
+        }
+    }
+}
+
+/// A cutter: flat end mill, ball end mill or drill ([`Shape`]). The helix is ignored: every flute is a straight line along the tool axis, so
 /// a flute's whole engaged depth cuts at one angle (the force per tooth is `Ks a h` with `a` the
 /// full axial engagement; a real helix spreads it over a range of angles and smooths the peaks).
 /// The flute length is taken as unlimited. The end face cuts when the tool moves down into
@@ -70,6 +106,7 @@ pub struct Tool {
     pub f_max_n: f64,
     /// Permissible torque, N*m (twist strength of the cutter / the spindle drive).
     pub t_max_nm: f64,
+    pub shape: Shape,
 }
 
 impl Default for Tool {
@@ -81,6 +118,7 @@ impl Default for Tool {
             flutes: 4,
             f_max_n: 4000.0,
             t_max_nm: 80.0,
+            shape: Shape::Flat,
         }
     }
 }
@@ -206,6 +244,13 @@ pub(crate) fn validate(tool: &Tool, material: &Material, rpm: f64) -> Result<(),
             "tool flutes must be 1..=32, got {}",
             tool.flutes
         )));
+    }
+    if let Shape::Drill { point_deg } = tool.shape {
+        if !(point_deg.is_finite() && (60.0..=180.0).contains(&point_deg)) {
+            return Err(CutError(format!(
+                "a drill's point angle must be in [60, 180] degrees, got {point_deg}"
+            )));
+        }
     }
     if !(pos(tool.f_max_n) && pos(tool.t_max_nm)) {
         return Err(CutError(

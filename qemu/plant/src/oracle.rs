@@ -155,8 +155,9 @@ struct Peak {
 /// not depend on the feed, read once for a point's search over the feed (the same bytes as
 /// reading the stock at every evaluation).
 struct Contacts {
+    /// Contacts per angle ([`Cutter::edges`]: per tooth, per slice).
     flutes: usize,
-    /// Per angle, per tooth.
+    /// Per angle, per tooth (and slice).
     teeth: Vec<Contact>,
     /// The end face can cut (see [`Cutter::contacts`]).
     end_ok: bool,
@@ -176,7 +177,7 @@ impl Contacts {
         reach: f64,
         z_min: Option<f64>,
     ) -> Contacts {
-        let flutes = cut.flutes as usize;
+        let flutes = cut.edges();
         let pitch = std::f64::consts::TAU / cut.flutes as f64;
         let steps = (360 / cut.flutes).max(8);
         let mut teeth = vec![Contact::default(); steps as usize * flutes];
@@ -567,7 +568,7 @@ impl OracleStream {
         // cut (the points between lie on it).
         if i > 0 && self.cut_to + 1 < i {
             let from = self.at(self.cut_to).mm;
-            self.stock.cut_capsule(from, a, cut.r_mm);
+            self.stock.cut_shaped(from, a, cut.r_mm, cut.shape);
         }
         // Descending over the window: the window's direction.
         let mut dir = d;
@@ -684,7 +685,7 @@ impl OracleStream {
         }
         self.last_key = Some(i);
         let from = if i > 0 { a } else { p };
-        self.stock.cut_capsule(from, p, cut.r_mm);
+        self.stock.cut_shaped(from, p, cut.r_mm, cut.shape);
         self.cut_to = i;
         // The forward pass up to this key point (v^2 grows by at most 2 a s).
         for j in self.forward..=i {

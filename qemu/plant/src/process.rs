@@ -79,7 +79,7 @@ use std::collections::VecDeque;
 use crate::drive::{Drive, DriveModel};
 use crate::stock::Cell;
 use crate::teeth::{Damage, Teeth, ToothEvent};
-use crate::{validate, CutError, Material, Stock, Tool, Transducer, MM_PER_BLU};
+use crate::{validate, CutError, Material, Shape, Stock, Tool, Transducer, MM_PER_BLU};
 
 /// Tolerance of the end face's "material above the tip" test, mm (see the module docs).
 const END_EPS_MM: f64 = 1e-6;
@@ -141,7 +141,9 @@ pub(crate) struct Forces {
 /// A side tooth in the cut (see [`Cutter::side_tooth`]): its world angle's sine and cosine,
 /// `cos(alpha)` (the chip per mm of feed), the axial depth `a` (mm) and the extent of the
 /// material behind its edge along the feed (mm; infinite: at least the reach), which limits the
-/// feed per tooth it sees.
+/// feed per tooth it sees; the edge's radius `r` (mm: the torque's lever) and the sine and cosine
+/// of the angle `kappa` between the tool's axis and the edge's normal (a flat end mill's side:
+/// 1 and 0; a ball's slice: its place on the sphere, see [`Slice`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct SideTooth {
     pub sin: f64,
@@ -149,6 +151,31 @@ pub(crate) struct SideTooth {
     pub cos_a: f64,
     pub a: f64,
     pub extent: f64,
+    pub r: f64,
+    pub sin_k: f64,
+    pub cos_k: f64,
+}
+
+/// Side slices of a ball end mill's hemisphere (the cylinder above it is one more).
+pub(crate) const BALL_SLICES: u32 = 8;
+
+/// One axial slice of a side tooth's edge: its radius `r` (mm), the height of its bottom above
+/// the tip `z_lo` (mm), the most depth it engages `a_max` (mm; infinite: all the material above
+/// it) and the sine and cosine of `kappa`, the angle between the tool's axis and the edge's
+/// normal there (the local chip is `c cos(alpha) sin(kappa)`). A flat end mill has one slice:
+/// its whole side. A ball end mill has [`BALL_SLICES`] equal slices of height `R / n` up the
+/// hemisphere (each at the radius and angle of its middle) and the cylinder above.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Slice {
+    pub r: f64,
+    /// The radius at the slice's top, where its edge reaches furthest: the line it meets
+    /// material on ([`Cutter::side_tooth`]; the rest of the slice's edge meets what lies above
+    /// the sphere's surface at that radius, cut down to it by the removal).
+    pub r_probe: f64,
+    pub z_lo: f64,
+    pub a_max: f64,
+    pub sin_k: f64,
+    pub cos_k: f64,
 }
 
 /// An end tooth against the material (see [`Cutter::forces`]): its world angle's sine and
@@ -177,6 +204,9 @@ pub(crate) struct Cutter {
     pub material: Material,
     /// Probe margin (one cell), see the module docs.
     pub probe_mm: f64,
+    pub shape: Shape,
+    /// Slices per side tooth ([`Slice`]): the contacts per tooth.
+    pub slices: u32,
 }
 
 impl Cutter {
@@ -186,13 +216,85 @@ impl Cutter {
             flutes: tool.flutes,
             material: *material,
             probe_mm: stock.cell_mm(),
+            shape: tool.shape,
+            slices: match tool.shape {
+                Shape::Ball => BALL_SLICES + 1,
+                Shape::Flat | Shape::Drill { .. } => 1,
+            },
         }
+    }
+
+    /// The contacts of all the teeth: `flutes` x `slices`, tooth k's slices at
+    /// `k * slices ..`.
+    pub fn edges(&self) -> usize {
+        (self.flutes * self.slices) as usize
+    }
+
+    /// Slice `j` of a side tooth ([`Slice`]).
+    #[inline]
+    pub fn slice(&self, j: u32) -> Slice {
+        let r = self.r_mm;
+        match self.shape {
+            Shape::Ball if j < BALL_SLICES => {
+                let dz = r / f64::from(BALL_SLICES);
+                let z_lo = f64::from(j) * dz;
+                let zm = z_lo + 0.5 * dz;
+                let rj = (zm * (2.0 * r - zm)).sqrt();
+                let z_hi = z_lo + dz;
+                Slice {
+                    r: rj,
+                    r_probe: (z_hi * (2.0 * r - z_hi)).max(0.0).sqrt().min(r),
+                    z_lo,
+                    a_max: dz,
+                    sin_k: rj / r,
+                    cos_k: (r - zm) / r,
+                }
+            }
+            Shape::Ball => Slice {
+                r,
+                r_probe: r,
+                z_lo: r,
+                a_max: f64::INFINITY,
+                sin_k: 1.0,
+                cos_k: 0.0,
+            },
+            Shape::Flat | Shape::Drill { .. } => Slice {
+                r,
+                r_probe: r,
+                z_lo: 0.0,
+                a_max: f64::INFINITY,
+                sin_k: 1.0,
+                cos_k: 0.0,
+            },
+        }
+    }
+
+    /// Side contact `e` (tooth `e / slices`, its slice `e % slices`) at world angle `psi`: see
+    /// [`Cutter::side_tooth`]. A drill has none.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    fn side_edge(
+        &self,
+        stock: &Stock,
+        tip: [f64; 3],
+        psi: f64,
+        e: u32,
+        u: [f64; 2],
+        reach: f64,
+        top_bound: f64,
+    ) -> Option<SideTooth> {
+        if matches!(self.shape, Shape::Drill { .. }) {
+            return None;
+        }
+        let sl = self.slice(e % self.slices);
+        self.side_tooth_below(stock, tip, psi, u, reach, top_bound, &sl)
     }
 
     /// Where side tooth `psi` (world angle, rad) of the tool with its tip at `tip` (mm), moving
     /// along `u` (unit, XY), meets material, and how much of it lies behind its edge: None when
     /// the tooth faces away from the feed or cuts nothing (see the module docs). `reach`: the
     /// longest feed per tooth (mm, XY) the extent is measured for (the process: its `c`).
+    #[cfg(test)]
     #[inline]
     pub fn side_tooth(
         &self,
@@ -202,12 +304,14 @@ impl Cutter {
         u: [f64; 2],
         reach: f64,
     ) -> Option<SideTooth> {
-        self.side_tooth_below(stock, tip, psi, u, reach, stock.max_top())
+        let sl = self.slice(0);
+        self.side_tooth_below(stock, tip, psi, u, reach, stock.max_top(), &sl)
     }
 
-    /// [`Cutter::side_tooth`] where no cell within `r_mm` + 9 cells of the tip has its top above
-    /// `top_bound` (mm): the stock's highest top, or a bound near the tool.
+    /// [`Cutter::side_tooth`] of slice `sl` where no cell within `r_mm` + 9 cells of the tip
+    /// has its top above `top_bound` (mm): the stock's highest top, or a bound near the tool.
     #[inline]
+    #[allow(clippy::too_many_arguments)]
     fn side_tooth_below(
         &self,
         stock: &Stock,
@@ -216,8 +320,21 @@ impl Cutter {
         u: [f64; 2],
         reach: f64,
         top_bound: f64,
+        sl: &Slice,
     ) -> Option<SideTooth> {
-        let base = tip[2].max(stock.floor_mm());
+        let cell = self.probe_mm;
+        let r_mm = sl.r_probe;
+        // A slice thinner than a cell's half has no line of its own on the grid.
+        if r_mm <= 0.5 * cell {
+            return None;
+        }
+        // (A flat end mill's one slice: the tip itself, the same bytes as ever.)
+        let bottom = if sl.z_lo == 0.0 {
+            tip[2]
+        } else {
+            tip[2] + sl.z_lo
+        };
+        let base = bottom.max(stock.floor_mm());
         // Above the highest top near the tool no material is ahead of any tooth (the probe
         // below, within `r_mm` + 8 cells of the tip, would find `a <= 0`): the same answer
         // without the angle's sine and cosine.
@@ -232,28 +349,36 @@ impl Cutter {
         // The line along the feed through the edge (y: its lateral offset from the path, at most
         // half a cell inside the swath's side), the envelope of the swept discs on it at `x_env`
         // ahead of the axis, the probe one cell beyond the envelope along its normal.
-        let cell = self.probe_mm;
-        let y_max = self.r_mm - 0.5 * cell;
-        let y = (self.r_mm * (co * u[1] - s * u[0])).clamp(-y_max, y_max);
-        let x_env = (self.r_mm * self.r_mm - y * y).sqrt();
-        let margin = (cell * self.r_mm / x_env).min(8.0 * cell);
+        let y_max = r_mm - 0.5 * cell;
+        let y = (r_mm * (co * u[1] - s * u[0])).clamp(-y_max, y_max);
+        let x_env = (r_mm * r_mm - y * y).sqrt();
+        let margin = (cell * r_mm / x_env).min(8.0 * cell);
         let ahead = x_env + margin;
         let px = tip[0] + y * u[1] + ahead * u[0];
         let py = tip[1] - y * u[0] + ahead * u[1];
-        let a = stock.top_at(px, py) - base;
+        let a = (stock.top_at(px, py) - base).min(sl.a_max);
         if a <= 0.0 {
             return None;
         }
+        // What is material for this edge: above the slice's bottom for the flat end mill's one
+        // slice; a ball's slice has cut the cells it passed down to the sphere's surface, at
+        // most the top of what it engages (the probe's cell, just beyond its reach, is
+        // material).
+        let class_z = if sl.a_max.is_finite() {
+            base + a - 1e-6
+        } else {
+            base
+        };
         // Back from the probe along the line to one feed per tooth (at least one cell) behind
         // the envelope: no old air before the envelope, some air the tool made recently, and
         // the extent of what is not old air behind the envelope.
         let back = reach.max(2.0 * margin);
         let hd = cell * std::f64::consts::FRAC_1_SQRT_2;
-        let side = (self.r_mm * self.r_mm - (y.abs() - hd).max(0.0).powi(2)).sqrt() - x_env;
+        let side = (r_mm * r_mm - (y.abs() - hd).max(0.0).powi(2)).sqrt() - x_env;
         let recent = stock.odometer_mm() - (back + 2.0 * cell + side);
         let (mut made, mut extent) = (false, f64::INFINITY);
         stock.walk([px, py], [-u[0], -u[1]], margin + back, |t, k| match stock
-            .cell_class(k, base, recent)
+            .cell_class(k, class_z, recent)
         {
             Cell::Material => true,
             Cell::Recent => {
@@ -278,6 +403,9 @@ impl Cutter {
             } else {
                 extent
             },
+            r: sl.r,
+            sin_k: sl.sin_k,
+            cos_k: sl.cos_k,
         })
     }
 
@@ -293,13 +421,22 @@ impl Cutter {
         z_min: f64,
         top_bound: f64,
     ) -> EndTooth {
+        if self.shape == Shape::Flat {
+            return self.end_tooth_by(tip, psi, z_min, top_bound, |x, y| {
+                stock.top_in_disc(x, y, tip[0], tip[1], self.r_mm) > z_min
+            });
+        }
+        // A ball's or a drill's end edge meets the cell holding (x, y) where the cell's top is
+        // above the edge's surface over the cell's centre (the height the removal cut it to).
         self.end_tooth_by(tip, psi, z_min, top_bound, |x, y| {
-            stock.top_in_disc(x, y, tip[0], tip[1], self.r_mm) > z_min
+            let (top, d2) = stock.top_d2_in_disc(x, y, tip[0], tip[1], self.r_mm);
+            top > z_min + self.shape.lift_mm(self.r_mm, d2.sqrt())
         })
     }
 
     /// [`Cutter::end_tooth`] with `above(x, y)`: the cell holding (x, y) under the disc is above
-    /// `z_min`.
+    /// the end face (for a flat end mill: `z_min`; a ball's or a drill's edge: see
+    /// [`Cutter::end_tooth`]).
     #[inline(always)]
     fn end_tooth_by(
         &self,
@@ -355,21 +492,23 @@ impl Cutter {
     ) -> Forces {
         let pitch = std::f64::consts::TAU / self.flutes as f64;
         let psi = |k: u32| -theta - k as f64 * pitch;
+        let top = stock.max_top();
         self.sum_forces(
             c,
             end,
             end.cz > 0.0 && tip[2] >= stock.floor_mm(),
             teeth,
             wave,
-            |k| self.side_tooth(stock, tip, psi(k), u, reach),
-            |k| self.end_tooth(stock, tip, psi(k), end.z_min, stock.max_top()),
+            |e| self.side_edge(stock, tip, psi(e / self.slices), e, u, reach, top),
+            |k| self.end_tooth(stock, tip, psi(k), end.z_min, top),
         )
     }
 
     /// The teeth's contacts with `stock` at spindle angle `theta` (rad), the tool tip at `tip`
     /// (mm) moving along `u` (unit, XY), the side chip's extent measured up to `reach` (mm) and
     /// the end teeth against the material above `z_min` (mm; None: no end cut), one per tooth
-    /// into `out` (`flutes` long): what [`Cutter::forces`] reads of the stock, which does not
+    /// and slice into `out` ([`Cutter::edges`] long; a tooth's end face in its first slice's):
+    /// what [`Cutter::forces`] reads of the stock, which does not
     /// depend on the feed. [`Cutter::forces_of`] sums them at a feed (the oracle's searches).
     /// Returns whether the end face can cut (the tip not below the blank's floor). `top_bound`:
     /// no cell near the tool ([`Cutter::near_top`]) has its top above it (the stock's highest
@@ -389,12 +528,16 @@ impl Cutter {
     ) -> bool {
         let pitch = std::f64::consts::TAU / self.flutes as f64;
         let end_ok = z_min.is_some() && tip[2] >= stock.floor_mm();
-        for (k, slot) in out.iter_mut().enumerate().take(self.flutes as usize) {
-            let psi = -theta - k as f64 * pitch;
+        // A mask answers for one height: a flat end face's.
+        let mask = mask.filter(|_| self.shape == Shape::Flat);
+        for (e, slot) in out.iter_mut().enumerate().take(self.edges()) {
+            let e = e as u32;
+            let psi = -theta - (e / self.slices) as f64 * pitch;
             *slot = Contact {
-                side: self.side_tooth_below(stock, tip, psi, u, reach, top_bound),
+                side: self.side_edge(stock, tip, psi, e, u, reach, top_bound),
                 end: match z_min {
-                    Some(z) if end_ok => match mask {
+                    // A tooth's end face: its first slice's contact holds it.
+                    Some(z) if end_ok && e % self.slices == 0 => match mask {
                         Some(m) => self.end_tooth_by(tip, psi, z, top_bound, |x, y| {
                             stock.above_in_disc(m, x, y)
                         }),
@@ -432,8 +575,8 @@ impl Cutter {
             end.cz > 0.0 && end_ok,
             teeth,
             wave,
-            |k| contacts[k as usize].side,
-            |k| contacts[k as usize].end,
+            |e| contacts[e as usize].side,
+            |k| contacts[(k * self.slices) as usize].end,
         )
     }
 
@@ -454,13 +597,14 @@ impl Cutter {
         let mut f = Forces::default();
         let m = &self.material;
         let z = self.flutes as usize;
-        for k in 0..self.flutes {
+        for e in 0..self.flutes * self.slices {
             if c <= 0.0 {
                 break;
             }
-            let Some(st) = side(k) else {
+            let Some(st) = side(e) else {
                 continue;
             };
+            let k = e / self.slices;
             f.capped |= st.extent.is_finite();
             let (s, co) = (st.sin, st.cos);
             // The chip: the feed per tooth, limited by the material behind the edge (also the
@@ -481,14 +625,29 @@ impl Cutter {
                 continue;
             }
             let a = st.a;
+            // A slice of a ball: the chip normal to the edge is `h sin(kappa)` over an edge
+            // `a / sin(kappa)` long, so Ft = Ks(h sin(kappa)) a h; the normal force Kr Ft
+            // pushes the tool towards its axis by sin(kappa) and up by cos(kappa). A flat end
+            // mill's side (sin 1, cos 0): Ks(h) a h towards the axis, the same bytes.
+            let ks = |h: f64| {
+                if st.sin_k == 1.0 {
+                    m.ks_at(h)
+                } else {
+                    m.ks_at(h * st.sin_k)
+                }
+            };
             let ft = match h {
-                None => m.ks_at(cc) * a * cc,
-                Some(h) => m.ks_at(h) * a * h,
+                None => ks(cc) * a * cc,
+                Some(h) => ks(h) * a * h,
             };
             let fr = m.kr * ft;
-            f.fx += -ft * s - fr * co;
-            f.fy += ft * co - fr * s;
-            f.t += ft * self.r_mm / 1000.0;
+            let fr_xy = if st.sin_k == 1.0 { fr } else { fr * st.sin_k };
+            f.fx += -ft * s - fr_xy * co;
+            f.fy += ft * co - fr_xy * s;
+            f.t += ft * st.r / 1000.0;
+            if st.cos_k != 0.0 {
+                f.fa += fr * st.cos_k;
+            }
         }
         if end_on {
             let ks = m.ks_at(end.cz);
@@ -887,9 +1046,11 @@ impl Process {
         };
         let here = defl(p, self.flex.as_ref());
         if let Some(a) = prev {
-            self.stock.cut_capsule(a, here, self.cutter.r_mm);
+            self.stock
+                .cut_shaped(a, here, self.cutter.r_mm, self.cutter.shape);
         } else {
-            self.stock.cut_capsule(here, here, self.cutter.r_mm);
+            self.stock
+                .cut_shaped(here, here, self.cutter.r_mm, self.cutter.shape);
         }
         // Holder frame: u at world angle -theta, v 90 degrees counter-clockwise from u.
         let (s, co) = theta.sin_cos();

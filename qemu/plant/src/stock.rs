@@ -454,6 +454,24 @@ impl Stock {
         self.top[j * self.nx + i]
     }
 
+    /// [`Stock::top_in_disc`] and the squared distance (mm^2) of the cell's centre from
+    /// (cx, cy) (infinite off the grid).
+    #[inline]
+    pub fn top_d2_in_disc(&self, x_mm: f64, y_mm: f64, cx: f64, cy: f64, r_mm: f64) -> (f64, f64) {
+        let fx = (x_mm - self.x0_mm) / self.cell_mm;
+        let fy = (y_mm - self.y0_mm) / self.cell_mm;
+        if fx < 0.0 || fy < 0.0 || fx >= self.nx as f64 || fy >= self.ny as f64 {
+            return (f64::NEG_INFINITY, f64::INFINITY);
+        }
+        let (x, y) = self.center(fx as usize, fy as usize);
+        let (px, py) = (cx - x, cy - y);
+        let d2 = px * px + py * py;
+        if d2 > r_mm * r_mm {
+            return (f64::NEG_INFINITY, d2);
+        }
+        (self.top[fy as usize * self.nx + fx as usize], d2)
+    }
+
     /// Which cells of the square of half-width `r_mm` around (cx, cy) hold material above `z`
     /// as [`Stock::top_in_disc`] reads them (their centre within `r_mm` of (cx, cy)): read once
     /// for a point, asked many times by [`Stock::above_in_disc`].
@@ -621,6 +639,31 @@ impl Stock {
     /// a cell so lowered remembers the odometer at that point, and the odometer advances by the
     /// segment's XY length.
     pub fn cut_capsule(&mut self, a: [f64; 3], b: [f64; 3], r_mm: f64) {
+        self.cut_swept::<false>(a, b, r_mm, |_| 0.0);
+    }
+
+    /// [`Stock::cut_capsule`] by a tool of `shape` (its radius `r_mm`): a cell at distance `d`
+    /// from the segment is lowered to the tip Z there plus the edge's height above the tip at
+    /// `d` ([`crate::Shape::lift_mm`]): the ball's sphere, the drill's cone. The nearest point
+    /// of the segment gives the height (exact for a level segment; the process's segments are
+    /// one sample's motion, micrometres). A flat end mill: the same bytes as `cut_capsule`.
+    pub fn cut_shaped(&mut self, a: [f64; 3], b: [f64; 3], r_mm: f64, shape: crate::Shape) {
+        match shape {
+            crate::Shape::Flat => self.cut_capsule(a, b, r_mm),
+            _ => self.cut_swept::<true>(a, b, r_mm, |d2| shape.lift_mm(r_mm, d2.sqrt())),
+        }
+    }
+
+    /// The cut of [`Stock::cut_shaped`], the edge's height above the tip from the squared
+    /// distance (mm^2; never negative; not asked unless `SHAPED`).
+    #[inline(always)]
+    fn cut_swept<const SHAPED: bool>(
+        &mut self,
+        a: [f64; 3],
+        b: [f64; 3],
+        r_mm: f64,
+        lift: impl Fn(f64) -> f64,
+    ) {
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
         let len2 = dx * dx + dy * dy;
         let odo = self.odometer_mm;
@@ -687,8 +730,10 @@ impl Stock {
                         0.0
                     };
                     let (px, py) = (a[0] + s * dx - x, a[1] + s * dy - y);
-                    if px * px + py * py <= r2 {
+                    let d2 = px * px + py * py;
+                    if d2 <= r2 {
                         let z = a[2] + s * (b[2] - a[2]);
+                        let z = if SHAPED { z + lift(d2) } else { z };
                         let k = j * self.nx + i;
                         if z < self.top[k] {
                             self.top[k] = z;

@@ -1774,3 +1774,235 @@ fn the_streamed_oracle_holds_a_window_and_its_schedule_is_the_whole_paths() {
         );
     }
 }
+
+/// A process in steel (no noise) at 600 rpm with `tool` on `stock`.
+fn steel_with(stock: Stock, tool: Tool) -> Process {
+    Process::new(stock, tool, Material::STEEL, DEFAULT_RPM, 1, quiet()).unwrap()
+}
+
+/// A ball end mill of diameter `d_mm` with `flutes`.
+fn ball(d_mm: f64, flutes: u32) -> Tool {
+    Tool {
+        diameter_mm: d_mm,
+        flutes,
+        shape: Shape::Ball,
+        ..Tool::default()
+    }
+}
+
+/// A twist drill of 10 mm, two lips, 118 degree point, in steel at 600 rpm fed 4 ipm: feed per
+/// revolution f = 1.6933 mm/s / 10 rev/s = 0.16933 mm. Textbook (Sandvik's, Kienzle's) drilling
+/// torque `Mc = kc f D^2 / 8` = 2000 x 0.16933 x 100 / 8 = 4.233 N*m once the whole cone is in
+/// the hole; thrust from the lips' tangential forces `Fa = Ka kc f D / 2` = 0.5 x 2000 x 0.16933
+/// x 5 = 846.7 N; no radial force (the lips are symmetric). With the cone only part way in (depth
+/// d below its first contact, the cone's height R / tan(59 deg) = 3.004 mm) the lips cut out to
+/// r = d tan(59 deg): the torque is (r / R)^2 of the whole.
+#[test]
+fn a_drill_cuts_the_textbook_torque_and_thrust() {
+    let tool = Tool {
+        diameter_mm: 10.0,
+        flutes: 2,
+        shape: Shape::Drill { point_deg: 118.0 },
+        ..Tool::default()
+    };
+    let mut p = steel_with(blank(), tool);
+    // From 0.1 in above the top to 0.4 in (10.16 mm) deep at 4 ipm.
+    let s = run(
+        &mut p,
+        0.0,
+        [25000, 15000, 1000],
+        [25000, 15000, -4000],
+        4.0,
+    );
+    let f_rev = 4.0 * 25.4 / 60.0 / 10.0;
+    let t_hand = 2000.0 * f_rev * 100.0 / 8.0 / 1000.0;
+    let fa_hand = 0.5 * 2000.0 * f_rev * 10.0 / 2.0;
+    // The tip meets the top at t = 1.5 s (0.1 in at 4 ipm); deep: the cone (3 mm) long in.
+    let depth_at = |t: f64| (t - 1.5) * 4.0 * 25.4 / 60.0;
+    let deep: Vec<&Sample> = s
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| (5.0..9.0).contains(&depth_at(*i as f64 / RATE)))
+        .map(|(_, (_, s))| s)
+        .collect();
+    assert!(deep.len() > 1000, "{}", deep.len());
+    let t = mean(deep.iter().map(|s| s.t_true_nm));
+    let fa = mean(deep.iter().map(|s| s.fa_n));
+    let f = deep.iter().map(|s| s.f_true_n).fold(0.0, f64::max);
+    assert!((t / t_hand - 1.0).abs() < 0.03, "T {t} vs {t_hand}");
+    assert!((fa / fa_hand - 1.0).abs() < 0.03, "Fa {fa} vs {fa_hand}");
+    // The lips' edges cross the 0.25 mm cells unevenly: a small net radial force remains.
+    assert!(f < 0.08 * fa_hand, "radial force {f} N from symmetric lips");
+    // Half the cone in: a quarter of the torque.
+    let cone = 5.0 / (59f64).to_radians().tan();
+    let at_half: Vec<f64> = s
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| (depth_at(*i as f64 / RATE) - cone / 2.0).abs() < 0.1)
+        .map(|(_, (_, s))| s.t_true_nm)
+        .collect();
+    assert!(!at_half.is_empty());
+    let q = mean(at_half.into_iter()) / t_hand;
+    assert!(
+        (q - 0.25).abs() < 0.04,
+        "half the cone in: {q} of the torque"
+    );
+    // The hole's bottom is the cone: at 2 mm from the axis, 2 / tan(59 deg) above the tip.
+    let tip = -4000.0 * MM_PER_BLU;
+    let st = p.stock();
+    let (x, y) = (2.5 * MM_PER_IN, 1.5 * MM_PER_IN);
+    let at2 = st.top_at(x + 2.0, y);
+    let want = tip + 2.0 / (59f64).to_radians().tan();
+    assert!(
+        (at2 - want).abs() < 0.15,
+        "cone at r = 2 mm: {at2} vs {want}"
+    );
+    assert!(
+        st.top_at(x + 6.0, y) == 0.0,
+        "outside the hole the top is untouched"
+    );
+}
+
+/// The tip of a ball end mill in a plunge: the end edges cut where the sphere meets material
+/// below it, so at a depth d (< R) into the blank the engaged radius is r(d) = sqrt(d (2R - d))
+/// and the torque z Ks c_z r(d)^2 / 2 (the flat end mill's whole-face torque with R -> r(d)): it
+/// grows with the depth until the hemisphere is in, then it is the flat end mill's (the same end
+/// chip over the same radius). 0.5 in ball, four flutes, 10 ipm: c_z = 0.10583 mm.
+#[test]
+fn a_ball_end_plunge_cuts_with_the_sphere_under_it() {
+    let mut p = steel_with(blank(), ball(12.7, 4));
+    let s = run(
+        &mut p,
+        0.0,
+        [25000, 15000, 1000],
+        [25000, 15000, -4000],
+        10.0,
+    );
+    let cz = 10.0 * 25.4 / 60.0 / 40.0;
+    let r = 6.35;
+    let t_of = |re: f64| 4.0 * 2000.0 * cz * re * re / 2.0 / 1000.0;
+    // The tip meets the top at 0.6 s.
+    let depth_at = |i: usize| (i as f64 / RATE - 0.6) * 10.0 * 25.4 / 60.0;
+    for d in [1.0, 2.0, 4.0] {
+        let near: Vec<f64> = s
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| (depth_at(*i) - d).abs() < 0.05)
+            .map(|(_, (_, s))| s.t_true_nm)
+            .collect();
+        let want = t_of((d * (2.0 * r - d)).sqrt());
+        let got = mean(near.into_iter());
+        assert!(
+            (got / want - 1.0).abs() < 0.05,
+            "depth {d} mm: T {got} vs {want}"
+        );
+    }
+    let deep: Vec<f64> = s
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| (8.0..9.0).contains(&depth_at(*i)))
+        .map(|(_, (_, s))| s.t_true_nm)
+        .collect();
+    let got = mean(deep.into_iter());
+    assert!(
+        (got / t_of(r) - 1.0).abs() < 0.03,
+        "deep: {got} vs {}",
+        t_of(r)
+    );
+}
+
+/// The sides of a ball end mill cut in slices up the sphere: a full slot `a` deep (a < R) fed
+/// along X. Each slice's tangential force is Ks c cos(alpha) dz (the chip c cos(alpha)
+/// sin(kappa) over an edge dz / sin(kappa) long) at its own radius, so the force against the
+/// feed is the flat end mill's (Ks c a, the same for a full slot whatever the radius), and the
+/// mean torque is z Ks c / pi times the integral of r(z) = sqrt(z (2R - z)) over the depth
+/// instead of R a: the lower edges have the shorter lever. The slot's bottom is the sphere's
+/// section: R - sqrt(R^2 - y^2) above the tip at y from the path.
+#[test]
+fn a_ball_end_slot_loads_its_edges_by_their_radius() {
+    let (r, a) = (6.35, 3.0);
+    let mut p = steel_with(blank(), ball(2.0 * r, 4));
+    let z_tip = -((a / MM_PER_BLU).round() as i64);
+    let s = run(
+        &mut p,
+        0.0,
+        [-5000, 15000, z_tip],
+        [20000, 15000, z_tip],
+        12.0,
+    );
+    let steady: Vec<&Sample> = s
+        .iter()
+        .filter(|(x, _)| (0.6..1.9).contains(x))
+        .map(|(_, s)| s)
+        .collect();
+    let c = 12.0 * 25.4 / 60.0 / 40.0;
+    let a = -(z_tip as f64) * MM_PER_BLU;
+    // The integral of sqrt(z (2R - z)) from 0 to a, by a fine midpoint rule.
+    let n = 10_000;
+    let lever: f64 = (0..n)
+        .map(|i| {
+            let z = (i as f64 + 0.5) * a / n as f64;
+            (z * (2.0 * r - z)).sqrt() * a / n as f64
+        })
+        .sum();
+    let t_hand = 4.0 * 2000.0 * c * lever / std::f64::consts::PI / 1000.0;
+    let t_flat = 4.0 * 2000.0 * c * r * a / std::f64::consts::PI / 1000.0;
+    let t = mean(steady.iter().map(|s| s.t_true_nm));
+    assert!((t / t_hand - 1.0).abs() < 0.03, "T {t} vs {t_hand}");
+    assert!(t < 0.8 * t_flat, "T {t} vs a flat end mill's {t_flat}");
+    // Against the feed (world -X... the tooth forces' Y sum for a full slot is Ks c a).
+    let fy = mean(steady.iter().map(|s| s.f_true_n));
+    assert!(fy > 2000.0 * a * c * 0.97, "F {fy} vs {}", 2000.0 * a * c);
+    // The groove's bottom, at the centre of the cell holding y0 + y (the blank's grid starts
+    // at Y0).
+    let st = p.stock();
+    let (y0, cell) = (1.5 * MM_PER_IN, st.cell_mm());
+    for y in [0.0, 1.0, 2.0, 3.0, 5.0, 6.0] {
+        let yc = (((y0 + y) / cell).floor() + 0.5) * cell - y0;
+        let want = (-a + r - (r * r - yc * yc).sqrt()).min(0.0);
+        let got = st.top_at(1.0 * MM_PER_IN, y0 + y);
+        assert!(
+            (got - want).abs() < 1e-9,
+            "groove at y {yc}: {got} vs {want}"
+        );
+    }
+}
+
+/// The grid a small ball end mill needs: a 3 mm two-flute ball end cutting a 1 mm deep slot and
+/// a 0.5 mm deep pass along a wall, on cells of 0.125 mm and of 0.0625 mm (halved). The mean
+/// force and torque and their peaks change by less than 5 % (the grid millac's jobs state for
+/// such a tool is 0.0625 mm: R / 24).
+#[test]
+fn halving_the_grid_moves_a_small_ball_ends_forces_less_than_five_percent() {
+    let figures = |cell: f64, depth_blu: i64, y_blu: i64| {
+        let st = Stock::parse(&format!("cell {cell}\nblank X0 Y0 W1.2 H0.6 Z0")).unwrap();
+        let mut p = steel_with(st, ball(3.0, 2));
+        let s = run(
+            &mut p,
+            0.0,
+            [-1000, y_blu, -depth_blu],
+            [11000, y_blu, -depth_blu],
+            4.0,
+        );
+        let steady: Vec<&Sample> = s
+            .iter()
+            .filter(|(x, _)| (0.3..0.9).contains(x))
+            .map(|(_, s)| s)
+            .collect();
+        let f = mean(steady.iter().map(|s| s.f_true_n));
+        let t = mean(steady.iter().map(|s| s.t_true_nm));
+        let f_pk = steady.iter().map(|s| s.f_true_n).fold(0.0, f64::max);
+        let t_pk = steady.iter().map(|s| s.t_true_nm).fold(0.0, f64::max);
+        [f, t, f_pk, t_pk]
+    };
+    // A slot mid-block; a pass 1 mm into the block's edge (Y0 wall: the tool's axis 0.5 mm out).
+    for (depth, y) in [(394, 3000), (197, -197)] {
+        let coarse = figures(0.125, depth, y);
+        let fine = figures(0.0625, depth, y);
+        assert!(coarse[0] > 1.0, "the tool cuts: {coarse:?}");
+        for k in 0..4 {
+            let d = (coarse[k] / fine[k] - 1.0).abs();
+            assert!(d < 0.05, "figure {k}: {} vs {} ({d})", coarse[k], fine[k]);
+        }
+    }
+}

@@ -131,6 +131,7 @@ pub(crate) fn parse_tool(s: &str) -> Result<millac_plant::Tool, String> {
         flutes: z as u32,
         f_max_n: v.get(2).copied().unwrap_or(d.f_max_n),
         t_max_nm: v.get(3).copied().unwrap_or(d.t_max_nm),
+        ..d
     };
     if !(ok(tool.f_max_n) && ok(tool.t_max_nm)) {
         return Err("F_MAX_N and T_MAX_NM must be > 0".into());

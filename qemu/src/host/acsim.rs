@@ -200,6 +200,7 @@ impl Cut {
             t_max_nm: limits.map_or(self.tool.t_max_nm, |l| {
                 f64::from(l.torque_nm).min(self.tool.t_max_nm)
             }),
+            shape: plant_shape(e.kind),
         }
     }
 
@@ -247,6 +248,19 @@ impl Cut {
 
 /// `--break-tooth N@SECONDS`: tooth N (from 0, in cutting order) breaks at SECONDS of virtual
 /// time. The tooth's range is checked against the tool by [`Cut::process`].
+/// The plant's shape of a tool table's kind (`$T` K): a drill with the usual 118 degree point.
+pub fn plant_shape(kind: millac::gcode::tools::ToolKind) -> millac_plant::Shape {
+    use millac::gcode::tools::ToolKind;
+    use millac_plant::Shape;
+    match kind {
+        ToolKind::Flat => Shape::Flat,
+        ToolKind::Ball => Shape::Ball,
+        ToolKind::Drill => Shape::Drill {
+            point_deg: Shape::DRILL_POINT_DEG,
+        },
+    }
+}
+
 pub fn parse_break_tooth(s: &str) -> std::result::Result<ToothEvent, String> {
     let (tooth, t_s) = tooth_at(s, "N@SECONDS, e.g. 1@2.5")?;
     Ok(ToothEvent {
