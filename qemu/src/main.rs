@@ -33,6 +33,7 @@ fn main() {
         Some(Cmd::Optimise(a)) => cli::optimise::command(a),
         Some(Cmd::Calibrate(a)) => cli::calibrate::command(a),
         Some(Cmd::Serve(a)) => cli::serve::command(a),
+        Some(Cmd::Job(a)) => cli::job::command(a),
     };
     // A signal ends `run`, `demo` and `host` with the report of what was done and the shell's
     // status for it (128 + the signal); it is how `serve` ends normally.

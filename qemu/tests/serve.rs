@@ -45,7 +45,9 @@ fn read_until(r: &mut BufReader<TcpStream>, done: impl Fn(&str) -> bool) -> Vec<
     let mut got = Vec::new();
     loop {
         let mut l = String::new();
-        let n = r.read_line(&mut l).expect("read from the serial port");
+        let n = r
+            .read_line(&mut l)
+            .unwrap_or_else(|e| panic!("read from the serial port: {e}; so far: {got:?}"));
         assert!(n > 0, "serial port closed; so far: {got:?}");
         let l = l.trim_end().to_string();
         let stop = done(&l);

@@ -121,9 +121,16 @@ pub struct Trip {
     t_nm: f32,
 }
 
+/// How much wider a ball end mill's F R / T band is at its upper end: its edges cut at radii
+/// below R (r = sqrt(a (2R - a)) at depth a: F R / T up to sqrt(1 + Kr^2) R / r), so the flat
+/// end mill's bound holds for it only times R / r; 4 covers any cut deeper than R / 32 (r above
+/// a quarter of R), below which its load is near the floor the band does not judge.
+pub const BALL_BAND: f32 = 4.0;
+
 /// The AC settings for a tool an M6 fitted: its permissible force, its permissible torque where
 /// below the drive's (`$255`: the spindle's torque limits too), its flutes where known (else
-/// `$267`), the rest the machine's. None when the tool has no limits (nobody gave them and its
+/// `$267`), its radius where known (the force/torque plausibility's lever, else `$284`; a ball
+/// end mill's band [`BALL_BAND`] wider at its upper end), the rest the machine's. None when the tool has no limits (nobody gave them and its
 /// geometry does not tell, `crate::ac::strength::of_tool`): the AC does not limit it, and says
 /// so. The AC period, the sampler's trip and the loader's status report each take it from
 /// here. Any context but the ISRs.
@@ -136,6 +143,11 @@ pub fn tool_settings(
         force_limit_n: l.force_n,
         torque_limit_nm: l.torque_nm.min(base.torque_limit_nm),
         flutes: tool.flutes_or(base.flutes),
+        tool_radius_mm: tool.radius_or(base.tool_radius_mm),
+        ft_ratio_max: match tool.kind {
+            crate::gcode::tools::ToolKind::Ball => base.ft_ratio_max * BALL_BAND,
+            _ => base.ft_ratio_max,
+        },
         ..*base
     }
     .validated()
@@ -995,6 +1007,8 @@ mod tests {
         w.loader.set_tool(&FittedTool {
             number: 2,
             flutes: 2,
+            radius_mm: 1.5,
+            kind: ToolKind::Flat,
             limits: Some(small),
         });
         let (held, p) = run(&mut period, &mut trip);
@@ -1006,9 +1020,14 @@ mod tests {
             a => panic!("{a:?}"),
         }
         assert_eq!(period.ctl.settings().flutes, 2);
+        // The force/torque plausibility's lever is the small tool's radius: its F R / T is 1
+        // where the machine's 6.35 mm would make it 4.2, a sensor fault.
+        assert_eq!(period.ctl.settings().tool_radius_mm, 1.5);
         w.loader.set_tool(&FittedTool {
             number: 3,
             flutes: 0,
+            radius_mm: 0.0,
+            kind: ToolKind::Flat,
             limits: None,
         });
         for _ in 0..2 * HOLD_EXIT_PERIODS {

@@ -209,6 +209,8 @@ pub struct Status {
     /// `tool_changes`.
     tool: U8,
     tool_flutes: U8,
+    tool_radius: U32,
+    tool_kind: U8,
     tool_force: U32,
     tool_torque: U32,
     /// Twice the M6s since power-up, odd while the loader writes the tool's words (a sequence
@@ -227,6 +229,10 @@ pub struct FittedTool {
     pub number: u8,
     /// Its cutting edges (0: not known).
     pub flutes: u8,
+    /// Its radius, mm (0: not known): the lever of the force/torque plausibility, F R / T.
+    pub radius_mm: f32,
+    /// Its kind (a ball end mill cuts at radii below R: the plausibility's band widens).
+    pub kind: crate::gcode::tools::ToolKind,
     /// Its permissible cutting force and torque (`crate::ac::strength`); None: nobody said and
     /// its geometry does not tell (the AC does not limit it).
     pub limits: Option<crate::ac::strength::Limits>,
@@ -241,7 +247,20 @@ impl FittedTool {
         FittedTool {
             number,
             flutes: entry.map_or(0, |t| t.flutes),
+            // Picometres -> mm (a diameter).
+            radius_mm: entry.map_or(0.0, |t| t.diameter_pm as f32 * 0.5e-9),
+            kind: entry.map_or(Default::default(), |t| t.kind),
             limits: entry.and_then(|t| of_tool(t, &Strength::HSS)).map(|l| l.0),
+        }
+    }
+
+    /// Its radius (mm), or the machine's (`$284`, the AC's `tool_radius_mm`) where the table
+    /// does not know it.
+    pub fn radius_or(&self, machine: f32) -> f32 {
+        if self.radius_mm > 0.0 {
+            self.radius_mm
+        } else {
+            machine
         }
     }
 
@@ -292,6 +311,8 @@ impl Status {
             sound_dropped: U32::new(0),
             tool: U8::new(0),
             tool_flutes: U8::new(0),
+            tool_radius: U32::new(0),
+            tool_kind: U8::new(0),
             tool_force: U32::new(0),
             tool_torque: U32::new(0),
             tool_changes: U32::new(0),
@@ -363,6 +384,9 @@ impl Status {
         let tool = FittedTool {
             number: self.tool.get(),
             flutes: self.tool_flutes.get(),
+            radius_mm: f32::from_bits(self.tool_radius.get()),
+            kind: crate::gcode::tools::ToolKind::from_code(self.tool_kind.get())
+                .unwrap_or_default(),
             limits: (f > 0.0 && t > 0.0).then_some(crate::ac::strength::Limits {
                 force_n: f,
                 torque_nm: t,
@@ -641,6 +665,8 @@ impl LoaderWriter<'_> {
         compiler_fence(SeqCst);
         s.tool.set(tool.number);
         s.tool_flutes.set(tool.flutes);
+        s.tool_radius.set(f32::to_bits(tool.radius_mm));
+        s.tool_kind.set(tool.kind.code());
         let (f, t) = tool.limits.map_or((0.0, 0.0), |l| (l.force_n, l.torque_nm));
         s.tool_force.set(f32::to_bits(f));
         s.tool_torque.set(f32::to_bits(t));

@@ -1005,6 +1005,8 @@ fn an_m6_publishes_the_tools_limits_and_says_them() {
         let fitted = super::status::FittedTool {
             number: tool,
             flutes,
+            radius_mm: f32::from(flutes) * 0.75,
+            kind: crate::gcode::tools::ToolKind::KINDS[usize::from(tool) % 3],
             limits: Some(limits),
         };
         w.loader.set_tool(&fitted);

@@ -8,6 +8,7 @@ pub(crate) mod calibrate;
 pub(crate) mod check;
 pub(crate) mod demo;
 pub(crate) mod host;
+pub(crate) mod job;
 pub(crate) mod optimise;
 pub(crate) mod run;
 pub(crate) mod serve;
@@ -61,6 +62,10 @@ pub(crate) enum Cmd {
     /// Run the firmware in serial mode with its UART on a TCP port for a G-code sender, until
     /// SIGINT or SIGTERM; then write DIR/capture.vcd and DIR/summary.json.
     Serve(serve::ServeArgs),
+    /// Write the whole die-sinking job of Fig. 1, generated from the cavity's geometry: DIR/
+    /// fig1-job.nc (drill, roughing end mill, corner end mill, ball end mill, an M6 between
+    /// them), DIR/fig1-job.tools (their $T lines, for --tools) and DIR/fig1-job.stock (--stock).
+    Job(job::JobArgs),
 }
 
 /// The report of a command that failed once it had begun to write into its folder (a failure

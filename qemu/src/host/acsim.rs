@@ -463,17 +463,18 @@ struct ToolPart {
     was_held: bool,
 }
 
-/// A period is in the cut when its highest true force is above this share of the tool's F_max
-/// (the AFC log's cutting time; air and a tooth's graze are not).
+/// A period is in the cut when its highest true force or torque is above this share of the
+/// tool's F_max or T_max (the AFC log's cutting time; air and a tooth's graze are not; a drill
+/// loads its torque, hardly its radial force).
 pub const CUTTING_SHARE: f64 = 0.05;
 
 impl ToolPart {
-    /// One AC period's figures: its highest true force (N), the feed achieved and programmed
-    /// (ipm), whether it held; the period (ms) and the tool.
-    fn period(&mut self, f_true: f64, feed: f64, programmed: f64, held: bool, tool: &Tool) {
+    /// One AC period's figures: its highest true force (N) and torque (N m), the feed achieved
+    /// and programmed (ipm), whether it held; the tool.
+    fn period(&mut self, peak: (f64, f64), feed: f64, programmed: f64, held: bool, tool: &Tool) {
         self.holds += u32::from(held && !self.was_held);
         self.was_held = held;
-        if f_true > CUTTING_SHARE * tool.f_max_n {
+        if peak.0 > CUTTING_SHARE * tool.f_max_n || peak.1 > CUTTING_SHARE * tool.t_max_nm {
             self.cutting += 1;
             // Slower than programmed by more than the frame's own quantisation (a feed number).
             self.controlled += u32::from(feed < 0.98 * programmed || held);
@@ -1087,10 +1088,11 @@ fn run_inner(
                 .get(adc.truth.len().saturating_sub(per_period as usize)..)
                 .unwrap_or(&[]);
             let f_true = window.iter().map(|s| s.0).fold(0.0, f64::max);
+            let t_true = window.iter().map(|s| s.1).fold(0.0, f64::max);
             let feed = path_feed_ipm(settings, d, acs.period_ms);
             if plant {
                 let held = state.starts_with("hold");
-                part.period(f_true, feed, block_feed, held, adc.process.tool());
+                part.period((f_true, t_true), feed, block_feed, held, adc.process.tool());
             }
             let row = (record.rows || taps.row.is_some()).then(|| AcRow {
                 t_ms: u64::from(due) * 1000 / u64::from(acs.sample_hz),
