@@ -26,6 +26,12 @@ pub(crate) struct CutArgs {
     /// and the AC only measures it.
     #[arg(long, value_name = "FILE")]
     pub(crate) tools: Option<PathBuf>,
+    /// A stock description's text when no `--stock` is given (the demo's generated job).
+    #[arg(skip)]
+    pub(crate) stock_text: Option<String>,
+    /// A tool table's text when no `--tools` is given (the demo's generated job).
+    #[arg(skip)]
+    pub(crate) tools_text: Option<String>,
     /// Inject a sensor fault into the simulated ADC from KIND@SECONDS of virtual time on (rail,
     /// frozen, dropout, spike, gain; repeatable), e.g. --fault gain@2.5. The same transformation
     /// under QEMU (run, demo) and on the host (host); millac_qemu::host::fault lists each alarm.
@@ -216,9 +222,10 @@ impl CutArgs {
 
 pub(crate) fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::host::acsim::Cut> {
     use millac_plant::{Material, Stock};
-    let stock = match &args.stock {
-        Some(p) => millac_qemu::host::acsim::load_stock(p)?,
-        None => Stock::default(),
+    let stock = match (&args.stock, &args.stock_text) {
+        (Some(p), _) => millac_qemu::host::acsim::load_stock(p)?,
+        (None, Some(t)) => millac_qemu::host::acsim::parse_stock(t, "the job's stock")?,
+        (None, None) => Stock::default(),
     };
     let cut = millac_qemu::host::acsim::Cut {
         drive: args.drive.into(),
@@ -263,9 +270,10 @@ pub(crate) fn cut_setup(text: &str, args: &CutArgs) -> Result<millac_qemu::host:
             }
         }
     };
-    let tools = match &args.tools {
-        Some(p) => millac_qemu::host::acsim::load_tools(p)?,
-        None => Default::default(),
+    let tools = match (&args.tools, &args.tools_text) {
+        (Some(p), _) => millac_qemu::host::acsim::load_tools(p)?,
+        (None, Some(t)) => millac_qemu::host::acsim::parse_tools(t, "the job's tool table")?,
+        (None, None) => Default::default(),
     };
     let cut = cut.with_tool_changes(text, &Settings::default(), &tools);
     // The plant's own checks (e.g. the Ks exponent's range, the teeth of --break-tooth,

@@ -1,10 +1,12 @@
-//! `millac-qemu demo` (and `millac-qemu` with no arguments): the paper's Fig. 1 cavity through the
-//! firmware under QEMU (host: the CLI calls it from `main`).
+//! `millac-qemu demo` (and `millac-qemu` with no arguments): the paper's whole Fig. 1 job through
+//! the firmware under QEMU, generated from the cavity's geometry (`millac_qemu::evaluation::job`):
+//! drill, roughing end mill, corner end mill, ball end mill, each with its own limits (host: the
+//! CLI calls it from `main`).
 use super::args::{CutArgs, DriveArg};
 use super::run::run;
-use super::DEMO;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use millac_qemu::emulator::runner;
+use millac_qemu::evaluation::job;
 use std::path::{Path, PathBuf};
 
 /// `demo`'s options.
@@ -31,6 +33,8 @@ pub(crate) fn bare() -> Result<bool> {
             seed: 1,
             stock: None,
             tools: None,
+            stock_text: None,
+            tools_text: None,
             faults: Vec::new(),
             strategy: None,
             drive: DriveArg::Stepper,
@@ -45,9 +49,11 @@ pub(crate) fn bare() -> Result<bool> {
     )
 }
 
+/// The demo: the job's program with its blank and tool table (unless `--stock` or `--tools` give
+/// others), through [`run`]; the job's three files are written beside the run's report.
 fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
     println!(
-        "millac demo: roughing the cavity of Fig. 1 (Tlusty, Koren, McNeil) through the firmware under QEMU, {}",
+        "millac demo: the whole die-sinking job of Fig. 1 (Tlusty, Koren, McNeil) through the firmware under QEMU: drill, roughing end mill, corner end mill, ball end mill, {}",
         match (cut.no_ac, cut.strategy) {
             (true, _) => "adaptive control off (--no-ac)".to_string(),
             (false, None) => "with adaptive control".to_string(),
@@ -57,5 +63,26 @@ fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
             ),
         }
     );
-    run(DEMO, out, runner::DEFAULT_SHIFT, Some(cut))
+    let j = job::fig1();
+    let cut = CutArgs {
+        stock_text: Some(j.stock.clone()),
+        tools_text: Some(j.tools.clone()),
+        ..cut.clone()
+    };
+    let ok = run(&j.program, out, runner::DEFAULT_SHIFT, Some(&cut))?;
+    if out.is_dir() {
+        for (name, text) in [
+            ("fig1-job.nc", &j.program),
+            ("fig1-job.tools", &j.tools),
+            ("fig1-job.stock", &j.stock),
+        ] {
+            let path = out.join(name);
+            std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        }
+        println!(
+            "  the job: {}/fig1-job.nc, fig1-job.tools, fig1-job.stock (millac-qemu job writes them too)",
+            out.display()
+        );
+    }
+    Ok(ok)
 }

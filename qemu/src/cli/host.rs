@@ -118,30 +118,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 acsim::feed_ipm(&settings, settings.q0),
             )?;
             // Each tool its own figure, against its own F0 and T0 (ac.svg's are the machine's).
-            let mut figures = Vec::new();
-            for c in &cut.changes {
-                let n = c.fitted.number;
-                let rows: Vec<_> = plot_rows
-                    .rows
-                    .iter()
-                    .filter(|r| r.tool == n)
-                    .cloned()
-                    .collect();
-                let name = format!("ac-T{n}.svg");
-                if rows.is_empty() || figures.contains(&name) {
-                    continue;
-                }
-                let s = millac::rt::ac::tool_settings(&acs, &c.fitted).map_or(acs, |s| s.get());
-                acreport::plot(
-                    &out.join(&name),
-                    &rows,
-                    s.f0_n() as f64,
-                    s.t0_nm() as f64,
-                    1.0 / s.optimal_fraction as f64,
-                    acsim::feed_ipm(&settings, settings.q0),
-                )?;
-                figures.push(name);
-            }
+            let figures = acreport::plot_tools(out, &plot_rows.rows, &cut, &acs, &settings)?;
             let load = run.load;
             // The comparison's runs (constant feeds, the oracle) are left out once a signal has come:
             // they were cut short too.
@@ -198,7 +175,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 summary["interrupted"] = serde_json::json!({"signal": s, "left_out": "comparison"});
             }
             if let Some(cmp) = &cmp {
-                let log = acreport::tool_log(&run, cmp);
+                let log = acreport::tool_log(&run.tools, cmp);
                 if !log.is_empty() {
                     summary["tools"] = serde_json::json!(log);
                 }

@@ -571,6 +571,36 @@ pub fn summarise(
             why.as_deref(),
             acs.strategy,
         );
+        // Each tool's part: the AFC log and its figure, as `host` writes them.
+        let blocks: Vec<(u64, u64, Option<f64>)> = report
+            .blocks
+            .iter()
+            .map(|b| (b.t_start_ns, b.t_end_ns, b.feed.map(|f| f.0)))
+            .collect();
+        let tools = crate::host::acsim::tool_runs_of_periods(
+            &rows,
+            a.truth,
+            acs.samples_per_period() as usize,
+            &a.run.cut,
+            &blocks,
+            done,
+            &acs,
+            acs.optimal_fraction as f64,
+        );
+        let log = crate::evaluation::acreport::tool_log(&tools, &cmp);
+        if !log.is_empty() {
+            crate::evaluation::acreport::print_tool_log(&log);
+            summary["tools"] = json!(log);
+        }
+        let figures =
+            crate::evaluation::acreport::plot_tools(out, &rows, &a.run.cut, &acs, settings)?;
+        if !figures.is_empty() {
+            println!(
+                "  wrote {}/{} (each tool's feed, F/F0 and T/T0 against its own limits)",
+                out.display(),
+                figures.join(", ")
+            );
+        }
     }
     Ok((summary, report, records))
 }

@@ -549,12 +549,12 @@ pub fn ac_json(time_s: f64, load: &LoadFigures, c: &Comparison) -> Value {
 /// programmed), the highest F/Fmax and T/Tmax against its own limits, the time above them, the
 /// lowest feed in the cut, the holds and the first alarm. `programmed`: the programmed feeds'
 /// run of the same program (its parts in the same order). Empty for a one-tool program.
-pub fn tool_log(ac: &HostRun, c: &Comparison) -> Vec<Value> {
+pub fn tool_log(tools: &[ToolRun], c: &Comparison) -> Vec<Value> {
     // The same tool's part of another run.
     fn same<'a>(r: &'a HostRun, t: &ToolRun) -> Option<&'a ToolRun> {
         r.tools.iter().find(|p| p.part == t.part)
     }
-    ac.tools
+    tools
         .iter()
         .map(|t| {
             let time = t.time_s();
@@ -585,6 +585,38 @@ pub fn tool_log(ac: &HostRun, c: &Comparison) -> Vec<Value> {
             })
         })
         .collect()
+}
+
+/// Each tool's figure, `out/ac-T<n>.svg`: its periods of `rows` (feed, F/F0 and T/T0) against
+/// its own F0 and T0 (`ac.svg` draws the machine's), for every tool `cut` changes to that has
+/// periods; the names written.
+pub fn plot_tools(
+    out: &std::path::Path,
+    rows: &[crate::host::acsim::AcRow],
+    cut: &crate::host::acsim::Cut,
+    acs: &millac::ac::AcSettings,
+    settings: &millac::Settings,
+) -> anyhow::Result<Vec<String>> {
+    let mut figures = Vec::new();
+    for c in &cut.changes {
+        let n = c.fitted.number;
+        let name = format!("ac-T{n}.svg");
+        let mine: Vec<_> = rows.iter().filter(|r| r.tool == n).cloned().collect();
+        if mine.is_empty() || figures.contains(&name) {
+            continue;
+        }
+        let s = millac::rt::ac::tool_settings(acs, &c.fitted).map_or(*acs, |s| s.get());
+        plot(
+            &out.join(&name),
+            &mine,
+            s.f0_n() as f64,
+            s.t0_nm() as f64,
+            1.0 / s.optimal_fraction as f64,
+            crate::host::acsim::feed_ipm(settings, settings.q0),
+        )?;
+        figures.push(name);
+    }
+    Ok(figures)
 }
 
 /// Prints [`tool_log`] as a table.

@@ -364,11 +364,13 @@ pub fn travel() -> millac_plant::Envelope {
 pub fn load_stock(path: &std::path::Path) -> Result<Stock> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| anyhow!("reading the stock file {}: {e}", path.display()))?;
-    Stock::parse_within(&text, &travel()).map_err(|e| {
-        anyhow!(
-            "{}: {e}; a stock lies within the machine's travel (its soft limits)",
-            path.display()
-        )
+    parse_stock(&text, &path.display().to_string())
+}
+
+/// A stock description's `text` (see [`load_stock`]); `origin` names it in an error.
+pub fn parse_stock(text: &str, origin: &str) -> Result<Stock> {
+    Stock::parse_within(text, &travel()).map_err(|e| {
+        anyhow!("{origin}: {e}; a stock lies within the machine's travel (its soft limits)")
     })
 }
 
@@ -379,6 +381,11 @@ pub fn load_stock(path: &std::path::Path) -> Result<Stock> {
 pub fn load_tools(path: &std::path::Path) -> Result<millac::gcode::tools::ToolTable> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| anyhow!("reading the tool table {}: {e}", path.display()))?;
+    parse_tools(&text, &path.display().to_string())
+}
+
+/// A tool table's `text` (see [`load_tools`]); `origin` names it in an error.
+pub fn parse_tools(text: &str, origin: &str) -> Result<millac::gcode::tools::ToolTable> {
     let mut table = millac::protocol::table::MachineSettings::default();
     for (n, line) in text.lines().enumerate() {
         let l = line.trim();
@@ -387,8 +394,7 @@ pub fn load_tools(path: &std::path::Path) -> Result<millac::gcode::tools::ToolTa
         }
         table.tool_line(l).map_err(|code| {
             anyhow!(
-                "{} line {}: `{l}` refused with error:{code} (a $T line: $T<1-16>=L D N K F M)",
-                path.display(),
+                "{origin} line {}: `{l}` refused with error:{code} (a $T line: $T<1-16>=L D N K F M)",
                 n + 1
             )
         })?;
@@ -502,6 +508,92 @@ impl ToolPart {
             holds: self.holds,
         })
     }
+}
+
+/// Each tool's part of a firmware run (under QEMU) from its AC periods, as [`HostRun::tools`]
+/// has a host run's: `rows` the periods (their tool the firmware's `ac.log` column, the true
+/// force and torque of their samples `truth`, `per` to a period), `blocks` each block's time
+/// (ns, from..to) and programmed feed (ipm; None: not measured, a rapid), `blocks_done` the
+/// blocks the run completed. A part begins at the first period with the next change's tool (the
+/// AC follows the tool from the sample after the M6); its blocks are the program's between the
+/// changes. Empty for a one-tool cut.
+#[allow(clippy::too_many_arguments)]
+pub fn tool_runs_of_periods(
+    rows: &[AcRow],
+    truth: &[(f64, f64)],
+    per: usize,
+    cut: &Cut,
+    blocks: &[(u64, u64, Option<f64>)],
+    blocks_done: usize,
+    acs: &millac::ac::AcSettings,
+    fraction: f64,
+) -> Vec<ToolRun> {
+    let mut out = Vec::new();
+    if cut.changes.is_empty() {
+        return out;
+    }
+    let mut part = ToolPart {
+        limited: true,
+        ..ToolPart::default()
+    };
+    let mut plant = cut.tool;
+    let mut tally = LoadTally::new(&plant, fraction, acs.sample_hz);
+    let mut end_ns = 0;
+    for (k, r) in rows.iter().enumerate() {
+        let t_ns = r.t_ms * 1_000_000;
+        if r.tool != part.tool {
+            if let Some((i, c)) = cut
+                .changes
+                .iter()
+                .enumerate()
+                .skip(part.part)
+                .find(|(_, c)| c.fitted.number == r.tool)
+            {
+                let next = ToolPart {
+                    tool: r.tool,
+                    part: i + 1,
+                    from_block: c.at_block.min(blocks_done),
+                    start_ns: t_ns,
+                    limited: c.fitted.limits.is_some(),
+                    ..ToolPart::default()
+                };
+                plant = c.plant;
+                let done = std::mem::replace(
+                    &mut tally,
+                    LoadTally::new(&plant, fraction, acs.sample_hz),
+                );
+                out.extend(std::mem::replace(&mut part, next).end(
+                    t_ns,
+                    c.at_block.min(blocks_done),
+                    &done,
+                    acs.period_ms,
+                ));
+            }
+        }
+        for &(f, t) in truth.get(k * per..((k + 1) * per).min(truth.len())).unwrap_or(&[]) {
+            tally.add(f, t);
+        }
+        // The block running at the period's time: its programmed feed (none: no control).
+        let i = blocks.partition_point(|b| b.1 < t_ns);
+        let programmed = blocks
+            .get(i)
+            .filter(|b| b.0 <= t_ns)
+            .and_then(|b| b.2)
+            .unwrap_or(r.feed_ipm);
+        part.period(
+            (r.f_true_n, r.t_true_nm),
+            r.feed_ipm,
+            programmed,
+            r.state.starts_with("hold"),
+            &plant,
+        );
+        end_ns = t_ns;
+    }
+    let end = blocks
+        .get(blocks_done.saturating_sub(1))
+        .map_or(end_ns, |b| b.1.max(end_ns));
+    out.extend(part.end(end, blocks_done, &tally, acs.period_ms));
+    out
 }
 
 /// Milliseconds in seconds.
