@@ -707,3 +707,92 @@ fn the_bound_schedules_each_tool_with_its_own_limits() {
     assert!(b1.min_cut_limit_ipm > 12.0, "{b1:?}");
     assert!(b2.time_s > b1.time_s, "{b2:?} {b1:?}");
 }
+
+/// The whole Fig. 1 job as the demo runs it (`millac_qemu::evaluation::job`: slot drill,
+/// roughing end mill, corner end mill, ball end mill), on the host: it completes with no hold, each tool
+/// within its own limits (the AFC log's figures), the plant cutting with each tool's shape; the
+/// stock each tool leaves is the next one's: the drill's hole below the first stair, the stairs,
+/// the corners the roughing cutter leaves its radius in cleaned by the corner end mill, the
+/// sloped bottom's steps taken down by the ball end mill to the slope (its scallops above it).
+#[test]
+fn the_whole_fig1_job_runs_within_every_tools_limits() {
+    use millac_plant::Shape;
+    use millac_qemu::evaluation::job::{self, Cavity, Cutters, Plan};
+    let j = job::fig1();
+    let settings = Settings::default();
+    let prog = analysis::load_program(&j.program, &settings).unwrap();
+    let stock = acsim::parse_stock(&j.stock, "the job's stock").unwrap();
+    let table = acsim::parse_tools(&j.tools, "the job's tools").unwrap();
+    let c = Cut::steel(stock, 1)
+        .at_program_rpm(&j.program, &settings)
+        .with_tool_changes(&j.program, &settings, &table);
+    let shapes: Vec<_> = c.changes.iter().map(|c| c.plant.shape).collect();
+    assert_eq!(shapes, [Shape::Flat, Shape::Flat, Shape::Flat, Shape::Ball]);
+    let ac = acsim::run(&prog, &settings, &c, Some(AcSettings::default())).unwrap();
+    assert_eq!((ac.alarm, ac.blocks_done), (None, prog.len()));
+    let tools: Vec<u8> = ac.tools.iter().map(|t| t.tool).collect();
+    assert_eq!(tools, [1, 2, 3, 4]);
+    for t in &ac.tools {
+        println!(
+            "T{}: {:.2} s, cutting {:.2} s, peak F/Fmax {:.3}, T/Tmax {:.3}",
+            t.tool,
+            t.time_s(),
+            t.cutting_s,
+            t.load.peak_force_ratio,
+            t.load.peak_torque_ratio
+        );
+        assert!(
+            t.load.peak_force_ratio < 1.0
+                && t.load.peak_torque_ratio < 1.0
+                && t.load.time_above_limit_s == 0.0,
+            "T{}: {:?}",
+            t.tool,
+            t.load
+        );
+        assert_eq!((t.holds, t.alarm), (0, None), "T{}", t.tool);
+        assert!(t.cutting_s > 1.0, "T{} cut for {} s", t.tool, t.cutting_s);
+    }
+    // The stock as each tool left it.
+    let stocks: Vec<u8> = ac.stocks.iter().map(|s| s.0).collect();
+    assert_eq!(stocks, [1, 2, 3, 4]);
+    let top = |k: usize, x_in: f64, y_in: f64| ac.stocks[k].1.top_at(x_in * 25.4, y_in * 25.4);
+    let (cav, cut, plan) = (Cavity::FIG1, Cutters::FIG1, Plan::FIG1);
+    let ym = (cav.y[0] + cav.y[1]) / 2.0;
+    let pt1 = cav.x[0] + cut.drill.diameter_mm / 2.0 / 25.4 + 0.005;
+    // The hole: at Pt 1 below the roughing's first stair.
+    let first_stair = cav.bottom(cav.x[0] + (cav.x[1] - cav.x[0]) / 3.0 + 0.25) + plan.allowance;
+    assert!(
+        top(0, pt1, ym) < (first_stair - 0.015) * 25.4,
+        "{}",
+        top(0, pt1, ym)
+    );
+    assert_eq!(top(0, 2.5, ym), 0.0, "the drill cut the hole only");
+    // A corner: left by the roughing cutter (its radius, 0.25 in), cleaned by the corner end
+    // mill (down to its own, 0.118 in).
+    let (cx, cy) = (cav.x[0] + 0.05, cav.y[0] + 0.05);
+    assert_eq!(
+        top(1, cx, cy),
+        0.0,
+        "the roughing cutter's radius in the corner"
+    );
+    assert!(
+        top(2, cx, cy) < (first_stair + 0.01) * 25.4,
+        "{}",
+        top(2, cx, cy)
+    );
+    // The slope: the stairs' steps over it after the roughing, down to it (within the ball's
+    // scallops, 0.6 mm at its raster step) after the ball end mill, never below it.
+    for x in [1.5, 2.0, 2.5, 3.0, 3.5] {
+        let slope = cav.bottom(x) * 25.4;
+        let (rough, ball) = (top(2, x, ym), top(3, x, ym));
+        assert!(
+            rough >= slope + plan.allowance * 25.4 - 1e-6,
+            "X{x}: {rough} vs {slope}"
+        );
+        assert!(
+            ball >= slope - 1e-3 && ball < rough,
+            "X{x}: {ball} vs {slope}, {rough}"
+        );
+        assert!(ball - slope < 0.8, "X{x}: {ball} vs {slope}");
+    }
+}

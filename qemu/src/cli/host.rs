@@ -119,6 +119,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
             )?;
             // Each tool its own figure, against its own F0 and T0 (ac.svg's are the machine's).
             let figures = acreport::plot_tools(out, &plot_rows.rows, &cut, &acs, &settings)?;
+            millac_qemu::evaluation::heightmap::write_tool_stocks(out, &run.stocks)?;
             let load = run.load;
             // The comparison's runs (constant feeds, the oracle) are left out once a signal has come:
             // they were cut short too.

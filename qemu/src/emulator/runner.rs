@@ -256,6 +256,30 @@ struct ProcessPlant {
     truth: std::sync::Arc<std::sync::Mutex<Vec<(f64, f64)>>>,
     /// The program's tool changes still to come, in order (`Cut::changes`).
     changes: std::collections::VecDeque<crate::host::acsim::ToolChangeAt>,
+    /// The tool cutting (0: the cut's own, before any M6), and the stock as each tool left it
+    /// (a multi-tool cut's: at each change, and when the plant is dropped at the run's end).
+    tool: u8,
+    stocks: Stocks,
+}
+
+/// The stocks a multi-tool run's plant leaves, one per tool ([`ProcessPlant`]).
+pub type Stocks = std::sync::Arc<std::sync::Mutex<Vec<(u8, millac_plant::Stock)>>>;
+
+impl ProcessPlant {
+    /// Keeps the stock as the tool cutting left it (a tool fitted by an M6).
+    fn keep_stock(&mut self) {
+        if self.tool != 0 {
+            if let Ok(mut v) = self.stocks.lock() {
+                v.push((self.tool, self.process.stock().clone()));
+            }
+        }
+    }
+}
+
+impl Drop for ProcessPlant {
+    fn drop(&mut self) {
+        self.keep_stock();
+    }
 }
 
 impl cosim::Plant for ProcessPlant {
@@ -284,6 +308,8 @@ impl cosim::Plant for ProcessPlant {
             .ok_or_else(|| {
                 anyhow::anyhow!("the firmware fitted T{tool}, not the program's next tool change")
             })?;
+        self.keep_stock();
+        self.tool = tool;
         self.process
             .change_tool(c.plant, c.rpm)
             .map_err(|e| anyhow::anyhow!("T{tool} at line {}: {}", c.line, e.0))
@@ -301,11 +327,14 @@ impl cosim::Plant for ProcessPlant {
 pub fn plant_with_truth(
     a: &AcRun,
     truth: std::sync::Arc<std::sync::Mutex<Vec<(f64, f64)>>>,
+    stocks: Stocks,
 ) -> Result<Box<dyn cosim::Plant + Send>> {
     let plant = ProcessPlant {
         process: a.cut.process()?,
         truth,
         changes: a.cut.changes.iter().copied().collect(),
+        tool: 0,
+        stocks,
     };
     let acs = a.settings;
     let zero = acs.cal.map(|c| f64::from(c.offset));
@@ -319,7 +348,7 @@ pub fn plant_with_truth(
 
 /// [`plant_with_truth`] without the record of the truth.
 pub fn process_plant(a: &AcRun) -> Result<Box<dyn cosim::Plant + Send>> {
-    plant_with_truth(a, Default::default())
+    plant_with_truth(a, Default::default(), Default::default())
 }
 
 /// A program rejected before anything ran: the 1-based line and the message (`line N: ...`).
@@ -408,10 +437,11 @@ pub fn run_until(
         }
     };
     let truth = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let stocks = Stocks::default();
     let (cap, exchanges) = match ac {
         None => (execute_until(text, out, shift, stop.clone())?, Vec::new()),
         Some(a) => {
-            let plant = plant_with_truth(a, truth.clone())?;
+            let plant = plant_with_truth(a, truth.clone(), stocks.clone())?;
             let tools = &a.cut.tools;
             execute_with_plant_until(
                 text,
@@ -457,10 +487,12 @@ pub fn run_until(
     }
     vcd::write_vcd(&out.join("capture.vcd"), 0, &cap.pins, Some(cap.end_ns))?;
     let truth = truth.lock().map(|v| v.clone()).unwrap_or_default();
+    let stocks = stocks.lock().map(|v| v.clone()).unwrap_or_default();
     let ac_in = ac.map(|a| AcInput {
         run: a,
         samples: exchanges.len(),
         truth: &truth,
+        stocks: &stocks,
     });
     let (summary, report, records) =
         summarise(&prog, &settings, &cap, out, shift, hold.as_ref(), ac_in)?;
@@ -483,6 +515,8 @@ pub struct AcInput<'a> {
     pub run: &'a AcRun,
     pub samples: usize,
     pub truth: &'a [(f64, f64)],
+    /// The stock as each tool of a multi-tool run left it (empty otherwise).
+    pub stocks: &'a [(u8, millac_plant::Stock)],
 }
 
 /// Analyses the capture of `prog` and builds summary.json (the stable keys, docs/user/getting-started.md), and with
@@ -601,6 +635,7 @@ pub fn summarise(
                 figures.join(", ")
             );
         }
+        crate::evaluation::heightmap::write_tool_stocks(out, a.stocks)?;
     }
     Ok((summary, report, records))
 }

@@ -212,7 +212,7 @@ pub fn serve(
             (cap?, 0, ending)
         }
         Some(a) => {
-            let plant = runner::plant_with_truth(a, truth.clone())?;
+            let plant = runner::plant_with_truth(a, truth.clone(), Default::default())?;
             let bridge = cosim::Bridge::start(out, plant, stored.ac.sample_hz, a.ac)?;
             let (cap, ending) = capture(&spec);
             let exchanges = bridge.finish().unwrap_or_default();
@@ -261,6 +261,7 @@ pub fn serve(
         run: a,
         samples,
         truth: &truth,
+        stocks: &[],
     });
     let (mut summary, _, _) =
         runner::summarise(&prog, &settings, &cap, out, shift, hold.as_ref(), ac_in)?;

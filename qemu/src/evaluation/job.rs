@@ -7,9 +7,12 @@
 //! ball ended cutter on the steps of the sloped bottom."
 //!
 //! The plan (inches, G20; the cavity a rectangle whose bottom is a plane sloping up along +X):
-//! 1. **T1, the drill**: the start hole at Pt 1, at the deep end, one cutter radius (and a
-//!    little) in from the end wall, deep enough that the roughing cutter goes down to its first
-//!    stair in air (the drill's point below it).
+//! 1. **T1, the drill**: the flat-bottomed start hole at Pt 1, at the deep end, one cutter
+//!    radius (and a little) in from the end wall, deep enough that the roughing cutter goes down
+//!    to its first stair in air. Fig. 1's is a slot drill (a two-flute center-cutting end mill,
+//!    the paper's "flat bottomed hole"); a twist drill's point would go below the slope there, so
+//!    with one (`ToolKind::Drill`) the hole stops with its point on the slope's allowance and
+//!    the roughing cutter's end face takes the rest of the cone.
 //! 2. **T2, the roughing end mill**: stairs down the slope, deepest first ("cut A"): each stair
 //!    a full-width slot along the cavity's centre line at the stair's depth (from the hole, then
 //!    from the stair before), then loops around it `e` wider each time (the paper's side cuts
@@ -155,7 +158,7 @@ pub struct Cutters {
 }
 
 impl Cutters {
-    /// Fig. 1's: a 14 mm drill (two lips, at 450 rpm), the paper's 0.5 in four-flute end mill
+    /// Fig. 1's: a 14 mm slot drill (two flutes, at 450 rpm), the paper's 0.5 in four-flute end mill
     /// with its 4000 N and 80 N m (600 rpm), a 6 mm three-flute end mill for the corners and a
     /// 10 mm two-flute ball end mill (1200 and 800 rpm: about 23 and 25 m/min in steel, HSS).
     /// The small cutters' limits come from their geometry (`millac::ac::strength`).
@@ -164,7 +167,7 @@ impl Cutters {
             number: 1,
             diameter_mm: 14.0,
             flutes: 2,
-            kind: ToolKind::Drill,
+            kind: ToolKind::Flat,
             limits: [0.0, 0.0],
             rpm: 450,
             feed_ipm: 4.0,
@@ -299,14 +302,25 @@ pub fn generate(cavity: &Cavity, cutters: &Cutters, plan: &Plan) -> Job {
     let r1 = drill.r();
     // Pt 1: the hole's edge no nearer the end wall than the roughing cutter's.
     let pt1 = c.x[0] + r1.max(r2) + 0.005;
-    // The drill's point below the first stair: its whole diameter there (118 degrees).
-    let point = r1 / (59f64).to_radians().tan();
-    let hole = zs[0] - 0.02 - point;
+    // The hole's whole diameter below the first stair; a twist drill's point (118 degrees) no
+    // deeper than the slope's allowance under it.
+    let hole = match drill.kind {
+        ToolKind::Drill => {
+            let point = r1 / (59f64).to_radians().tan();
+            (zs[0] - 0.02 - point).max(c.bottom(pt1) + plan.allowance)
+        }
+        _ => zs[0] - 0.02,
+    };
 
     // 1. The start hole.
     line(format!(
-        "(T{}: {} mm drill, the start hole at Pt 1)",
-        drill.number, drill.diameter_mm
+        "(T{}: {} mm {}, the flat-bottomed start hole at Pt 1)",
+        drill.number,
+        drill.diameter_mm,
+        match drill.kind {
+            ToolKind::Drill => "drill",
+            _ => "slot drill",
+        }
     ));
     line(format!("T{} M6", drill.number));
     line(format!("S{} M3", drill.rpm));

@@ -5,6 +5,7 @@ pub mod alarmlab;
 pub mod bench;
 pub mod breaklab;
 pub mod chatterlab;
+pub mod heightmap;
 pub mod job;
 pub mod model;
 pub mod optimise;

@@ -438,6 +438,8 @@ pub struct HostRun {
     pub speeds: Vec<(f64, SpeedChange)>,
     /// The stock as the run left it (the plant's height map).
     pub stock: Option<Stock>,
+    /// A multi-tool run's stock as each tool left it (its number; the last is the run's end).
+    pub stocks: Vec<(u8, Stock)>,
     /// Virtual time (ns) at which the AC first held the feed (the frame's cap went to 0: the
     /// sampler's trip or the AC period), and of the last pulse of the run.
     pub hold_ns: Option<u64>,
@@ -558,10 +560,8 @@ pub fn tool_runs_of_periods(
                     ..ToolPart::default()
                 };
                 plant = c.plant;
-                let done = std::mem::replace(
-                    &mut tally,
-                    LoadTally::new(&plant, fraction, acs.sample_hz),
-                );
+                let done =
+                    std::mem::replace(&mut tally, LoadTally::new(&plant, fraction, acs.sample_hz));
                 out.extend(std::mem::replace(&mut part, next).end(
                     t_ns,
                     c.at_block.min(blocks_done),
@@ -570,7 +570,10 @@ pub fn tool_runs_of_periods(
                 ));
             }
         }
-        for &(f, t) in truth.get(k * per..((k + 1) * per).min(truth.len())).unwrap_or(&[]) {
+        for &(f, t) in truth
+            .get(k * per..((k + 1) * per).min(truth.len()))
+            .unwrap_or(&[])
+        {
             tally.add(f, t);
         }
         // The block running at the period's time: its programmed feed (none: no control).
@@ -1022,6 +1025,9 @@ fn run_inner(
             w.loader.set_tool(&c.fitted);
             w.loader.ask_new_job();
             w.loader.set_spindle_rpm(c.rpm.round() as u32);
+            if plant && part.tool != 0 {
+                out.stocks.push((part.tool, adc.process.stock().clone()));
+            }
             if plant {
                 adc.process
                     .change_tool(c.plant, c.rpm)
@@ -1234,6 +1240,9 @@ fn run_inner(
         }
     }
     let blocks = frames.frame().blocks_done() as usize;
+    if plant && !cut.changes.is_empty() {
+        out.stocks.push((part.tool, adc.process.stock().clone()));
+    }
     if !cut.changes.is_empty() {
         out.tools
             .extend(part.end(t, blocks, &adc.part, acs.period_ms));
