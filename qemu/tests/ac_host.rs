@@ -796,3 +796,90 @@ fn the_whole_fig1_job_runs_within_every_tools_limits() {
         assert!(ball - slope < 0.8, "X{x}: {ball} vs {slope}");
     }
 }
+
+/// A real 3D finishing program with the AC: FreeCAD's multi-tool job
+/// (`qemu/programs/cam/freecad/multitool.nc`: a 5 mm drill's start hole, the pocket with a 6 mm
+/// and a 2 mm end mill, then its Surface operation with a 3 mm ball end mill over the block's
+/// R8 fillets; FreeCAD's own feeds and speeds), each tool from a table with its kind, diameter
+/// and flutes (limits from its geometry), on a 0.0625 mm grid (the 3 mm ball's radius over 24).
+/// The AC runs it to the end with no hold, every tool within its own limits, the ball end mill's
+/// part no slower than its bound and within a few per cent of its programmed feeds. (Its Surface
+/// alone, over the block the pocket operations had not cut, loads the ball end mill to 1.29 of
+/// its limit at the programmed feeds, and the AC, slowing it, holds once at 1.02: a finishing
+/// pass over unroughed stock.)
+#[test]
+fn a_freecad_ball_end_finishing_runs_within_its_limits() {
+    let program = include_str!("../programs/cam/freecad/multitool.nc");
+    let block = include_str!("../programs/cam/freecad/block.stock");
+    let stock = Stock::parse(&format!("cell 0.0625\n{block}")).unwrap();
+    let table = acsim::parse_tools(
+        "$T2=D5 N2 K2\n$T3=D6 N2 K0\n$T4=D2 N2 K0\n$T5=D3 N2 K1",
+        "FreeCAD's tools",
+    )
+    .unwrap();
+    let settings = Settings::default();
+    let prog = analysis::load_program(program, &settings).unwrap();
+    let c = Cut::steel(stock, 1)
+        .at_program_rpm(program, &settings)
+        .with_tool_changes(program, &settings, &table);
+    let shapes: Vec<_> = c.changes.iter().map(|c| c.plant.shape).collect();
+    assert_eq!(
+        shapes,
+        [
+            millac_plant::Shape::Drill { point_deg: 118.0 },
+            millac_plant::Shape::Flat,
+            millac_plant::Shape::Flat,
+            millac_plant::Shape::Ball
+        ]
+    );
+    let ac = acsim::run(&prog, &settings, &c, Some(AcSettings::default())).unwrap();
+    assert_eq!((ac.alarm, ac.blocks_done), (None, prog.len()));
+    for t in &ac.tools {
+        println!(
+            "T{}: {:.1} s, peak F/Fmax {:.3}, T/Tmax {:.3}, cutting {:.1} s, controlled {:.1} s",
+            t.tool,
+            t.time_s(),
+            t.load.peak_force_ratio,
+            t.load.peak_torque_ratio,
+            t.cutting_s,
+            t.controlled_s
+        );
+        assert!(
+            t.load.peak_force_ratio < 1.0 && t.load.time_above_limit_s == 0.0,
+            "T{}: {:?}",
+            t.tool,
+            t.load
+        );
+        assert_eq!(t.holds, 0, "T{}", t.tool);
+    }
+    let ball = ac.tools.last().unwrap();
+    assert_eq!(ball.tool, 5);
+    assert!(
+        ball.cutting_s > 60.0,
+        "the ball end mill cut for {} s",
+        ball.cutting_s
+    );
+    // Against its programmed feeds and the bound, its part.
+    let cmp =
+        millac_qemu::evaluation::acreport::compare(&prog, &settings, &c, &AcSettings::default())
+            .unwrap();
+    let programmed = cmp
+        .programmed
+        .tools
+        .iter()
+        .find(|t| t.part == ball.part)
+        .unwrap();
+    let bound = cmp.oracle_parts_s[ball.part];
+    println!(
+        "T5: AC {:.1} s, programmed {:.1} s, bound {:.1} s",
+        ball.time_s(),
+        programmed.time_s(),
+        bound
+    );
+    assert!(
+        ball.time_s() >= bound,
+        "{} vs the bound {bound}",
+        ball.time_s()
+    );
+    assert!(ball.time_s() < 1.05 * programmed.time_s());
+}

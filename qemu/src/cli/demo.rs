@@ -6,7 +6,6 @@ use super::args::{CutArgs, DriveArg};
 use super::run::run;
 use anyhow::{Context, Result};
 use millac_qemu::emulator::runner;
-use millac_qemu::evaluation::job;
 use std::path::{Path, PathBuf};
 
 /// `demo`'s options.
@@ -53,7 +52,7 @@ pub(crate) fn bare() -> Result<bool> {
 /// others), through [`run`]; the job's three files are written beside the run's report.
 fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
     println!(
-        "millac demo: the whole die-sinking job of Fig. 1 (Tlusty, Koren, McNeil) through the firmware under QEMU: drill, roughing end mill, corner end mill, ball end mill, {}",
+        "millac demo: the whole die-sinking job of Fig. 1 (Tlusty, Koren, McNeil) through the firmware under QEMU: slot drill, roughing end mill, corner end mill, ball end mill, {}",
         match (cut.no_ac, cut.strategy) {
             (true, _) => "adaptive control off (--no-ac)".to_string(),
             (false, None) => "with adaptive control".to_string(),
@@ -63,12 +62,7 @@ fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
             ),
         }
     );
-    let j = job::fig1();
-    let cut = CutArgs {
-        stock_text: Some(j.stock.clone()),
-        tools_text: Some(j.tools.clone()),
-        ..cut.clone()
-    };
+    let (j, cut) = super::demo_job(cut);
     let ok = run(&j.program, out, runner::DEFAULT_SHIFT, Some(&cut))?;
     if out.is_dir() {
         for (name, text) in [

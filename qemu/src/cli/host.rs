@@ -1,7 +1,7 @@
 //! `millac-qemu host [PROGRAM]`: a program with adaptive control natively on the host against the
 //! simulated cut, no QEMU (host: the CLI calls it from `main`).
 use super::args::{cut_setup, CutArgs};
-use super::{reported, with_program, DEMO};
+use super::{demo_job, reported, with_program};
 use anyhow::{Context, Result};
 use millac::Settings;
 use millac_qemu::{analysis, emulator::runner};
@@ -21,12 +21,15 @@ pub(crate) struct HostArgs {
     pub(crate) cut: CutArgs,
 }
 
-/// `host`: the program file, or the demo without one, through [`host`].
+/// `host`: the program file, or the demo's job without one, through [`host`].
 pub(crate) fn command(args: HostArgs) -> Result<bool> {
     let HostArgs { program, out, cut } = args;
     match program {
         Some(p) => with_program(&p, &out, |text| host(text, &out, &cut)),
-        None => host(DEMO, &out, &cut),
+        None => {
+            let (j, cut) = demo_job(&cut);
+            host(&j.program, &out, &cut)
+        }
     }
 }
 

@@ -18,8 +18,17 @@ use clap::{Parser, Subcommand};
 use millac_qemu::emulator::runner;
 use std::path::Path;
 
-/// The shipped demo program.
-pub(crate) const DEMO: &str = include_str!("../../programs/fig1-cavity.nc");
+/// The demo: the whole Fig. 1 job (`millac_qemu::evaluation::job`), its program and `cut` with
+/// the job's blank and tool table (unless `--stock` or `--tools` gave others).
+pub(crate) fn demo_job(cut: &args::CutArgs) -> (millac_qemu::evaluation::job::Job, args::CutArgs) {
+    let j = millac_qemu::evaluation::job::fig1();
+    let cut = args::CutArgs {
+        stock_text: Some(j.stock.clone()),
+        tools_text: Some(j.tools.clone()),
+        ..cut.clone()
+    };
+    (j, cut)
+}
 
 #[derive(Parser)]
 #[command(
