@@ -5,7 +5,7 @@
 //! breakage monitor on. The `alarm_table` example prints the table of docs/dev/results-ac.md; `qemu/tests/alarms.rs`
 //! asserts it.
 //!
-//! The corpus: every program in `qemu/programs` (on its `.stock`; `hidden-boss` on the stock as
+//! The corpus: every program in `qemu/programs` (on its `.stock`, with its `.tools` for its M6s; `hidden-boss` on the stock as
 //! it really is), and cuts written here as CAM writes them, on the Fig. 1 blank (X 0..5 in,
 //! Y 0..3 in, top Z0, the start hole at X1.25 Y1.5): plunges and ramps at several feeds, slot
 //! entries from outside the blank, shallow face cuts 0.1..1 mm deep in mm and in inch, side cuts
@@ -31,6 +31,8 @@ pub struct Program {
     pub name: String,
     pub text: String,
     pub stock: Stock,
+    /// The machine's tool table for its M6s (`<stem>.tools` beside it; else empty).
+    pub tools: millac::gcode::tools::ToolTable,
 }
 
 /// The programs the faults are injected into (names in [`corpus`]).
@@ -313,10 +315,17 @@ pub fn corpus(dir: &Path) -> Result<Vec<Program>> {
             Some(s) => acsim::load_stock(&s)?,
             None => Stock::default(),
         };
+        let tools = dir.join(format!("{stem}.tools"));
+        let tools = if tools.exists() {
+            acsim::load_tools(&tools)?
+        } else {
+            Default::default()
+        };
         v.push(Program {
             name: format!("{stem}.nc"),
             text,
             stock,
+            tools,
         });
     }
     for (name, text) in generated() {
@@ -324,6 +333,7 @@ pub fn corpus(dir: &Path) -> Result<Vec<Program>> {
             name,
             text,
             stock: Stock::default(),
+            tools: Default::default(),
         });
     }
     Ok(v)
@@ -342,7 +352,9 @@ pub fn run(p: &Program, faults: &[Fault]) -> Result<Outcome> {
     let s = Settings::default();
     let prog =
         analysis::load_program(&p.text, &s).map_err(|e| anyhow::anyhow!("{}: {e}", p.name))?;
-    let cut = Cut::steel(p.stock.clone(), 1).at_program_rpm(&p.text, &s);
+    let cut = Cut::steel(p.stock.clone(), 1)
+        .at_program_rpm(&p.text, &s)
+        .with_tool_changes(&p.text, &s, &p.tools);
     let ac = settings(&cut);
     let run = acsim::run_with_faults(&prog, &s, &cut, Some(ac), true, faults)
         .with_context(|| p.name.clone())?;
