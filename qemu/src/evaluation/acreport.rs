@@ -626,6 +626,8 @@ pub fn print_tool_log(log: &[Value]) {
     }
     println!("  per tool (AFC log)  blocks  AC    time s  programmed s  vs prog %  safe feed s  bound s  cutting s  controlled s  peak F/Fmax  peak T/Tmax  above limit s  lowest ipm  holds");
     let num = |v: &Value, w: usize, d: usize| match v.as_f64() {
+        // A difference that rounds to nothing is 0, not -0.
+        Some(x) if (x * 10f64.powi(d as i32)).round() == 0.0 => format!("{:>w$.d$}", 0.0),
         Some(x) => format!("{x:>w$.d$}"),
         None => format!("{:>w$}", "-"),
     };
