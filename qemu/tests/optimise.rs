@@ -595,3 +595,62 @@ fn a_test_cut_logged_by_the_firmware_gives_its_y() {
     eprintln!("test cut {a} mm F{f}: firmware's log {y:.0} N, the plant's {y_plant:.0} N");
     assert!((y - y_plant).abs() < 0.02 * y_plant + 25.0);
 }
+
+/// The optimiser follows the program's tool changes: a slot with the 0.5 in cutter, then `T2 M6`
+/// and a 3 mm end mill ramping from 0.25 to 3 mm deep at F6 (1.4 times its 226 N at that feed).
+/// Planned with the tool table, the small tool's part gets feeds that keep it within its own
+/// limits (cut at them, its peak force stays below its 226 N), the output keeps the M6 and the
+/// part's speed, and reaches the original end points with the same pulses. Planned with a table
+/// that gives the small tool the big one's limits, its part is pushed far beyond its strength:
+/// the limits the plan follows are the tool's.
+#[test]
+fn the_optimiser_plans_each_tool_with_its_own_limits() {
+    let program = "G20 G90 G94\nT1 M6\nM3 S600\nG0 X-0.5 Y2.5\nG0 Z-0.3\nG1 X2.5 F20\nG0 Z0.2\n\
+                   T2 M6\nM3 S1500\nG0 X1.0 Y-0.5\nG0 Z-0.01\nG1 Y2.0 Z-0.12 F6\nG0 Z0.2\nM2\n";
+    let settings = Settings::default();
+    let stock = millac_plant::Stock::parse("blank X0 Y0 W3 H3 Z0").unwrap();
+    let opts = Options {
+        fraction: 0.9,
+        air_feed_ipm: f64::INFINITY,
+        split: 0.03,
+        min_piece_mm: 1.0,
+        model: None,
+        guard: 0.0,
+    };
+    let original = analysis::load_program(program, &settings).unwrap();
+    // (peak force of the small tool's part, N) when planned with the table `small`.
+    let plan = |small: &str| {
+        let table =
+            acsim::parse_tools(&format!("$T1=D12.7 N4 K0 F4000 M80\n$T2={small}"), "t").unwrap();
+        let cut = acsim::Cut::steel(stock.clone(), 1)
+            .at_program_rpm(program, &settings)
+            .with_tool_changes(program, &settings, &table);
+        let o = optimise::optimise(program, &settings, &cut, &opts).unwrap();
+        assert!(o.text.contains("\nT2 M6\nS1500 M3\n"), "{}", o.text);
+        let out = analysis::load_program(&o.text, &settings).unwrap();
+        let per = pulses_per_end_point(&original, &out);
+        let want: Vec<[u64; 3]> = original.iter().map(|b| b.pulses).collect();
+        assert_eq!(per, want, "the same pulses between the original end points");
+        // The optimised program cut at its feeds (no AC), with the real tools.
+        let real = acsim::parse_tools("$T1=D12.7 N4 K0 F4000 M80\n$T2=D3 N2 K0", "t").unwrap();
+        let cut = acsim::Cut::steel(stock.clone(), 1)
+            .at_program_rpm(&o.text, &settings)
+            .with_tool_changes(&o.text, &settings, &real);
+        let run = acsim::run(&out, &settings, &cut, None).unwrap();
+        let small_part = run.tools.iter().find(|t| t.tool == 2).unwrap();
+        let limit = cut.changes[1].plant.f_max_n;
+        let peak_n = small_part.load.peak_force_ratio * limit;
+        println!("T2={small}: the small tool's peak {peak_n:.0} N (its limit {limit:.0} N)");
+        (peak_n, limit)
+    };
+    let (own, limit) = plan("D3 N2 K0");
+    assert!(
+        own < limit,
+        "planned with its own limits: {own} N of {limit} N"
+    );
+    let (borrowed, _) = plan("D3 N2 K0 F4000 M80");
+    assert!(
+        borrowed > 1.5 * limit,
+        "planned with the big tool's: {borrowed} N"
+    );
+}

@@ -19,6 +19,10 @@ pub(crate) struct OptimiseArgs {
     /// mill, 4000 N, 80 N*m).
     #[arg(long, value_name = "D_MM,Z[,F_MAX_N[,T_MAX_NM]]", value_parser = parse_tool)]
     pub(crate) tool: Option<millac_plant::Tool>,
+    /// The machine's tool table for the program's M6s (`$T` lines, as `run --tools`): each
+    /// tool's part is planned with its own limits, flutes and speed, and the M6s are kept.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) tools: Option<PathBuf>,
     /// The workpiece material.
     #[arg(long, value_enum, default_value = "steel")]
     pub(crate) material: MaterialArg,
@@ -53,6 +57,7 @@ pub(crate) fn command(args: OptimiseArgs) -> Result<bool> {
         out,
         stock,
         tool,
+        tools,
         material,
         fraction,
         air_feed,
@@ -72,6 +77,7 @@ pub(crate) fn command(args: OptimiseArgs) -> Result<bool> {
         &out,
         stock.as_deref(),
         tool,
+        tools.as_deref(),
         material.into(),
         &millac_qemu::evaluation::optimise::Options {
             fraction,
@@ -91,6 +97,7 @@ fn optimise(
     out: &Path,
     stock: Option<&Path>,
     tool: Option<millac_plant::Tool>,
+    tools: Option<&Path>,
     material: millac_plant::Material,
     opts: &millac_qemu::evaluation::optimise::Options,
 ) -> Result<bool> {
@@ -109,6 +116,11 @@ fn optimise(
         ..acsim::Cut::steel(stock, 1)
     }
     .at_program_rpm(text, &settings);
+    let table = match tools {
+        Some(p) => acsim::load_tools(p)?,
+        None => Default::default(),
+    };
+    let cut = cut.with_tool_changes(text, &settings, &table);
     let o = millac_qemu::progress::with_bar("optimise", 0, || {
         optimise::optimise(text, &settings, &cut, opts)
     })?;
@@ -127,6 +139,8 @@ fn optimise(
     let prog = analysis::load_program(&o.text, &settings).map_err(|e| anyhow::anyhow!("{e}"))?;
     let run = millac_qemu::progress::with_bar("optimised program", prog.len(), || {
         let record = acsim::Record::figures(opts.fraction);
+        // The optimised program's own blocks (its pieces) between its M6s.
+        let cut = cut.clone().with_tool_changes(&o.text, &settings, &table);
         acsim::run_recorded(&prog, &settings, &cut, None, &[], record, None)
     })?;
     let (before, after) = (o.programmed.load, run.load);

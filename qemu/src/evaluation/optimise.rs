@@ -265,6 +265,11 @@ impl Depths {
     }
 }
 
+/// The tooth period of a tool of `flutes` at `rpm`, s.
+fn tooth_s(rpm: f64, flutes: u32) -> f64 {
+    60.0 / (rpm * f64::from(flutes))
+}
+
 /// The path a feed of `v_ipm` covers in two tooth periods of `tooth_s`, mm: how far the chip lags
 /// the feed (see [`lagged`]).
 fn lag_mm(v_ipm: f64, tooth_s: f64) -> f64 {
@@ -446,7 +451,13 @@ struct Planner<'a> {
     prog: &'a [ProgBlock],
     settings: &'a Settings,
     opts: &'a Options,
+    /// The cut: its tool changes (`Cut::changes`) are written before the blocks they come
+    /// before, and each tool's part is planned with its tooth period.
+    cut: &'a Cut,
+    /// The tool's part being planned (0 before the first change).
+    part: usize,
     frm: f64,
+    /// The tooth period of the tool cutting, s.
     tooth_s: f64,
     /// Kienzle's 1 - m.
     kienzle: f64,
@@ -507,6 +518,17 @@ impl Planner<'_> {
 
     /// Block `i`, its points `buf[w0..w]`.
     fn block(&mut self, i: usize, w0: usize, w: usize) {
+        // A tool change before this block: written as the program has it (the M6 and the
+        // part's spindle speed), and the part planned with its tool's tooth period.
+        let part = self.cut.part_of(i);
+        if part != self.part {
+            self.part = part;
+            if let Some(c) = part.checked_sub(1).and_then(|k| self.cut.changes.get(k)) {
+                let _ = writeln!(self.body, "T{} M6", c.fitted.number);
+                let _ = writeln!(self.body, "S{} M3", c.rpm.round());
+                self.tooth_s = tooth_s(c.rpm, c.plant.flutes);
+            }
+        }
         let (b, buf, cov) = (&self.prog[i], &self.buf[..], &self.cov[..]);
         // The block's points: from its start (the point before, or its own first) to its end.
         let base = if w0 > 0 && buf[w0 - 1].pos_blu == self.pos {
@@ -691,16 +713,24 @@ fn plan(
     let expo = 1.0 - cut.material.ks_exponent;
     let scale = (opts.guard / opts.fraction).powf(1.0 / expo);
     let mut depths = opts.model.map(|_| Depths::new(cut));
-    let tooth_s = 60.0 / (cut.spindle_rpm * f64::from(cut.tool.flutes));
+    let first = tooth_s(cut.spindle_rpm, cut.tool.flutes);
+    // The chip's lag looks farthest with the slowest tooth of the job.
+    let slowest = cut
+        .changes
+        .iter()
+        .map(|c| tooth_s(c.rpm, c.plant.flutes))
+        .fold(first, f64::max);
     let mut guarded = 0usize;
     let mut planner = Planner {
         prog,
         settings,
         opts,
+        cut,
+        part: 0,
         frm,
-        tooth_s,
+        tooth_s: first,
         kienzle: expo,
-        lag_max_mm: lag_mm(frm, tooth_s),
+        lag_max_mm: lag_mm(frm, slowest),
         u: units(settings),
         pieces: Vec::new(),
         body: String::new(),
@@ -772,7 +802,12 @@ fn plan(
     let Planner {
         pieces, body, u, ..
     } = planner;
-    let rpm = analysis::spindle_rpm(text, settings);
+    // The speed of the first tool's part (with tool changes, each part's is written at its M6).
+    let rpm = if cut.changes.is_empty() {
+        analysis::spindle_rpm(text, settings)
+    } else {
+        cut.spindle_rpm.round() as u32
+    };
     let feed_blocks = prog
         .iter()
         .filter(|b| matches!(b.block.motion, Motion::Linear(_) | Motion::Arc(_)))
@@ -810,6 +845,13 @@ fn plan(
         cut.material.ks_exponent,
         cut.spindle_rpm
     );
+    for c in &cut.changes {
+        let _ = writeln!(
+            out,
+            "(from line {}: T{}, {:.3} mm, {} flutes, F_max {:.0} N, T_max {:.1} N*m, spindle {:.0} rpm: F0, T0 the same fraction of its limits)",
+            c.line, c.fitted.number, c.plant.diameter_mm, c.plant.flutes, c.plant.f_max_n, c.plant.t_max_nm, c.rpm
+        );
+    }
     if let Some(m) = opts.model {
         let _ = writeln!(
             out,
