@@ -118,7 +118,7 @@ fn monitors() -> Result<()> {
         .map_or_else(|| PathBuf::from("target"), PathBuf::from)
         .join("ac-cost");
     let breakage = AcSettings {
-        breakage: true,
+        breakage: millac::ac::Breakage::On,
         ..AcSettings::default()
     };
     // The chatter threshold by the thesis' rule: twice the largest amplitude of the 2.54 mm cut.

@@ -16,7 +16,7 @@ use millac_qemu::{evaluation::alarmlab, evaluation::bench};
 fn main() -> anyhow::Result<()> {
     let s = Settings::default();
     let acs = AcSettings {
-        breakage: true,
+        breakage: millac::ac::Breakage::On,
         ..AcSettings::default()
     };
     let mut cases = Vec::new();

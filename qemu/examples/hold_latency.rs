@@ -22,7 +22,7 @@ use millac_qemu::host::fault::{Fault, FaultKind};
 fn main() -> Result<()> {
     let s = Settings::default();
     let ac = AcSettings {
-        breakage: true,
+        breakage: millac::ac::Breakage::On,
         ..AcSettings::default()
     };
     let f_max = f64::from(ac.force_limit_n);

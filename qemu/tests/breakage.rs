@@ -82,7 +82,7 @@ fn no_false_alarm_over_the_cavity_and_the_pocket_with_a_sound_tool() {
 fn no_false_alarm_with_the_servo_drives_after_a_corner() {
     let s = Settings::default();
     let acs = AcSettings {
-        breakage: true,
+        breakage: millac::ac::Breakage::On,
         ..AcSettings::default()
     };
     for case in &bench::CASES[..2] {
@@ -239,7 +239,7 @@ fn the_residual_trace_is_the_detectors() {
 fn a_broken_tooth_under_the_ac_holds_as_a_breakage_not_an_overload() {
     let s = Settings::default();
     let acs = AcSettings {
-        breakage: true,
+        breakage: millac::ac::Breakage::On,
         ..AcSettings::default()
     };
     let case = &bench::CASES[1];

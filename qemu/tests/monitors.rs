@@ -73,7 +73,7 @@ fn host_hold(text: &str, cut: &Cut, acs: AcSettings) -> Option<u64> {
 #[test]
 fn a_broken_tooth_is_held_by_the_firmware_within_two_revolutions_as_on_the_host() {
     let acs = AcSettings {
-        breakage: true,
+        breakage: millac::ac::Breakage::On,
         ..AcSettings::default()
     };
     // A sound tool: the whole slot, no alarm.
@@ -197,7 +197,7 @@ fn ac_breakage_and_chatter_together_on_the_pocket() {
     let threshold = chatterlab::thesis_threshold(&prog, &s, &cut, AcSettings::default()).unwrap();
     let acs = AcSettings {
         chatter_threshold: threshold,
-        breakage: true,
+        breakage: millac::ac::Breakage::On,
         ..AcSettings::default()
     };
     let host = acsim::run_with_faults(&prog, &s, &cut, Some(acs), true, &[]).unwrap();

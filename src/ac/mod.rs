@@ -34,7 +34,7 @@ mod tests;
 
 pub use drr::{Drr, Measured, Sensor, SensorFault, CODE_MAX};
 pub use ecr::Errors;
-pub use settings::{AcSettings, AcSettingsError, Calibration, FeedCeiling, Pick};
+pub use settings::{AcSettings, AcSettingsError, Breakage, Calibration, FeedCeiling, Pick};
 
 use crate::settings::Valid;
 

@@ -40,6 +40,36 @@ pub enum Pick {
     Latest,
 }
 
+/// What `$268` does with the breakage monitor.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Breakage {
+    /// Off for every tool (`$268=0`, the default).
+    #[default]
+    Off,
+    /// On for every tool, the machine's own (`$267`, `$269`) before any M6 too (`$268=1`).
+    On,
+    /// On for each tool an M6 fits whose flutes the tool table gives (`N`), at the spindle
+    /// speed commanded; off for the machine's tool before any M6 (`$268=2`). Not the default
+    /// yet: on a 3 mm end mill held by its overload trip near its limit (its measurement
+    /// noise), the monitor names the trip a breakage (a chip that moved), a false alarm.
+    Auto,
+}
+
+impl Breakage {
+    /// Its `$268` value.
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The mode of a `$268` value, None for a value that names none.
+    pub fn from_code(code: u8) -> Option<Breakage> {
+        [Breakage::Off, Breakage::On, Breakage::Auto]
+            .get(usize::from(code))
+            .copied()
+    }
+}
+
 /// All settings of the AC program. `AcSettings::default()` gives the paper's numbers where the
 /// paper has them (10 ms period, fdot_m = 750 ipm/s, F0/T0 = 90 % of the permissible limits,
 /// feeds up to FRM = 30 ipm) and plausible values for the rest (calibration, limits).
@@ -143,9 +173,10 @@ pub struct AcSettings {
     /// detection off (a board without a microphone). Set it from a chatter-free cut (the thesis'
     /// rule: twice its largest amplitude).
     pub chatter_threshold: f32,
-    /// Tool breakage detection (`$268`, `crate::monitor::breakage` with its defaults). Off by
-    /// default.
-    pub breakage: bool,
+    /// Tool breakage detection (`$268`, `crate::monitor::breakage` with its defaults): off (the
+    /// default), on for every tool, or on for each tool an M6 fits whose flutes the tool table
+    /// gives ([`Breakage`]).
+    pub breakage: Breakage,
     /// Chatter suppression (`$276`, mm, 0..=50): the depth step a chatter hold lifts the rest of
     /// the held pass by, the material below cut in an extra pass (`crate::rt::replan`, the
     /// thesis' reaction); 0 leaves a chatter hold a hold (`ALARM:107`). Default 1.0 mm, the
@@ -223,7 +254,7 @@ impl Default for AcSettings {
             flutes: 4,
             monitor_rpm: 600,
             chatter_threshold: 0.0,
-            breakage: false,
+            breakage: Breakage::Off,
             chatter_step_mm: 1.0,
             chatter_max_rpm: 0,
         }
@@ -435,12 +466,27 @@ impl Valid<AcSettings> {
     /// AC's sample rate. No second check: [`AcSettings::validate`] bounds the sample rate to the
     /// breakage detector's own range (100..=100 000 Hz), and the rest are the detector's defaults.
     pub fn breakage_settings(&self) -> Option<Valid<BreakageSettings>> {
-        self.breakage.then(|| {
+        (self.breakage == Breakage::On).then(|| self.breakage_detector())
+    }
+
+    /// The breakage monitor's settings for a tool an M6 fitted with `flutes` (0: the table does
+    /// not say): on with `$268` = 1, and with 2 (auto) where the flutes are known.
+    pub fn breakage_settings_for(&self, flutes: u8) -> Option<Valid<BreakageSettings>> {
+        match self.breakage {
+            Breakage::Off => None,
+            Breakage::On => Some(self.breakage_detector()),
+            Breakage::Auto => (flutes > 0).then(|| self.breakage_detector()),
+        }
+    }
+
+    /// The breakage detector's settings: its defaults at the AC's sample rate.
+    fn breakage_detector(&self) -> Valid<BreakageSettings> {
+        {
             Valid::checked(BreakageSettings {
                 sample_hz: self.sample_hz,
                 ..BreakageSettings::default()
             })
-        })
+        }
     }
 
     /// The chatter monitor's settings when `$266` (the threshold) is above 0 (0: off): the
@@ -477,7 +523,7 @@ mod derived_tests {
                 sample_hz,
                 period_ms: 1000,
                 fdot_m: 1000,
-                breakage: true,
+                breakage: Breakage::On,
                 ..AcSettings::default()
             });
             let b = ac.breakage_settings().expect("$268 on");
@@ -491,7 +537,7 @@ mod derived_tests {
                 sample_hz,
                 period_ms: 1000,
                 fdot_m: 1000,
-                breakage: true,
+                breakage: Breakage::On,
                 ..AcSettings::default()
             };
             assert!(ac.validated().is_err(), "{sample_hz}");

@@ -391,6 +391,19 @@ fn teeth(flutes: u32) -> u8 {
     u8::try_from(flutes.clamp(1, crate::monitor::MAX_FLUTES as u32)).unwrap_or(1)
 }
 
+/// A breakage monitor learning at `rpm` with `flutes` (clamped to the detector's range).
+fn breakage_monitor(settings: Valid<BreakageSettings>, rpm: u32, flutes: u32) -> BreakageMonitor {
+    let mut detector = BreakageDetector::new(settings);
+    let teeth = teeth(flutes);
+    detector.set_spindle(rpm as f32, teeth);
+    BreakageMonitor {
+        detector,
+        rpm,
+        teeth,
+        pending: None,
+    }
+}
+
 /// The AC period's state: the controller and what the period keeps between periods.
 pub struct AcPeriod {
     pub ctl: AcController,
@@ -497,15 +510,7 @@ impl AcPeriod {
         rpm: u32,
         flutes: u32,
     ) -> Self {
-        let mut detector = BreakageDetector::new(settings);
-        let teeth = teeth(flutes);
-        detector.set_spindle(rpm as f32, teeth);
-        self.breakage = Some(BreakageMonitor {
-            detector,
-            rpm,
-            teeth,
-            pending: None,
-        });
+        self.breakage = Some(breakage_monitor(settings, rpm, flutes));
         self
     }
 
@@ -519,18 +524,37 @@ impl AcPeriod {
     /// held peak: `AcController::new`), the trip takes its levels, the breakage monitor its
     /// flutes (and starts learning anew). A tool without limits is measured against the
     /// machine's settings and its cap is not applied: the frame runs the programmed feeds.
-    fn fit(&mut self, s: Option<Valid<crate::ac::AcSettings>>, status: &AcWriter) {
+    fn fit(
+        &mut self,
+        tool: &FittedTool,
+        s: Option<Valid<crate::ac::AcSettings>>,
+        status: &AcWriter,
+    ) {
         self.limited = s.is_some();
         let s = s.unwrap_or(*self.tool.base());
         self.ctl = AcController::new(s);
         self.trip = Trip::new(&s);
         self.tripped = None;
         self.chatter = None;
-        if let Some(m) = self.breakage.as_mut() {
-            m.teeth = teeth(s.flutes);
-            m.detector.set_spindle(m.rpm as f32, m.teeth);
-            m.detector.reset();
-            m.pending = None;
+        // The breakage monitor as `$268` says for this tool (auto: on where the table gives its
+        // flutes), learning anew at the speed commanded (`$269` before any S).
+        match self.tool.base().breakage_settings_for(tool.flutes) {
+            None => self.breakage = None,
+            Some(b) => match self.breakage.as_mut() {
+                Some(m) => {
+                    m.teeth = teeth(s.flutes);
+                    m.detector.set_spindle(m.rpm as f32, m.teeth);
+                    m.detector.reset();
+                    m.pending = None;
+                }
+                None => {
+                    let rpm = match status.spindle_rpm.get() {
+                        0 => s.monitor_rpm,
+                        rpm => rpm,
+                    };
+                    self.breakage = Some(breakage_monitor(b, rpm, s.flutes));
+                }
+            },
         }
         // The new tool starts at the controller's first cap; a hold the sampler's trip has just
         // made on the new tool's level stays (this sample is judged by the new trip too, and the
@@ -589,8 +613,8 @@ impl AcPeriod {
     /// the new tool's, as the sampler's trip already judged it). AC task (from the sampler's
     /// queue) or host.
     pub fn sample(&mut self, codes: Codes, status: &AcWriter) {
-        if let Some((_, s)) = self.tool.changed(status) {
-            self.fit(s, status);
+        if let Some((tool, s)) = self.tool.changed(status) {
+            self.fit(&tool, s, status);
         }
         self.ctl.sample(codes);
         // The sampler's trip on this sample (see the module doc), judged before the breakage
@@ -980,7 +1004,12 @@ mod tests {
         use crate::ac::strength::{derived, Strength};
         use crate::gcode::tools::ToolKind;
         use crate::rt::status::FittedTool;
-        let s = AcSettings::default().validated().unwrap();
+        let s = AcSettings {
+            breakage: crate::ac::Breakage::Auto,
+            ..AcSettings::default()
+        }
+        .validated()
+        .unwrap();
         let status = Status::new();
         let w = status.split();
         let mut period = AcPeriod::new(AcController::new(s), Settings::default(), true, &w.ac);
@@ -1003,6 +1032,8 @@ mod tests {
         };
         let (held, p) = run(&mut period, &mut trip);
         assert_eq!((held, p.out.alarm), (None, None), "the machine's tool");
+        // `$268` auto: no breakage monitor for the machine's own tool...
+        assert!(period.breakage().is_none());
         let small = derived(ToolKind::Flat, 3.0, &Strength::HSS).unwrap();
         w.loader.set_tool(&FittedTool {
             number: 2,
@@ -1020,6 +1051,8 @@ mod tests {
             a => panic!("{a:?}"),
         }
         assert_eq!(period.ctl.settings().flutes, 2);
+        // ...one for a tool whose flutes the table gives...
+        assert!(period.breakage().is_some(), "auto: on for T2's two flutes");
         // The force/torque plausibility's lever is the small tool's radius: its F R / T is 1
         // where the machine's 6.35 mm would make it 4.2, a sensor fault.
         assert_eq!(period.ctl.settings().tool_radius_mm, 1.5);
@@ -1032,6 +1065,11 @@ mod tests {
         });
         for _ in 0..2 * HOLD_EXIT_PERIODS {
             let (held, p) = run(&mut period, &mut trip);
+            // ...and none for one whose flutes nobody gave.
+            assert!(
+                period.breakage().is_none(),
+                "auto: off for T3, flutes unknown"
+            );
             assert_eq!(held, None, "no trip without limits");
             assert!(!p.halt);
             assert_eq!(status.feed_cap.get(), u32::MAX, "the cap is released");
@@ -1217,7 +1255,11 @@ mod tests {
             let status = Status::new();
             let w = status.split();
             let s = AcSettings {
-                breakage: on,
+                breakage: if on {
+                    crate::ac::Breakage::On
+                } else {
+                    crate::ac::Breakage::Off
+                },
                 ..AcSettings::default()
             }
             .validated()

@@ -360,7 +360,7 @@ mod tests {
         // The AC settings' validation covers what the monitors take from them: with the
         // breakage monitor on, valid settings start it.
         let monitored = AcSettings {
-            breakage: true,
+            breakage: crate::ac::Breakage::On,
             ..AcSettings::default()
         };
         let (_, t) = started(monitored.validated().unwrap(), true);

@@ -207,7 +207,13 @@ impl CutArgs {
         let monitors = self.monitor_breakage || self.chatter_threshold.is_some();
         millac::ac::AcSettings {
             strategy: self.strategy.map_or(d.strategy, Into::into),
-            breakage: self.monitor_breakage,
+            // --monitor-breakage: on for every tool, the cut's own too; else the machine's
+            // default (on for each tool an M6 fits whose flutes the table gives).
+            breakage: if self.monitor_breakage {
+                millac::ac::Breakage::On
+            } else {
+                d.breakage
+            },
             chatter_threshold: self.chatter_threshold.unwrap_or(d.chatter_threshold),
             flutes: if monitors { cut.tool.flutes } else { d.flutes },
             monitor_rpm: if monitors {

@@ -139,7 +139,7 @@ pub fn parallel<T: Sync, R: Send>(
 /// spindle speed, as `millac host --monitor-breakage` sets them).
 pub fn settings(cut: &Cut) -> AcSettings {
     AcSettings {
-        breakage: true,
+        breakage: millac::ac::Breakage::On,
         flutes: cut.tool.flutes,
         monitor_rpm: cut.spindle_rpm.round() as u32,
         ..AcSettings::default()

@@ -529,10 +529,10 @@ pub static TABLE: [Entry; 76] = [
     ),
     flag!(
         268,
-        "breakage detection (0 off, 1 on)",
-        |m| m.ac.breakage as i64,
+        "breakage detection (0 off, 1 on, 2 on for each tool the table gives flutes)",
+        |m| i64::from(m.ac.breakage.code()),
         |m, v| {
-            m.ac.breakage = choice(v, 2)? == 1;
+            m.ac.breakage = crate::ac::Breakage::from_code(choice(v, 3)?)?;
             Some(())
         }
     ),

@@ -259,7 +259,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     p.u32(s.ac.flutes);
     p.u32(s.ac.monitor_rpm);
     p.f32(s.ac.chatter_threshold);
-    p.u8(s.ac.breakage as u8);
+    p.u8(s.ac.breakage.code());
     p.f32(s.ac.chatter_step_mm);
     p.u32(s.ac.chatter_max_rpm);
     let u = &s.setup;
@@ -399,7 +399,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let gpc_lambda = t.f32()?;
     let (flutes, monitor_rpm) = (t.u32()?, t.u32()?);
     let chatter_threshold = t.f32()?;
-    let breakage = t.bool()?;
+    let breakage = crate::ac::Breakage::from_code(t.u8()?);
     let chatter_step_mm = t.f32()?;
     let chatter_max_rpm = t.u32()?;
     let (probe_invert, hard_limits, homing) = (t.bool()?, t.bool()?, t.bool()?);

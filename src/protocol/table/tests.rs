@@ -259,7 +259,7 @@ fn refused_sets_give_grbl_errors_and_change_nothing() {
         ("$266=inf", SetError::BadNumber),
         ("$267=0", SetError::Invalid(Invalid::Ac(A::Monitor))),
         ("$267=9", SetError::Invalid(Invalid::Ac(A::Monitor))),
-        ("$268=2", r),
+        ("$268=3", r),
         ("$269=0", SetError::Invalid(Invalid::Ac(A::Monitor))),
         ("$269=100001", SetError::Invalid(Invalid::Ac(A::Monitor))),
         ("$200=0.002", r),
@@ -403,7 +403,7 @@ prop_compose! {
                 ft_periods in 0u32..=100_000, peak_windows in 1u32..=8,
                 law in (0u8..4, 0u32..=1000, prop_oneof![Just(0.0f32), real(1e-6, 1e6)]),
                 monitors in (1u32..=8, 1u32..=100_000, prop_oneof![Just(0.0f32), real(1e-6, 1e6)],
-                             any::<bool>(), prop_oneof![Just(0.0f32), real(1e-6, 50.0)],
+                             0u8..=2, prop_oneof![Just(0.0f32), real(1e-6, 50.0)],
                              0u32..=100_000)) -> AcSettings {
         let (sample_hz, p, fdot_m) = rates;
         let lo = 1000u32.div_ceil(sample_hz).max(1);
@@ -444,7 +444,7 @@ prop_compose! {
             flutes: monitors.0,
             monitor_rpm: monitors.1,
             chatter_threshold: monitors.2,
-            breakage: monitors.3,
+            breakage: crate::ac::Breakage::from_code(monitors.3).unwrap(),
             chatter_step_mm: monitors.4,
             chatter_max_rpm: monitors.5,
         }
