@@ -1780,6 +1780,12 @@ fn steel_with(stock: Stock, tool: Tool) -> Process {
     Process::new(stock, tool, Material::STEEL, DEFAULT_RPM, 1, quiet()).unwrap()
 }
 
+/// A plunge at X2.5 Y1.5 in from 0.1 in above the blank's top to 0.4 in (10.16 mm) deep at
+/// `ipm`: every sample, from the start (the tip meets the top after 0.1 in).
+fn plunge_deep(p: &mut Process, ipm: f64) -> Vec<(f64, Sample)> {
+    run(p, 0.0, [25000, 15000, 1000], [25000, 15000, -4000], ipm)
+}
+
 /// A ball end mill of diameter `d_mm` with `flutes`.
 fn ball(d_mm: f64, flutes: u32) -> Tool {
     Tool {
@@ -1806,14 +1812,7 @@ fn a_drill_cuts_the_textbook_torque_and_thrust() {
         ..Tool::default()
     };
     let mut p = steel_with(blank(), tool);
-    // From 0.1 in above the top to 0.4 in (10.16 mm) deep at 4 ipm.
-    let s = run(
-        &mut p,
-        0.0,
-        [25000, 15000, 1000],
-        [25000, 15000, -4000],
-        4.0,
-    );
+    let s = plunge_deep(&mut p, 4.0);
     let f_rev = 4.0 * 25.4 / 60.0 / 10.0;
     let t_hand = 2000.0 * f_rev * 100.0 / 8.0 / 1000.0;
     let fa_hand = 0.5 * 2000.0 * f_rev * 10.0 / 2.0;
@@ -1871,13 +1870,7 @@ fn a_drill_cuts_the_textbook_torque_and_thrust() {
 #[test]
 fn a_ball_end_plunge_cuts_with_the_sphere_under_it() {
     let mut p = steel_with(blank(), ball(12.7, 4));
-    let s = run(
-        &mut p,
-        0.0,
-        [25000, 15000, 1000],
-        [25000, 15000, -4000],
-        10.0,
-    );
+    let s = plunge_deep(&mut p, 10.0);
     let cz = 10.0 * 25.4 / 60.0 / 40.0;
     let r = 6.35;
     let t_of = |re: f64| 4.0 * 2000.0 * cz * re * re / 2.0 / 1000.0;

@@ -110,16 +110,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 .and_then(|()| std::io::Write::flush(&mut writer))
                 .with_context(|| format!("writing {}", csv.display()))?;
             let plot_rows = plot_rows.finish();
-            let f0 = acs.f0_n() as f64;
-            let t0 = acs.t0_nm() as f64;
-            acreport::plot(
-                &out.join("ac.svg"),
-                &plot_rows.rows,
-                f0,
-                t0,
-                1.0 / acs.optimal_fraction as f64,
-                acsim::feed_ipm(&settings, settings.q0),
-            )?;
+            acreport::plot_against(&out.join("ac.svg"), &plot_rows.rows, &acs, &settings)?;
             // Each tool its own figure, against its own F0 and T0 (ac.svg's are the machine's).
             let figures = acreport::plot_tools(out, &plot_rows.rows, &cut, &acs, &settings)?;
             millac_qemu::evaluation::heightmap::write_tool_stocks(out, &run.stocks)?;
@@ -202,13 +193,7 @@ fn host(text: &str, out: &Path, args: &CutArgs) -> Result<bool> {
                 acreport::print_tool_log(log);
             }
             runner::write_json(&out.join("summary.json"), &summary)?;
-            if !figures.is_empty() {
-                println!(
-                    "  wrote {}/{} (each tool's feed, F/F0 and T/T0 against its own limits)",
-                    out.display(),
-                    figures.join(", ")
-                );
-            }
+            acreport::print_figures(out, &figures);
             println!(
                 "  wrote {}/ac.csv, {}/ac.svg and {}/summary.json",
                 out.display(),

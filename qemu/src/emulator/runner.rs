@@ -573,14 +573,7 @@ pub fn summarise(
         let csv = out.join("ac.csv");
         std::fs::write(&csv, crate::host::acsim::csv(&rows))
             .with_context(|| format!("writing {}", csv.display()))?;
-        crate::evaluation::acreport::plot(
-            &out.join("ac.svg"),
-            &rows,
-            acs.f0_n() as f64,
-            acs.t0_nm() as f64,
-            1.0 / acs.optimal_fraction as f64,
-            crate::host::acsim::feed_ipm(settings, settings.q0),
-        )?;
+        crate::evaluation::acreport::plot_against(&out.join("ac.svg"), &rows, &acs, settings)?;
         let period_tools: Vec<u8> = records.iter().map(|r| r.tool).collect();
         let load = crate::host::acsim::load_figures_by_tool(
             a.truth,
@@ -628,13 +621,7 @@ pub fn summarise(
         }
         let figures =
             crate::evaluation::acreport::plot_tools(out, &rows, &a.run.cut, &acs, settings)?;
-        if !figures.is_empty() {
-            println!(
-                "  wrote {}/{} (each tool's feed, F/F0 and T/T0 against its own limits)",
-                out.display(),
-                figures.join(", ")
-            );
-        }
+        crate::evaluation::acreport::print_figures(out, &figures);
         crate::evaluation::heightmap::write_tool_stocks(out, a.stocks)?;
     }
     Ok((summary, report, records))

@@ -606,17 +606,39 @@ pub fn plot_tools(
             continue;
         }
         let s = millac::rt::ac::tool_settings(acs, &c.fitted).map_or(*acs, |s| s.get());
-        plot(
-            &out.join(&name),
-            &mine,
-            s.f0_n() as f64,
-            s.t0_nm() as f64,
-            1.0 / s.optimal_fraction as f64,
-            crate::host::acsim::feed_ipm(settings, settings.q0),
-        )?;
+        plot_against(&out.join(&name), &mine, &s, settings)?;
         figures.push(name);
     }
     Ok(figures)
+}
+
+/// [`plot`] of `rows` against the F0, T0 and limits of `acs`, the feed axis up to the machine's
+/// fastest feed (FRM): `ac.svg` with the machine's, `ac-T<n>.svg` with a tool's.
+pub fn plot_against(
+    path: &std::path::Path,
+    rows: &[AcRow],
+    acs: &AcSettings,
+    settings: &Settings,
+) -> Result<()> {
+    plot(
+        path,
+        rows,
+        acs.f0_n() as f64,
+        acs.t0_nm() as f64,
+        1.0 / acs.optimal_fraction as f64,
+        crate::host::acsim::feed_ipm(settings, settings.q0),
+    )
+}
+
+/// Says which per-tool figures a run wrote (none: nothing).
+pub fn print_figures(out: &std::path::Path, figures: &[String]) {
+    if !figures.is_empty() {
+        println!(
+            "  wrote {}/{} (each tool's feed, F/F0 and T/T0 against its own limits)",
+            out.display(),
+            figures.join(", ")
+        );
+    }
 }
 
 /// Prints [`tool_log`] as a table.
