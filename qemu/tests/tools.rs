@@ -80,3 +80,54 @@ fn the_small_tool_is_held_on_its_own_limit_under_qemu_and_on_the_host() {
         }
     }
 }
+
+/// The demo, `cargo run --release` with no arguments (here the test build of the same binary):
+/// the whole Fig. 1 job under QEMU, generated from the cavity's geometry, runs to its end with
+/// no hold, every tool within its own limits (summary.json's AFC log, one entry per tool), and
+/// leaves each tool's figure and stock picture and the job's files beside its report.
+#[test]
+fn the_demo_machines_the_whole_job_without_a_hold_within_every_tools_limits() {
+    let dir = scratch("demo");
+    let o = Command::new(env!("CARGO_BIN_EXE_millac-qemu"))
+        .current_dir(&dir)
+        .output()
+        .expect("running millac-qemu");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let out = dir.join("out/demo");
+    let s: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["completed"], true);
+    let tools = s["tools"].as_array().expect("the AFC log");
+    let numbers: Vec<u64> = tools.iter().map(|t| t["tool"].as_u64().unwrap()).collect();
+    assert_eq!(numbers, [1, 2, 3, 4]);
+    for t in tools {
+        let f = |k: &str| t[k].as_f64().unwrap_or(f64::NAN);
+        assert!(
+            f("peak_force_ratio") < 1.0
+                && f("peak_torque_ratio") < 1.0
+                && f("time_above_limit_s") == 0.0
+                && t["holds"] == 0,
+            "{t}"
+        );
+        assert!(f("cutting_s") > 1.0, "{t}");
+        // No faster than the bound of its part.
+        assert!(f("time_s") >= f("time_bound_s"), "{t}");
+    }
+    for n in 1..=4 {
+        for f in [format!("ac-T{n}.svg"), format!("stock-T{n}.png")] {
+            assert!(out.join(&f).is_file(), "{f}");
+        }
+    }
+    let shipped = include_str!("../programs/fig1-job.nc");
+    assert_eq!(
+        std::fs::read_to_string(out.join("fig1-job.nc")).unwrap(),
+        shipped
+    );
+    assert!(stdout.contains("per tool (AFC log)"), "{stdout}");
+}
