@@ -73,10 +73,10 @@ impl Cavity {
 
 /// One cutter of the job: its tool number, what the tool table says of it (diameter in mm,
 /// flutes, kind; its limits are the table's own where given, else from its geometry), the
-/// spindle speed and the feeds the programmer writes for it (ipm): `feed_ipm` cutting,
-/// `entry_ipm` entering the material (going down; the roughing's slots, whose first tooth meets
-/// the whole depth at once: the adaptive control cannot act before that tooth, so its feed
-/// must be safe for it, below F0).
+/// spindle speed and the feeds the programmer writes for it (ipm): `feed_ipm` cutting (at
+/// most: a cut that starts at full engagement takes [`Cutter::first_tooth_ipm`]), `entry_ipm`
+/// going down (the roughing cutter into the hole, the corner end mill to each level, the ball
+/// end mill onto the slope).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Cutter {
     pub number: u8,
