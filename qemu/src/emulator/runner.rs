@@ -262,7 +262,7 @@ struct ProcessPlant {
     stocks: Stocks,
 }
 
-/// The stocks a multi-tool run's plant leaves, one per tool ([`ProcessPlant`]).
+/// The stocks a multi-tool run's plant leaves, one per tool (kept by the co-simulated plant).
 pub type Stocks = std::sync::Arc<std::sync::Mutex<Vec<(u8, millac_plant::Stock)>>>;
 
 impl ProcessPlant {
