@@ -4,7 +4,7 @@
 //! CLI calls it from `main`).
 use super::args::{CutArgs, DriveArg};
 use super::run::run;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use millac_qemu::emulator::runner;
 use std::path::{Path, PathBuf};
 
@@ -65,14 +65,7 @@ fn demo(out: &Path, cut: &CutArgs) -> Result<bool> {
     let (j, cut) = super::demo_job(cut);
     let ok = run(&j.program, out, runner::DEFAULT_SHIFT, Some(&cut))?;
     if out.is_dir() {
-        for (name, text) in [
-            ("fig1-job.nc", &j.program),
-            ("fig1-job.tools", &j.tools),
-            ("fig1-job.stock", &j.stock),
-        ] {
-            let path = out.join(name);
-            std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-        }
+        j.write(out)?;
         println!(
             "  the job: {}/fig1-job.nc, fig1-job.tools, fig1-job.stock (millac-qemu job writes them too)",
             out.display()

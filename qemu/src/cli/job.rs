@@ -2,7 +2,7 @@
 //! cavity's geometry (`millac_qemu::evaluation::job`), as DIR/fig1-job.nc (the program, four
 //! tools with an M6 between them), DIR/fig1-job.tools (their `$T` lines, for `--tools`) and
 //! DIR/fig1-job.stock (the blank, for `--stock`) (host: the CLI calls it from `main`).
-use anyhow::{Context, Result};
+use anyhow::Result;
 use millac_qemu::evaluation::job;
 use std::path::PathBuf;
 
@@ -16,16 +16,7 @@ pub(crate) struct JobArgs {
 
 /// `job`: writes the files and says which.
 pub(crate) fn command(args: JobArgs) -> Result<bool> {
-    let j = job::fig1();
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    for (name, text) in [
-        ("fig1-job.nc", &j.program),
-        ("fig1-job.tools", &j.tools),
-        ("fig1-job.stock", &j.stock),
-    ] {
-        let path = args.out.join(name);
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    for path in job::fig1().write(&args.out)? {
         println!("wrote {}", path.display());
     }
     Ok(true)

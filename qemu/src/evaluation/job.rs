@@ -249,6 +249,33 @@ pub struct Job {
     pub stock: String,
 }
 
+impl Job {
+    /// Its files' names and texts: `fig1-job.nc`, `.tools` and `.stock` (as shipped in
+    /// `qemu/programs/`).
+    pub fn files(&self) -> [(&'static str, &str); 3] {
+        [
+            ("fig1-job.nc", &self.program),
+            ("fig1-job.tools", &self.tools),
+            ("fig1-job.stock", &self.stock),
+        ]
+    }
+
+    /// Writes its [`Job::files`] into `dir` (made if missing); the paths written.
+    pub fn write(&self, dir: &std::path::Path) -> anyhow::Result<Vec<std::path::PathBuf>> {
+        use anyhow::Context;
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        self.files()
+            .iter()
+            .map(|(name, text)| {
+                let path = dir.join(name);
+                std::fs::write(&path, text)
+                    .with_context(|| format!("writing {}", path.display()))?;
+                Ok(path)
+            })
+            .collect()
+    }
+}
+
 /// Fig. 1's whole job.
 pub fn fig1() -> Job {
     generate(&Cavity::FIG1, &Cutters::FIG1, &Plan::FIG1)
@@ -533,11 +560,7 @@ mod tests {
     fn the_shipped_job_is_the_generators() {
         let j = fig1();
         let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/programs");
-        for (name, text) in [
-            ("fig1-job.nc", &j.program),
-            ("fig1-job.tools", &j.tools),
-            ("fig1-job.stock", &j.stock),
-        ] {
+        for (name, text) in j.files() {
             let shipped = std::fs::read_to_string(format!("{dir}/{name}")).unwrap();
             assert_eq!(
                 &shipped, text,
