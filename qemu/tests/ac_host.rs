@@ -584,7 +584,9 @@ fn two_tool_runs(program: &str) -> (acsim::HostRun, acsim::HostRun, Cut) {
 /// a head-on entry at full depth (full load at the first tooth: a slot's tooth at 90 degrees
 /// takes the whole feed per tooth however little of it is engaged) is held at once on the small
 /// tool's limit, while at the big tool's limits it would have run on. The big tool's slot runs
-/// at its programmed feed.
+/// at its programmed feed. The breakage monitor is on, the default for tools whose flutes the
+/// table gives: the small tool's AC lowering and raising the feed by 30 % near its limit, and
+/// the overload trip after a raise, are no breakage.
 #[test]
 fn an_m6_gives_the_small_tool_its_own_limits() {
     // The big tool's slot along X at Y `y`, then the small tool's from Y -0.5 in along X 1 in.

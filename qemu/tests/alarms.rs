@@ -12,13 +12,7 @@ fn corpus() -> Vec<Program> {
 /// Ordinary cuts on which a monitor is known to raise a false alarm, each with what it is: a
 /// defect to mend, not a licence. The test requires the alarm to be still there, so that the entry
 /// goes when the monitor is mended (as rs274's KNOWN_REFUSALS).
-const KNOWN_FALSE_ALARMS: &[(&str, &str)] = &[(
-    "helix-entry.nc",
-    // The full circle at depth that cleans the helix's last turn cuts a wedge whose chip fades to
-    // nothing over the turn (about 100 N, held at 33.49 s): the breakage detector judges the
-    // fading tooth periods before a whole revolution of air says the cut is over.
-    "tool breakage",
-)];
+const KNOWN_FALSE_ALARMS: &[(&str, &str)] = &[];
 
 #[test]
 fn ordinary_cuts_raise_no_false_alarm() {

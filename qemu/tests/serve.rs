@@ -486,7 +486,9 @@ poll(lambda s: False, 2.0)
 g.pause()
 obs['stopped'] = poll(lambda s: s.startswith('<Hold:0'), 30)
 n = len(reports)
-poll(lambda s: False, 1.0)
+# At least three reports while held (a second of polls gives five on an idle machine; CI, loaded,
+# saw two).
+poll(lambda s: len(reports) >= n + 3, 30)
 obs['held'] = reports[n:]
 g.resume()
 g.realtime(b'\x91')

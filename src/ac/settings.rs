@@ -44,15 +44,15 @@ pub enum Pick {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[repr(u8)]
 pub enum Breakage {
-    /// Off for every tool (`$268=0`, the default).
-    #[default]
+    /// Off for every tool (`$268=0`).
     Off,
     /// On for every tool, the machine's own (`$267`, `$269`) before any M6 too (`$268=1`).
     On,
     /// On for each tool an M6 fits whose flutes the tool table gives (`N`), at the spindle
-    /// speed commanded; off for the machine's tool before any M6 (`$268=2`). Not the default
-    /// yet: on a 3 mm end mill held by its overload trip near its limit (its measurement
-    /// noise), the monitor names the trip a breakage (a chip that moved), a false alarm.
+    /// speed commanded; off for the machine's tool before any M6 (`$268=2`, the default: a
+    /// user who never heard of the setting has breakage detection on every tool the table
+    /// describes).
+    #[default]
     Auto,
 }
 
@@ -173,9 +173,9 @@ pub struct AcSettings {
     /// detection off (a board without a microphone). Set it from a chatter-free cut (the thesis'
     /// rule: twice its largest amplitude).
     pub chatter_threshold: f32,
-    /// Tool breakage detection (`$268`, `crate::monitor::breakage` with its defaults): off (the
-    /// default), on for every tool, or on for each tool an M6 fits whose flutes the tool table
-    /// gives ([`Breakage`]).
+    /// Tool breakage detection (`$268`, `crate::monitor::breakage` with its defaults): off, on
+    /// for every tool, or on for each tool an M6 fits whose flutes the tool table gives (the
+    /// default; [`Breakage`]).
     pub breakage: Breakage,
     /// Chatter suppression (`$276`, mm, 0..=50): the depth step a chatter hold lifts the rest of
     /// the held pass by, the material below cut in an extra pass (`crate::rt::replan`, the
@@ -254,7 +254,7 @@ impl Default for AcSettings {
             flutes: 4,
             monitor_rpm: 600,
             chatter_threshold: 0.0,
-            breakage: Breakage::Off,
+            breakage: Breakage::default(),
             chatter_step_mm: 1.0,
             chatter_max_rpm: 0,
         }

@@ -41,7 +41,7 @@
 //! division), and while a curvature episode is open about 20 more, four divisions and two
 //! m-term sums (host, steady cut: ~8 ns per sample, ~10 ns per tooth period,
 //! `cost_on_the_host`), and one store of the force into a ring of [`REV_RING`] samples for
-//! the sampler trip's signature (judged at a trip only). State: the ring's 1 KiB and 512 bytes on the host
+//! the sampler trip's signature (judged at a trip only). State: the ring's 1 KiB and 576 bytes on the host
 //! (`state_size`), most of the rest the per-tooth
 //! suspicion ring, the quiet pattern and the episode's curvatures (the chip-transfer test's two
 //! once-per-revolution differences took the place of dFa(j-1), which is Fa(j-1) - Fa(j-2)
@@ -57,11 +57,11 @@
 //! - Broken tooth (tooth 0 and 1 at 15, 30, ... 90 % of the machining time where the cut is
 //!   above 1000 N, programmed feeds), delay in revolutions, tooth 0 / tooth 1, with the plant's
 //!   causal breakage (the next tooth's doubled chip a tooth period after the break,
-//!   `millac_plant::teeth`): cavity 8.70 s 0.71 / 1.21, 17.41 s 1.42 / 1.92, 26.11 s 1.38 /
-//!   1.63, 43.52 s 1.06 / 1.31; pocket 5.46 s 1.44 / 1.69, 8.18 s 1.91 / 1.41, 10.91 s 1.39 /
+//!   `millac_plant::teeth`): cavity 8.70 s 0.71 / 1.21, 17.41 s 1.43 / 1.93, 26.11 s 1.39 /
+//!   1.39, 43.52 s 1.07 / 1.32; pocket 5.46 s 1.44 / 1.69, 8.18 s 1.92 / 1.42, 10.91 s 1.39 /
 //!   1.64, 13.64 s 1.11 / 1.36 (the island's entry while learning, a miss with the static
 //!   plant, whose doubled chip came in the sample of the break, before the loss), 16.37 s 1.58 /
-//!   1.83 (the exit starts with the break). 18 of 18 within two revolutions, worst 1.92
+//!   1.83 (the exit starts with the break). 18 of 18 within two revolutions, worst 1.93
 //!   (history: 7 of 18 with the revolution confirmation alone, 12 with the curvature
 //!   confirmation, 18 with the chip-transfer test, the curvature from the suspicion's own period
 //!   on, its persistence rule and level guard 0.25; the rule of each is in the test's output).
@@ -92,6 +92,29 @@ use crate::settings::Valid;
 /// Most flutes the detector handles (the size of its per-tooth rings: end mills for die sinking
 /// have 2 to 8; each flute more costs 32 bytes of state).
 pub const MAX_FLUTES: usize = 8;
+/// A change of the feed the AC period saw ([`BreakageDetector::feed_step`]): a step (a corner,
+/// a hold, the AC's own step) or a ramp (the AC's recovery after a corner, or its regulation
+/// moving a small tool's feed by up to 30 % a period, revolution by revolution).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FeedChange {
+    /// The smaller of the two motions compared (one AC period's and the last's, or a
+    /// revolution's and the one's before), as a percentage of the larger (0..=100).
+    pub kept_pct: u8,
+    /// The newer motion is the larger: the feed rose.
+    pub up: bool,
+    /// A step or a ramp the detector does not judge through (see
+    /// [`BreakageDetector::feed_step`]); else a smaller change it only records for the sampler
+    /// trip's verdict ([`BreakageDetector::chip_moved`]).
+    pub hold: bool,
+}
+
+/// Tooth periods whose feed notices the detector remembers for the sampler trip's verdict
+/// ([`BreakageDetector::chip_moved`]): the revolution before a loss, the loss's period and the
+/// one after it, at the most flutes.
+const NOTICES: usize = MAX_FLUTES + 2;
+/// How much more of a tooth period's force than the feed step's share a loss the step explains
+/// may be ([`BreakageDetector::chip_moved`]): the tooth periods' scatter.
+pub const FEED_LOSS_TOL: f32 = 0.1;
 /// Largest force a sample may contribute, in N (larger finite values are clamped to it).
 pub const FORCE_MAX_N: f32 = 1.0e7;
 /// Tooth periods shorter than this many samples are refused (no average is meaningful).
@@ -103,7 +126,11 @@ const Q16: u32 = 1 << 16;
 /// dmFa(s+1) - dmFa(s), as a fraction of the level L. A broken tooth that loses a share c of
 /// its tooth period's force to the next tooth makes a jump of about 2c L, so this is a loss of
 /// a quarter or more: the large breaks, which the test decides within the revolution of the
-/// break; smaller chips are left to the confirmations, which see down to 5 %.
+/// break; smaller chips are left to the confirmations, which see down to 5 %. The jump must
+/// also stand above the once-per-revolution threshold th2 the cut taught (its own noise): on a
+/// light, noisy cut (a helical entry's clean-up circle, where the wedge's chip fades to nothing
+/// at about 70 N, tooth periods scattering by 15 N) the flanks and the pair matched by chance
+/// once in 1300 tooth periods, a jump of 0.52 L against a th2 of 0.70 L.
 pub const TRANSFER_MIN: f32 = 0.5;
 /// Chip-transfer test: how far the flanks dmFa(s-1), dmFa(s+2) may differ from each other, from
 /// nil (their mean: the cut's own change per revolution), and the pair dmFa(s) + dmFa(s+1) from
@@ -141,7 +168,8 @@ pub const REV_RING: usize = 256;
 /// level. A broken tooth's missing pass loses about the level or more there wherever the tooth
 /// periods' boundaries fall (0.75 .. 2.2 on the simulated plant's breaks the tooth-period test
 /// missed); a real overload's rise loses nothing (the TIIM depth step: 0.01). Under the AC
-/// (`breaks_under_ac`): 24 of 24 broken teeth told, 18 by the tooth periods alone.
+/// (`breaks_under_ac`): 23 of 24 broken teeth told, 18 by the tooth periods alone (the
+/// cavity's tooth 1 at 9.04 s is held as an overload).
 pub const REV_LOSS_MIN: f32 = 0.5;
 /// Curvature confirmation: the smallest relative curvature judged (a chip of 7 % of a tooth's
 /// load moved to the next tooth makes about 1.5 x 7 %).
@@ -542,6 +570,15 @@ pub struct BreakageDetector {
     latched: Option<Breakage>,
     /// No suspicion is raised or confirmed before this tooth period ([`Self::feed_step`]).
     hold_until: u32,
+    /// The last [`NOTICES`] tooth periods (j) in which feed notices came, newest at
+    /// `notice_at` - 1; `noticed` of them are real (a count, at most [`NOTICES`]).
+    notices: [u32; NOTICES],
+    /// For each, the least feed kept ([`FeedChange::kept_pct`]) of its notices that lowered the
+    /// feed (100: none lowered it), and whether one raised it.
+    kept: [u8; NOTICES],
+    raised: [bool; NOTICES],
+    notice_at: u8,
+    noticed: u8,
     /// The force of the last [`REV_RING`] samples (NaN: no valid sample), oldest overwritten.
     ring: [f32; REV_RING],
     /// The next sample's index in `ring`.
@@ -587,6 +624,11 @@ impl BreakageDetector {
             pending: [None; MAX_FLUTES],
             latched: None,
             hold_until: 0,
+            notices: [0; NOTICES],
+            kept: [100; NOTICES],
+            raised: [false; NOTICES],
+            notice_at: 0,
+            noticed: 0,
             ring: [0.0; REV_RING],
             ring_at: 0,
             ring_len: 0,
@@ -650,6 +692,8 @@ impl BreakageDetector {
         self.latched = None;
         self.j = 0;
         self.hold_until = 0;
+        self.noticed = 0;
+        self.notice_at = 0;
         self.restart();
     }
 
@@ -660,11 +704,76 @@ impl BreakageDetector {
     /// revolution from now none is raised or confirmed (the filters and the history go on). A
     /// corner's dip and recovery otherwise look like a tooth's lost chip to the suspicion and
     /// its confirmations (the pocket under QEMU with the AC at 16.45 s: declared at the
-    /// recovery). Called by the AC period ([`crate::rt::ac::AcPeriod`]), which sees the feed.
-    pub fn feed_step(&mut self) {
-        self.pending = [None; MAX_FLUTES];
-        self.ep = None;
-        self.hold_until = self.j.wrapping_add(self.m());
+    /// recovery). A change without `hold` (a smaller one) is only recorded: the sampler trip's
+    /// verdict weighs the feed's changes of the last tooth periods ([`Self::chip_moved`]).
+    /// Called by the AC period ([`crate::rt::ac::AcPeriod`]), which sees the feed.
+    pub fn feed_step(&mut self, change: FeedChange) {
+        if change.hold {
+            self.pending = [None; MAX_FLUTES];
+            self.ep = None;
+            self.hold_until = self.j.wrapping_add(self.m());
+        }
+        let newest = (usize::from(self.notice_at) + NOTICES - 1) % NOTICES;
+        let at = if self.noticed > 0 && self.notices.get(newest) == Some(&self.j) {
+            newest
+        } else {
+            let at = usize::from(self.notice_at);
+            if let (Some(n), Some(k), Some(r)) = (
+                self.notices.get_mut(at),
+                self.kept.get_mut(at),
+                self.raised.get_mut(at),
+            ) {
+                *n = self.j;
+                *k = 100;
+                *r = false;
+            }
+            self.notice_at = (self.notice_at + 1) % NOTICES as u8;
+            self.noticed = (self.noticed + 1).min(NOTICES as u8);
+            at
+        };
+        if change.up {
+            if let Some(r) = self.raised.get_mut(at) {
+                *r = true;
+            }
+        } else if let Some(k) = self.kept.get_mut(at) {
+            *k = (*k).min(change.kept_pct.min(100));
+        }
+    }
+
+    /// Whether feed changes explain the loss of tooth period `lost` (`loss`: the share of its
+    /// force a revolution before that it lost) and the crossing after it: a lowering came in the revolution before the
+    /// period began, or while it ran (a notice while the detector's last complete period was
+    /// `lost` - m .. `lost` - 1: the AC period notices a change at its end, within a tooth
+    /// period for the spindles this detector serves), and moved the feed by at least the
+    /// loss less [`FEED_LOSS_TOL`] (the force follows the feed, less than in proportion: the
+    /// specific force grows as the chip thins), and a raise came with it or after it (a feed
+    /// that only fell cannot cross the overload level). A breakage's own consequences come later: the
+    /// next tooth's doubled chip is in period `lost` + 1, and the AC's reaction to it is
+    /// noticed while the last complete period is `lost` or later; and a broken tooth's period
+    /// loses more than a feed step that came with it (a corner's deceleration of the pocket
+    /// beside a break: 95 % lost after steps that kept half the feed).
+    fn fed_before(&self, lost: u32, loss: f32) -> bool {
+        let m = self.m();
+        let noticed = || {
+            self.notices
+                .iter()
+                .zip(self.kept.iter().zip(&self.raised))
+                .take(usize::from(self.noticed))
+        };
+        // The lowering that explains the loss, the earliest such period.
+        let lowered = noticed()
+            .filter(|(&n, (&kept, _))| {
+                (1..=m).contains(&lost.wrapping_sub(n))
+                    && loss <= 1.0 - f32::from(kept) / 100.0 + FEED_LOSS_TOL
+            })
+            .map(|(&n, _)| lost.wrapping_sub(n))
+            .max();
+        // A raise in that period or after it: what made the crossing.
+        lowered.is_some_and(|back| {
+            noticed().any(|(&n, (_, &up))| {
+                up && n.wrapping_sub(lost.wrapping_sub(back)) <= back.saturating_add(1)
+            })
+        })
     }
 
     /// The latched breakage, if any.
@@ -741,8 +850,10 @@ impl BreakageDetector {
     /// `crate::rt::ac`): the crossing right after such a loss is the next tooth's doubled chip,
     /// the breakage's own signature, and the hold is a breakage, not an overload. A real
     /// overload (a harder spot, a deeper cut, a boss) raises the force without the loss before
-    /// it. Needs a known spindle and a revolution of cut (one tooth period below the air floor
-    /// is the broken tooth cutting alone; two are air) and a detector not latched; the report
+    /// it. Nor does a feed change: within a revolution of a feed notice ([`Self::feed_step`]) the
+    /// loss is the feed's, and the crossing an overload. Needs a known spindle and a revolution
+    /// of cut (one tooth period below the air floor is the broken tooth cutting alone; two are
+    /// air) and a detector not latched; the report
     /// carries the loss as e2 and its threshold as th2, the first difference as e1.
     pub fn chip_moved(&self) -> Option<Breakage> {
         // A revolution of cut (one tooth period below the air floor is a broken tooth that cuts
@@ -759,14 +870,28 @@ impl BreakageDetector {
         let dm = self.dm_prev.min(self.dm_prev2);
         let th = CHIP_MOVED_MIN * self.level;
         // The report: the tooth periods' loss and threshold where they tell it, else the samples'.
-        let (e2, th2) = if self.n_air == 0 && -dm >= th {
-            (dm, th)
+        // The loss's tooth period and its share of that period's force a revolution before
+        // (the samples' loss is of the level: at most 1, an upper bound of the share).
+        let (e2, th2, lost, loss) = if self.n_air == 0 && -dm >= th {
+            let (lost, fa) = if self.dm_prev <= self.dm_prev2 {
+                (self.j, self.prev_fa)
+            } else {
+                (self.j.wrapping_sub(1), self.prev_fa2)
+            };
+            (dm, th, lost, -dm / (fa - dm).max(1.0e-3))
         } else {
-            match self.rev_loss() {
-                Some(l) if l >= REV_LOSS_MIN => (-l * self.level, REV_LOSS_MIN * self.level),
+            match self.rev_loss_at() {
+                Some((l, lost)) if l >= REV_LOSS_MIN => {
+                    (-l * self.level, REV_LOSS_MIN * self.level, lost, l.min(1.0))
+                }
                 _ => return None,
             }
         };
+        // A loss that follows a feed change is the feed's (all teeth alike), and the crossing
+        // after it an overload.
+        if self.fed_before(lost, loss) {
+            return None;
+        }
         Some(Breakage {
             tooth_period: self.j,
             e1: self.prev_fa - self.prev_fa2,
@@ -782,6 +907,12 @@ impl BreakageDetector {
     /// tooth periods are more than [`REV_RING`] samples, or more than the samples since the cut
     /// began). Asked at a sampler trip only (about 500 subtractions at 600 rpm, 4 flutes, 1 kHz).
     pub fn rev_loss(&self) -> Option<f32> {
+        self.rev_loss_at().map(|(l, _)| l)
+    }
+
+    /// [`Self::rev_loss`] and the tooth period its window falls in (the window's middle: the
+    /// current, incomplete period is j + 1).
+    fn rev_loss_at(&self) -> Option<(f32, u32)> {
         let rev = usize::from(self.rev);
         let tp = (self.period_q16 / Q16) as usize;
         let half = (tp / 2).max(1);
@@ -799,16 +930,26 @@ impl BreakageDetector {
         };
         // d(k) = F(now - k) - F(now - k - rev), k = 1 ..= span; windows of `half` samples.
         let mut worst = 0.0f32;
+        let mut worst_end = 1;
         for end in 1..=(span + 1 - half) {
             let mut sum = 0.0f32;
             for k in end..end + half {
                 sum += at(k) - at(k + rev);
             }
-            if sum.is_finite() {
-                worst = worst.min(sum / half as f32);
+            if sum.is_finite() && sum / (half as f32) < worst {
+                worst = sum / half as f32;
+                worst_end = end;
             }
         }
-        Some(-worst / self.level)
+        // Samples back to the window's middle, against the samples of the current period.
+        let mid = worst_end + half / 2;
+        let since = (self.acc_q16 / Q16) as usize;
+        let lost = if mid <= since {
+            self.j.wrapping_add(1)
+        } else {
+            self.j.wrapping_sub(((mid - since - 1) / tp.max(1)) as u32)
+        };
+        Some((-worst / self.level, lost))
     }
 
     /// One ADC sample as its rotating-frame components Fu, Fv in N.
@@ -1069,7 +1210,9 @@ impl BreakageDetector {
     fn transfer(&self, dm0: f32) -> bool {
         let (dm1, dm2, dm3) = (self.dm_prev, self.dm_prev2, self.dm_prev3);
         let a = dm1 - dm2;
+        let (_, th2) = self.thresholds_now();
         a >= TRANSFER_MIN * self.level
+            && a > th2
             && (dm0 - dm3).abs() <= TRANSFER_TOL * a
             && 0.5 * (dm0 + dm3).abs() <= TRANSFER_TOL * a
             && (dm1 + dm2 - dm0 - dm3).abs() <= TRANSFER_TOL * a

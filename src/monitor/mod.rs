@@ -10,5 +10,6 @@ pub mod chatter;
 mod tests;
 
 pub use breakage::{
-    Breakage, BreakageDetector, BreakageSettings, BreakageSettingsError, ThresholdMode, MAX_FLUTES,
+    Breakage, BreakageDetector, BreakageSettings, BreakageSettingsError, FeedChange, ThresholdMode,
+    MAX_FLUTES,
 };

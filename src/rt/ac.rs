@@ -64,7 +64,7 @@
 use super::status::{AcWriter, FittedTool, SamplerWriter};
 use crate::ac::{achieved_feed, AcController, AcOutput, AcState};
 use crate::monitor::chatter::Spectrum;
-use crate::monitor::{Breakage, BreakageDetector, BreakageSettings};
+use crate::monitor::{Breakage, BreakageDetector, BreakageSettings, FeedChange};
 use crate::ports::{Codes, Conversion, ForceTorqueAdc};
 use crate::settings::{Settings, Valid};
 use crate::wire::SOUND_PER_SAMPLE;
@@ -296,9 +296,12 @@ pub fn sample(
 /// frame's deceleration at a corner takes the feed to a fifth within a few periods; the AC's own
 /// changes are a few per cent per period.
 pub const FEED_STEP_PCT: u64 = 30;
-/// ... and the larger is at least this many BLU per period (below it one pulse more or less is a
-/// step of more than 10 %: 10 BLU in 10 ms is 6 ipm at 0.0001 in).
-pub const FEED_STEP_MIN_BLU: u32 = 10;
+/// ... and by more than this many BLU: the motion of a constant feed over one AC period (or
+/// over several) can differ from the same span before by a pulse at each end, so a difference
+/// of up to two pulses says nothing; beyond it, the percentage decides. A floor on the motion
+/// itself instead (10 BLU per period is 6 ipm at 0.0001 in) leaves a small tool's feeds, which
+/// its AC moves between 2 and 6 ipm, without any notice, and its trips judged as breakages.
+pub const FEED_STEP_MIN_BLU: u32 = 2;
 /// A feed ramp for the breakage monitor: the motion of the last revolution's AC periods differs
 /// from the revolution's before by more than this percentage of the larger. The AC's recovery
 /// after a corner raises the feed by 10 to 20 % per period, below [`FEED_STEP_PCT`], for several
@@ -307,6 +310,14 @@ pub const FEED_STEP_MIN_BLU: u32 = 10;
 /// drive: a breakage declared 0.3 s after a corner, with a sound tool). The AC's own regulation
 /// in a steady cut moves a revolution's motion by a few per cent.
 pub const FEED_RAMP_PCT: u64 = 15;
+/// A feed change the breakage monitor records without holding (`FeedChange::hold` false): one
+/// AC period's motion differs from the period before's by more than this percentage of the
+/// larger. At the sampler's trip a loss after a lowering and a crossing after a raise are the
+/// feed's ([`BreakageDetector::chip_moved`]); the AC's regulation of a small tool near its limit
+/// moves its feed by 30 % a period (7 to 10 BLU), at the step's edge.
+///
+/// [`BreakageDetector::chip_moved`]: crate::monitor::BreakageDetector::chip_moved
+pub const FEED_NOTE_PCT: u64 = 15;
 /// AC periods of motion kept for the ramp test: two revolutions of up to half as many periods
 /// (at 10 ms periods: 375 rpm and faster; slower spindles compare 16 periods).
 const MOTION_RING: usize = 32;
@@ -343,8 +354,10 @@ impl FeedNotice {
     }
 
     /// The period that ended at encoder `enc` (a spindle at `rpm`, 0: unknown, and periods of
-    /// `period_ms`): whether the feed stepped or ramps.
-    pub fn period(&mut self, enc: [i32; 3], rpm: u32, period_ms: u32) -> bool {
+    /// `period_ms`): the feed's change against the period before when it is more than
+    /// [`FEED_NOTE_PCT`] (and the quantum), a step (`hold`) beyond [`FEED_STEP_PCT`]; else a
+    /// ramp (`hold`), if there is one.
+    pub fn period(&mut self, enc: [i32; 3], rpm: u32, period_ms: u32) -> Option<FeedChange> {
         let moved = (0..3)
             .map(|k| enc[k].wrapping_sub(self.last[k]).unsigned_abs())
             .max()
@@ -356,9 +369,18 @@ impl FeedNotice {
         }
         self.at = (self.at + 1) % MOTION_RING;
         let (lo, hi) = (moved.min(before), moved.max(before));
-        let step =
-            hi >= FEED_STEP_MIN_BLU && u64::from(hi - lo) * 100 > u64::from(hi) * FEED_STEP_PCT;
-        step || self.ramp(rpm, period_ms)
+        let beyond = |pct: u64| {
+            hi - lo > FEED_STEP_MIN_BLU && u64::from(hi - lo) * 100 > u64::from(hi) * pct
+        };
+        let change = beyond(FEED_NOTE_PCT).then(|| FeedChange {
+            kept_pct: (u64::from(lo) * 100 / u64::from(hi.max(1))) as u8,
+            up: moved > before,
+            hold: beyond(FEED_STEP_PCT),
+        });
+        match change {
+            Some(c) if c.hold => Some(c),
+            _ => self.ramp(rpm, period_ms).or(change),
+        }
     }
 
     /// The motion `k` periods before the newest.
@@ -371,18 +393,23 @@ impl FeedNotice {
 
     /// Whether the motion of the last revolution's periods (at `rpm`, rounded to whole periods,
     /// 1 ..= [`MOTION_RING`] / 2) differs from the revolution's before by more than
-    /// [`FEED_RAMP_PCT`] of the larger, the larger being at least [`FEED_STEP_MIN_BLU`] per
-    /// period.
-    fn ramp(&self, rpm: u32, period_ms: u32) -> bool {
+    /// [`FEED_RAMP_PCT`] of the larger and by more than [`FEED_STEP_MIN_BLU`].
+    fn ramp(&self, rpm: u32, period_ms: u32) -> Option<FeedChange> {
         let per_rev = rpm.saturating_mul(period_ms.max(1));
         if per_rev == 0 {
-            return false;
+            return None;
         }
         let n = ((60_000 + per_rev / 2) / per_rev).clamp(1, MOTION_RING as u32 / 2) as usize;
         let new: u64 = (0..n).map(|k| u64::from(self.back(k))).sum();
         let old: u64 = (n..2 * n).map(|k| u64::from(self.back(k))).sum();
         let (lo, hi) = (new.min(old), new.max(old));
-        hi >= u64::from(FEED_STEP_MIN_BLU) * n as u64 && (hi - lo) * 100 > hi * FEED_RAMP_PCT
+        (hi - lo > u64::from(FEED_STEP_MIN_BLU) && (hi - lo) * 100 > hi * FEED_RAMP_PCT).then(
+            || FeedChange {
+                kept_pct: (lo * 100 / hi.max(1)) as u8,
+                up: new > old,
+                hold: true,
+            },
+        )
     }
 }
 
@@ -663,8 +690,8 @@ impl AcPeriod {
         // resume): the breakage monitor does not judge the force's transient as a tooth's.
         let rpm = self.breakage.as_ref().map_or(0, |m| m.rpm);
         let notice = self.feed.period(enc, rpm, self.ctl.settings().period_ms);
-        if let Some(m) = self.breakage.as_mut().filter(|_| notice) {
-            m.detector.feed_step();
+        if let (Some(m), Some(change)) = (self.breakage.as_mut(), notice) {
+            m.detector.feed_step(change);
         }
         // The Z axis fed down in this period: the end face may cut (force/torque band).
         self.ctl.set_z_down(enc[2] < self.last[2]);
@@ -751,6 +778,39 @@ mod tests {
     use super::*;
     use crate::ac::{AcSettings, Alarm};
     use crate::rt::Status;
+
+    /// The feed notices at a small tool's feeds: a constant feed of 6.5 or 2.5 BLU per period
+    /// (the periods' motions alternate by a pulse) raises none, a step from 7 to 3 BLU per
+    /// period (4.2 to 1.8 ipm at 0.0001 in) and back raises one each way, and a ramp of a pulse
+    /// per period at 1500 rpm (4 periods a revolution) is a ramp.
+    #[test]
+    fn feed_notices_see_a_small_tools_feed_steps_and_not_its_pulses() {
+        let run = |motions: &[i32]| {
+            let mut n = FeedNotice::new();
+            let mut at = 0;
+            motions
+                .iter()
+                .map(|&m| {
+                    at += m;
+                    n.period([at, 0, 0], 1500, 10).is_some()
+                })
+                .collect::<Vec<_>>()
+        };
+        let steady = |a: i32, b: i32| -> Vec<i32> {
+            (0..40).map(|k| if k % 2 == 0 { a } else { b }).collect()
+        };
+        for motions in [steady(6, 7), steady(2, 3)] {
+            let told = run(&motions);
+            assert!(told[8..].iter().all(|&t| !t), "{motions:?}: {told:?}");
+        }
+        let step: Vec<i32> = [[7; 12], [3; 12], [7; 12]].concat();
+        let told = run(&step);
+        assert!(told[12] && told[24], "{told:?}");
+        assert!(!told[8..12].iter().any(|&t| t), "{told:?}");
+        let ramp: Vec<i32> = (0..20).map(|k| 2 + k / 2).collect();
+        let told = run(&[vec![2; 12], ramp].concat());
+        assert!(told[20..].iter().any(|&t| t), "{told:?}");
+    }
 
     /// An ADC that converts mid-scale codes until `miss_from`, then misses every conversion, and
     /// is gone from `lost_from` on.

@@ -130,8 +130,8 @@ pub fn trace(run: &HostRun, cut: &Cut, bs: BreakageSettings) -> Result<Trace> {
             continue;
         };
         let enc = r.pos_blu.map(|v| i32::try_from(v).unwrap_or(i32::MAX));
-        if feed.period(enc, rpm, period_ms) {
-            det.feed_step();
+        if let Some(change) = feed.period(enc, rpm, period_ms) {
+            det.feed_step(change);
         }
     }
     Ok((rows, detection))
