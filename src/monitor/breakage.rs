@@ -746,8 +746,9 @@ impl BreakageDetector {
     /// `lost` - m .. `lost` - 1: the AC period notices a change at its end, within a tooth
     /// period for the spindles this detector serves), and moved the feed by at least the
     /// loss less [`FEED_LOSS_TOL`] (the force follows the feed, less than in proportion: the
-    /// specific force grows as the chip thins), and a raise came with it or after it (a feed
-    /// that only fell cannot cross the overload level). A breakage's own consequences come later: the
+    /// specific force grows as the chip thins), and a raise came while the lost period ran or
+    /// after it (a feed that only fell cannot cross the overload level, and one that rose
+    /// before the loss did not make the crossing after it). A breakage's own consequences come later: the
     /// next tooth's doubled chip is in period `lost` + 1, and the AC's reaction to it is
     /// noticed while the last complete period is `lost` or later; and a broken tooth's period
     /// loses more than a feed step that came with it (a corner's deceleration of the pocket
@@ -760,20 +761,16 @@ impl BreakageDetector {
                 .zip(self.kept.iter().zip(&self.raised))
                 .take(usize::from(self.noticed))
         };
-        // The lowering that explains the loss, the earliest such period.
-        let lowered = noticed()
-            .filter(|(&n, (&kept, _))| {
-                (1..=m).contains(&lost.wrapping_sub(n))
-                    && loss <= 1.0 - f32::from(kept) / 100.0 + FEED_LOSS_TOL
-            })
-            .map(|(&n, _)| lost.wrapping_sub(n))
-            .max();
-        // A raise in that period or after it: what made the crossing.
-        lowered.is_some_and(|back| {
-            noticed().any(|(&n, (_, &up))| {
-                up && n.wrapping_sub(lost.wrapping_sub(back)) <= back.saturating_add(1)
-            })
-        })
+        // A lowering that explains the loss.
+        let lowered = noticed().any(|(&n, (&kept, _))| {
+            (1..=m).contains(&lost.wrapping_sub(n))
+                && loss <= 1.0 - f32::from(kept) / 100.0 + FEED_LOSS_TOL
+        });
+        // A raise while the lost period ran or after it (the last complete period `lost` - 1
+        // or later; j is at most `lost` + 1): what made the crossing.
+        let raised =
+            noticed().any(|(&n, (_, &up))| up && n.wrapping_sub(lost.wrapping_sub(1)) <= 2);
+        lowered && raised
     }
 
     /// The latched breakage, if any.
