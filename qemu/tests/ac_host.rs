@@ -557,7 +557,12 @@ fn two_tool_runs(program: &str) -> (acsim::HostRun, acsim::HostRun, Cut) {
         &two_tools(),
     );
     let programmed = acsim::run(&prog, &settings, &c, None).unwrap();
-    let ac = acsim::run(&prog, &settings, &c, Some(AcSettings::default())).unwrap();
+    // The breakage monitor on for each tool the table gives flutes (`$268=2`).
+    let acs = AcSettings {
+        breakage: millac::ac::Breakage::Auto,
+        ..AcSettings::default()
+    };
+    let ac = acsim::run(&prog, &settings, &c, Some(acs)).unwrap();
     for (name, r) in [("programmed", &programmed), ("AC", &ac)] {
         let t: Vec<_> = r
             .tools
@@ -584,9 +589,9 @@ fn two_tool_runs(program: &str) -> (acsim::HostRun, acsim::HostRun, Cut) {
 /// a head-on entry at full depth (full load at the first tooth: a slot's tooth at 90 degrees
 /// takes the whole feed per tooth however little of it is engaged) is held at once on the small
 /// tool's limit, while at the big tool's limits it would have run on. The big tool's slot runs
-/// at its programmed feed. The breakage monitor is on, the default for tools whose flutes the
-/// table gives: the small tool's AC lowering and raising the feed by 30 % near its limit, and
-/// the overload trip after a raise, are no breakage.
+/// at its programmed feed. The breakage monitor is on for the tools whose flutes the table gives
+/// (`$268=2`): the small tool's AC lowering and raising the feed by 30 % near its limit, and the
+/// overload trip after a raise, are no breakage.
 #[test]
 fn an_m6_gives_the_small_tool_its_own_limits() {
     // The big tool's slot along X at Y `y`, then the small tool's from Y -0.5 in along X 1 in.
@@ -730,7 +735,12 @@ fn the_whole_fig1_job_runs_within_every_tools_limits() {
         .with_tool_changes(&j.program, &settings, &table);
     let shapes: Vec<_> = c.changes.iter().map(|c| c.plant.shape).collect();
     assert_eq!(shapes, [Shape::Flat, Shape::Flat, Shape::Flat, Shape::Ball]);
-    let ac = acsim::run(&prog, &settings, &c, Some(AcSettings::default())).unwrap();
+    // The breakage monitor on for each tool the table gives flutes (`$268=2`): no false alarm.
+    let acs = AcSettings {
+        breakage: millac::ac::Breakage::Auto,
+        ..AcSettings::default()
+    };
+    let ac = acsim::run(&prog, &settings, &c, Some(acs)).unwrap();
     assert_eq!((ac.alarm, ac.blocks_done), (None, prog.len()));
     let tools: Vec<u8> = ac.tools.iter().map(|t| t.tool).collect();
     assert_eq!(tools, [1, 2, 3, 4]);
@@ -834,7 +844,12 @@ fn a_freecad_ball_end_finishing_runs_within_its_limits() {
             millac_plant::Shape::Ball
         ]
     );
-    let ac = acsim::run(&prog, &settings, &c, Some(AcSettings::default())).unwrap();
+    // The breakage monitor on for each tool the table gives flutes (`$268=2`): no false alarm.
+    let acs = AcSettings {
+        breakage: millac::ac::Breakage::Auto,
+        ..AcSettings::default()
+    };
+    let ac = acsim::run(&prog, &settings, &c, Some(acs)).unwrap();
     assert_eq!((ac.alarm, ac.blocks_done), (None, prog.len()));
     for t in &ac.tools {
         println!(

@@ -2,7 +2,8 @@
 //! chatter monitor's task (`crate::rt::monitor`) pushes every sound sample; each full record of [`RECORD`] samples is windowed
 //! (Hann), transformed with a real FFT (`microfft`) and its largest amplitude away from the
 //! tooth-passing harmonics is compared with a threshold set from chatter-free cutting (the
-//! thesis' rule). One record is one detection cycle (256 samples: 51.2 ms at 5 kHz). no_std,
+//! thesis' rule) or, without one, with the forced vibration's own largest amplitude
+//! ([`AUTO_RATIO`]: no calibration, the default). One record is one detection cycle (256 samples: 51.2 ms at 5 kHz). no_std,
 //! f32, no allocation; the record and the window are 2 KB of RAM.
 //!
 //! Choices where the thesis is silent or its hardware differs:
@@ -22,6 +23,23 @@ use crate::settings::Valid;
 /// Samples per detection record (the FFT's size).
 pub const RECORD: usize = 256;
 
+/// Without a threshold ([`ChatterSettings::threshold`] 0, the default): chatter when the largest
+/// amplitude away from the tooth harmonics exceeds this many times their largest (the forced
+/// vibration's) and [`AUTO_FLOOR`] in two records in a row. Regenerative chatter grows at the
+/// tool's mode, away from the harmonics, to many times the forced vibration and stays; a stable
+/// cut's spectrum away from them is the cut's noise, and an entry's knock rings the mode for a
+/// record and decays. Chosen on the simulated plant (the thesis' table 3.2 preset, its
+/// microphone with noise, `qemu/tests/chatter.rs`): the stable 2.54 mm cut's ratio is at most
+/// 2.3 over 160 records (four noise seeds), and 6.0 in the one record of the slot's entry
+/// (with the AC, the record after it 1.9); the 8.89 mm cut's is 3.3 to 5.1 in the record before
+/// the plant's chatter marks, 15 to 25 in the next and beyond 40 after (in the slot: 10.9 and
+/// 21.2 in its first two records). Independent of the microphone's gain: the same rule on any
+/// machine.
+pub const AUTO_RATIO: f32 = 4.0;
+/// Without a threshold: the smallest amplitude judged as chatter (sound units; a 12-bit ADC's
+/// code), so that a silent channel's rounding is never a spectrum.
+pub const AUTO_FLOOR: f32 = 1.0;
+
 /// Largest sound sample magnitude the detector takes (far beyond any sensor's range): the
 /// spectrum of a full record at it stays finite in f32.
 pub const SAMPLE_LIMIT: f32 = 1.0e9;
@@ -32,7 +50,8 @@ pub struct ChatterSettings {
     /// Sound sample rate, Hz (1000..=100 000).
     pub sound_hz: u32,
     /// Chatter when the largest amplitude (sound units) away from the tooth harmonics exceeds
-    /// this. Set it from a chatter-free cut's largest amplitude with a margin (the thesis).
+    /// this. Set it from a chatter-free cut's largest amplitude with a margin (the thesis); 0:
+    /// against the forced vibration ([`AUTO_RATIO`]).
     pub threshold: f32,
     /// Frequencies below this (Hz) are not judged.
     pub min_hz: f32,
@@ -43,8 +62,8 @@ pub struct ChatterSettings {
 }
 
 impl Default for ChatterSettings {
-    /// 5 kHz, threshold 1.0 (set it for the sensor), below 300 Hz left out, the first 8 tooth
-    /// harmonics +-1 bin.
+    /// 5 kHz, threshold 1.0 (set it for the sensor, or 0 for the automatic rule), below 300 Hz
+    /// left out, the first 8 tooth harmonics +-1 bin.
     fn default() -> Self {
         ChatterSettings {
             sound_hz: 5000,
@@ -69,7 +88,7 @@ impl ChatterSettingsError {
     pub fn message(&self) -> &'static str {
         match self {
             Self::SoundRate => "chatter: sound sample rate must be 1000..=100000 Hz",
-            Self::Threshold => "chatter: threshold must be finite and > 0",
+            Self::Threshold => "chatter: threshold must be finite and >= 0",
             Self::MinFrequency => {
                 "chatter: lowest frequency must be finite, >= 0 and below Nyquist"
             }
@@ -96,7 +115,7 @@ impl ChatterSettings {
         if !(1000..=100_000).contains(&self.sound_hz) {
             return Err(ChatterSettingsError::SoundRate);
         }
-        if !(self.threshold.is_finite() && self.threshold > 0.0) {
+        if !(self.threshold.is_finite() && self.threshold >= 0.0) {
             return Err(ChatterSettingsError::Threshold);
         }
         let nyquist = self.sound_hz as f32 / 2.0;
@@ -118,7 +137,13 @@ pub struct Spectrum {
     /// Frequency (Hz) and amplitude of the largest judged bin.
     pub peak_hz: f32,
     pub peak_amplitude: f32,
-    /// The amplitude exceeds the threshold.
+    /// The largest amplitude of the tooth harmonics' bins (the forced vibration; 0 without a
+    /// tooth frequency).
+    pub forced_amplitude: f32,
+    /// The level the amplitude was judged against: the threshold, or [`AUTO_RATIO`] times the
+    /// forced vibration's amplitude (at least [`AUTO_FLOOR`]).
+    pub threshold: f32,
+    /// The amplitude exceeds it (without a threshold: in this record and the one before).
     pub chatter: bool,
 }
 
@@ -132,6 +157,8 @@ pub struct ChatterDetector {
     scale: f32,
     filled: usize,
     cycle: u32,
+    /// Without a threshold: the last record exceeded the automatic level.
+    over: bool,
 }
 
 impl ChatterDetector {
@@ -152,6 +179,7 @@ impl ChatterDetector {
             scale: 2.0 / sum,
             filled: 0,
             cycle: 0,
+            over: false,
         }
     }
 
@@ -162,6 +190,7 @@ impl ChatterDetector {
     /// Starts a new record (after a hold, a change of the cut).
     pub fn restart(&mut self) {
         self.filled = 0;
+        self.over = false;
     }
 
     /// One sound sample (a value that is not finite counts as 0, one beyond +-[`SAMPLE_LIMIT`]
@@ -197,40 +226,63 @@ impl ChatterDetector {
         let tooth_hz = rpm as f32 * flutes as f32 / 60.0;
         // The bins left out, marked once per record in bin numbers (a soft-float compare per bin
         // and harmonic cost about a fifth of a 10 ms period on the Cortex-M3).
-        let left_out = self.left_out(tooth_hz, bin_hz);
-        // The largest power |X|^2 of the judged bins; one square root at the end (the amplitude
-        // is monotonic in it), not one per bin.
-        let (mut peak_k, mut peak_p) = (0usize, 0.0f32);
+        let (left_out, harmonic) = self.left_out(tooth_hz, bin_hz);
+        // The largest power |X|^2 of the judged bins, and of the harmonics' bins; one square
+        // root each at the end (the amplitude is monotonic in it), not one per bin.
+        let (mut peak_k, mut peak_p, mut forced_p) = (0usize, 0.0f32, 0.0f32);
         // Bin 0 holds DC and, packed in its imaginary part, Nyquist: never judged.
-        for (k, (c, out)) in spectrum.iter().zip(left_out.iter()).enumerate().skip(1) {
+        for (k, ((c, out), h)) in spectrum
+            .iter()
+            .zip(left_out.iter())
+            .zip(harmonic.iter())
+            .enumerate()
+            .skip(1)
+        {
+            let p = c.re * c.re + c.im * c.im;
+            if *h {
+                forced_p = forced_p.max(p);
+            }
             if *out {
                 continue;
             }
-            let p = c.re * c.re + c.im * c.im;
             if p > peak_p {
                 (peak_k, peak_p) = (k, p);
             }
         }
         let peak = libm::sqrtf(peak_p) * self.scale;
+        let forced = libm::sqrtf(forced_p) * self.scale;
+        let (threshold, chatter) = if self.s.threshold > 0.0 {
+            (self.s.threshold, peak > self.s.threshold)
+        } else {
+            let level = (AUTO_RATIO * forced).max(AUTO_FLOOR);
+            let over = peak > level;
+            let chatter = over && self.over;
+            self.over = over;
+            (level, chatter)
+        };
         Spectrum {
             cycle: self.cycle,
             peak_hz: peak_k as f32 * bin_hz,
             peak_amplitude: peak,
-            chatter: peak > self.s.threshold,
+            forced_amplitude: forced,
+            threshold,
+            chatter,
         }
     }
 
     /// The bins not judged: below `min_hz`, and within `harmonic_bins` (+ half a bin) of one of
-    /// the first `harmonics` multiples of `tooth_hz` (none when it is not a positive frequency).
-    fn left_out(&self, tooth_hz: f32, bin_hz: f32) -> [bool; RECORD / 2] {
+    /// the first `harmonics` multiples of `tooth_hz` (none when it is not a positive frequency);
+    /// and those of the harmonics alone.
+    fn left_out(&self, tooth_hz: f32, bin_hz: f32) -> ([bool; RECORD / 2], [bool; RECORD / 2]) {
         let mut out = [false; RECORD / 2];
+        let mut harmonic = [false; RECORD / 2];
         // min_hz is validated finite, >= 0 and below Nyquist: 0 ..= RECORD / 2 bins.
         let k_min = libm::ceilf(self.s.min_hz / bin_hz) as usize;
         for o in out.iter_mut().take(k_min) {
             *o = true;
         }
         if !(tooth_hz > 0.0 && tooth_hz.is_finite()) {
-            return out;
+            return (out, harmonic);
         }
         let band = self.s.harmonic_bins as f32 + 0.5;
         for h in 1..=self.s.harmonics {
@@ -242,11 +294,17 @@ impl ChatterDetector {
             }
             // Both finite and within 0..RECORD/2 here: the casts are exact.
             let (lo, hi) = (lo as usize, hi.min((RECORD / 2 - 1) as f32) as usize);
-            for o in out.iter_mut().take(hi + 1).skip(lo) {
+            for (o, h) in out
+                .iter_mut()
+                .zip(harmonic.iter_mut())
+                .take(hi + 1)
+                .skip(lo)
+            {
                 *o = true;
+                *h = true;
             }
         }
-        out
+        (out, harmonic)
     }
 }
 
@@ -397,6 +455,57 @@ mod tests {
             .last()
             .unwrap();
         assert!(s.chatter, "{s:?}");
+    }
+
+    /// Without a threshold (0, the default) a tone away from the harmonics is chatter when it
+    /// exceeds [`AUTO_RATIO`] times the forced vibration and [`AUTO_FLOOR`] in two records in a
+    /// row, whatever the microphone's gain: the same records scaled by 0.01 .. 100 give the same
+    /// verdicts (above the floor); silence is never chatter, nor one record's ring (a knock).
+    #[test]
+    fn without_a_threshold_chatter_is_judged_against_the_forced_vibration() {
+        // The second of two records, with the tone in the first at `first` times its amplitude.
+        let two = |forced: f32, chatter: f32, first: f32| {
+            let mut d = detector(0.0);
+            (0..2 * RECORD)
+                .filter_map(|i| {
+                    let c = if i < RECORD { first * chatter } else { chatter };
+                    d.push(sound(i, 5000.0, 50.0, forced, 1953.1, c), 1500, 2)
+                })
+                .last()
+                .unwrap()
+        };
+        let verdict = |forced: f32, chatter: f32| two(forced, chatter, 1.0);
+        // A knock: the tone in one record only, either one.
+        for (first, second) in [(1.0, 0.0), (0.0, 1.0)] {
+            let mut d = detector(0.0);
+            let s: Vec<Spectrum> = (0..2 * RECORD)
+                .filter_map(|i| {
+                    let c = if i < RECORD { first } else { second };
+                    d.push(sound(i, 5000.0, 50.0, 5.0, 1953.1, 40.0 * c), 1500, 2)
+                })
+                .collect();
+            assert!(s.iter().all(|s| !s.chatter), "{s:?}");
+        }
+        for gain in [0.01, 1.0, 100.0] {
+            let (f, c) = (5.0 * gain, gain);
+            let below = verdict(f, 0.9 * AUTO_RATIO * f);
+            let above = verdict(f, 1.1 * AUTO_RATIO * f);
+            assert!(!below.chatter, "gain {gain}: {below:?}");
+            assert_eq!(
+                above.chatter,
+                above.peak_amplitude > AUTO_FLOOR,
+                "gain {gain}: {above:?}"
+            );
+            assert!((below.forced_amplitude / f - 1.0).abs() < 0.1, "{below:?}");
+            // A tone as large as the forced vibration is no chatter.
+            assert!(!verdict(f, c * 5.0).chatter, "gain {gain}");
+        }
+        assert!(verdict(5.0, 1.1 * AUTO_RATIO * 5.0).chatter);
+        let silent = verdict(0.0, 0.0);
+        assert!(
+            !silent.chatter && silent.threshold == AUTO_FLOOR,
+            "{silent:?}"
+        );
     }
 
     /// Chatter that starts in the middle of a record is detected at the end of that record or the

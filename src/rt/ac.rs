@@ -742,7 +742,7 @@ impl AcPeriod {
             let a = crate::ac::Alarm::Chatter {
                 freq_hz: s.peak_hz,
                 amplitude: s.peak_amplitude,
-                threshold: self.ctl.settings().chatter_threshold,
+                threshold: s.threshold,
             };
             if self.ctl.hold(a) {
                 status.set_chatter_hz(s.peak_hz);

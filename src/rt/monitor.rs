@@ -30,9 +30,9 @@ pub struct ChatterTask {
 }
 
 impl ChatterTask {
-    /// The monitor the AC settings ask for: `$266` the threshold (0: off, `None`), `$267` the
-    /// flutes (the tooth harmonics left out), `$269` the speed until the machine is commanded one
-    /// (`Status::spindle_rpm`). Init context.
+    /// The monitor the AC settings ask for (`$278`; off: `None`): `$266` the threshold (0: the
+    /// automatic rule), `$267` the flutes (the tooth harmonics left out), `$269` the speed until
+    /// the machine is commanded one (`Status::spindle_rpm`). Init context.
     pub fn from_settings(s: &Valid<AcSettings>) -> Option<Self> {
         let settings = s.chatter_settings()?;
         Some(ChatterTask {
@@ -88,11 +88,17 @@ impl ChatterTask {
 mod tests {
     use super::*;
 
-    /// Off at `$266=0`; on, it follows the commanded speed and gives a spectrum once per record
-    /// (256 sound samples) with a tone near the tool's mode found and judged as chatter.
+    /// Off at `$278=0`, on by default; on, it follows the commanded speed and gives a spectrum
+    /// once per record (256 sound samples) with a tone near the tool's mode found and judged as
+    /// chatter.
     #[test]
     fn one_spectrum_per_record_at_the_commanded_speed() {
-        assert!(ChatterTask::from_settings(&AcSettings::default().validated().unwrap()).is_none());
+        let off = AcSettings {
+            chatter: false,
+            ..AcSettings::default()
+        };
+        assert!(ChatterTask::from_settings(&off.validated().unwrap()).is_none());
+        assert!(ChatterTask::from_settings(&AcSettings::default().validated().unwrap()).is_some());
         let s = AcSettings {
             chatter_threshold: 5.0,
             flutes: 2,

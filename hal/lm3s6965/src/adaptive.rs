@@ -1,6 +1,6 @@
 //! The AC side of the QEMU board: at init, when the host serves the simulated ADC
 //! (`crate::simadc`), the AC task and its sampler (with the breakage monitor the settings turn
-//! on, `$268`), the chatter monitor (`$266`), `ac.log`, and the sample timer started (the settings
+//! on, `$268`), the chatter monitor (`$278`, `$266`), `ac.log`, and the sample timer started (the settings
 //! come validated from the start, `millac::rt::start`, so nothing here refuses them); then the
 //! sampler task's tick and what follows an AC period (its alarm said, a long hold's end of the
 //! run). Init, sampler task, AC task.
@@ -35,7 +35,7 @@ use millac::rt::status::STATUS;
 pub struct Adaptive {
     pub sampler: Sampler<SimAdc>,
     pub ac: AcTask<LogFile>,
-    /// The chatter monitor (`$266` above 0).
+    /// The chatter monitor (`$278`, on by default).
     pub monitor: Option<MonitorTask>,
     /// The feed ceiling of an enabled AC, applied by the loader (None: measure only).
     pub ceiling: Option<FeedCeiling>,

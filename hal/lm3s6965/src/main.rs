@@ -70,7 +70,7 @@ mod app {
         pulse_status: PulseWriter<Static>,
         sampler: Option<Sampler<SimAdc>>,
         ac: Option<AcTask<LogFile>>,
-        /// The chatter monitor (`$266` above 0 and the simulated ADC served).
+        /// The chatter monitor (`$278`, on by default, and the simulated ADC served).
         monitor: Option<MonitorTask>,
         /// UART0 task's ends: received bytes into the protocol's ring (realtime bytes taken out
         /// there), bytes to send out.

@@ -77,10 +77,12 @@ pub(crate) struct CutArgs {
     /// period. `run`, `demo`, `host` (in `serve`, set $268 in the session).
     #[arg(long)]
     pub(crate) monitor_breakage: bool,
-    /// Chatter detection in the AC task ($266): the threshold of the sound spectrum's largest
-    /// amplitude away from the tooth harmonics, in sound codes (set it from a chatter-free cut:
-    /// twice its largest amplitude); a record above it holds the feed (ALARM:107). Needs a
-    /// microphone (`--preset thesis-table-3.2`). `run`, `demo`, `host` (in `serve`, set $266).
+    /// The chatter threshold ($266): the sound spectrum's largest amplitude away from the tooth
+    /// harmonics above which a record is chatter, in sound codes (set it from a chatter-free cut:
+    /// twice its largest amplitude); without it the default's automatic rule (four times the
+    /// tooth harmonics'). A record above it holds the feed (ALARM:107). The chatter monitor runs
+    /// where there is a microphone (`--preset thesis-table-3.2`). `run`, `demo`, `host` (in
+    /// `serve`, set $266).
     #[arg(long, value_name = "CODES")]
     pub(crate) chatter_threshold: Option<f32>,
 }
@@ -204,7 +206,9 @@ impl CutArgs {
         cut: &millac_qemu::host::acsim::Cut,
     ) -> millac::ac::AcSettings {
         let d = millac::ac::AcSettings::default();
-        let monitors = self.monitor_breakage || self.chatter_threshold.is_some();
+        // A microphone (the flexible tool's modes) turns the chatter monitor on by default.
+        let monitors =
+            self.monitor_breakage || self.chatter_threshold.is_some() || cut.modes.is_some();
         millac::ac::AcSettings {
             strategy: self.strategy.map_or(d.strategy, Into::into),
             // --monitor-breakage: on for every tool, the cut's own too; else the machine's

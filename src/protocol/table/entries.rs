@@ -143,7 +143,7 @@ macro_rules! mirror {
 /// millac's own from `$200` (NC) and `$250` (adaptive control). `$200` (the BLU) comes first: the
 /// settings listed in mm are kept in BLU, so a listing restored line by line onto the defaults
 /// changes the BLU before it sets them.
-pub static TABLE: [Entry; 76] = [
+pub static TABLE: [Entry; 77] = [
     Entry {
         number: 200,
         name: "BLU",
@@ -513,7 +513,7 @@ pub static TABLE: [Entry; 76] = [
     real!(265, "GPC weight lambda", "1", false, ac.gpc_lambda),
     real!(
         266,
-        "chatter threshold (0 off)",
+        "chatter threshold (0 automatic)",
         "code",
         false,
         ac.chatter_threshold
@@ -566,6 +566,15 @@ pub static TABLE: [Entry; 76] = [
         u32,
         false,
         ac.chatter_max_rpm
+    ),
+    flag!(
+        278,
+        "chatter detection (0 off, 1 on)",
+        |m| i64::from(m.ac.chatter),
+        |m, v| {
+            m.ac.chatter = choice(v, 2)? == 1;
+            Some(())
+        }
     ),
     int!(
         280,

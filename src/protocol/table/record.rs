@@ -13,7 +13,8 @@
 //! | 8 + len | 4 | CRC-32 (IEEE 802.3, reflected 0xEDB88320, as zlib's) of everything before it |
 //!
 //! Any change of the payload bumps [`VERSION`] (6: the work offsets and tool table added; 7: the
-//! set-up, homing, probe and tool change, after the AC's settings); a record
+//! set-up, homing, probe and tool change, after the AC's settings; 8: chatter detection's switch,
+//! `$278`); a record
 //! of another version loads as defaults with [`RecordError::Version`] (no migration yet). The CRC is computed bit by bit ([`crc32`]): the
 //! record is about 200 bytes and checked once at start-up and once per store, so a table (1 KiB of
 //! flash, or 16 KiB for the sliced tables of crc32fast) buys nothing, and 10 lines need no new
@@ -28,11 +29,11 @@ use crate::ports::SettingsStorage;
 use crate::settings::{Blu, BoardLimits, Settings, Setup, Valid};
 
 pub const MAGIC: [u8; 4] = *b"MLST";
-pub const VERSION: u16 = 7;
+pub const VERSION: u16 = 8;
 pub const HEADER_LEN: usize = 8;
 /// 208 bytes of settings and 41 of the set-up (`$6`, `$21`-`$27`, `$341`-`$346`), then the work
 /// offsets (24 x i64) and the tool table (16 x 26 bytes).
-pub const PAYLOAD_LEN: usize = 208 + 41 + 24 * 8 + 16 * 26;
+pub const PAYLOAD_LEN: usize = 209 + 41 + 24 * 8 + 16 * 26;
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF): the
@@ -262,6 +263,7 @@ pub fn encode(s: &MachineSettings) -> [u8; RECORD_LEN] {
     p.u8(s.ac.breakage.code());
     p.f32(s.ac.chatter_step_mm);
     p.u32(s.ac.chatter_max_rpm);
+    p.u8(s.ac.chatter as u8);
     let u = &s.setup;
     for b in [u.probe_invert, u.hard_limits, u.homing] {
         p.u8(b as u8);
@@ -402,6 +404,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
     let breakage = crate::ac::Breakage::from_code(t.u8()?);
     let chatter_step_mm = t.f32()?;
     let chatter_max_rpm = t.u32()?;
+    let chatter = t.bool()?;
     let (probe_invert, hard_limits, homing) = (t.bool()?, t.bool()?, t.bool()?);
     let homing_dir_mask = t.u8()?;
     let (homing_feed_um_min, homing_seek_um_min) = (t.u32()?, t.u32()?);
@@ -488,6 +491,7 @@ fn payload(t: &mut Take) -> Option<Option<MachineSettings>> {
                 breakage: breakage?,
                 chatter_step_mm,
                 chatter_max_rpm,
+                chatter: chatter?,
             },
             ac_enabled: ac_enabled?,
             report: ReportSettings {
