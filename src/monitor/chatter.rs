@@ -4,7 +4,7 @@
 //! tooth-passing harmonics is compared with a threshold set from chatter-free cutting (the
 //! thesis' rule) or, without one, with the forced vibration's own largest amplitude
 //! ([`AUTO_RATIO`]: no calibration, the default). One record is one detection cycle (256 samples: 51.2 ms at 5 kHz). no_std,
-//! f32, no allocation; the record and the window are 2 KB of RAM.
+//! f32, no allocation; the record is 1 KB of RAM, the window a 1 KB table computed at compile time.
 //!
 //! Choices where the thesis is silent or its hardware differs:
 //! - The sound's sample rate is a setting (`sound_hz`, default 5 kHz): at least 2.5 times the
@@ -147,14 +147,53 @@ pub struct Spectrum {
     pub chatter: bool,
 }
 
-/// The detector: the record being filled and the window.
+/// cos(x) for x in [0, 2 pi], in f64 at compile time: reduced to [-pi, pi] and summed as its
+/// Taylor series to 30 terms (the last term below 1e-40 there).
+const fn cos_const(x: f64) -> f64 {
+    let pi = core::f64::consts::PI;
+    let x = if x > pi { x - 2.0 * pi } else { x };
+    let (mut term, mut sum, mut k) = (1.0f64, 1.0f64, 1u32);
+    while k < 30 {
+        term = -term * x * x / ((2 * k - 1) as f64 * (2 * k) as f64);
+        sum += term;
+        k += 1;
+    }
+    sum
+}
+
+/// The Hann window, periodic: 0.5 (1 - cos(2 pi i / N)), computed at compile time (computing
+/// it with the soft-float cosine took milliseconds of the Cortex-M3's init, which delayed the
+/// sample timer's start once the chatter monitor was on by default).
+const fn hann() -> [f32; RECORD] {
+    let mut w = [0.0f32; RECORD];
+    let mut i = 0;
+    while i < RECORD {
+        let x = 2.0 * core::f64::consts::PI * i as f64 / RECORD as f64;
+        w[i] = (0.5 * (1.0 - cos_const(x))) as f32;
+        i += 1;
+    }
+    w
+}
+
+/// The window every record is multiplied by.
+static WINDOW: [f32; RECORD] = hann();
+
+/// 2 / sum(window): a sine of amplitude A in the middle of a bin reads A.
+const SCALE: f32 = {
+    let w = hann();
+    let (mut sum, mut i) = (0.0f32, 0);
+    while i < RECORD {
+        sum += w[i];
+        i += 1;
+    }
+    2.0 / sum
+};
+
+/// The detector: the record being filled.
 #[derive(Clone, Debug)]
 pub struct ChatterDetector {
     s: ChatterSettings,
     record: [f32; RECORD],
-    window: [f32; RECORD],
-    /// 2 / sum(window).
-    scale: f32,
     filled: usize,
     cycle: u32,
     /// Without a threshold: the last record exceeded the automatic level.
@@ -164,19 +203,9 @@ pub struct ChatterDetector {
 impl ChatterDetector {
     /// A detector at its first record (its settings checked: see [`Valid`]).
     pub fn new(s: Valid<ChatterSettings>) -> Self {
-        let s = s.get();
-        let mut window = [0.0f32; RECORD];
-        let mut sum = 0.0f32;
-        for (i, w) in window.iter_mut().enumerate() {
-            // Hann: 0.5 (1 - cos(2 pi i / N)), periodic.
-            *w = 0.5 * (1.0 - libm::cosf(2.0 * core::f32::consts::PI * i as f32 / RECORD as f32));
-            sum += *w;
-        }
         ChatterDetector {
-            s,
+            s: s.get(),
             record: [0.0; RECORD],
-            window,
-            scale: 2.0 / sum,
             filled: 0,
             cycle: 0,
             over: false,
@@ -218,7 +247,7 @@ impl ChatterDetector {
     /// The spectrum of the full record.
     fn judge(&mut self, rpm: u32, flutes: u32) -> Spectrum {
         let mut x = [0.0f32; RECORD];
-        for ((o, r), w) in x.iter_mut().zip(self.record.iter()).zip(self.window.iter()) {
+        for ((o, r), w) in x.iter_mut().zip(self.record.iter()).zip(WINDOW.iter()) {
             *o = r * w;
         }
         let spectrum = rfft_256(&mut x);
@@ -249,8 +278,8 @@ impl ChatterDetector {
                 (peak_k, peak_p) = (k, p);
             }
         }
-        let peak = libm::sqrtf(peak_p) * self.scale;
-        let forced = libm::sqrtf(forced_p) * self.scale;
+        let peak = libm::sqrtf(peak_p) * SCALE;
+        let forced = libm::sqrtf(forced_p) * SCALE;
         let (threshold, chatter) = if self.s.threshold > 0.0 {
             (self.s.threshold, peak > self.s.threshold)
         } else {
@@ -455,6 +484,19 @@ mod tests {
             .last()
             .unwrap();
         assert!(s.chatter, "{s:?}");
+    }
+
+    /// The compile-time window is the Hann window the soft-float cosine gives, to f32's
+    /// resolution.
+    #[test]
+    fn the_compile_time_window_is_hann() {
+        for (i, w) in WINDOW.iter().enumerate() {
+            let x = 2.0 * PI * i as f32 / RECORD as f32;
+            let want = 0.5 * (1.0 - libm::cosf(x));
+            assert!((w - want).abs() <= 1e-6, "{i}: {w} against {want}");
+        }
+        assert_eq!(WINDOW[0], 0.0);
+        assert!((SCALE * RECORD as f32 / 4.0 - 1.0).abs() < 1e-6, "{SCALE}");
     }
 
     /// Without a threshold (0, the default) a tone away from the harmonics is chatter when it
