@@ -847,11 +847,12 @@ impl BreakageDetector {
     /// `crate::rt::ac`): the crossing right after such a loss is the next tooth's doubled chip,
     /// the breakage's own signature, and the hold is a breakage, not an overload. A real
     /// overload (a harder spot, a deeper cut, a boss) raises the force without the loss before
-    /// it. Nor does a feed change: within a revolution of a feed notice ([`Self::feed_step`]) the
-    /// loss is the feed's, and the crossing an overload. Needs a known spindle and a revolution
-    /// of cut (one tooth period below the air floor is the broken tooth cutting alone; two are
-    /// air) and a detector not latched; the report
-    /// carries the loss as e2 and its threshold as th2, the first difference as e1.
+    /// it. Nor does a feed change the AC period told ([`Self::feed_step`]): a loss a lowering
+    /// explains, with a raise during or after it, is the feed's and the crossing an overload
+    /// (`fed_before`). Needs a known spindle and a revolution of cut (one tooth period below
+    /// the air floor is the broken tooth cutting alone; two are air) and a detector not
+    /// latched; the report carries the loss as e2 and its threshold as th2, the first
+    /// difference as e1.
     pub fn chip_moved(&self) -> Option<Breakage> {
         // A revolution of cut (one tooth period below the air floor is a broken tooth that cuts
         // alone, not air), a known spindle, not latched.

@@ -175,15 +175,17 @@ const fn hann() -> [f32; RECORD] {
     w
 }
 
+/// The window, computed once at compile time for [`WINDOW`] and [`SCALE`].
+const HANN: [f32; RECORD] = hann();
+
 /// The window every record is multiplied by.
-static WINDOW: [f32; RECORD] = hann();
+static WINDOW: [f32; RECORD] = HANN;
 
 /// 2 / sum(window): a sine of amplitude A in the middle of a bin reads A.
 const SCALE: f32 = {
-    let w = hann();
     let (mut sum, mut i) = (0.0f32, 0);
     while i < RECORD {
-        sum += w[i];
+        sum += HANN[i];
         i += 1;
     }
     2.0 / sum

@@ -368,14 +368,10 @@ impl FeedNotice {
             *slot = moved;
         }
         self.at = (self.at + 1) % MOTION_RING;
-        let (lo, hi) = (moved.min(before), moved.max(before));
-        let beyond = |pct: u64| {
-            hi - lo > FEED_STEP_MIN_BLU && u64::from(hi - lo) * 100 > u64::from(hi) * pct
-        };
-        let change = beyond(FEED_NOTE_PCT).then(|| FeedChange {
-            kept_pct: (u64::from(lo) * 100 / u64::from(hi.max(1))) as u8,
-            up: moved > before,
-            hold: beyond(FEED_STEP_PCT),
+        let (new, old) = (u64::from(moved), u64::from(before));
+        let change = change_of(new, old, FEED_NOTE_PCT).map(|c| FeedChange {
+            hold: change_of(new, old, FEED_STEP_PCT).is_some(),
+            ..c
         });
         match change {
             Some(c) if c.hold => Some(c),
@@ -402,15 +398,20 @@ impl FeedNotice {
         let n = ((60_000 + per_rev / 2) / per_rev).clamp(1, MOTION_RING as u32 / 2) as usize;
         let new: u64 = (0..n).map(|k| u64::from(self.back(k))).sum();
         let old: u64 = (n..2 * n).map(|k| u64::from(self.back(k))).sum();
-        let (lo, hi) = (new.min(old), new.max(old));
-        (hi - lo > u64::from(FEED_STEP_MIN_BLU) && (hi - lo) * 100 > hi * FEED_RAMP_PCT).then(
-            || FeedChange {
-                kept_pct: (lo * 100 / hi.max(1)) as u8,
-                up: new > old,
-                hold: true,
-            },
-        )
+        change_of(new, old, FEED_RAMP_PCT)
     }
+}
+
+/// The change from motion `old` to `new` (BLU) when they differ by more than
+/// [`FEED_STEP_MIN_BLU`] and `pct` % of the larger: the smaller as a percentage of the larger,
+/// whether it rose, and `hold` (a step's or a ramp's; the caller says otherwise for a note).
+fn change_of(new: u64, old: u64, pct: u64) -> Option<FeedChange> {
+    let (lo, hi) = (new.min(old), new.max(old));
+    (hi - lo > u64::from(FEED_STEP_MIN_BLU) && (hi - lo) * 100 > hi * pct).then(|| FeedChange {
+        kept_pct: (lo * 100 / hi.max(1)) as u8,
+        up: new > old,
+        hold: true,
+    })
 }
 
 /// The breakage monitor's teeth for `flutes` (`$267` or a tool's): 1 ..= `MAX_FLUTES`.
