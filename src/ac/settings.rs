@@ -7,6 +7,7 @@
 //! Units: forces in N, torques in N*m, feeds in *feed numbers* (the frame's `f`; at the paper's
 //! defaults W0 = 5 kHz, q0 = 3000, BLU = 0.0001 in, one feed number is 0.01 ipm, f = 100 x FR).
 
+use crate::gcode::tools::ToolKind;
 use crate::monitor::chatter::ChatterSettings;
 use crate::monitor::BreakageSettings;
 use crate::settings::Valid;
@@ -44,17 +45,16 @@ pub enum Pick {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[repr(u8)]
 pub enum Breakage {
-    /// Off for every tool (`$268=0`, the default).
-    #[default]
+    /// Off for every tool (`$268=0`).
     Off,
     /// On for every tool, the machine's own (`$267`, `$269`) before any M6 too (`$268=1`).
     On,
     /// On for each tool an M6 fits whose flutes the tool table gives (`N`), at the spindle
-    /// speed commanded; off for the machine's tool before any M6 (`$268=2`). Not the default
-    /// yet: on the host every program of the alarm corpus and the Fig. 1 job run without a
-    /// false alarm, but under QEMU the job's corner end mill (light cuts at the air floor, the
-    /// chip-transfer test at its 10 N floor) or its ball end mill (both residuals past their
-    /// thresholds) is held with a breakage, which of them depending on the firmware's timing.
+    /// speed commanded; off for the machine's tool before any M6 (`$268=2`, the default: a
+    /// user who never heard of the setting has breakage detection on every tool the table
+    /// describes). A ball end mill's detector runs without the curvature confirmation
+    /// ([`BreakageSettings::curvature`]).
+    #[default]
     Auto,
 }
 
@@ -476,13 +476,25 @@ impl Valid<AcSettings> {
     }
 
     /// The breakage monitor's settings for a tool an M6 fitted with `flutes` (0: the table does
-    /// not say): on with `$268` = 1, and with 2 (auto) where the flutes are known.
-    pub fn breakage_settings_for(&self, flutes: u8) -> Option<Valid<BreakageSettings>> {
-        match self.breakage {
-            Breakage::Off => None,
-            Breakage::On => Some(self.breakage_detector()),
-            Breakage::Auto => (flutes > 0).then(|| self.breakage_detector()),
-        }
+    /// not say) of `kind`: on with `$268` = 1, and with 2 (auto) where the flutes are known;
+    /// for a ball end mill without the curvature confirmation
+    /// ([`BreakageSettings::curvature`]).
+    pub fn breakage_settings_for(
+        &self,
+        flutes: u8,
+        kind: ToolKind,
+    ) -> Option<Valid<BreakageSettings>> {
+        let on = match self.breakage {
+            Breakage::Off => false,
+            Breakage::On => true,
+            Breakage::Auto => flutes > 0,
+        };
+        on.then(|| {
+            Valid::checked(BreakageSettings {
+                curvature: kind != ToolKind::Ball,
+                ..self.breakage_detector().get()
+            })
+        })
     }
 
     /// The breakage detector's settings: its defaults at the AC's sample rate.
@@ -547,6 +559,44 @@ mod derived_tests {
             };
             assert!(ac.validated().is_err(), "{sample_hz}");
         }
+    }
+
+    /// By default (`$268=2`) every tool an M6 fits whose flutes the table gives has a breakage
+    /// monitor, a ball end mill's without the curvature confirmation; a tool whose flutes
+    /// nobody gave has none, nor has the machine's own before any M6; `$268=0` turns it off for
+    /// all and `$268=1` on for all.
+    #[test]
+    fn the_breakage_monitor_follows_the_tool_by_default() {
+        let d = valid(AcSettings::default());
+        assert_eq!(d.breakage, Breakage::Auto);
+        assert_eq!(d.breakage_settings(), None);
+        assert_eq!(d.breakage_settings_for(0, ToolKind::Flat), None);
+        let flat = d
+            .breakage_settings_for(3, ToolKind::Flat)
+            .expect("flutes known");
+        assert!(flat.curvature);
+        let ball = d
+            .breakage_settings_for(2, ToolKind::Ball)
+            .expect("flutes known");
+        assert!(!ball.curvature);
+        assert_eq!(
+            ball.get(),
+            BreakageSettings {
+                curvature: false,
+                ..flat.get()
+            }
+        );
+        let off = valid(AcSettings {
+            breakage: Breakage::Off,
+            ..AcSettings::default()
+        });
+        assert_eq!(off.breakage_settings_for(4, ToolKind::Flat), None);
+        let on = valid(AcSettings {
+            breakage: Breakage::On,
+            ..AcSettings::default()
+        });
+        assert!(on.breakage_settings().is_some());
+        assert!(on.breakage_settings_for(0, ToolKind::Drill).is_some());
     }
 
     /// The chatter settings derived from valid AC settings pass the detector's own validation at

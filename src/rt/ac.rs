@@ -566,24 +566,21 @@ impl AcPeriod {
         self.chatter = None;
         // The breakage monitor as `$268` says for this tool (auto: on where the table gives its
         // flutes), learning anew at the speed commanded (`$269` before any S).
-        match self.tool.base().breakage_settings_for(tool.flutes) {
-            None => self.breakage = None,
-            Some(b) => match self.breakage.as_mut() {
-                Some(m) => {
-                    m.teeth = teeth(s.flutes);
-                    m.detector.set_spindle(m.rpm as f32, m.teeth);
-                    m.detector.reset();
-                    m.pending = None;
-                }
-                None => {
-                    let rpm = match status.spindle_rpm.get() {
+        // (A new detector: the tool's kind may change its settings.)
+        self.breakage = self
+            .tool
+            .base()
+            .breakage_settings_for(tool.flutes, tool.kind)
+            .map(|b| {
+                let rpm = match self.breakage.as_ref().map(|m| m.rpm) {
+                    Some(rpm) => rpm,
+                    None => match status.spindle_rpm.get() {
                         0 => s.monitor_rpm,
                         rpm => rpm,
-                    };
-                    self.breakage = Some(breakage_monitor(b, rpm, s.flutes));
-                }
-            },
-        }
+                    },
+                };
+                breakage_monitor(b, rpm, s.flutes)
+            });
         // The new tool starts at the controller's first cap; a hold the sampler's trip has just
         // made on the new tool's level stays (this sample is judged by the new trip too, and the
         // period ends it as an overload). A tool without limits runs uncapped.
