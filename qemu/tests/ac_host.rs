@@ -764,6 +764,37 @@ fn the_whole_fig1_job_runs_within_every_tools_limits() {
         assert_eq!((t.holds, t.alarm), (0, None), "T{}", t.tool);
         assert!(t.cutting_s > 1.0, "T{} cut for {} s", t.tool, t.cutting_s);
     }
+    // The breakage monitor at every phase of each tool's tooth periods (the firmware's start
+    // where its M6 and S fell, which moves with its timing): no false alarm. A ball end mill's
+    // detector decides without the curvature confirmation, which its passes on the stepped
+    // slope would fool.
+    let d = acs.validated().unwrap();
+    for ch in &c.changes {
+        let f = ch.fitted;
+        let bs = d
+            .breakage_settings_for(f.flutes, f.kind)
+            .expect("the table gives flutes");
+        let alarms =
+            millac_qemu::evaluation::breaklab::phases(&ac, f.number, ch.rpm, f.flutes, bs.get())
+                .unwrap();
+        let curved = millac::monitor::BreakageSettings {
+            curvature: true,
+            ..bs.get()
+        };
+        let with_curvature =
+            millac_qemu::evaluation::breaklab::phases(&ac, f.number, ch.rpm, f.flutes, curved)
+                .unwrap();
+        println!(
+            "T{} ({:?}, {} flutes, {} rpm): false breakages at {} phases of its tooth period, {} with the curvature confirmation",
+            f.number,
+            f.kind,
+            f.flutes,
+            ch.rpm,
+            alarms.len(),
+            with_curvature.len()
+        );
+        assert!(alarms.is_empty(), "T{}: {alarms:?}", f.number);
+    }
     // The stock as each tool left it.
     let stocks: Vec<u8> = ac.stocks.iter().map(|s| s.0).collect();
     assert_eq!(stocks, [1, 2, 3, 4]);

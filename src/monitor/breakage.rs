@@ -141,6 +141,15 @@ pub const TRANSFER_MIN: f32 = 0.5;
 /// with the jump made by the next step alone: the Fig. 1 job's 6 mm corner end mill under QEMU,
 /// at 5 of 38 phases of its tooth periods, a loss of 0.06 and a false breakage.
 pub const TRANSFER_LOSS: f32 = 0.15;
+/// Chip-transfer test: how far the cut's own change per revolution (the flanks' mean) may rise,
+/// as a fraction of the jump (it may fall by up to [`TRANSFER_TOL`]). A broken tooth's doubled
+/// chip raises the peak and the AC lowers the feed in the revolutions after: a falling trend is
+/// the break's own consequence (the simulated plant's breaks under the AC, `breaks_under_ac`:
+/// falling by 0.13 to 0.37 of the jump), while a break in a steady cut or on an entry's ramp
+/// rises by 0.09 at most. A cut rising by a third of the jump or more per revolution is a corner
+/// entry's staircase (the Fig. 1 job's corner end mill: 0.29 to 0.46, with the other
+/// tolerances met); a break inside it is left to the confirmations.
+pub const TRANSFER_RISE: f32 = 0.2;
 /// Chip-transfer test: how far the flanks dmFa(s-1), dmFa(s+2) may differ from each other, from
 /// nil (their mean: the cut's own change per revolution), and the pair dmFa(s) + dmFa(s+1) from
 /// the flanks' sum, each as a fraction of the jump. A chip moved from one tooth period to the
@@ -296,7 +305,9 @@ pub enum ThresholdMode {
     ///   dmFa(s) >= [`TRANSFER_MIN`] x L, while the flanks dmFa(s-1) and dmFa(s+2) agree with
     ///   each other and are small against A (the cut's own change per revolution), and the
     ///   pair's sum equals the flanks' (the chip moved, the material per revolution did not:
-    ///   each within [`TRANSFER_TOL`] x A). This is a large break seen in the revolution of the
+    ///   each within [`TRANSFER_TOL`] x A), the suspected period itself having lost against the
+    ///   flank before it ([`TRANSFER_LOSS`]) and the cut not rising fast ([`TRANSFER_RISE`]: a
+    ///   corner entry's staircase). This is a large break seen in the revolution of the
     ///   break itself: the lost chip at one tooth period and the next tooth's extra chip, against
     ///   the same tooth periods one revolution earlier. Differences per revolution remove the
     ///   run-out and a linear ramp (a constant dmFa), so the test works on an entry's ramp where
@@ -1229,9 +1240,10 @@ impl BreakageDetector {
     }
 
     /// The chip-transfer test on dmFa(j-3 .. j), s = j-2 (see [`TRANSFER_MIN`], [`TRANSFER_LOSS`],
-    /// [`TRANSFER_TOL`]): dmFa(s+1) - dmFa(s) = A >= [`TRANSFER_MIN`] x L, the loss dmFa(s-1) -
-    /// dmFa(s) >= [`TRANSFER_LOSS`] x A, and the flanks' difference, the flanks' mean and the
-    /// pair's excess over the flanks within [`TRANSFER_TOL`] x A.
+    /// [`TRANSFER_TOL`], [`TRANSFER_RISE`]): dmFa(s+1) - dmFa(s) = A >= [`TRANSFER_MIN`] x L, the
+    /// loss dmFa(s-1) - dmFa(s) >= [`TRANSFER_LOSS`] x A, the flanks' difference, the flanks' mean
+    /// and the pair's excess over the flanks within [`TRANSFER_TOL`] x A, and the flanks' mean
+    /// at most [`TRANSFER_RISE`] x A.
     fn transfer(&self, dm0: f32) -> bool {
         let (dm1, dm2, dm3) = (self.dm_prev, self.dm_prev2, self.dm_prev3);
         let a = dm1 - dm2;
@@ -1241,6 +1253,7 @@ impl BreakageDetector {
             && dm3 - dm2 >= TRANSFER_LOSS * a
             && (dm0 - dm3).abs() <= TRANSFER_TOL * a
             && 0.5 * (dm0 + dm3).abs() <= TRANSFER_TOL * a
+            && 0.5 * (dm0 + dm3) <= TRANSFER_RISE * a
             && (dm1 + dm2 - dm0 - dm3).abs() <= TRANSFER_TOL * a
     }
 

@@ -972,3 +972,21 @@ fn a_ball_end_mills_tooth_passes_on_a_stepped_surface_are_not_a_breakage() {
     let mut ball = det_for(800.0, 2, false);
     assert_eq!(feed_periods(&mut ball, &fa), None);
 }
+
+/// The same corner end mill entering another corner, on the host (the Fig. 1 job at one phase of
+/// its tooth periods, from air): the last four periods' once-per-revolution changes (44, -2,
+/// 187, 123 N at a level of 180 N) meet the three tolerances and the loss (0.24 of the jump),
+/// but the cut itself rises by 0.44 of the jump per revolution: a staircase, not a broken tooth,
+/// whose doubled chip would make the AC lower the feed ([`TRANSFER_RISE`]). It was declared a
+/// breakage.
+#[test]
+fn a_corner_entrys_rising_staircase_is_not_a_chip_transfer() {
+    let fa = [
+        6.5, 10.9, 11.1, 13.4, 10.1, 28.2, 20.0, 32.6, 26.7, 40.5, 44.6, 46.1, 67.0, 57.8, 81.8,
+        81.1, 89.6, 81.1, 84.6, 104.8, 98.5, 119.2, 121.7, 121.8, 135.6, 140.8, 62.1, 52.4, 55.3,
+        53.9, 53.2, 56.8, 57.0, 59.6, 63.9, 69.2, 76.7, 73.8, 75.3, 81.9, 68.3, 74.3, 83.8, 76.1,
+        81.3, 95.8, 77.7, 116.4, 92.9, 86.1, 115.2, 127.7, 129.7, 112.8, 314.7, 252.4,
+    ];
+    let mut d = det_for(1200.0, 3, true);
+    assert_eq!(feed_periods(&mut d, &fa), None);
+}

@@ -81,24 +81,38 @@ pub type Trace = (Vec<PeriodRow>, Option<(f64, Breakage)>);
 /// As [`detect`], every tooth period's row as well (for the figures like the thesis' 3.8-3.9 and
 /// 5.13-5.14), to the end of the run (after a declaration the detector stays latched: no rows).
 pub fn trace(run: &HostRun, cut: &Cut, bs: BreakageSettings) -> Result<Trace> {
+    let flutes = u8::try_from(cut.tool.flutes).map_err(|_| anyhow!("too many flutes"))?;
+    trace_span(run, 0..run.codes.len(), cut.spindle_rpm, flutes, bs)
+}
+
+/// As [`trace`], over the samples `span` of `run` only, at `rpm` with `flutes` (one tool's part
+/// of a job; its tooth periods start at the span's first sample: a later start is another phase
+/// of them against the tooth passes). Times are the run's.
+pub fn trace_span(
+    run: &HostRun,
+    span: std::ops::Range<usize>,
+    rpm: f64,
+    flutes: u8,
+    bs: BreakageSettings,
+) -> Result<Trace> {
     let cal = AcSettings::default().cal;
     let sample_hz = f64::from(bs.sample_hz);
     let mut det = BreakageDetector::new(bs.validated().map_err(|e| anyhow!("{e:?}"))?);
-    let flutes = u8::try_from(cut.tool.flutes).map_err(|_| anyhow!("too many flutes"))?;
-    det.set_spindle(cut.spindle_rpm as f32, flutes);
+    det.set_spindle(rpm as f32, flutes);
     let (mut rows, mut detection) = (Vec::new(), None);
     let (mut sum, mut count, mut periods) = (0.0, 0u32, det.periods());
     // With the AC, the AC period's feed notices, as the firmware's (`millac::rt::ac::AcPeriod`
     // runs the detector and tells it of feed steps and ramps, `FeedNotice`): after every
-    // period's samples, from the positions the rows log. (Without the AC the firmware has no AC period to tell it; the host's runs at
-    // the programmed feeds have none either.)
+    // period's samples, from the positions the rows log. (Without the AC the firmware has no AC
+    // period to tell it; the host's runs at the programmed feeds have none either.)
     let with_ac = run.rows.iter().any(|r| r.state != "off");
     let per_period = (u64::from(bs.sample_hz) * u64::from(AcSettings::default().period_ms) / 1000)
         .max(1) as usize;
     let mut feed = FeedNotice::new();
     let period_ms = AcSettings::default().period_ms;
-    let rpm = cut.spindle_rpm.round() as u32;
-    for (i, c) in run.codes.iter().enumerate() {
+    let rpm = rpm.round() as u32;
+    let first = span.start;
+    for (i, c) in run.codes.iter().enumerate().take(span.end).skip(first) {
         if let Some([_, fu, fv]) = c {
             let f = cal[1].value(*fu).hypot(cal[2].value(*fv));
             sum += f64::from(f);
@@ -135,6 +149,38 @@ pub fn trace(run: &HostRun, cut: &Cut, bs: BreakageSettings) -> Result<Trace> {
         }
     }
     Ok((rows, detection))
+}
+
+/// A job's tool under the breakage detector at every phase of its tooth periods: the samples
+/// of `run` while tool `tool` was fitted (the AC rows' tool), replayed by [`trace_span`] at
+/// `rpm` with `flutes`, the tooth periods starting 0, 1, .. samples after the tool's first
+/// sample, one tooth period's worth of starts (rounded up). The firmware's tooth periods start
+/// where its M6 and S happened to fall, which moves with its timing: a sound tool must pass at
+/// every phase. The declarations (time, breakage), one per phase at most.
+pub fn phases(
+    run: &HostRun,
+    tool: u8,
+    rpm: f64,
+    flutes: u8,
+    bs: BreakageSettings,
+) -> Result<Vec<(usize, f64, Breakage)>> {
+    let per_period = (u64::from(bs.sample_hz) * u64::from(AcSettings::default().period_ms) / 1000)
+        .max(1) as usize;
+    let first = run.rows.iter().position(|r| r.tool == tool);
+    let last = run.rows.iter().rposition(|r| r.tool == tool);
+    let (Some(first), Some(last)) = (first, last) else {
+        return Err(anyhow!("T{tool} never fitted in the run"));
+    };
+    let span = first * per_period..((last + 1) * per_period).min(run.codes.len());
+    let period = 60.0 * f64::from(bs.sample_hz) / (rpm * f64::from(flutes.max(1)));
+    let mut out = Vec::new();
+    for phase in 0..period.ceil() as usize {
+        let (_, d) = trace_span(run, span.start + phase..span.end, rpm, flutes, bs)?;
+        if let Some((t, b)) = d {
+            out.push((phase, t, b));
+        }
+    }
+    Ok(out)
 }
 
 /// The breakage detector's view of a run (as the thesis' Figs. 3.7-3.9 and 5.12-5.14): above,
