@@ -941,14 +941,15 @@ fn a_staircase_of_steps_a_revolution_apart_is_not_a_chip_transfer() {
     ];
     let mut d = det_for(1200.0, 3, true);
     assert_eq!(feed_periods(&mut d, &fa), None);
-    // The same cut with a tooth whose chip (60 N) moved from the suspected period to the next
+    // The same cut with a tooth whose chip (80 N, a jump of 324 N: the cut's rise of 57 N per
+    // revolution is within [`TRANSFER_RISE`] of it) moved from the suspected period to the next
     // is a breakage.
     let mut broken = fa;
     if let Some(f) = broken.get_mut(47) {
-        *f -= 60.0;
+        *f -= 80.0;
     }
     if let Some(f) = broken.get_mut(48) {
-        *f += 60.0;
+        *f += 80.0;
     }
     let mut d = det_for(1200.0, 3, true);
     assert!(feed_periods(&mut d, &broken).is_some());
