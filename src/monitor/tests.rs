@@ -59,15 +59,20 @@ impl Model {
 }
 
 fn det(mode: ThresholdMode) -> BreakageDetector {
-    let mut d = BreakageDetector::new(
+    det_with(
         BreakageSettings {
             mode,
             ..BreakageSettings::default()
-        }
-        .validated()
-        .expect("valid settings"),
-    );
-    d.set_spindle(600.0, Z as u8);
+        },
+        600.0,
+        Z as u8,
+    )
+}
+
+/// A detector with settings `s` at `rpm` with `flutes`.
+fn det_with(s: BreakageSettings, rpm: f32, flutes: u8) -> BreakageDetector {
+    let mut d = BreakageDetector::new(s.validated().expect("valid settings"));
+    d.set_spindle(rpm, flutes);
     d
 }
 
@@ -906,16 +911,14 @@ fn a_break_right_after_a_feed_step_is_still_a_breakage() {
 
 /// A detector at `rpm` with `flutes` and the default settings but `curvature`.
 fn det_for(rpm: f32, flutes: u8, curvature: bool) -> BreakageDetector {
-    let mut d = BreakageDetector::new(
+    det_with(
         BreakageSettings {
             curvature,
             ..BreakageSettings::default()
-        }
-        .validated()
-        .expect("valid settings"),
-    );
-    d.set_spindle(rpm, flutes);
-    d
+        },
+        rpm,
+        flutes,
+    )
 }
 
 /// The tooth periods `fa` through `d`; the first declaration.
