@@ -178,9 +178,9 @@ pub struct AcSettings {
     /// Chatter detection (`$278`): on (the default) wherever the board has a sound channel and
     /// sound arrives; off.
     pub chatter: bool,
-    /// Tool breakage detection (`$268`, `crate::monitor::breakage` with its defaults): off (the
-    /// default), on for every tool, or on for each tool an M6 fits whose flutes the tool table
-    /// gives ([`Breakage`]).
+    /// Tool breakage detection (`$268`, `crate::monitor::breakage` with its defaults): off, on
+    /// for every tool, or on for each tool an M6 fits whose flutes the tool table gives (the
+    /// default; [`Breakage`]).
     pub breakage: Breakage,
     /// Chatter suppression (`$276`, mm, 0..=50): the depth step a chatter hold lifts the rest of
     /// the held pass by, the material below cut in an extra pass (`crate::rt::replan`, the

@@ -139,16 +139,20 @@ pub const TRANSFER_MIN: f32 = 0.5;
 /// staircase of force steps about a revolution apart (a small end mill entering a corner, the
 /// engagement growing cell row by cell row) can meet the three tolerances of [`TRANSFER_TOL`]
 /// with the jump made by the next step alone: the Fig. 1 job's 6 mm corner end mill under QEMU,
-/// at 5 of 38 phases of its tooth periods, a loss of 0.06 and a false breakage.
+/// with its tooth periods started 0 to 37 samples after its S (over two tooth periods of
+/// phases), at 5 of the 38 starts, a loss of 0.06 and a false breakage. (On the host's run the
+/// losses were 0.19 to 0.28: [`TRANSFER_RISE`] rejects those.) Without a rise, a jump with
+/// a small loss also fails the pair's or the flanks' tolerance unless the period before fell:
+/// `a_jump_after_a_period_that_lost_nothing_is_not_a_chip_transfer`.
 pub const TRANSFER_LOSS: f32 = 0.15;
 /// Chip-transfer test: how far the cut's own change per revolution (the flanks' mean) may rise,
 /// as a fraction of the jump (it may fall by up to [`TRANSFER_TOL`]). A broken tooth's doubled
 /// chip raises the peak and the AC lowers the feed in the revolutions after: a falling trend is
 /// the break's own consequence (the simulated plant's breaks under the AC, `breaks_under_ac`:
 /// falling by 0.13 to 0.37 of the jump), while a break in a steady cut or on an entry's ramp
-/// rises by 0.09 at most. A cut rising by a third of the jump or more per revolution is a corner
-/// entry's staircase (the Fig. 1 job's corner end mill: 0.29 to 0.46, with the other
-/// tolerances met); a break inside it is left to the confirmations.
+/// rises by 0.09 at most. A cut rising faster is a corner entry's staircase (the Fig. 1 job's
+/// corner end mill: 0.29 to 0.46 of the jump, with the other tolerances met); a break inside
+/// it is left to the confirmations.
 pub const TRANSFER_RISE: f32 = 0.2;
 /// Chip-transfer test: how far the flanks dmFa(s-1), dmFa(s+2) may differ from each other, from
 /// nil (their mean: the cut's own change per revolution), and the pair dmFa(s) + dmFa(s+1) from

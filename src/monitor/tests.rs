@@ -929,11 +929,12 @@ fn feed_periods(d: &mut BreakageDetector, fa: &[f32]) -> Option<Breakage> {
 
 /// The Fig. 1 job's 6 mm three-flute corner end mill (1200 rpm) entering a corner under QEMU,
 /// from air (Fa per tooth period, N, as the firmware's detector formed them at one phase of its
-/// tooth periods): the engagement grows in steps about a revolution apart, and the last four
-/// periods' once-per-revolution changes (17, 8, 172, 97 N at a level of 248 N) meet the
+/// tooth periods): the engagement grows in steps about a revolution apart, and four periods'
+/// once-per-revolution changes (those before the last) (17, 8, 172, 97 N at a level of 248 N) meet the
 /// chip-transfer test's three tolerances, the jump made by the next step alone. The suspected
 /// period lost nothing against the period before (8 against 17 N): not a broken tooth's lost
-/// chip ([`TRANSFER_LOSS`]). It was declared a breakage.
+/// chip ([`TRANSFER_LOSS`]); and the cut rose by 0.35 of the jump per revolution
+/// ([`TRANSFER_RISE`]). It was declared a breakage.
 #[test]
 fn a_staircase_of_steps_a_revolution_apart_is_not_a_chip_transfer() {
     let fa = [
@@ -956,6 +957,25 @@ fn a_staircase_of_steps_a_revolution_apart_is_not_a_chip_transfer() {
     }
     let mut d = det_for(1200.0, 3, true);
     assert!(feed_periods(&mut d, &broken).is_some());
+}
+
+/// A jump after a period that lost nothing against the one before ([`TRANSFER_LOSS`]): a steady
+/// 1000 N cut whose force falls by 150 N at period s-1 and 180 N at s (against the revolution
+/// before), then jumps by 600 N at s+1 and is 120 N above s-1's at s+2. The flanks, their mean,
+/// the cut's rise and the pair all meet their tolerances; but period s lost 30 N (0.05 of the
+/// jump) against s-1: no tooth's chip went to the next. (Also its stair-shaped twin below.)
+#[test]
+fn a_jump_after_a_period_that_lost_nothing_is_not_a_chip_transfer() {
+    let mut fa = vec![1000.0f32; 30];
+    fa.extend([850.0, 820.0, 1420.0, 970.0]);
+    let mut d = det_for(1200.0, 3, true);
+    assert_eq!(feed_periods(&mut d, &fa), None);
+    // s losing 150 N more (0.2 of a 750 N jump) is a chip that moved.
+    if let Some(f) = fa.get_mut(31) {
+        *f -= 150.0;
+    }
+    let mut d = det_for(1200.0, 3, true);
+    assert!(feed_periods(&mut d, &fa).is_some());
 }
 
 /// The Fig. 1 job's 10 mm two-flute ball end mill (800 rpm) finishing a raster across the steps

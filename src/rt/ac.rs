@@ -320,7 +320,7 @@ pub const FEED_RAMP_PCT: u64 = 15;
 pub const FEED_NOTE_PCT: u64 = 15;
 /// AC periods of motion kept for the ramp test: two revolutions of up to half as many periods
 /// (at 10 ms periods: 375 rpm and faster; slower spindles compare 16 periods).
-const MOTION_RING: usize = 32;
+pub const MOTION_RING: usize = 32;
 
 /// The feed notices the breakage monitor gets ([`BreakageDetector::feed_step`]): from the encoder
 /// at the end of every AC period, a step ([`FEED_STEP_PCT`]: the motion of the period against the

@@ -112,6 +112,20 @@ pub fn trace_span(
     let period_ms = AcSettings::default().period_ms;
     let rpm = rpm.round() as u32;
     let first = span.start;
+    // The firmware's notices run all along: the AC periods before the span (as many as the
+    // notices remember, `MOTION_RING`) set the last position and motion they start from.
+    if with_ac {
+        let done = first / per_period;
+        for r in run
+            .rows
+            .iter()
+            .take(done)
+            .skip(done.saturating_sub(millac::rt::ac::MOTION_RING))
+        {
+            let enc = r.pos_blu.map(|v| i32::try_from(v).unwrap_or(i32::MAX));
+            let _ = feed.period(enc, rpm, period_ms);
+        }
+    }
     for (i, c) in run.codes.iter().enumerate().take(span.end).skip(first) {
         if let Some([_, fu, fv]) = c {
             let f = cal[1].value(*fu).hypot(cal[2].value(*fv));
@@ -152,7 +166,8 @@ pub fn trace_span(
 }
 
 /// A job's tool under the breakage detector at every phase of its tooth periods: the samples
-/// of `run` while tool `tool` was fitted (the AC rows' tool), replayed by [`trace_span`] at
+/// of `run` while tool `tool` was first fitted (the AC rows' tool, its first run of them),
+/// replayed by [`trace_span`] at
 /// `rpm` with `flutes`, the tooth periods starting 0, 1, .. samples after the tool's first
 /// sample, one tooth period's worth of starts (rounded up). The firmware's tooth periods start
 /// where its M6 and S happened to fall, which moves with its timing: a sound tool must pass at
@@ -166,12 +181,16 @@ pub fn phases(
 ) -> Result<Vec<(usize, f64, Breakage)>> {
     let per_period = (u64::from(bs.sample_hz) * u64::from(AcSettings::default().period_ms) / 1000)
         .max(1) as usize;
-    let first = run.rows.iter().position(|r| r.tool == tool);
-    let last = run.rows.iter().rposition(|r| r.tool == tool);
-    let (Some(first), Some(last)) = (first, last) else {
+    let Some(first) = run.rows.iter().position(|r| r.tool == tool) else {
         return Err(anyhow!("T{tool} never fitted in the run"));
     };
-    let span = first * per_period..((last + 1) * per_period).min(run.codes.len());
+    let end = run
+        .rows
+        .iter()
+        .skip(first)
+        .position(|r| r.tool != tool)
+        .map_or(run.rows.len(), |n| first + n);
+    let span = first * per_period..(end * per_period).min(run.codes.len());
     let period = 60.0 * f64::from(bs.sample_hz) / (rpm * f64::from(flutes.max(1)));
     let mut out = Vec::new();
     for phase in 0..period.ceil() as usize {
