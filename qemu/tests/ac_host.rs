@@ -777,13 +777,17 @@ fn the_whole_fig1_job_runs_within_every_tools_limits() {
         let alarms =
             millac_qemu::evaluation::breaklab::phases(&ac, f.number, ch.rpm, f.flutes, bs.get())
                 .unwrap();
-        let curved = millac::monitor::BreakageSettings {
-            curvature: true,
-            ..bs.get()
-        };
-        let with_curvature =
+        // (The same replay where the confirmation is on already.)
+        let with_curvature = if bs.curvature {
+            alarms.clone()
+        } else {
+            let curved = millac::monitor::BreakageSettings {
+                curvature: true,
+                ..bs.get()
+            };
             millac_qemu::evaluation::breaklab::phases(&ac, f.number, ch.rpm, f.flutes, curved)
-                .unwrap();
+                .unwrap()
+        };
         println!(
             "T{} ({:?}, {} flutes, {} rpm): false breakages at {} phases of its tooth period, {} with the curvature confirmation",
             f.number,

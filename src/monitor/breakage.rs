@@ -1071,7 +1071,6 @@ impl BreakageDetector {
         };
         if transfer {
             let (th1, th2) = self.thresholds_now();
-
             let b = Breakage {
                 tooth_period: self.j,
                 e1,

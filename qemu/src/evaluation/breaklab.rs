@@ -106,8 +106,7 @@ pub fn trace_span(
     // period's samples, from the positions the rows log. (Without the AC the firmware has no AC
     // period to tell it; the host's runs at the programmed feeds have none either.)
     let with_ac = run.rows.iter().any(|r| r.state != "off");
-    let per_period = (u64::from(bs.sample_hz) * u64::from(AcSettings::default().period_ms) / 1000)
-        .max(1) as usize;
+    let per_period = samples_per_period(&bs);
     let mut feed = FeedNotice::new();
     let period_ms = AcSettings::default().period_ms;
     let rpm = rpm.round() as u32;
@@ -165,6 +164,11 @@ pub fn trace_span(
     Ok((rows, detection))
 }
 
+/// Samples per AC period at the detector's sample rate (the rows' spacing in `HostRun::codes`).
+fn samples_per_period(bs: &BreakageSettings) -> usize {
+    (u64::from(bs.sample_hz) * u64::from(AcSettings::default().period_ms) / 1000).max(1) as usize
+}
+
 /// A job's tool under the breakage detector at every phase of its tooth periods: the samples
 /// of `run` while tool `tool` was first fitted (the AC rows' tool, its first run of them),
 /// replayed by [`trace_span`] at
@@ -179,8 +183,7 @@ pub fn phases(
     flutes: u8,
     bs: BreakageSettings,
 ) -> Result<Vec<(usize, f64, Breakage)>> {
-    let per_period = (u64::from(bs.sample_hz) * u64::from(AcSettings::default().period_ms) / 1000)
-        .max(1) as usize;
+    let per_period = samples_per_period(&bs);
     let Some(first) = run.rows.iter().position(|r| r.tool == tool) else {
         return Err(anyhow!("T{tool} never fitted in the run"));
     };
