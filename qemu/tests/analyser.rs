@@ -98,6 +98,11 @@ fn capture_of_a_hand_assembled_image() {
     assert!(c.traces.is_empty());
     assert_eq!(c.total_instructions, 16);
     assert_eq!(c.end_ns, 16 << 3);
+    // QEMU's two logs, parsed whole, are not left behind (a long job's are hundreds of MB).
+    let logs = dir.join(millac_qemu::emulator::capture::CAPTURE_DIR);
+    for log in ["plugin.log", "trace.log"] {
+        assert!(!logs.join(log).exists(), "{log} left in {}", logs.display());
+    }
     // Deterministic: a second run gives the same capture.
     assert_eq!(run_capture(&spec).unwrap(), c);
     // A traced run: the same counts, and the PCs of the calls longer than 8 instructions, entry

@@ -658,6 +658,12 @@ pub fn run_capture(spec: &CaptureSpec) -> Result<Capture> {
             .push(n);
         handler_starts[k].push(c << spec.icount_shift);
     }
+    // The two logs are parsed whole (the pins, the handlers' counts and traces are in the capture
+    // now): removed, so a run leaves only its outputs (the demo's are 300 MB; a log kept on an
+    // error above is there to be read).
+    for f in [&log, &trace] {
+        let _ = std::fs::remove_file(f);
+    }
     let traces = plog
         .traces
         .into_iter()
