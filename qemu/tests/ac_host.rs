@@ -724,6 +724,7 @@ fn the_bound_schedules_each_tool_with_its_own_limits() {
 #[test]
 fn the_whole_fig1_job_runs_within_every_tools_limits() {
     use millac_plant::Shape;
+    use millac_qemu::evaluation::acreport;
     use millac_qemu::evaluation::job::{self, Cavity, Cutters, Plan};
     let j = job::fig1();
     let settings = Settings::default();
@@ -744,14 +745,33 @@ fn the_whole_fig1_job_runs_within_every_tools_limits() {
     assert_eq!((ac.alarm, ac.blocks_done), (None, prog.len()));
     let tools: Vec<u8> = ac.tools.iter().map(|t| t.tool).collect();
     assert_eq!(tools, [1, 2, 3, 4]);
+    // Each tool's bound: the fastest schedule within its F0 and T0 (the oracle).
+    let bound = acreport::bound_summary(
+        &prog,
+        &settings,
+        &c,
+        &acs,
+        &acreport::bound_limits(&c, &acs),
+    )
+    .unwrap();
     for t in &ac.tools {
+        let bound_s = bound.parts_s[t.part];
         println!(
-            "T{}: {:.2} s, cutting {:.2} s, peak F/Fmax {:.3}, T/Tmax {:.3}",
+            "T{}: {:.2} s ({:.3} of its bound {bound_s:.2} s), cutting {:.2} s, peak F/Fmax {:.3}, T/Tmax {:.3}",
             t.tool,
             t.time_s(),
+            t.time_s() / bound_s,
             t.cutting_s,
             t.load.peak_force_ratio,
             t.load.peak_torque_ratio
+        );
+        // Near the bound: the AC does not crawl where the load is light (the GPC's estimate
+        // held the corner end mill at its floor feed after a corner, 1.065 of its bound).
+        assert!(
+            t.time_s() < 1.04 * bound_s,
+            "T{}: {:.2} s, bound {bound_s:.2} s",
+            t.tool,
+            t.time_s()
         );
         assert!(
             t.load.peak_force_ratio < 1.0
