@@ -231,8 +231,9 @@ fn the_residual_trace_is_the_detectors() {
 /// (`BreakageDetector::chip_moved`): a chip lost a tooth period before the crossing is the
 /// breakage (alarm 108, the spindle stopped, a reset needed), not an overload `~` would resume.
 /// Measured over teeth 0 and 1 broken at 15 .. 90 % of the cavity and the pocket (24 breaks,
-/// the `breaks_under_ac` example), 23 are classified as breakage (the cavity's tooth 1 at
-/// 9.04 s is held as an overload; before the sampler's
+/// the `breaks_under_ac` example), 21 are classified as breakage (the cavity's tooth 1 at
+/// 9.04 s and the pocket's at 6.04 and 12.08 s are held as overloads; 229 of 240 with
+/// `--spread 10`; before the sampler's
 /// trip: none; every one was an overload; with the tooth periods alone, before the per-sample
 /// comparison with the revolution before: 18). A real overload is never called a breakage: the full-depth entry
 /// and the thesis' TIIM depth step (+38 %) hold as overloads with the monitor on.

@@ -638,15 +638,40 @@ fn random_program(segs: &[(u32, f32, u32)]) -> impl Fn(u32) -> f32 + '_ {
     }
 }
 
-/// The known false alarm (open, issue 10): a steady cut, then a step of the engagement to 2.3
-/// times over six tooth periods (1.5 revolutions) and a short hold: breakage declared at tooth
-/// period 136 (e1 164 N over its threshold 150 N, e2 -143 N over 86 N). The random-program property
-/// found it (about once in 2000 programs); the property below runs a fixed sample of 200 programs
-/// so the suite does not fail at random, and this case keeps the defect in sight until the
-/// detector is fixed. Run with `--ignored`.
+/// A steady cut, then a step of the engagement to 2.3 times over six tooth periods (1.5
+/// revolutions) and a short hold: once declared a breakage at tooth period 136 (e1 164 N over its
+/// threshold 150 N, e2 -143 N over 86 N: the suspicion at the step's tail, where every tooth
+/// still gained on its last revolution, confirmed by the revolution after it at the new level).
+/// The random-program property found it (19 false alarms in 20 000 programs before a suspicion
+/// asked for a loss, none after); the property runs a fixed sample so the suite is the same
+/// every run, and this case stays as its witness.
+/// A light cut (166 N) that fades out over 19 tooth periods, as the tool leaves the stock: once
+/// declared a breakage at tooth period 374 by the curvature confirmation (the sensor's 2 N of
+/// noise at 50 N bent the same slot by 0.1 twice, over the 0.06 the episode took at 166 N). The
+/// random-program property found it with another seed (one in about 80 000 programs).
 #[test]
-#[ignore = "known false alarm of the adaptive detector, open (issue 10)"]
-fn known_false_alarm_on_a_fast_step_after_a_steady_cut() {
+fn a_light_cuts_exit_is_not_a_breakage() {
+    let segs = [
+        (160u32, 0.0f32, 26u32),
+        (79, 0.0, 31),
+        (42, 0.267_691_58, 22),
+        (10, 0.0, 19),
+    ];
+    let mut d = det(ThresholdMode::Adaptive);
+    let m = Model {
+        base: 621.2721,
+        ..Model::new()
+    };
+    let eng = random_program(&segs);
+    let mut noise = Noise(188);
+    for j in 1..=480 {
+        let b = d.tooth_period(m.fa(j, eng(j), &mut noise));
+        assert_eq!(b, None, "j {j}");
+    }
+}
+
+#[test]
+fn a_fast_step_after_a_steady_cut_is_not_a_breakage() {
     let segs = [(94u32, 0.638_034_7f32, 29u32), (10, 1.494_978_5, 6)];
     let mut d = det(ThresholdMode::Adaptive);
     let m = Model {
@@ -662,10 +687,10 @@ fn known_false_alarm_on_a_fast_step_after_a_steady_cut() {
 }
 
 proptest! {
-    // A fixed sample (seed 1): the property fails at random otherwise, see
-    // `known_false_alarm_on_a_fast_step_after_a_steady_cut`.
+    // A fixed sample (seed 1): the same programs every run (a random one could find a case
+    // nobody has seen in a CI run; look for them with other seeds and more cases).
     #![proptest_config(ProptestConfig {
-        cases: 200,
+        cases: 2000,
         rng_seed: proptest::test_runner::RngSeed::Fixed(1),
         ..ProptestConfig::default()
     })]
