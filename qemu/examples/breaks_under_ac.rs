@@ -72,7 +72,7 @@ fn main() -> anyhow::Result<()> {
     for ((ci, tooth, t_s), r) in cases
         .iter()
         .zip(&res)
-        .filter(|(_, r)| spread == 1 || !told(*r))
+        .filter(|(_, r)| spread == 1 || !told(r))
     {
         let alarm = r.map_or("none".to_string(), |a| a.to_string());
         println!(
