@@ -495,6 +495,17 @@ mod tests {
         assert!(spread(late) >= 0.9 * spread(early));
     }
 
+    /// The GPC law at the defaults (nominal feed half of f_max) with its estimate set to `theta`.
+    fn gpc_from(theta: [f32; 5]) -> GpcLaw {
+        let mut law = GpcLaw::new(
+            NOMINAL_POLE,
+            0.5,
+            crate::ac::AcSettings::default().gpc_lambda,
+        );
+        law.rls.theta = theta;
+        law
+    }
+
     /// The estimate a 3D raster left after a plunge at the row's start (the alarm corpus,
     /// `millac_qemu::alarmlab`): a positive steady gain, but b0 < 0 and a step response whose sum
     /// over the horizon is negative. With a load of 1.5 % of the reference (too little to update
@@ -513,12 +524,7 @@ mod tests {
         // The premise: the steady gain alone would accept it, the horizon falls.
         assert!((b0 + b1 + b2) / (1.0 + a1 + a2) > 0.0);
         assert!(step_response(&theta).iter().sum::<f32>() < 0.0);
-        let mut law = GpcLaw::new(
-            NOMINAL_POLE,
-            0.5,
-            crate::ac::AcSettings::default().gpc_lambda,
-        );
-        law.rls.theta = theta;
+        let mut law = gpc_from(theta);
         let mut u = 0.02f32;
         for _ in 0..20 {
             u = law.next(0.015, u).clamp(0.02, 1.0);
@@ -547,12 +553,7 @@ mod tests {
         ];
         // The premise: its step response falls over the horizon.
         assert!(step_response(&theta).iter().sum::<f32>() < 0.0);
-        let mut law = GpcLaw::new(
-            NOMINAL_POLE,
-            0.5,
-            crate::ac::AcSettings::default().gpc_lambda,
-        );
-        law.rls.theta = theta;
+        let mut law = gpc_from(theta);
         law.rls.p = [
             [
                 1.750_869_3,

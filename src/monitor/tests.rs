@@ -620,6 +620,20 @@ fn break_on_an_entry_ramp_while_learning_is_detected_within_two_revolutions() {
     }
 }
 
+/// The first alarm of the adaptive detector on a sound tool cutting `segs` (see
+/// [`random_program`]) at `base` N per unit engagement with noise seed `seed`, over `n` tooth
+/// periods.
+fn sound_tool_alarm(segs: &[(u32, f32, u32)], base: f32, seed: u32, n: u32) -> Option<Breakage> {
+    let mut d = det(ThresholdMode::Adaptive);
+    let m = Model {
+        base,
+        ..Model::new()
+    };
+    let eng = random_program(segs);
+    let mut noise = Noise(seed);
+    (1..=n).find_map(|j| d.tooth_period(m.fa(j, eng(j), &mut noise)))
+}
+
 /// A random program: segments (hold length in tooth periods, engagement, transition length;
 /// engagement 0 is air).
 fn random_program(segs: &[(u32, f32, u32)]) -> impl Fn(u32) -> f32 + '_ {
@@ -657,33 +671,13 @@ fn a_light_cuts_exit_is_not_a_breakage() {
         (42, 0.267_691_58, 22),
         (10, 0.0, 19),
     ];
-    let mut d = det(ThresholdMode::Adaptive);
-    let m = Model {
-        base: 621.2721,
-        ..Model::new()
-    };
-    let eng = random_program(&segs);
-    let mut noise = Noise(188);
-    for j in 1..=480 {
-        let b = d.tooth_period(m.fa(j, eng(j), &mut noise));
-        assert_eq!(b, None, "j {j}");
-    }
+    assert_eq!(sound_tool_alarm(&segs, 621.2721, 188, 480), None);
 }
 
 #[test]
 fn a_fast_step_after_a_steady_cut_is_not_a_breakage() {
     let segs = [(94u32, 0.638_034_7f32, 29u32), (10, 1.494_978_5, 6)];
-    let mut d = det(ThresholdMode::Adaptive);
-    let m = Model {
-        base: 1133.218,
-        ..Model::new()
-    };
-    let eng = random_program(&segs);
-    let mut noise = Noise(53);
-    for j in 1..=239 {
-        let b = d.tooth_period(m.fa(j, eng(j), &mut noise));
-        assert_eq!(b, None, "j {j}");
-    }
+    assert_eq!(sound_tool_alarm(&segs, 1133.218, 53, 239), None);
 }
 
 proptest! {
@@ -701,15 +695,8 @@ proptest! {
         seed in 0u32..1000,
         base in 200.0f32..3000.0,
     ) {
-        let mut d = det(ThresholdMode::Adaptive);
-        let m = Model { base, ..Model::new() };
-        let eng = random_program(&segs);
-        let mut noise = Noise(seed);
         let n: u32 = segs.iter().map(|s| s.0 + s.2).sum::<u32>() + 100;
-        for j in 1..=n {
-            let b = d.tooth_period(m.fa(j, eng(j), &mut noise));
-            prop_assert_eq!(b, None, "j {}", j);
-        }
+        prop_assert_eq!(sound_tool_alarm(&segs, base, seed, n), None);
     }
 }
 
