@@ -283,25 +283,21 @@ fn chipped_tooth_detected_down_to_the_smallest_chip() {
     }
 }
 
-/// How many of 100 000 random programs (drawn as the property below draws them, from a fixed
-/// seed) a sound tool is declared broken on: the property's rate, measured over more programs
-/// than the suite runs.
+/// How many of 100 000 random programs (the property's, [`sound_programs`], from proptest's
+/// deterministic runner) a sound tool is declared broken on: the property's rate, measured over
+/// more programs than the suite runs.
 #[test]
 #[ignore = "a sweep that prints the false alarms on random programs"]
 fn false_alarm_sweep() {
-    let mut r = Noise(777);
-    let mut u = |lo: f32, hi: f32| lo + (hi - lo) * 0.5 * (r.next() + 1.0);
+    use proptest::strategy::ValueTree;
+    let mut runner = proptest::test_runner::TestRunner::deterministic();
     let n = 100_000;
     let mut alarms = 0;
     for _ in 0..n {
-        let k = u(1.0, 12.0) as usize;
-        let segs: std::vec::Vec<(u32, f32, u32)> = (0..k)
-            .map(|_| {
-                let e = if u(0.0, 1.0) < 0.5 { 0.0 } else { u(0.2, 1.8) };
-                (u(10.0, 200.0) as u32, e, u(1.0, 40.0) as u32)
-            })
-            .collect();
-        let (seed, base) = (u(0.0, 1000.0) as u32, u(200.0, 3000.0));
+        let (segs, seed, base) = sound_programs()
+            .new_tree(&mut runner)
+            .expect("a program")
+            .current();
         let len: u32 = segs.iter().map(|s| s.0 + s.2).sum::<u32>() + 100;
         if sound_tool_alarm(&segs, base, seed, len).is_some() {
             alarms += 1;
@@ -661,6 +657,19 @@ fn sound_tool_alarm(segs: &[(u32, f32, u32)], base: f32, seed: u32, n: u32) -> O
     (1..=n).find_map(|j| d.tooth_period(m.fa(j, eng(j), &mut noise)))
 }
 
+/// Random programs for a sound tool: segments (see [`random_program`]), the noise seed, the force
+/// per unit engagement in N.
+fn sound_programs() -> impl Strategy<Value = (std::vec::Vec<(u32, f32, u32)>, u32, f32)> {
+    (
+        proptest::collection::vec(
+            (10u32..200, prop_oneof![Just(0.0f32), 0.2f32..1.8], 1u32..40),
+            1..12,
+        ),
+        0u32..1000,
+        200.0f32..3000.0,
+    )
+}
+
 /// A random program: segments (hold length in tooth periods, engagement, transition length;
 /// engagement 0 is air).
 fn random_program(segs: &[(u32, f32, u32)]) -> impl Fn(u32) -> f32 + '_ {
@@ -698,8 +707,8 @@ fn a_light_cuts_exit_is_not_a_breakage() {
 /// revolutions) and a short hold: once declared a breakage at tooth period 136 (e1 164 N over its
 /// threshold 150 N, e2 -143 N over 86 N: the suspicion at the step's tail, where every tooth
 /// still gained on its last revolution, confirmed by the revolution after it at the new level).
-/// The random-program property found it (`false_alarm_sweep`: 76 false alarms in 100 000
-/// programs before a suspicion asked for a loss, none after); the property runs a fixed sample,
+/// The random-program property found it (`false_alarm_sweep`: 87 false alarms in 100 000
+/// programs before a suspicion asked for a loss, 1 after); the property runs a fixed sample,
 /// the same every run, and this case stays as its witness.
 #[test]
 fn a_fast_step_after_a_steady_cut_is_not_a_breakage() {
@@ -716,12 +725,7 @@ proptest! {
         ..ProptestConfig::default()
     })]
     #[test]
-    fn random_programs_with_a_sound_tool_never_alarm(
-        segs in proptest::collection::vec(
-            (10u32..200, prop_oneof![Just(0.0f32), 0.2f32..1.8], 1u32..40), 1..12),
-        seed in 0u32..1000,
-        base in 200.0f32..3000.0,
-    ) {
+    fn random_programs_with_a_sound_tool_never_alarm((segs, seed, base) in sound_programs()) {
         let n: u32 = segs.iter().map(|s| s.0 + s.2).sum::<u32>() + 100;
         prop_assert_eq!(sound_tool_alarm(&segs, base, seed, n), None);
     }
